@@ -1,0 +1,1 @@
+//! TD3 training with tch (libtorch), checkpoints and policy export.

@@ -1,0 +1,1 @@
+//! Simulation parser (TOSM -> world, SDF/URDF) and the headless simulator; no IO.

@@ -1,0 +1,1 @@
+//! TOSM vocabulary and typed model <-> RDF, with validation; no IO.

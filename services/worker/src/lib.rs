@@ -1,0 +1,1 @@
+//! Simulation worker service: durable job queue, job runners, plan endpoint, jobs API.
