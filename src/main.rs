@@ -1,1 +1,5 @@
-fn main() {}
+//! Entry point: everything happens in [`mentalsim::cli::main`].
+
+fn main() -> std::process::ExitCode {
+    mentalsim::cli::main()
+}

@@ -1,1 +1,5 @@
 //! Benchmark harnesses behind `mentalsim bench ...`.
+
+pub mod movingai;
+pub mod prm;
+pub mod sim;

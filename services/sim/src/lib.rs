@@ -1,1 +1,34 @@
 //! Simulation parser (TOSM -> world, SDF/URDF) and the headless simulator; no IO.
+//!
+//! The crate takes values and returns values: it opens no files, starts no threads of its own
+//! beyond rayon's pool for batches, and knows nothing of async runtimes.
+//!
+//! - [`spec`]: [`WorldSpec`], the typed and validated description of a world;
+//! - [`library`]: the model library and placeholders;
+//! - [`world`]: [`World`], the built world with exact laser casts and clearance queries;
+//! - [`kinematics`]: differential drive;
+//! - [`env`] and [`batch`]: the reinforcement-learning environment of the paper's §4.1.1;
+//! - [`render`]: top-down PNG and SVG pictures.
+
+pub mod batch;
+pub mod env;
+pub mod kinematics;
+pub mod library;
+mod raster;
+pub mod render;
+pub mod spec;
+pub mod world;
+
+pub use batch::{EnvBatch, env_seed};
+pub use env::{
+    EnvConfig, EnvError, NavEnv, NoiseConfig, Observation, Outcome, RewardConfig, StepInfo,
+    StepResult,
+};
+pub use kinematics::{Action, CommandLimits, DiffDrive};
+pub use library::{LibraryModel, Model};
+pub use spec::{
+    CameraSpec, Colour, DiffDriveSpec, GridMap, LaserSpec, ObjectSpec, Occupancy, OccupancyGrid,
+    Pose2, Pose3, Problem, Problems, RobotPartSpec, RobotSpec, Severity, Shape, Size3, WallSpec,
+    WheelSpec, WorldSpec,
+};
+pub use world::{BuildOptions, FreeRegion, World};

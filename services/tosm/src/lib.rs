@@ -1,1 +1,31 @@
 //! TOSM vocabulary and typed model <-> RDF, with validation; no IO.
+//!
+//! The crate takes values (strings, bytes, RDF graphs) and returns values: it opens no files,
+//! makes no network calls and knows nothing of async runtimes.
+//!
+//! - [`occupancy`]: ROS map_server maps (YAML + PGM/PNG) to occupancy grids and back to PNG.
+//! - [`vocab`]: the IRIs of the ontology in `ontologies/tosm.ttl`.
+//! - [`model`]: typed places, objects and robots.
+//! - [`read`](mod@crate::read) and [`write`](mod@crate::write): RDF graph to typed values and back, each reporting [`Problems`].
+
+pub mod model;
+pub mod occupancy;
+pub mod problems;
+pub mod read;
+pub mod vocab;
+pub mod write;
+
+pub use model::{
+    Camera, CameraKind, Colour, Joint, JointKind, Laser, MetricMap, Object, ObjectClass, Part,
+    Physical, Place, PlaceKind, Pose, Relation, RelationKind, Robot, Shape, StructuralPart, Symbol,
+    Wheel,
+};
+pub use occupancy::{MapError, Occupancy, OccupancyGrid, Pose2, RosMapMeta};
+pub use problems::{Problem, Problems};
+pub use read::{
+    read_objects, read_objects_lenient, read_places, read_places_lenient, read_robot, read_robots,
+};
+pub use write::{
+    metric_map_to_triples, object_to_triples, occupancy_grid_to_triples, place_to_triples,
+    robot_to_triples,
+};

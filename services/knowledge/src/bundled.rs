@@ -1,0 +1,94 @@
+//! The bundled knowledge loaded on first start: the TOSM ontology, the paper's differential
+//! robot and a sample building made from real maps, each in its own named graph so an engineer
+//! can replace one with a Graph Store PUT.
+
+use oxigraph::io::{RdfFormat, RdfParser};
+use oxigraph::model::NamedNodeRef;
+
+use crate::store::{KnowledgeStore, StoreError};
+
+/// One bundled file and the named graph it is loaded into.
+#[derive(Debug, Clone, Copy)]
+pub struct BundledGraph {
+    /// The named graph.
+    pub graph: &'static str,
+    /// Path under `ontologies/`, for messages.
+    pub file: &'static str,
+    /// The Turtle text, compiled into the binary so a fresh data directory needs no files.
+    pub turtle: &'static str,
+}
+
+/// Everything bundled, in load order.
+pub const BUNDLED: &[BundledGraph] = &[
+    BundledGraph {
+        graph: "https://mentalsim.dev/graph/ontology/tosm",
+        file: "tosm.ttl",
+        turtle: include_str!("../../../ontologies/tosm.ttl"),
+    },
+    BundledGraph {
+        graph: "https://mentalsim.dev/graph/robots/differential-robot",
+        file: "robots/differential-robot.ttl",
+        turtle: include_str!("../../../ontologies/robots/differential-robot.ttl"),
+    },
+    BundledGraph {
+        graph: "https://mentalsim.dev/graph/environments/sample-building",
+        file: "environments/sample-building.ttl",
+        turtle: include_str!("../../../ontologies/environments/sample-building.ttl"),
+    },
+];
+
+/// Loads the bundled graphs when the store is empty (a fresh data directory). A store that
+/// already holds data is left alone: engineers' edits survive restarts. Blocking.
+/// Returns whether anything was loaded.
+pub fn load_if_empty(store: &KnowledgeStore) -> Result<bool, StoreError> {
+    let storage = |source| StoreError::Storage {
+        path: store.path().to_owned(),
+        source,
+    };
+    if !store.inner().is_empty().map_err(storage)? {
+        return Ok(false);
+    }
+    for bundled in BUNDLED {
+        let parser = RdfParser::from_format(RdfFormat::Turtle)
+            .with_default_graph(NamedNodeRef::new_unchecked(bundled.graph));
+        store
+            .inner()
+            .load_from_slice(parser, bundled.turtle.as_bytes())
+            .map_err(|e| StoreError::Query {
+                path: store.path().to_owned(),
+                message: format!("bundled {} does not load: {e}", bundled.file),
+            })?;
+    }
+    crate::inference::refresh(store)?;
+    Ok(true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bundled_graphs_load_once_and_parse_as_tosm() {
+        let store = KnowledgeStore::in_memory().unwrap();
+        assert!(load_if_empty(&store).unwrap());
+        assert!(!load_if_empty(&store).unwrap(), "second start loads nothing");
+        for bundled in BUNDLED {
+            assert!(
+                store
+                    .inner()
+                    .contains_named_graph(NamedNodeRef::new_unchecked(bundled.graph))
+                    .unwrap()
+            );
+        }
+        // The entailments are there: the vending machine is a tosm:Object through its class.
+        let q = "PREFIX tosm: <https://mentalsim.dev/ontology/tosm#>
+                 ASK { GRAPH ?g { ?x a tosm:VendingMachine } GRAPH ?h { ?x a tosm:Object } }";
+        let answer = oxigraph::sparql::SparqlEvaluator::new()
+            .parse_query(q)
+            .unwrap()
+            .on_store(store.inner())
+            .execute()
+            .unwrap();
+        assert!(matches!(answer, oxigraph::sparql::QueryResults::Boolean(true)));
+    }
+}

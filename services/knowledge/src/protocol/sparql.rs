@@ -1,0 +1,270 @@
+//! `/sparql`: the SPARQL 1.1 Protocol's query operation (GET, POST form, POST direct), its
+//! update operation (POST form, POST direct), and the service description on a GET without a
+//! query.
+
+use std::sync::Arc;
+
+use axum::body::Bytes;
+use axum::extract::State;
+use axum::http::header::{ACCEPT, CONTENT_TYPE, VARY};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri};
+use axum::response::{IntoResponse, Response};
+use edge::{ApiError, ErrorCode};
+use oxigraph::model::NamedNode;
+use spargebra::{GraphUpdateOperation, Query, SparqlParser};
+
+use super::evaluation::{self, AnswerFormat, EvaluationError, ProtocolDataset};
+use super::negotiation::{self, Format, GRAPH_FORMATS};
+use super::{Deadline, Params, body_media_type, method_not_allowed, request_origin};
+use crate::auth::Role;
+use crate::service::Knowledge;
+
+const FORM: &str = "application/x-www-form-urlencoded";
+const SPARQL_QUERY: &str = "application/sparql-query";
+const SPARQL_UPDATE: &str = "application/sparql-update";
+
+/// GET: a query in `?query=`, or the service description when there is none.
+pub(super) async fn get(
+    State(knowledge): State<Arc<Knowledge>>,
+    uri: Uri,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    knowledge.tokens.authenticate(&headers)?;
+    let params = Params::of_uri(&uri)?;
+    if params.contains("update") {
+        return Ok(method_not_allowed(
+            "POST",
+            "a SPARQL update must be sent by POST (form or application/sparql-update), never GET",
+        ));
+    }
+    let endpoint = format!("{}{}", request_origin(&uri, &headers), uri.path());
+    match params.at_most_one("query")? {
+        Some(query) => answer_query(knowledge, &endpoint, query, &params, &headers).await,
+        None => super::service_description::answer(&endpoint, &params, &headers),
+    }
+}
+
+/// POST: a query or an update, URL-encoded in a form or directly as the body.
+pub(super) async fn post(
+    State(knowledge): State<Arc<Knowledge>>,
+    uri: Uri,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Result<Response, ApiError> {
+    knowledge.tokens.authenticate(&headers)?;
+    let mut params = Params::of_uri(&uri)?;
+    let endpoint = format!("{}{}", request_origin(&uri, &headers), uri.path());
+    let Some((media_type, utf8)) = body_media_type(&headers) else {
+        return Err(unsupported_body("no Content-Type"));
+    };
+    if !utf8 && [FORM, SPARQL_QUERY, SPARQL_UPDATE].contains(&media_type.as_str()) {
+        return Err(ApiError::bad_request(
+            "the body's charset must be UTF-8, the only encoding SPARQL requests may use",
+        ));
+    }
+    match media_type.as_str() {
+        FORM => {
+            // The protocol puts every parameter in the body; some clients leave the dataset or
+            // format parameters in the URL, so both count (a `query` in each is a duplicate).
+            let mut all = Params::parse(&body)?;
+            all.extend(params);
+            params = all;
+            match (params.at_most_one("query")?, params.at_most_one("update")?) {
+                (Some(query), None) => {
+                    answer_query(knowledge, &endpoint, query, &params, &headers).await
+                }
+                (None, Some(update)) => {
+                    apply_update(knowledge, &endpoint, update, &params, &headers).await
+                }
+                (Some(_), Some(_)) => Err(ApiError::bad_request(
+                    "the form has both `query` and `update`; send one operation per request",
+                )),
+                (None, None) => Err(ApiError::bad_request(
+                    "the form has neither a `query` nor an `update` parameter",
+                )),
+            }
+        }
+        SPARQL_QUERY | SPARQL_UPDATE => {
+            if params.contains("query") || params.contains("update") {
+                return Err(ApiError::bad_request(
+                    "the operation is in the body; the URL must not carry `query` or `update` too",
+                ));
+            }
+            let text = std::str::from_utf8(&body)
+                .map_err(|e| ApiError::bad_request(format!("the body is not UTF-8: {e}")))?;
+            if media_type == SPARQL_QUERY {
+                answer_query(knowledge, &endpoint, text, &params, &headers).await
+            } else {
+                apply_update(knowledge, &endpoint, text, &params, &headers).await
+            }
+        }
+        other => Err(unsupported_body(&format!("Content-Type `{other}`"))),
+    }
+}
+
+fn unsupported_body(what: &str) -> ApiError {
+    ApiError::new(
+        ErrorCode::UnsupportedMediaType,
+        format!(
+            "{what}: POST a query or update as {FORM}, a query as {SPARQL_QUERY}, or an update as \
+             {SPARQL_UPDATE}"
+        ),
+    )
+}
+
+async fn answer_query(
+    knowledge: Arc<Knowledge>,
+    endpoint: &str,
+    text: &str,
+    params: &Params,
+    headers: &HeaderMap,
+) -> Result<Response, ApiError> {
+    let query = parser(endpoint)?.parse_query(text).map_err(|e| {
+        ApiError::new(
+            ErrorCode::InvalidQuery,
+            format!("the query does not parse: {e}"),
+        )
+    })?;
+    let accept = headers.get(ACCEPT).and_then(|v| v.to_str().ok());
+    let hints = params.format_hints();
+    let format = match &query {
+        Query::Select { .. } => AnswerFormat::Results(negotiation::results_format(
+            accept,
+            &hints,
+            "a SELECT result",
+        )?),
+        Query::Ask { .. } => AnswerFormat::Results(negotiation::results_format(
+            accept,
+            &hints,
+            "an ASK result",
+        )?),
+        Query::Construct { .. } | Query::Describe { .. } => AnswerFormat::Rdf(
+            negotiation::rdf_format(accept, &hints, GRAPH_FORMATS, "a graph result")?,
+        ),
+    };
+    let content_type = negotiation::content_type(match format {
+        AnswerFormat::Results(f) => Format::Results(f),
+        AnswerFormat::Rdf(f) => Format::Rdf(f),
+    });
+    let dataset = protocol_dataset(params, "default-graph-uri", "named-graph-uri")?;
+    let limits = knowledge.limits;
+    let deadline = Deadline::start(limits.deadline);
+    let (token, exceeded) = (deadline.token(), deadline.exceeded());
+    let body = deadline
+        .read(move || {
+            let store = knowledge.store()?;
+            evaluation::run_query(
+                store.inner(),
+                query,
+                dataset.as_ref(),
+                format,
+                limits.max_construct_triples,
+                token,
+            )
+            .map_err(|e| evaluation_error(e, &exceeded))
+        })
+        .await?;
+    Ok((
+        [
+            (CONTENT_TYPE, HeaderValue::from_static(content_type)),
+            (VARY, HeaderValue::from_static("accept")),
+        ],
+        body,
+    )
+        .into_response())
+}
+
+async fn apply_update(
+    knowledge: Arc<Knowledge>,
+    endpoint: &str,
+    text: &str,
+    params: &Params,
+    headers: &HeaderMap,
+) -> Result<Response, ApiError> {
+    knowledge.tokens.require(headers, Role::Engineer)?;
+    let update = parser(endpoint)?.parse_update(text).map_err(|e| {
+        ApiError::new(
+            ErrorCode::InvalidQuery,
+            format!("the update does not parse: {e}"),
+        )
+    })?;
+    let dataset = protocol_dataset(params, "using-graph-uri", "using-named-graph-uri")?;
+    let names_its_own_dataset = update.operations.iter().any(|operation| {
+        matches!(
+            operation,
+            GraphUpdateOperation::DeleteInsert { using: Some(_), .. }
+        )
+    });
+    if dataset.is_some() && names_its_own_dataset {
+        return Err(ApiError::bad_request(
+            "using-graph-uri/using-named-graph-uri cannot be combined with an update that has \
+             its own USING or WITH clause",
+        ));
+    }
+    let deadline = Deadline::start(knowledge.limits.deadline);
+    let (token, exceeded) = (deadline.token(), deadline.exceeded());
+    deadline
+        .write(move || {
+            let store = knowledge.store()?;
+            evaluation::run_update(store.inner(), update, dataset.as_ref(), token)
+                .map_err(|e| evaluation_error(e, &exceeded))?;
+            knowledge.after_write().map_err(ApiError::internal)
+        })
+        .await?;
+    Ok(StatusCode::NO_CONTENT.into_response())
+}
+
+/// The parser for operations sent to `endpoint`, which is also their base IRI (the protocol
+/// lets the service choose it, and the endpoint is the natural one).
+fn parser(endpoint: &str) -> Result<SparqlParser, ApiError> {
+    SparqlParser::new().with_base_iri(endpoint).map_err(|e| {
+        ApiError::bad_request(format!(
+            "the request URL `{endpoint}` is not a usable base IRI: {e}"
+        ))
+    })
+}
+
+/// The dataset named by two protocol parameters, each repeatable.
+fn protocol_dataset(
+    params: &Params,
+    default_name: &str,
+    named_name: &str,
+) -> Result<Option<ProtocolDataset>, ApiError> {
+    let iris = |name: &str| -> Result<Vec<NamedNode>, ApiError> {
+        params
+            .all(name)
+            .map(|value| {
+                NamedNode::new(value).map_err(|e| {
+                    ApiError::bad_request(format!(
+                        "`{name}` value `{value}` is not an absolute IRI: {e}"
+                    ))
+                })
+            })
+            .collect()
+    };
+    Ok(ProtocolDataset::from_iris(
+        &iris(default_name)?,
+        &iris(named_name)?,
+    ))
+}
+
+/// The HTTP error for an evaluation failure; `exceeded` is the deadline's own message.
+pub(super) fn evaluation_error(e: EvaluationError, exceeded: &ApiError) -> ApiError {
+    match e {
+        EvaluationError::Cancelled => exceeded.clone(),
+        EvaluationError::TooLarge { limit } => ApiError::new(
+            ErrorCode::ResultTooLarge,
+            format!(
+                "the result has more than {limit} triples, the configured cap; narrow the query \
+                 or add a LIMIT"
+            ),
+        ),
+        EvaluationError::Invalid(message) => ApiError::new(ErrorCode::InvalidQuery, message),
+        EvaluationError::Conflict(message) => ApiError::new(ErrorCode::Conflict, message),
+        EvaluationError::NotFound(message) => ApiError::not_found(message),
+        e @ EvaluationError::Unserializable { .. } => {
+            ApiError::new(ErrorCode::NotAcceptable, e.to_string())
+        }
+        EvaluationError::Storage(message) => ApiError::internal(message),
+    }
+}

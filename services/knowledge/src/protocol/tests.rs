@@ -1,0 +1,86 @@
+//! Tests that need the module's insides: the deadline guard, and a client that hangs up while
+//! its query runs.
+
+#![allow(clippy::unwrap_used)] // reason: tests
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use super::*;
+use crate::{KnowledgeStore, QueryLimits, Tokens};
+
+#[tokio::test]
+async fn dropping_the_deadline_cancels_its_token() {
+    let deadline = Deadline::start(Duration::from_secs(60));
+    let token = deadline.token();
+    assert!(!token.is_cancelled());
+    drop(deadline);
+    assert!(token.is_cancelled());
+}
+
+#[tokio::test]
+async fn the_deadline_cancels_its_token_when_it_passes() {
+    let deadline = Deadline::start(Duration::from_millis(50));
+    let token = deadline.token();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert!(token.is_cancelled());
+}
+
+#[test]
+fn params_decode_once_and_reject_invalid_utf8() {
+    let params = Params::parse(b"graph=http://e/%2531&q=a+b%20c&default").unwrap();
+    assert_eq!(params.at_most_one("graph").unwrap(), Some("http://e/%31"));
+    assert_eq!(params.at_most_one("q").unwrap(), Some("a b c"));
+    assert!(params.contains("default"));
+    assert!(Params::parse(b"query=%FF").is_err());
+    assert!(Params::parse(b"a=1&a=2").unwrap().at_most_one("a").is_err());
+}
+
+/// A query that scans, so Oxigraph checks its cancellation token all the time.
+const SLOW: &str = "SELECT * WHERE { ?a ?b ?c . ?d ?e ?f . ?g ?h ?i }";
+
+/// Regression: a client that disconnects must not leave its query running. Dropping the
+/// handler's future does not stop a blocking evaluation; the deadline guard's `Drop` does.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_hangs_up_stops_its_query() {
+    let store = KnowledgeStore::in_memory().unwrap();
+    let turtle: String = (0..1000)
+        .map(|i| format!("<http://example.org/s{i}> <http://example.org/p> {i} .\n"))
+        .collect();
+    store
+        .inner()
+        .load_from_slice(oxigraph::io::RdfFormat::Turtle, turtle.as_bytes())
+        .unwrap();
+    let limits = QueryLimits {
+        deadline: Duration::from_secs(120),
+        max_construct_triples: 10,
+    };
+    let knowledge = Arc::new(Knowledge::new(store, Tokens::open(), limits));
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let address = listener.local_addr().unwrap();
+    tokio::spawn(async move { axum::serve(listener, router(knowledge)).await });
+
+    let client = reqwest::Client::builder()
+        .timeout(Duration::from_millis(500))
+        .build()
+        .unwrap();
+    let request = client
+        .get(format!("http://{address}/sparql"))
+        .query(&[("query", SLOW)])
+        .send();
+    let started = Instant::now();
+    let wait_running = async {
+        while running_reads() == 0 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    };
+    let (result, ()) = tokio::join!(request, wait_running);
+    assert!(result.unwrap_err().is_timeout(), "the client gave up");
+    while running_reads() > 0 {
+        assert!(
+            started.elapsed() < Duration::from_secs(10),
+            "the query still runs after its client left"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}

@@ -1,0 +1,127 @@
+//! The knowledge service's shared state: the store, the tokens, the query limits, and what
+//! must happen after every write.
+
+use std::sync::{Mutex, PoisonError};
+use std::time::Duration;
+
+use edge::{ApiError, ErrorCode};
+
+use crate::auth::Tokens;
+use crate::store::{KnowledgeStore, StoreError};
+
+/// Limits on SPARQL evaluation.
+#[derive(Debug, Clone, Copy)]
+pub struct QueryLimits {
+    /// Wall-clock budget of one query or update; past it the evaluation is cancelled.
+    pub deadline: Duration,
+    /// Largest number of triples a CONSTRUCT/DESCRIBE may return; beyond it the answer is an
+    /// error, never a truncated graph.
+    pub max_construct_triples: usize,
+}
+
+impl Default for QueryLimits {
+    fn default() -> Self {
+        Self {
+            deadline: Duration::from_secs(30),
+            max_construct_triples: 5_000_000,
+        }
+    }
+}
+
+type Opener = Box<dyn Fn() -> Result<KnowledgeStore, StoreError> + Send + Sync>;
+
+/// Everything a knowledge handler needs. Shared behind an `Arc`.
+///
+/// The store may open late: when the data directory is unusable at start, handlers answer
+/// 503 `not_ready` with the reason, and the next request after the cause is fixed opens it.
+pub struct Knowledge {
+    opener: Opener,
+    store: Mutex<Option<KnowledgeStore>>,
+    /// Who may do what.
+    pub tokens: Tokens,
+    /// SPARQL limits.
+    pub limits: QueryLimits,
+    refresh_lock: Mutex<()>,
+}
+
+impl std::fmt::Debug for Knowledge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Knowledge")
+            .field("tokens", &self.tokens)
+            .field("limits", &self.limits)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Knowledge {
+    /// A service over an open store.
+    pub fn new(store: KnowledgeStore, tokens: Tokens, limits: QueryLimits) -> Self {
+        let mut service = Self::lazy(
+            || Err(StoreError::Query {
+                path: "(none)".into(),
+                message: "no opener".to_owned(),
+            }),
+            tokens,
+            limits,
+        );
+        service.store = Mutex::new(Some(store));
+        service
+    }
+
+    /// A service whose store is opened by `opener` on first use, and again on every use until
+    /// it succeeds.
+    pub fn lazy(
+        opener: impl Fn() -> Result<KnowledgeStore, StoreError> + Send + Sync + 'static,
+        tokens: Tokens,
+        limits: QueryLimits,
+    ) -> Self {
+        Self {
+            opener: Box::new(opener),
+            store: Mutex::new(None),
+            tokens,
+            limits,
+            refresh_lock: Mutex::new(()),
+        }
+    }
+
+    /// The store, opening it if needed. Blocking the first time (RocksDB opens its files).
+    pub fn try_store(&self) -> Result<KnowledgeStore, StoreError> {
+        let mut slot = self.store.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(store) = slot.as_ref() {
+            return Ok(store.clone());
+        }
+        let store = (self.opener)()?;
+        *slot = Some(store.clone());
+        Ok(store)
+    }
+
+    /// The store for a handler: 503 `not_ready` naming the cause when it cannot be opened.
+    pub fn store(&self) -> Result<KnowledgeStore, ApiError> {
+        self.try_store().map_err(|e| {
+            ApiError::new(
+                ErrorCode::NotReady,
+                format!("the graph store is unavailable: {e}"),
+            )
+        })
+    }
+
+    /// The store if it is already open, without trying to open it.
+    pub fn opened_store(&self) -> Option<KnowledgeStore> {
+        self.store
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Must be called after every successful write (SPARQL update, Graph Store PUT/POST/DELETE,
+    /// imports): brings the materialised entailments up to date. Blocking.
+    pub fn after_write(&self) -> Result<(), StoreError> {
+        let store = self.try_store()?;
+        // Serialised: two concurrent rebuilds would race on clearing the inferred graph.
+        let _guard = self
+            .refresh_lock
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        crate::inference::refresh(&store).map(|_| ())
+    }
+}

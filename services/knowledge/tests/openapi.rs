@@ -1,0 +1,22 @@
+//! The committed OpenAPI document (`openapi/knowledge.json`) must match the code. Refresh it
+//! with `UPDATE_OPENAPI=1 cargo test -p knowledge --test openapi`.
+
+use utoipa::OpenApi;
+
+#[test]
+fn committed_openapi_document_matches_the_code() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../openapi/knowledge.json");
+    let generated = knowledge::api::KnowledgeApi::openapi()
+        .to_pretty_json()
+        .expect("the document serialises");
+    if std::env::var_os("UPDATE_OPENAPI").is_some() {
+        std::fs::write(&path, format!("{generated}\n")).expect("write openapi/knowledge.json");
+        return;
+    }
+    let committed = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        committed.trim_end() == generated.trim_end(),
+        "openapi/knowledge.json is out of date with the code: run \
+         `UPDATE_OPENAPI=1 cargo test -p knowledge --test openapi` and commit the result"
+    );
+}

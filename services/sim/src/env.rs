@@ -1,0 +1,617 @@
+//! The reinforcement-learning environment of the paper's §4.1.1: sparse laser ranges and the goal
+//! as (r, θ) in, a velocity command out, the reward of Eq. 1, Gaussian noise on observations and
+//! on executed commands; deterministic for a seed.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+use crate::kinematics::{Action, CommandLimits, DiffDrive, integrate, wrap_angle};
+use crate::spec::Pose2;
+use crate::world::World;
+
+/// Standard deviations of the Gaussian noise (paper §4.1.1: "Gaussian errors to input and
+/// output data"; the paper gives no values, these are ours).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct NoiseConfig {
+    /// On each laser range, metres.
+    pub range: f64,
+    /// On the goal distance, metres.
+    pub goal_distance: f64,
+    /// On the goal angle, radians.
+    pub goal_angle: f64,
+    /// On the executed linear velocity, m/s.
+    pub linear: f64,
+    /// On the executed angular velocity, rad/s.
+    pub angular: f64,
+}
+
+impl Default for NoiseConfig {
+    fn default() -> Self {
+        Self {
+            range: 0.02,
+            goal_distance: 0.02,
+            goal_angle: 0.01,
+            linear: 0.02,
+            angular: 0.02,
+        }
+    }
+}
+
+impl NoiseConfig {
+    /// No noise at all.
+    pub fn none() -> Self {
+        Self {
+            range: 0.0,
+            goal_distance: 0.0,
+            goal_angle: 0.0,
+            linear: 0.0,
+            angular: 0.0,
+        }
+    }
+}
+
+/// The constants of Eq. 1, all positive: `completion - t * time` on arrival at time `t` (seconds),
+/// `closer` for a step that gets closer to the goal, `-collision` when too close to an obstacle,
+/// and 0 otherwise.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct RewardConfig {
+    /// r_completion.
+    pub completion: f64,
+    /// r_time, per second of the episode.
+    pub time: f64,
+    /// r_closer.
+    pub closer: f64,
+    /// r_collision.
+    pub collision: f64,
+}
+
+impl Default for RewardConfig {
+    fn default() -> Self {
+        Self {
+            completion: 100.0,
+            time: 1.0,
+            closer: 0.5,
+            collision: 100.0,
+        }
+    }
+}
+
+/// Settings of an environment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvConfig {
+    /// Number of equally spaced laser readings in an observation (the paper: 23).
+    pub beams: usize,
+    /// Control period, seconds (the paper: 0.1).
+    pub control_period: f64,
+    /// Range of commands.
+    pub limits: CommandLimits,
+    /// Noise.
+    pub noise: NoiseConfig,
+    /// Reward constants.
+    pub reward: RewardConfig,
+    /// The goal is reached within this distance, metres.
+    pub goal_tolerance: f64,
+    /// "Too close to an obstacle": a footprint clearance below this is a collision, metres.
+    pub collision_clearance: f64,
+    /// Episodes end after this many steps.
+    pub max_steps: u32,
+    /// Distance range between start and goal for random resets, metres (min, max).
+    pub goal_distance: (f64, f64),
+    /// Whether to keep the poses of the episode (for renders and plan validation).
+    pub record_trajectory: bool,
+}
+
+impl Default for EnvConfig {
+    fn default() -> Self {
+        Self {
+            beams: 23,
+            control_period: 0.1,
+            limits: CommandLimits::default(),
+            noise: NoiseConfig::default(),
+            reward: RewardConfig::default(),
+            goal_tolerance: 0.3,
+            collision_clearance: 0.02,
+            max_steps: 500,
+            goal_distance: (2.0, 10.0),
+            record_trajectory: false,
+        }
+    }
+}
+
+/// What the policy sees.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Observation {
+    /// Laser ranges, metres, from the rightmost beam to the leftmost.
+    pub ranges: Vec<f32>,
+    /// Distance to the goal, metres.
+    pub goal_distance: f32,
+    /// Bearing of the goal in the robot frame, radians in (-π, π], counter-clockwise.
+    pub goal_angle: f32,
+}
+
+impl Observation {
+    /// Number of values: the ranges and the goal's two.
+    pub fn len(&self) -> usize {
+        self.ranges.len() + 2
+    }
+
+    /// Whether there are no values (never: the goal is always there).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Ranges then goal distance and angle, as one vector for a network.
+    pub fn to_vec(&self) -> Vec<f32> {
+        let mut v = Vec::with_capacity(self.len());
+        v.extend_from_slice(&self.ranges);
+        v.push(self.goal_distance);
+        v.push(self.goal_angle);
+        v
+    }
+}
+
+/// How an episode stands after a step.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Outcome {
+    /// Still going.
+    Running,
+    /// Within the goal tolerance.
+    ReachedGoal,
+    /// Too close to an obstacle.
+    Collision,
+    /// Out of steps (a truncation, not a failure of the policy).
+    TimeLimit,
+}
+
+/// Details of a step beyond the reward.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepInfo {
+    /// How the episode stands.
+    pub outcome: Outcome,
+    /// True pose after the step.
+    pub pose: Pose2,
+    /// The command as executed (after limits and noise).
+    pub executed: Action,
+    /// Smallest footprint clearance during the step, metres (see [`World::clearance`]).
+    pub min_clearance: f64,
+    /// True distance to the goal, metres.
+    pub distance_to_goal: f64,
+    /// Steps taken in this episode.
+    pub steps: u32,
+    /// Simulated time of this episode, seconds.
+    pub time_s: f64,
+}
+
+/// The result of [`NavEnv::step`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepResult {
+    /// The observation after the step.
+    pub observation: Observation,
+    /// Eq. 1.
+    pub reward: f64,
+    /// Whether the episode has ended (any outcome but `Running`).
+    pub done: bool,
+    /// Details.
+    pub info: StepInfo,
+    /// Set only by [`crate::EnvBatch`] with auto-reset: the first observation of the episode
+    /// that started because this one ended.
+    pub reset_observation: Option<Observation>,
+}
+
+/// Why an environment could not be made or reset.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum EnvError {
+    /// A setting is out of range.
+    #[error("invalid environment setting `{field}`: {message}")]
+    Config {
+        /// The setting.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The start is not finite or the robot does not fit there.
+    #[error("the robot does not fit at the start ({x:.3}, {y:.3}): clearance {clearance:.3} m; nearest free point {nearest_free:?}")]
+    StartBlocked {
+        /// Start x.
+        x: f64,
+        /// Start y.
+        y: f64,
+        /// Footprint clearance there, metres.
+        clearance: f64,
+        /// The nearest point of the free region, if any.
+        nearest_free: Option<(f64, f64)>,
+    },
+    /// The goal is not finite or the robot does not fit there.
+    #[error("the goal ({x:.3}, {y:.3}) is inside an obstacle: the robot does not fit there; nearest free point {nearest_free:?}")]
+    GoalBlocked {
+        /// Goal x.
+        x: f64,
+        /// Goal y.
+        y: f64,
+        /// The nearest point of the free region, if any.
+        nearest_free: Option<(f64, f64)>,
+    },
+    /// The robot fits nowhere in the world.
+    #[error("the world has no free region large enough for the robot")]
+    NoFreeRegion,
+    /// No goal in the requested distance range was found from the sampled starts.
+    #[error("found no free goal between {min} and {max} m from a start in the free region")]
+    NoGoalInRange {
+        /// Smallest distance asked for.
+        min: f64,
+        /// Largest distance asked for.
+        max: f64,
+    },
+}
+
+/// A navigation environment in a shared world.
+#[derive(Clone, Debug)]
+pub struct NavEnv {
+    world: Arc<World>,
+    config: EnvConfig,
+    drive: DiffDrive,
+    /// (cos, sin) of each beam relative to the sensor.
+    dirs: Vec<(f64, f64)>,
+    rng: ChaCha8Rng,
+    pose: Pose2,
+    goal: (f64, f64),
+    executed: Action,
+    steps: u32,
+    distance: f64,
+    outcome: Outcome,
+    started: bool,
+    ranges: Vec<f64>,
+    trajectory: Vec<Pose2>,
+    last_observation: Option<Observation>,
+}
+
+impl NavEnv {
+    /// An environment in `world` whose randomness all comes from `seed`.
+    pub fn new(world: Arc<World>, config: EnvConfig, seed: u64) -> Result<NavEnv, EnvError> {
+        check_config(&config)?;
+        let laser = &world.spec().robot.laser;
+        let angles = laser.beam_angles(config.beams).ok_or_else(|| EnvError::Config {
+            field: "beams",
+            message: format!(
+                "{} beams cannot be picked from a laser with {} samples",
+                config.beams, laser.samples
+            ),
+        })?;
+        let dirs = angles.iter().map(|a| (a.cos(), a.sin())).collect();
+        let drive = DiffDrive::new(world.spec().robot.drive.clone());
+        Ok(NavEnv {
+            drive,
+            dirs,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            pose: Pose2::new(0.0, 0.0, 0.0),
+            goal: (0.0, 0.0),
+            executed: Action::default(),
+            steps: 0,
+            distance: 0.0,
+            outcome: Outcome::Running,
+            started: false,
+            ranges: vec![0.0; config.beams],
+            trajectory: Vec::new(),
+            last_observation: None,
+            world,
+            config,
+        })
+    }
+
+    /// The world.
+    pub fn world(&self) -> &Arc<World> {
+        &self.world
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &EnvConfig {
+        &self.config
+    }
+
+    /// True pose of the robot.
+    pub fn pose(&self) -> Pose2 {
+        self.pose
+    }
+
+    /// The goal.
+    pub fn goal(&self) -> (f64, f64) {
+        self.goal
+    }
+
+    /// Poses of the current episode, when the configuration records them.
+    pub fn trajectory(&self) -> &[Pose2] {
+        &self.trajectory
+    }
+
+    /// Angles of the observation's beams relative to the laser, radians.
+    pub fn beam_angles(&self) -> Vec<f64> {
+        self.dirs.iter().map(|(c, s)| s.atan2(*c)).collect()
+    }
+
+    /// Starts an episode at `start` with goal `goal`.
+    pub fn reset(&mut self, start: Pose2, goal: (f64, f64)) -> Result<Observation, EnvError> {
+        let clearance = if start.x.is_finite() && start.y.is_finite() && start.yaw.is_finite() {
+            self.world.clearance(start.x, start.y)
+        } else {
+            f64::NEG_INFINITY
+        };
+        if !(clearance >= self.config.collision_clearance) {
+            return Err(EnvError::StartBlocked {
+                x: start.x,
+                y: start.y,
+                clearance,
+                nearest_free: self.world.nearest_free_point(start.x, start.y),
+            });
+        }
+        let goal_ok = goal.0.is_finite() && goal.1.is_finite() && self.world.clearance(goal.0, goal.1) > 0.0;
+        if !goal_ok {
+            return Err(EnvError::GoalBlocked {
+                x: goal.0,
+                y: goal.1,
+                nearest_free: self.world.nearest_free_point(goal.0, goal.1),
+            });
+        }
+        Ok(self.begin(Pose2::new(start.x, start.y, wrap_angle(start.yaw)), goal))
+    }
+
+    /// Starts an episode at a random start with a random goal, both in the world's free region,
+    /// the goal at a distance within the configured range.
+    pub fn reset_random(&mut self) -> Result<Observation, EnvError> {
+        let (start, goal) = self.sample_start_goal()?;
+        Ok(self.begin(start, goal))
+    }
+
+    /// A random start pose and goal as [`NavEnv::reset_random`] draws them.
+    pub fn sample_start_goal(&mut self) -> Result<(Pose2, (f64, f64)), EnvError> {
+        let world = Arc::clone(&self.world);
+        let n = world.free_region().len();
+        if n == 0 {
+            return Err(EnvError::NoFreeRegion);
+        }
+        let (dmin, dmax) = self.config.goal_distance;
+        for _ in 0..64 {
+            let Some(s) = self.region_point(&world, n) else {
+                break;
+            };
+            if world.clearance(s.0, s.1) < self.config.collision_clearance {
+                continue;
+            }
+            // Goals uniform over the annulus's area, kept if they land in the free region.
+            for _ in 0..64 {
+                let u: f64 = self.rng.random();
+                let r = (dmin * dmin + u * (dmax * dmax - dmin * dmin)).sqrt();
+                let a: f64 = self.rng.random::<f64>() * 2.0 * PI;
+                let g = (s.0 + r * a.cos(), s.1 + r * a.sin());
+                if world.in_free_region(g.0, g.1) && world.clearance(g.0, g.1) > 0.0 {
+                    let yaw = wrap_angle(self.rng.random::<f64>() * 2.0 * PI - PI);
+                    return Ok((Pose2::new(s.0, s.1, yaw), g));
+                }
+            }
+        }
+        Err(EnvError::NoGoalInRange {
+            min: dmin,
+            max: dmax,
+        })
+    }
+
+    fn region_point(&mut self, world: &World, n: usize) -> Option<(f64, f64)> {
+        let pick = self.rng.random_range(0..n);
+        let (u, v): (f64, f64) = (self.rng.random(), self.rng.random());
+        world.region_point(pick, u, v)
+    }
+
+    fn begin(&mut self, start: Pose2, goal: (f64, f64)) -> Observation {
+        self.pose = start;
+        self.goal = goal;
+        self.executed = Action::default();
+        self.steps = 0;
+        self.distance = (goal.0 - start.x).hypot(goal.1 - start.y);
+        self.outcome = Outcome::Running;
+        self.started = true;
+        self.trajectory.clear();
+        if self.config.record_trajectory {
+            self.trajectory.push(start);
+        }
+        let obs = self.observe();
+        self.last_observation = Some(obs.clone());
+        obs
+    }
+
+    /// Applies `action` for one control period.
+    ///
+    /// Stepping an episode that has ended (or never started) changes nothing and returns the
+    /// last observation again with `done` set and zero reward.
+    pub fn step(&mut self, action: Action) -> StepResult {
+        if !self.started || self.outcome != Outcome::Running {
+            return StepResult {
+                observation: self.last_observation.clone().unwrap_or_else(|| Observation {
+                    ranges: vec![0.0; self.config.beams],
+                    goal_distance: 0.0,
+                    goal_angle: 0.0,
+                }),
+                reward: 0.0,
+                done: true,
+                info: self.info(f64::NAN),
+                reset_observation: None,
+            };
+        }
+        let cfg = &self.config;
+        let dt = cfg.control_period;
+        let wanted = cfg.limits.clamp(action);
+        let noisy = Action {
+            linear: wanted.linear + gauss(&mut self.rng, cfg.noise.linear),
+            angular: wanted.angular + gauss(&mut self.rng, cfg.noise.angular),
+        };
+        let exec = self.drive.execute(self.executed, noisy, dt);
+        self.executed = exec;
+
+        // Check the footprint along the arc often enough that no wall thinner than the robot can
+        // be crossed between two checks: every half radius of travel.
+        let radius = self.world.spec().robot.footprint_radius;
+        let travel = exec.linear.abs() * dt;
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "a small positive count, bounded by the clamp"
+        )]
+        let n = ((travel / (0.5 * radius)).ceil() as usize).clamp(1, 1000);
+        let start = self.pose;
+        let mut min_clearance = f64::INFINITY;
+        let mut collided = false;
+        for k in 1..=n {
+            #[allow(clippy::cast_precision_loss, reason = "k <= 1000")]
+            let p = integrate(start, exec, dt * k as f64 / n as f64);
+            let c = self.world.clearance(p.x, p.y);
+            min_clearance = min_clearance.min(c);
+            self.pose = p;
+            if c < cfg.collision_clearance {
+                collided = true;
+                break;
+            }
+        }
+        self.steps += 1;
+        if cfg.record_trajectory {
+            self.trajectory.push(self.pose);
+        }
+        let time_s = f64::from(self.steps) * dt;
+        let distance = (self.goal.0 - self.pose.x).hypot(self.goal.1 - self.pose.y);
+        self.outcome = if collided {
+            Outcome::Collision
+        } else if distance <= cfg.goal_tolerance {
+            Outcome::ReachedGoal
+        } else if self.steps >= cfg.max_steps {
+            Outcome::TimeLimit
+        } else {
+            Outcome::Running
+        };
+        let r = &cfg.reward;
+        let reward = match self.outcome {
+            Outcome::ReachedGoal => r.completion - time_s * r.time,
+            Outcome::Collision => -r.collision,
+            Outcome::Running | Outcome::TimeLimit if distance < self.distance => r.closer,
+            Outcome::Running | Outcome::TimeLimit => 0.0,
+        };
+        self.distance = distance;
+        let observation = self.observe();
+        self.last_observation = Some(observation.clone());
+        StepResult {
+            observation,
+            reward,
+            done: self.outcome != Outcome::Running,
+            info: self.info(min_clearance),
+            reset_observation: None,
+        }
+    }
+
+    fn info(&self, min_clearance: f64) -> StepInfo {
+        StepInfo {
+            outcome: self.outcome,
+            pose: self.pose,
+            executed: self.executed,
+            min_clearance,
+            distance_to_goal: self.distance,
+            steps: self.steps,
+            time_s: f64::from(self.steps) * self.config.control_period,
+        }
+    }
+
+    /// The noisy observation at the current pose.
+    #[allow(clippy::cast_possible_truncation, reason = "observations are f32 by design")]
+    fn observe(&mut self) -> Observation {
+        self.world.scan_dirs(self.pose, &self.dirs, &mut self.ranges);
+        let laser = &self.world.spec().robot.laser;
+        let (lo, hi) = (laser.range_min, laser.range_max);
+        let noise = self.config.noise;
+        let ranges = self
+            .ranges
+            .iter()
+            .map(|r| (r + gauss(&mut self.rng, noise.range)).clamp(lo, hi) as f32)
+            .collect();
+        let (dx, dy) = (self.goal.0 - self.pose.x, self.goal.1 - self.pose.y);
+        let dist = dx.hypot(dy) + gauss(&mut self.rng, noise.goal_distance);
+        let angle = wrap_angle(dy.atan2(dx) - self.pose.yaw + gauss(&mut self.rng, noise.goal_angle));
+        Observation {
+            ranges,
+            goal_distance: dist.max(0.0) as f32,
+            goal_angle: angle as f32,
+        }
+    }
+}
+
+/// A normal draw with standard deviation `sd`; no draw at all when `sd` is 0, so noiseless
+/// environments consume no randomness.
+#[inline]
+fn gauss(rng: &mut ChaCha8Rng, sd: f64) -> f64 {
+    if sd == 0.0 {
+        0.0
+    } else {
+        let z: f64 = rng.sample(StandardNormal);
+        z * sd
+    }
+}
+
+fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
+    let bad = |field: &'static str, message: String| Err(EnvError::Config { field, message });
+    let pos = |v: f64| v.is_finite() && v > 0.0;
+    let nonneg = |v: f64| v.is_finite() && v >= 0.0;
+    if c.beams == 0 {
+        return bad("beams", "at least one beam is needed".into());
+    }
+    if !pos(c.control_period) {
+        return bad(
+            "control_period",
+            format!("must be a positive number of seconds, got {}", c.control_period),
+        );
+    }
+    let l = &c.limits;
+    if !(l.linear_min.is_finite() && l.linear_max.is_finite() && l.linear_min <= l.linear_max) {
+        return bad(
+            "limits.linear",
+            format!("need min <= max, got [{}, {}]", l.linear_min, l.linear_max),
+        );
+    }
+    if !nonneg(l.angular_max) {
+        return bad("limits.angular_max", format!("must be finite and not negative, got {}", l.angular_max));
+    }
+    let n = &c.noise;
+    for (field, v) in [
+        ("noise.range", n.range),
+        ("noise.goal_distance", n.goal_distance),
+        ("noise.goal_angle", n.goal_angle),
+        ("noise.linear", n.linear),
+        ("noise.angular", n.angular),
+    ] {
+        if !nonneg(v) {
+            return bad(field, format!("a standard deviation must be finite and not negative, got {v}"));
+        }
+    }
+    let r = &c.reward;
+    for (field, v) in [
+        ("reward.completion", r.completion),
+        ("reward.time", r.time),
+        ("reward.closer", r.closer),
+        ("reward.collision", r.collision),
+    ] {
+        if !nonneg(v) {
+            return bad(field, format!("Eq. 1's constants are positive numbers, got {v}"));
+        }
+    }
+    if !pos(c.goal_tolerance) {
+        return bad("goal_tolerance", format!("must be positive, got {}", c.goal_tolerance));
+    }
+    if !c.collision_clearance.is_finite() {
+        return bad("collision_clearance", format!("must be finite, got {}", c.collision_clearance));
+    }
+    if c.max_steps == 0 {
+        return bad("max_steps", "an episode needs at least one step".into());
+    }
+    let (a, b) = c.goal_distance;
+    if !(nonneg(a) && b.is_finite() && a <= b && b > 0.0) {
+        return bad("goal_distance", format!("need 0 <= min <= max, max > 0, got ({a}, {b})"));
+    }
+    Ok(())
+}

@@ -1,0 +1,204 @@
+//! The learning environment: Eq. 1, collisions, determinism and batches.
+
+use std::sync::Arc;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sim::{
+    Action, EnvBatch, EnvConfig, EnvError, NavEnv, NoiseConfig, Outcome, Pose2, Pose3, Shape,
+    Size3, World, env_seed,
+};
+
+use crate::common::{object, room};
+
+fn furnished() -> Arc<World> {
+    let mut spec = room(12.0, 8.0);
+    spec.objects.push(object("t", Some("Table"), Shape::Box, Size3::new(1.2, 0.8, 0.75), Pose3::new(4.0, 4.0, 0.375, 0.3)));
+    spec.objects.push(object("v", Some("VendingMachine"), Shape::Box, Size3::new(0.8, 0.7, 1.8), Pose3::new(8.0, 2.0, 0.9, 0.0)));
+    spec.objects.push(object("s", Some("Shelf"), Shape::Box, Size3::new(0.4, 1.5, 1.8), Pose3::new(9.0, 6.5, 0.9, 1.0)));
+    World::build(spec).expect("builds")
+}
+
+fn quiet() -> EnvConfig {
+    EnvConfig {
+        noise: NoiseConfig::none(),
+        ..EnvConfig::default()
+    }
+}
+
+#[test]
+fn reaching_the_goal_pays_completion_minus_time() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let mut env = NavEnv::new(world, quiet(), 1).expect("env");
+    let obs = env.reset(Pose2::new(2.0, 4.0, 0.0), (4.0, 4.0)).expect("reset");
+    assert_eq!(obs.ranges.len(), 23);
+    assert!((obs.goal_distance - 2.0).abs() < 1e-6 && obs.goal_angle.abs() < 1e-6);
+    let mut last = None;
+    for _ in 0..100 {
+        let r = env.step(Action::new(0.8, 0.0));
+        if r.done {
+            last = Some(r);
+            break;
+        }
+        // Each step gets closer: r_closer.
+        assert_eq!(r.reward, 0.5);
+    }
+    let r = last.expect("reached the goal");
+    assert_eq!(r.info.outcome, Outcome::ReachedGoal);
+    // 2 m at 0.8 m/s to within 0.3 m: 1.7 m takes 22 steps of 0.08 m, 2.2 s.
+    assert_eq!(r.info.steps, 22);
+    assert!((r.reward - (100.0 - 2.2)).abs() < 1e-9, "{}", r.reward);
+    // Stepping an ended episode changes nothing.
+    let again = env.step(Action::new(0.8, 0.0));
+    assert!(again.done && again.reward == 0.0 && again.info.pose == r.info.pose);
+}
+
+#[test]
+fn driving_into_a_wall_is_a_collision() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let mut env = NavEnv::new(world, quiet(), 1).expect("env");
+    env.reset(Pose2::new(10.0, 4.0, 0.0), (2.0, 4.0)).expect("reset");
+    let mut steps = 0;
+    let r = loop {
+        let r = env.step(Action::new(0.8, 0.0));
+        steps += 1;
+        if r.done {
+            break r;
+        }
+        assert_eq!(r.reward, 0.0, "moving away from the goal earns nothing");
+    };
+    assert_eq!(r.info.outcome, Outcome::Collision);
+    assert_eq!(r.reward, -100.0);
+    // The wall's free side is at 11.95 and the robot moves 0.08 m per step from x = 10: at
+    // x = 11.68 its clearance is 0.07 m, at 11.76 it is -0.01 m, below the 0.02 m threshold.
+    assert_eq!(steps, 22);
+    assert!((r.info.pose.x - 11.76).abs() < 1e-9, "{:?}", r.info.pose);
+    assert!((r.info.min_clearance + 0.01).abs() < 1e-9, "{}", r.info.min_clearance);
+}
+
+#[test]
+fn turning_in_place_keeps_the_position() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let mut env = NavEnv::new(world, quiet(), 1).expect("env");
+    env.reset(Pose2::new(6.0, 4.0, 0.0), (2.0, 4.0)).expect("reset");
+    for _ in 0..10 {
+        let r = env.step(Action::new(0.0, 0.5));
+        assert_eq!(r.info.outcome, Outcome::Running);
+    }
+    let p = env.pose();
+    assert!((p.x - 6.0).abs() < 1e-12 && (p.y - 4.0).abs() < 1e-12);
+    assert!((p.yaw - 0.5).abs() < 1e-9);
+}
+
+#[test]
+fn blocked_starts_and_goals_are_refused_with_a_free_point() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let mut env = NavEnv::new(world, quiet(), 1).expect("env");
+    match env.reset(Pose2::new(0.1, 4.0, 0.0), (6.0, 4.0)) {
+        Err(EnvError::StartBlocked { nearest_free: Some((x, _)), .. }) => assert!(x > 0.3),
+        other => panic!("{other:?}"),
+    }
+    match env.reset(Pose2::new(6.0, 4.0, 0.0), (11.99, 4.0)) {
+        Err(EnvError::GoalBlocked { nearest_free: Some((x, _)), .. }) => assert!(x < 11.7),
+        other => panic!("{other:?}"),
+    }
+    assert!(matches!(
+        env.reset(Pose2::new(f64::NAN, 4.0, 0.0), (6.0, 4.0)),
+        Err(EnvError::StartBlocked { .. })
+    ));
+}
+
+#[test]
+fn random_resets_respect_the_distance_range() {
+    let world = furnished();
+    let config = EnvConfig { goal_distance: (2.0, 6.0), ..EnvConfig::default() };
+    let mut env = NavEnv::new(Arc::clone(&world), config, 7).expect("env");
+    for _ in 0..200 {
+        let (s, g) = env.sample_start_goal().expect("sample");
+        let d = (g.0 - s.x).hypot(g.1 - s.y);
+        assert!((2.0..=6.0).contains(&d), "{d}");
+        assert!(world.clearance(s.x, s.y) >= 0.1 - 1e-9, "start clearance");
+        assert!(world.clearance(g.0, g.1) > 0.0);
+    }
+}
+
+/// Steps `env` with actions from its own stream and returns everything observed.
+fn roll(env: &mut NavEnv, actions: &mut ChaCha8Rng, steps: usize) -> Vec<(Vec<f32>, f64, bool)> {
+    let mut out = vec![];
+    let obs = env.reset_random().expect("reset");
+    out.push((obs.to_vec(), 0.0, false));
+    for _ in 0..steps {
+        let a = Action::new(actions.random_range(0.0..0.8), actions.random_range(-0.5..0.5));
+        let r = env.step(a);
+        out.push((r.observation.to_vec(), r.reward, r.done));
+        if r.done {
+            let obs = env.reset_random().expect("reset");
+            out.push((obs.to_vec(), 0.0, false));
+        }
+    }
+    out
+}
+
+#[test]
+fn the_same_seed_gives_the_same_episode() {
+    let world = furnished();
+    let run = |seed| {
+        let mut env = NavEnv::new(Arc::clone(&world), EnvConfig::default(), seed).expect("env");
+        roll(&mut env, &mut ChaCha8Rng::seed_from_u64(99), 300)
+    };
+    assert_eq!(run(5), run(5));
+    assert_ne!(run(5), run(6));
+}
+
+#[test]
+fn a_batch_equals_its_environments_stepped_one_by_one() {
+    let world = furnished();
+    let n = 6;
+    let mut batch = EnvBatch::new(Arc::clone(&world), EnvConfig::default(), n, 42, true).expect("batch");
+    let first = batch.reset_random().expect("reset");
+    let mut singles: Vec<NavEnv> = (0..n)
+        .map(|i| NavEnv::new(Arc::clone(&world), EnvConfig::default(), env_seed(42, i)).expect("env"))
+        .collect();
+    for (env, obs) in singles.iter_mut().zip(&first) {
+        assert_eq!(&env.reset_random().expect("reset"), obs);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut ended = 0;
+    for _ in 0..200 {
+        let actions: Vec<Action> = (0..n)
+            .map(|_| Action::new(rng.random_range(0.0..0.8), rng.random_range(-0.5..0.5)))
+            .collect();
+        let results = batch.step(&actions).expect("step");
+        for ((env, a), r) in singles.iter_mut().zip(&actions).zip(&results) {
+            let mut want = env.step(*a);
+            if want.done {
+                ended += 1;
+                want.reset_observation = Some(env.reset_random().expect("reset"));
+            }
+            assert_eq!(&want, r);
+        }
+    }
+    assert!(ended > 0, "some episodes ended and were reset");
+    assert!(matches!(batch.step(&[Action::default()]), Err(EnvError::Config { field: "actions", .. })));
+}
+
+#[test]
+fn bad_settings_are_refused() {
+    let world = World::build(room(6.0, 6.0)).expect("builds");
+    let cases: Vec<(EnvConfig, &str)> = vec![
+        (EnvConfig { beams: 0, ..EnvConfig::default() }, "beams"),
+        (EnvConfig { beams: 10_000, ..EnvConfig::default() }, "beams"),
+        (EnvConfig { control_period: 0.0, ..EnvConfig::default() }, "control_period"),
+        (EnvConfig { goal_distance: (5.0, 2.0), ..EnvConfig::default() }, "goal_distance"),
+        (
+            EnvConfig { noise: NoiseConfig { range: -1.0, ..NoiseConfig::default() }, ..EnvConfig::default() },
+            "noise.range",
+        ),
+    ];
+    for (config, want) in cases {
+        match NavEnv::new(Arc::clone(&world), config, 0) {
+            Err(EnvError::Config { field, .. }) => assert_eq!(field, want),
+            other => panic!("{want}: {other:?}"),
+        }
+    }
+}

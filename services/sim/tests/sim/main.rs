@@ -1,0 +1,9 @@
+//! Integration tests of the simulator: ray casts against analytic cases, collision, the
+//! environment's determinism and batches, validation, renders and a real ROS map.
+
+mod common;
+mod env;
+mod raycast;
+mod render;
+mod ros_map;
+mod validation;

@@ -1,0 +1,341 @@
+//! Layered configuration: built-in defaults → optional TOML file → `MENTALSIM_*` environment →
+//! command-line flags → one typed, validated [`Config`].
+//!
+//! Every error names the key and the layer it came from (e.g. "`bind` from environment variable
+//! MENTALSIM_BIND"), so a bad value is found without reading code.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use figment::Figment;
+use figment::providers::{Env, Format, Serialized, Toml};
+use serde::{Deserialize, Serialize};
+
+/// How logs are written to standard error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LogFormat {
+    /// One JSON object per event, for log collectors.
+    Json,
+    /// Human-readable lines.
+    Text,
+}
+
+/// A bearer token and what it may do.
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TokenConfig {
+    /// The secret a client sends as `Authorization: Bearer <token>`.
+    pub token: String,
+    /// Who holds it, for logs and provenance.
+    pub name: String,
+    /// `engineer` (read and write) or `robot` (read, robot endpoints).
+    pub role: knowledge::Role,
+}
+
+impl std::fmt::Debug for TokenConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TokenConfig")
+            .field("name", &self.name)
+            .field("role", &self.role)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The service's configuration, after all layers are merged.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Address the HTTP server binds (both services share it).
+    pub bind: SocketAddr,
+    /// Directory holding the graph store, the job database and the admin token.
+    pub data_dir: PathBuf,
+    /// Job database URL; defaults to SQLite in the data directory.
+    pub database_url: Option<String>,
+    /// Time from request to response head, in seconds.
+    pub request_timeout_s: f64,
+    /// Largest request body, in bytes (map imports carry images: keep it generous).
+    pub body_limit_bytes: usize,
+    /// Time running work gets to finish after SIGINT/SIGTERM, in seconds.
+    pub shutdown_grace_s: f64,
+    /// Log format.
+    pub log_format: LogFormat,
+    /// Log filter in `tracing_subscriber::EnvFilter` syntax; `RUST_LOG` overrides it.
+    pub log_filter: String,
+    /// Wall-clock budget of one SPARQL query or update, in seconds; past it, it is cancelled.
+    pub query_deadline_s: f64,
+    /// Largest CONSTRUCT/DESCRIBE answer, in triples; larger answers are refused, not cut.
+    pub max_construct_triples: usize,
+    /// Bearer tokens. With none, `serve` creates an engineer token in `<data_dir>/admin.token`.
+    pub tokens: Vec<TokenConfig>,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            bind: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            data_dir: PathBuf::from("./data"),
+            database_url: None,
+            request_timeout_s: 120.0,
+            body_limit_bytes: 64 * 1024 * 1024,
+            shutdown_grace_s: 30.0,
+            log_format: LogFormat::Text,
+            log_filter: "info".to_owned(),
+            query_deadline_s: 30.0,
+            max_construct_triples: 5_000_000,
+            tokens: Vec::new(),
+        }
+    }
+}
+
+/// Values given on the command line; `None` leaves the lower layers' value in place.
+#[derive(Debug, Default, Clone, Serialize)]
+pub struct Overrides {
+    /// `--bind`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bind: Option<String>,
+    /// `--data-dir`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub data_dir: Option<PathBuf>,
+}
+
+/// A configuration that could not be loaded or is invalid.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// A value has the wrong type or syntax; the message names key and source.
+    #[error("invalid configuration: {0}")]
+    Parse(String),
+    /// A value parsed but is out of range.
+    #[error("invalid configuration: `{key}` {problem} (set by {source_name})")]
+    Invalid {
+        /// The key.
+        key: &'static str,
+        /// What is wrong.
+        problem: String,
+        /// Where the value came from.
+        source_name: String,
+    },
+    /// The named configuration file does not exist.
+    #[error("configuration file {0} does not exist")]
+    MissingFile(PathBuf),
+}
+
+/// Environment variables with our prefix that are not configuration keys.
+const NOT_KEYS: &[&str] = &["config"];
+
+impl Config {
+    /// Merges the layers. `file` is the optional TOML file (`--config` or `MENTALSIM_CONFIG`).
+    pub fn load(file: Option<&Path>, overrides: &Overrides) -> Result<Self, ConfigError> {
+        let figment = Self::figment(file, overrides)?;
+        let config: Config = figment.extract().map_err(|e| {
+            // figment reports every error of a layer; one line each keeps them readable.
+            ConfigError::Parse(e.into_iter().map(|e| e.to_string()).collect::<Vec<_>>().join("; "))
+        })?;
+        config.validate(&figment)?;
+        Ok(config)
+    }
+
+    fn figment(file: Option<&Path>, overrides: &Overrides) -> Result<Figment, ConfigError> {
+        let mut figment = Figment::from(Serialized::defaults(Config::default()));
+        if let Some(file) = file {
+            if !file.is_file() {
+                return Err(ConfigError::MissingFile(file.to_owned()));
+            }
+            figment = figment.merge(Toml::file_exact(file));
+        }
+        figment = figment
+            .merge(Env::prefixed("MENTALSIM_").filter(|key| !NOT_KEYS.contains(&key.as_str())))
+            .merge(Serialized::defaults(overrides).profile(figment::Profile::Default));
+        Ok(figment)
+    }
+
+    fn validate(&self, figment: &Figment) -> Result<(), ConfigError> {
+        let source = |key: &str| {
+            figment
+                .find_metadata(key)
+                .map(|m| match &m.source {
+                    Some(s) => format!("{} ({s})", m.name),
+                    None => m.name.to_string(),
+                })
+                .unwrap_or_else(|| "defaults".to_owned())
+        };
+        let positive = |key: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError::Invalid {
+                    key,
+                    problem: format!("must be a positive number of seconds, got {value}"),
+                    source_name: source(key),
+                })
+            }
+        };
+        positive("request_timeout_s", self.request_timeout_s)?;
+        positive("shutdown_grace_s", self.shutdown_grace_s)?;
+        positive("query_deadline_s", self.query_deadline_s)?;
+        for (i, t) in self.tokens.iter().enumerate() {
+            if t.token.len() < 16 {
+                return Err(ConfigError::Invalid {
+                    key: "tokens",
+                    problem: format!(
+                        "entry {i} ({}) has a token shorter than 16 characters",
+                        t.name
+                    ),
+                    source_name: source("tokens"),
+                });
+            }
+        }
+        if self.body_limit_bytes < 1024 {
+            return Err(ConfigError::Invalid {
+                key: "body_limit_bytes",
+                problem: format!("must be at least 1024, got {}", self.body_limit_bytes),
+                source_name: source("body_limit_bytes"),
+            });
+        }
+        if self.data_dir.as_os_str().is_empty() {
+            return Err(ConfigError::Invalid {
+                key: "data_dir",
+                problem: "must not be empty".to_owned(),
+                source_name: source("data_dir"),
+            });
+        }
+        if let Some(url) = &self.database_url {
+            if !url.starts_with("sqlite:") {
+                return Err(ConfigError::Invalid {
+                    key: "database_url",
+                    problem: format!("must be a sqlite: URL, got {url:?}"),
+                    source_name: source("database_url"),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The job database URL, defaulting to `sqlite://<data_dir>/jobs.sqlite`.
+    pub fn database_url(&self) -> String {
+        self.database_url.clone().unwrap_or_else(|| {
+            format!("sqlite://{}", self.data_dir.join("jobs.sqlite").display())
+        })
+    }
+
+    /// Where the embedded graph store lives.
+    pub fn store_dir(&self) -> PathBuf {
+        self.data_dir.join("oxigraph")
+    }
+
+    /// The request timeout as a duration.
+    pub fn request_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.request_timeout_s)
+    }
+
+    /// The SPARQL limits.
+    pub fn query_limits(&self) -> knowledge::QueryLimits {
+        knowledge::QueryLimits {
+            deadline: Duration::from_secs_f64(self.query_deadline_s),
+            max_construct_triples: self.max_construct_triples,
+        }
+    }
+
+    /// Where the generated admin token is kept when no tokens are configured.
+    pub fn admin_token_path(&self) -> PathBuf {
+        self.data_dir.join("admin.token")
+    }
+
+    /// The shutdown grace period as a duration.
+    pub fn shutdown_grace(&self) -> Duration {
+        Duration::from_secs_f64(self.shutdown_grace_s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use figment::Jail;
+
+    fn load(jail_file: Option<&str>, overrides: Overrides) -> Result<Config, String> {
+        Config::load(jail_file.map(Path::new), &overrides).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn defaults_apply_without_any_layer() {
+        Jail::expect_with(|_| {
+            let config = load(None, Overrides::default()).unwrap();
+            assert_eq!(config, Config::default());
+            assert_eq!(config.bind.port(), 8080);
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn layers_override_in_order_file_env_flags() {
+        Jail::expect_with(|jail| {
+            jail.create_file("m.toml", "bind = '0.0.0.0:9000'\ndata_dir = '/srv/a'\nrequest_timeout_s = 5")?;
+            jail.set_env("MENTALSIM_DATA_DIR", "/srv/b");
+            let config = load(Some("m.toml"), Overrides::default()).unwrap();
+            assert_eq!(config.bind.port(), 9000);
+            assert_eq!(config.data_dir, PathBuf::from("/srv/b"));
+            assert_eq!(config.request_timeout_s, 5.0);
+            let flags = Overrides {
+                bind: Some("127.0.0.1:9100".to_owned()),
+                data_dir: Some(PathBuf::from("/srv/c")),
+            };
+            let config = load(Some("m.toml"), flags).unwrap();
+            assert_eq!(config.bind.port(), 9100);
+            assert_eq!(config.data_dir, PathBuf::from("/srv/c"));
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn non_numeric_port_in_env_names_key_and_variable() {
+        Jail::expect_with(|jail| {
+            jail.set_env("MENTALSIM_BIND", "127.0.0.1:http");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("bind"), "{err}");
+            assert!(err.contains("MENTALSIM_BIND"), "{err}");
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn ill_typed_number_in_file_names_key_and_file() {
+        Jail::expect_with(|jail| {
+            jail.create_file("bad.toml", "request_timeout_s = 'soon'")?;
+            let err = load(Some("bad.toml"), Overrides::default()).unwrap_err();
+            assert!(err.contains("request_timeout_s"), "{err}");
+            assert!(err.contains("bad.toml"), "{err}");
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn out_of_range_value_names_key_and_source() {
+        Jail::expect_with(|jail| {
+            jail.set_env("MENTALSIM_REQUEST_TIMEOUT_S", "-3");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("request_timeout_s"), "{err}");
+            assert!(err.contains("MENTALSIM_REQUEST_TIMEOUT_S"), "{err}");
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn unknown_key_in_file_is_refused() {
+        Jail::expect_with(|jail| {
+            jail.create_file("typo.toml", "bnid = '127.0.0.1:1'")?;
+            let err = load(Some("typo.toml"), Overrides::default()).unwrap_err();
+            assert!(err.contains("bnid"), "{err}");
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn missing_file_is_named() {
+        Jail::expect_with(|_| {
+            let err = load(Some("nowhere.toml"), Overrides::default()).unwrap_err();
+            assert!(err.contains("nowhere.toml"), "{err}");
+            Ok(())
+        });
+    }
+}

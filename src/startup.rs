@@ -1,0 +1,215 @@
+//! Assembling and running the process: backing stores, the router with its middleware, the
+//! listener, and graceful shutdown. `main` is a shim over this so tests start the same app on
+//! port 0.
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use axum::Router;
+use knowledge::{Knowledge, KnowledgeStore, StoreError};
+use tokio::net::TcpListener;
+use tokio::sync::OnceCell;
+use worker::JobDatabase;
+
+use crate::config::Config;
+
+/// The backing stores, opened at start and re-tried on use until they open.
+///
+/// The process stays up when a store cannot be opened (a full disk, a read-only mount): it
+/// answers `/healthz`, reports the reason on `/readyz`, and recovers without a restart once
+/// the cause is fixed.
+pub struct Components {
+    data_dir: PathBuf,
+    database_url: String,
+    knowledge: Arc<Knowledge>,
+    jobs: OnceCell<JobDatabase>,
+}
+
+impl Components {
+    fn new(config: &Config) -> Self {
+        let store_dir = config.store_dir();
+        let opener = move || -> Result<KnowledgeStore, StoreError> {
+            if let Some(parent) = store_dir.parent() {
+                std::fs::create_dir_all(parent).map_err(|e| StoreError::Query {
+                    path: store_dir.clone(),
+                    message: format!("cannot create data directory {}: {e}", parent.display()),
+                })?;
+            }
+            let store = KnowledgeStore::open(&store_dir)?;
+            if knowledge::bundled::load_if_empty(&store)? {
+                tracing::info!(path = %store_dir.display(), "loaded the bundled ontology, robot and sample building");
+            }
+            Ok(store)
+        };
+        Self {
+            data_dir: config.data_dir.clone(),
+            database_url: config.database_url(),
+            knowledge: Arc::new(Knowledge::lazy(
+                opener,
+                crate::tokens::load(config),
+                config.query_limits(),
+            )),
+            jobs: OnceCell::new(),
+        }
+    }
+
+    /// The data directory.
+    pub fn data_dir(&self) -> &Path {
+        &self.data_dir
+    }
+
+    /// The knowledge service state.
+    pub fn knowledge(&self) -> &Arc<Knowledge> {
+        &self.knowledge
+    }
+
+    /// The graph store, opening it if it is not open yet.
+    pub async fn store(&self) -> Result<KnowledgeStore, String> {
+        let knowledge = self.knowledge.clone();
+        tokio::task::spawn_blocking(move || knowledge.try_store().map_err(|e| e.to_string()))
+            .await
+            .map_err(|e| format!("store open task failed: {e}"))?
+    }
+
+    /// The job database, opening and migrating it if it is not open yet.
+    pub async fn jobs(&self) -> Result<&JobDatabase, String> {
+        self.jobs
+            .get_or_try_init(|| async {
+                if let Err(e) = tokio::fs::create_dir_all(&self.data_dir).await {
+                    return Err(format!(
+                        "cannot create data directory {}: {e}",
+                        self.data_dir.display()
+                    ));
+                }
+                JobDatabase::connect(&self.database_url)
+                    .await
+                    .map_err(|e| e.to_string())
+            })
+            .await
+    }
+
+    async fn close(&self) {
+        if let Some(jobs) = self.jobs.get() {
+            jobs.close().await;
+        }
+        if let Some(store) = self.knowledge.opened_store() {
+            match tokio::task::spawn_blocking(move || store.flush()).await {
+                Ok(Ok(())) => {}
+                Ok(Err(e)) => tracing::error!(error = %e, "flushing the graph store failed"),
+                Err(e) => tracing::error!(error = %e, "flush task failed"),
+            }
+        }
+    }
+}
+
+/// A bound, assembled service, ready to run.
+pub struct Application {
+    listener: TcpListener,
+    router: Router,
+    components: Arc<Components>,
+    config: Config,
+}
+
+impl Application {
+    /// Opens the backing stores (failures are logged and reported on `/readyz`, not fatal),
+    /// builds the router and binds the listener. Bind to port 0 to get a free port.
+    pub async fn build(config: Config) -> anyhow::Result<Self> {
+        let components = Arc::new(Components::new(&config));
+        if let Err(reason) = components.store().await {
+            tracing::error!(%reason, "graph store unavailable; /readyz will report it");
+        }
+        if let Err(reason) = components.jobs().await {
+            tracing::error!(%reason, "job database unavailable; /readyz will report it");
+        }
+        let router = router(&config, components.clone());
+        let listener = TcpListener::bind(config.bind)
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot bind {}: {e}", config.bind))?;
+        Ok(Self {
+            listener,
+            router,
+            components,
+            config,
+        })
+    }
+
+    /// The address actually bound (with the real port when the configuration said 0).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.listener
+            .local_addr()
+            .unwrap_or(self.config.bind)
+    }
+
+    /// Serves until `shutdown` resolves, then stops accepting, lets requests in flight finish
+    /// within the grace period, and closes the stores cleanly.
+    pub async fn run_until(self, shutdown: impl Future<Output = ()> + Send + 'static) -> anyhow::Result<()> {
+        let grace = self.config.shutdown_grace();
+        let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
+        let serve = axum::serve(self.listener, self.router).with_graceful_shutdown(async move {
+            shutdown.await;
+            tracing::info!("shutting down: no new connections; finishing requests in flight");
+            let _ = stopping_tx.send(());
+        });
+        let serve = async move { serve.await };
+        tokio::pin!(serve);
+        tokio::select! {
+            result = &mut serve => result?,
+            () = async {
+                let _ = stopping_rx.await;
+                tokio::time::sleep(grace).await;
+            } => {
+                tracing::warn!(?grace, "grace period over; dropping remaining connections");
+            }
+        }
+        self.components.close().await;
+        tracing::info!("stopped");
+        Ok(())
+    }
+}
+
+/// Both services and the health routes on one router, wrapped in the shared middleware stack.
+fn router(config: &Config, components: Arc<Components>) -> Router {
+    let knowledge = components.knowledge().clone();
+    let app = Router::new()
+        .merge(crate::health::router(components))
+        .merge(knowledge::api::router(knowledge.clone()))
+        .merge(knowledge::protocol::router(knowledge))
+        .fallback(edge::middleware::not_found);
+    edge::middleware::stack(
+        app,
+        edge::middleware::Limits {
+            request_timeout: config.request_timeout(),
+            body_limit: config.body_limit_bytes,
+        },
+    )
+}
+
+/// Resolves on SIGINT (Ctrl-C) or SIGTERM.
+pub async fn shutdown_signal() {
+    let ctrl_c = async {
+        if let Err(e) = tokio::signal::ctrl_c().await {
+            tracing::error!(error = %e, "cannot listen for Ctrl-C");
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(e) => {
+                tracing::error!(error = %e, "cannot listen for SIGTERM");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => tracing::info!("received SIGINT"),
+        () = terminate => tracing::info!("received SIGTERM"),
+    }
+}
