@@ -9,7 +9,6 @@
 # - The build output lives outside the clone, in a per-machine cache, so RocksDB and the
 #   libtorch glue are compiled once per machine rather than once per clone or CI run.
 _ms_root="$(cd "$(dirname "${BASH_SOURCE[0]:-$0}")/.." && pwd)"
-export MENTALSIM_ROOT="$_ms_root"
 export VIRTUAL_ENV="$_ms_root/.venv"
 case ":$PATH:" in
   *":$VIRTUAL_ENV/bin:"*) ;;

@@ -32,37 +32,252 @@ pub enum Command {
         #[arg(long, value_name = "DIR")]
         data_dir: Option<PathBuf>,
     },
+    /// Import a ROS map_server map (YAML + PGM/PNG) into a running service as a TOSM floor.
+    ImportMap {
+        /// The map's YAML file; its `image` is read from beside it.
+        yaml: PathBuf,
+        /// The floor's name (a-z, 0-9, '-', '_'); defaults to the YAML's directory name.
+        #[arg(long)]
+        name: Option<String>,
+        /// The service's URL.
+        #[arg(long, env = "MENTALSIM_URL", default_value = "http://127.0.0.1:8080")]
+        url: String,
+        /// An engineer's bearer token [default: read from ./data/admin.token].
+        #[arg(long, env = "MENTALSIM_TOKEN", hide_env_values = true)]
+        token: Option<String>,
+    },
+    /// Run a benchmark and write its figures.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+/// Benchmarks: each prints its figures and writes them to files.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// The paper's PRM protocol (Table 2, Figure 9) on every ROS map under a directory, beside OMPL.
+    Prm {
+        /// Directory searched recursively for ROS map_server YAML files.
+        #[arg(long, default_value = "../shared/maps/ros")]
+        maps: PathBuf,
+        /// Runs per map and sample count (the paper: 50).
+        #[arg(long, default_value_t = 50)]
+        runs: usize,
+        /// Where prm.csv, prm.md and prm.png go.
+        #[arg(long, default_value = "bench-out/prm")]
+        out: PathBuf,
+        /// MovingAI maps and scenarios to run as well.
+        #[arg(long)]
+        movingai: Option<PathBuf>,
+        /// Skip OMPL (Python bindings and C++ library).
+        #[arg(long)]
+        no_ompl: bool,
+    },
+    /// Simulator steps per second (one core, all cores) and world build time, beside IR-SIM.
+    Sim {
+        /// The ROS map_server YAML [default: the largest shared map].
+        #[arg(long)]
+        map: Option<PathBuf>,
+        /// Write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Laser readings per observation.
+        #[arg(long, default_value_t = 23)]
+        beams: usize,
+        /// Python with `ir-sim` installed, to run it side by side.
+        #[arg(long)]
+        irsim_python: Option<PathBuf>,
+        /// Python with `irsim-x` installed, to run it side by side.
+        #[arg(long)]
+        irsim_x_python: Option<PathBuf>,
+    },
 }
 
 /// Runs the command line; the process exit code says whether it worked.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command {
-        Command::Serve { bind, data_dir } => {
-            let overrides = Overrides { bind, data_dir };
-            let config = match Config::load(cli.config.as_deref(), &overrides) {
-                Ok(config) => config,
-                Err(e) => {
-                    eprintln!("mentalsim: {e}");
-                    return ExitCode::from(2);
-                }
-            };
-            crate::telemetry::init(&config);
-            let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
-                Ok(rt) => rt,
-                Err(e) => {
-                    eprintln!("mentalsim: cannot start the async runtime: {e}");
-                    return ExitCode::FAILURE;
-                }
-            };
-            match runtime.block_on(serve(config)) {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => {
-                    tracing::error!(error = %e, "mentalsim serve failed");
-                    eprintln!("mentalsim: {e:#}");
-                    ExitCode::FAILURE
-                }
+    let result = match cli.command {
+        Command::Serve { bind, data_dir } => return serve_command(cli.config, bind, data_dir),
+        Command::ImportMap {
+            yaml,
+            name,
+            url,
+            token,
+        } => import_map(&yaml, name, &url, token),
+        Command::Bench(bench) => run_bench(bench),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("mentalsim: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn serve_command(
+    config_file: Option<PathBuf>,
+    bind: Option<String>,
+    data_dir: Option<PathBuf>,
+) -> ExitCode {
+    let overrides = Overrides { bind, data_dir };
+    let config = match Config::load(config_file.as_deref(), &overrides) {
+        Ok(config) => config,
+        Err(e) => {
+            eprintln!("mentalsim: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    crate::telemetry::init(&config);
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("mentalsim: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match runtime.block_on(serve(config)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!(error = %e, "mentalsim serve failed");
+            eprintln!("mentalsim: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn import_map(
+    yaml: &std::path::Path,
+    name: Option<String>,
+    url: &str,
+    token: Option<String>,
+) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let yaml_text =
+        std::fs::read_to_string(yaml).with_context(|| format!("cannot read {}", yaml.display()))?;
+    let meta =
+        tosm::RosMapMeta::parse_yaml(&yaml_text).with_context(|| format!("{}", yaml.display()))?;
+    let image_path = yaml
+        .parent()
+        .unwrap_or(std::path::Path::new("."))
+        .join(&meta.image);
+    let image = std::fs::read(&image_path).with_context(|| {
+        format!(
+            "cannot read the map image {} named by {}",
+            image_path.display(),
+            yaml.display()
+        )
+    })?;
+    let name = match name {
+        Some(n) => n,
+        None => default_map_name(yaml),
+    };
+    let token = match token {
+        Some(t) => t,
+        None => std::fs::read_to_string("data/admin.token")
+            .map(|t| t.trim().to_owned())
+            .context("no --token given and ./data/admin.token is not readable")?,
+    };
+    let form = reqwest::blocking::multipart::Form::new()
+        .text("name", name.clone())
+        .text("yaml", yaml_text)
+        .part(
+            "image",
+            reqwest::blocking::multipart::Part::bytes(image).file_name(meta.image.clone()),
+        );
+    let response = reqwest::blocking::Client::new()
+        .post(format!("{}/v1/maps", url.trim_end_matches('/')))
+        .bearer_auth(token)
+        .multipart(form)
+        .send()
+        .with_context(|| format!("cannot reach the service at {url}"))?;
+    let status = response.status();
+    let body = response.text().unwrap_or_default();
+    if !status.is_success() {
+        anyhow::bail!("the service refused the map ({status}): {body}");
+    }
+    println!("{body}");
+    Ok(())
+}
+
+/// A floor name from the map's folder or file name, lower-cased to the allowed characters.
+fn default_map_name(yaml: &std::path::Path) -> String {
+    let stem = yaml
+        .parent()
+        .and_then(|p| p.file_name())
+        .or_else(|| yaml.file_stem())
+        .map(|s| s.to_string_lossy().to_lowercase())
+        .unwrap_or_else(|| "map".to_owned());
+    stem.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '-'
             }
+        })
+        .collect()
+}
+
+fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
+    match command {
+        BenchCommand::Prm {
+            maps,
+            runs,
+            out,
+            movingai,
+            no_ompl,
+        } => {
+            let python = std::env::var_os("VIRTUAL_ENV")
+                .map(|v| PathBuf::from(v).join("bin/python"))
+                .unwrap_or_else(|| PathBuf::from(".venv/bin/python"));
+            let options = bench::prm::PrmBenchOptions {
+                maps_dir: maps,
+                runs,
+                out_dir: out,
+                movingai_dir: movingai,
+                ompl: (!no_ompl).then(|| bench::prm::OmplOptions {
+                    python,
+                    ..Default::default()
+                }),
+                verbose: true,
+                ..Default::default()
+            };
+            let report = bench::prm::run_prm_bench(options)?;
+            println!("{}", report.markdown);
+            println!("OMPL: {}", report.ompl_status);
+            println!(
+                "wrote {}, {}, {}",
+                report.csv_path.display(),
+                report.markdown_path.display(),
+                report.plot_path.display()
+            );
+            Ok(())
+        }
+        BenchCommand::Sim {
+            map,
+            json,
+            beams,
+            irsim_python,
+            irsim_x_python,
+        } => {
+            let map = map.unwrap_or_else(|| {
+                PathBuf::from("../shared/maps/ros/cob_ipa_production_plant/map.yaml")
+            });
+            let mut options = bench::sim::SimBenchOptions::new(map);
+            options.beams = beams;
+            options.irsim = irsim_python.map(|python| bench::sim::PeerOptions { python });
+            options.irsim_x = irsim_x_python.map(|python| bench::sim::PeerOptions { python });
+            let report = bench::sim::run_sim_bench(options)?;
+            let text = serde_json::to_string_pretty(&report)?;
+            println!("{text}");
+            if let Some(path) = json {
+                std::fs::write(&path, format!("{text}\n"))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
         }
     }
 }
@@ -72,6 +287,9 @@ async fn serve(config: Config) -> anyhow::Result<()> {
     let app = Application::build(config).await?;
     let addr = app.local_addr();
     tracing::info!(%addr, data_dir = %data_dir.display(), "mentalsim listening");
-    println!("Mentalsim is listening on http://{addr}  (data: {})", data_dir.display());
+    println!(
+        "Mentalsim is listening on http://{addr}  (data: {})",
+        data_dir.display()
+    );
     app.run_until(shutdown_signal()).await
 }

@@ -121,6 +121,29 @@ pub enum ConfigError {
     MissingFile(PathBuf),
 }
 
+/// "`key` from SOURCE: problem", where SOURCE is the exact environment variable or file.
+fn describe(error: &figment::Error) -> String {
+    let key = error.path.join(".").to_lowercase();
+    let source = match &error.metadata {
+        Some(m) if m.name.contains("environment") && !key.is_empty() => {
+            format!(
+                "environment variable MENTALSIM_{}",
+                key.to_uppercase().replace('.', "__")
+            )
+        }
+        Some(m) => match &m.source {
+            Some(source) => format!("{} ({source})", m.name),
+            None => m.name.to_string(),
+        },
+        None => "configuration".to_owned(),
+    };
+    if key.is_empty() {
+        format!("{} in {source}", error.kind)
+    } else {
+        format!("`{key}` from {source}: {}", error.kind)
+    }
+}
+
 /// Environment variables with our prefix that are not configuration keys.
 const NOT_KEYS: &[&str] = &["config"];
 
@@ -129,8 +152,13 @@ impl Config {
     pub fn load(file: Option<&Path>, overrides: &Overrides) -> Result<Self, ConfigError> {
         let figment = Self::figment(file, overrides)?;
         let config: Config = figment.extract().map_err(|e| {
-            // figment reports every error of a layer; one line each keeps them readable.
-            ConfigError::Parse(e.into_iter().map(|e| e.to_string()).collect::<Vec<_>>().join("; "))
+            // One line per error, each naming the key and the exact source it came from.
+            ConfigError::Parse(
+                e.into_iter()
+                    .map(|e| describe(&e))
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            )
         })?;
         config.validate(&figment)?;
         Ok(config)
@@ -155,6 +183,9 @@ impl Config {
             figment
                 .find_metadata(key)
                 .map(|m| match &m.source {
+                    _ if m.name.contains("environment") => {
+                        format!("environment variable MENTALSIM_{}", key.to_uppercase())
+                    }
                     Some(s) => format!("{} ({s})", m.name),
                     None => m.name.to_string(),
                 })
@@ -174,6 +205,17 @@ impl Config {
         positive("request_timeout_s", self.request_timeout_s)?;
         positive("shutdown_grace_s", self.shutdown_grace_s)?;
         positive("query_deadline_s", self.query_deadline_s)?;
+        if self.request_timeout_s < self.query_deadline_s {
+            return Err(ConfigError::Invalid {
+                key: "request_timeout_s",
+                problem: format!(
+                    "({}) must be at least query_deadline_s ({}), or queries are cut by the \
+                     generic timeout before their own deadline reports them",
+                    self.request_timeout_s, self.query_deadline_s
+                ),
+                source_name: source("request_timeout_s"),
+            });
+        }
         for (i, t) in self.tokens.iter().enumerate() {
             if t.token.len() < 16 {
                 return Err(ConfigError::Invalid {
@@ -200,23 +242,23 @@ impl Config {
                 source_name: source("data_dir"),
             });
         }
-        if let Some(url) = &self.database_url {
-            if !url.starts_with("sqlite:") {
-                return Err(ConfigError::Invalid {
-                    key: "database_url",
-                    problem: format!("must be a sqlite: URL, got {url:?}"),
-                    source_name: source("database_url"),
-                });
-            }
+        if let Some(url) = &self.database_url
+            && !url.starts_with("sqlite:")
+        {
+            return Err(ConfigError::Invalid {
+                key: "database_url",
+                problem: format!("must be a sqlite: URL, got {url:?}"),
+                source_name: source("database_url"),
+            });
         }
         Ok(())
     }
 
     /// The job database URL, defaulting to `sqlite://<data_dir>/jobs.sqlite`.
     pub fn database_url(&self) -> String {
-        self.database_url.clone().unwrap_or_else(|| {
-            format!("sqlite://{}", self.data_dir.join("jobs.sqlite").display())
-        })
+        self.database_url
+            .clone()
+            .unwrap_or_else(|| format!("sqlite://{}", self.data_dir.join("jobs.sqlite").display()))
     }
 
     /// Where the embedded graph store lives.
@@ -249,6 +291,10 @@ impl Config {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::result_large_err,
+    reason = "figment's Jail closures return its own large error type"
+)]
 mod tests {
     use super::*;
     use figment::Jail;
@@ -259,7 +305,8 @@ mod tests {
 
     #[test]
     fn defaults_apply_without_any_layer() {
-        Jail::expect_with(|_| {
+        Jail::expect_with(|jail| {
+            jail.clear_env();
             let config = load(None, Overrides::default()).unwrap();
             assert_eq!(config, Config::default());
             assert_eq!(config.bind.port(), 8080);
@@ -270,12 +317,16 @@ mod tests {
     #[test]
     fn layers_override_in_order_file_env_flags() {
         Jail::expect_with(|jail| {
-            jail.create_file("m.toml", "bind = '0.0.0.0:9000'\ndata_dir = '/srv/a'\nrequest_timeout_s = 5")?;
+            jail.clear_env();
+            jail.create_file(
+                "m.toml",
+                "bind = '0.0.0.0:9000'\ndata_dir = '/srv/a'\nrequest_timeout_s = 50",
+            )?;
             jail.set_env("MENTALSIM_DATA_DIR", "/srv/b");
             let config = load(Some("m.toml"), Overrides::default()).unwrap();
             assert_eq!(config.bind.port(), 9000);
             assert_eq!(config.data_dir, PathBuf::from("/srv/b"));
-            assert_eq!(config.request_timeout_s, 5.0);
+            assert_eq!(config.request_timeout_s, 50.0);
             let flags = Overrides {
                 bind: Some("127.0.0.1:9100".to_owned()),
                 data_dir: Some(PathBuf::from("/srv/c")),
@@ -290,6 +341,7 @@ mod tests {
     #[test]
     fn non_numeric_port_in_env_names_key_and_variable() {
         Jail::expect_with(|jail| {
+            jail.clear_env();
             jail.set_env("MENTALSIM_BIND", "127.0.0.1:http");
             let err = load(None, Overrides::default()).unwrap_err();
             assert!(err.contains("bind"), "{err}");
@@ -301,6 +353,7 @@ mod tests {
     #[test]
     fn ill_typed_number_in_file_names_key_and_file() {
         Jail::expect_with(|jail| {
+            jail.clear_env();
             jail.create_file("bad.toml", "request_timeout_s = 'soon'")?;
             let err = load(Some("bad.toml"), Overrides::default()).unwrap_err();
             assert!(err.contains("request_timeout_s"), "{err}");
@@ -312,6 +365,7 @@ mod tests {
     #[test]
     fn out_of_range_value_names_key_and_source() {
         Jail::expect_with(|jail| {
+            jail.clear_env();
             jail.set_env("MENTALSIM_REQUEST_TIMEOUT_S", "-3");
             let err = load(None, Overrides::default()).unwrap_err();
             assert!(err.contains("request_timeout_s"), "{err}");
@@ -323,6 +377,7 @@ mod tests {
     #[test]
     fn unknown_key_in_file_is_refused() {
         Jail::expect_with(|jail| {
+            jail.clear_env();
             jail.create_file("typo.toml", "bnid = '127.0.0.1:1'")?;
             let err = load(Some("typo.toml"), Overrides::default()).unwrap_err();
             assert!(err.contains("bnid"), "{err}");
@@ -332,7 +387,8 @@ mod tests {
 
     #[test]
     fn missing_file_is_named() {
-        Jail::expect_with(|_| {
+        Jail::expect_with(|jail| {
+            jail.clear_env();
             let err = load(Some("nowhere.toml"), Overrides::default()).unwrap_err();
             assert!(err.contains("nowhere.toml"), "{err}");
             Ok(())

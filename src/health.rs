@@ -28,7 +28,10 @@ async fn healthz() -> Json<serde_json::Value> {
 
 async fn metrics() -> impl IntoResponse {
     (
-        [(axum::http::header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        [(
+            axum::http::header::CONTENT_TYPE,
+            "text/plain; version=0.0.4",
+        )],
         edge::metrics::handle().render(),
     )
 }
@@ -75,7 +78,11 @@ async fn readyz(State(components): State<Arc<Components>>) -> Response {
         .map(|k| format!("{k}: {}", checks[k]["reason"].as_str().unwrap_or("failed")))
         .collect();
     if failing.is_empty() {
-        (StatusCode::OK, Json(json!({ "status": "ready", "checks": checks }))).into_response()
+        (
+            StatusCode::OK,
+            Json(json!({ "status": "ready", "checks": checks })),
+        )
+            .into_response()
     } else {
         (
             StatusCode::SERVICE_UNAVAILABLE,

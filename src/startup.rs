@@ -137,14 +137,15 @@ impl Application {
 
     /// The address actually bound (with the real port when the configuration said 0).
     pub fn local_addr(&self) -> SocketAddr {
-        self.listener
-            .local_addr()
-            .unwrap_or(self.config.bind)
+        self.listener.local_addr().unwrap_or(self.config.bind)
     }
 
     /// Serves until `shutdown` resolves, then stops accepting, lets requests in flight finish
     /// within the grace period, and closes the stores cleanly.
-    pub async fn run_until(self, shutdown: impl Future<Output = ()> + Send + 'static) -> anyhow::Result<()> {
+    pub async fn run_until(
+        self,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> anyhow::Result<()> {
         let grace = self.config.shutdown_grace();
         let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
         let serve = axum::serve(self.listener, self.router).with_graceful_shutdown(async move {

@@ -20,7 +20,12 @@ async fn readyz_is_200_with_the_store_and_database_on_disk() {
     let body: serde_json::Value = response.json().await.unwrap();
     assert_eq!(body["status"], "ready", "{body}");
     assert_eq!(body["checks"]["graph_store"]["ok"], true);
-    assert!(body["checks"]["job_database"]["migrations"].as_u64().unwrap() >= 1);
+    assert!(
+        body["checks"]["job_database"]["migrations"]
+            .as_u64()
+            .unwrap()
+            >= 1
+    );
     // Real files on disk behind the answer: RocksDB's directory and the SQLite database.
     assert!(app.data_dir.join("oxigraph").join("CURRENT").is_file());
     assert!(app.data_dir.join("jobs.sqlite").is_file());
@@ -96,6 +101,11 @@ async fn unknown_route_is_a_json_404_with_a_request_id() {
     assert!(response.headers().contains_key("x-request-id"));
     let body: serde_json::Value = response.json().await.unwrap();
     assert_eq!(body["error"]["code"], "not_found");
-    assert!(body["error"]["message"].as_str().unwrap().contains("/v1/nothing-here"));
+    assert!(
+        body["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("/v1/nothing-here")
+    );
     app.stop().await;
 }

@@ -86,7 +86,10 @@ impl TestApp {
     pub async fn stop(mut self) {
         self.stop.cancel();
         if let Some(handle) = self.handle.take() {
-            handle.await.expect("app task").expect("app stopped cleanly");
+            handle
+                .await
+                .expect("app task")
+                .expect("app stopped cleanly");
         }
     }
 }

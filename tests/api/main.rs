@@ -1,4 +1,10 @@
 //! HTTP API tests against the real app started in-process on port 0.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test that cannot set itself up should fail loudly"
+)]
+
 mod health;
 mod helpers;
+mod knowledge;

@@ -1,6 +1,11 @@
 //! Tests that start the real `mentalsim` binary: configuration errors at startup, the printed
 //! URL, and graceful shutdown on signals.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test that cannot set itself up should fail loudly"
+)]
+
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -57,9 +62,20 @@ fn assert_graceful_stop_on(signal: Signal) {
         .spawn()
         .unwrap();
     let stdout = child.stdout.take().unwrap();
+    // The first start also prints where the admin token went; the URL line follows.
+    let mut reader = BufReader::new(stdout);
+    let mut printed = String::new();
     let mut line = String::new();
-    BufReader::new(stdout).read_line(&mut line).unwrap();
-    assert!(line.contains("http://127.0.0.1:"), "printed: {line}");
+    for _ in 0..5 {
+        line.clear();
+        reader.read_line(&mut line).unwrap();
+        printed.push_str(&line);
+        if line.contains("http://") {
+            break;
+        }
+    }
+    assert!(line.contains("http://127.0.0.1:"), "printed: {printed}");
+    assert!(printed.contains("admin.token"), "printed: {printed}");
     let url = line
         .split_whitespace()
         .find(|w| w.starts_with("http://"))
@@ -75,7 +91,10 @@ fn assert_graceful_stop_on(signal: Signal) {
             assert!(status.success(), "exit status after {signal}: {status}");
             break;
         }
-        assert!(Instant::now() < deadline, "did not stop within 20 s of {signal}");
+        assert!(
+            Instant::now() < deadline,
+            "did not stop within 20 s of {signal}"
+        );
         std::thread::sleep(Duration::from_millis(50));
     }
     // The store was closed cleanly and reopens.

@@ -162,6 +162,10 @@ def main():
     max_seconds = float(spec.get("max_seconds", float("inf")))
     resets = 0
     steps = 0
+    # One untimed step first: IR-SIM builds some of its geometry lazily on the first step.
+    t0 = time.perf_counter()
+    env.step([0.0, 0.0])
+    first_step_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     while steps < max_steps and time.perf_counter() - t0 < max_seconds:
         steps += 1
@@ -190,6 +194,7 @@ def main():
                 "steps": steps,
                 "episodes_reset": resets,
                 "build_s": build_s,
+                "first_step_s": first_step_s,
                 "elapsed_s": elapsed,
                 "steps_per_s": steps / elapsed if elapsed > 0 else None,
                 "obstacles": len(obstacles),

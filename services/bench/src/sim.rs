@@ -16,8 +16,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use sim::{
-    Action, Colour, EnvBatch, EnvConfig, GridMap, NavEnv, ObjectSpec, Observation, Occupancy,
-    OccupancyGrid, Outcome, Pose3, RobotSpec, Shape, Size3, World, WorldSpec,
+    Action, Colour, EnvBatch, EnvConfig, NavEnv, ObjectSpec, Observation, Occupancy, OccupancyGrid,
+    Outcome, Pose3, Shape, Size3, World,
 };
 
 use crate::prm::BenchError;
@@ -71,6 +71,10 @@ pub struct SimBenchOptions {
     pub peer_timeout: Duration,
     /// Write a top-down PNG of the furnished world with one episode to this file.
     pub render_png: Option<PathBuf>,
+    /// The robot's TOSM description (default: the bundled `ontologies/robots/differential-robot.ttl`).
+    pub robot_ttl: PathBuf,
+    /// The robot's IRI in that file.
+    pub robot_iri: String,
 }
 
 impl SimBenchOptions {
@@ -92,6 +96,9 @@ impl SimBenchOptions {
             peer_step_seconds: 30.0,
             peer_timeout: Duration::from_secs(900),
             render_png: None,
+            robot_ttl: PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("../../ontologies/robots/differential-robot.ttl"),
+            robot_iri: "https://mentalsim.dev/data/robots/differential-robot".to_owned(),
         }
     }
 }
@@ -109,6 +116,10 @@ pub struct PeerReport {
     pub steps: Option<u64>,
     /// Seconds from the map file to a ready environment.
     pub build_s: Option<f64>,
+    /// Seconds of the first (untimed) step, in which IR-SIM builds geometry lazily.
+    pub first_step_s: Option<f64>,
+    /// Static obstacles (object footprints) it was given besides the map.
+    pub obstacles: Option<u64>,
     /// Why there are no figures, when there are none.
     pub error: Option<String>,
 }
@@ -140,6 +151,9 @@ pub struct SimBenchReport {
     pub steps_per_s_one_core: f64,
     /// Steps timed on one core.
     pub steps_one_core: u64,
+    /// The same steps per second of CPU time the stepping thread was given (Linux): on a shared
+    /// machine this shows the simulator's own speed when other work takes the core away.
+    pub steps_per_cpu_s_one_core: Option<f64>,
     /// Environment steps per second on all cores (rayon batch).
     pub steps_per_s_all_cores: f64,
     /// Steps timed on all cores.
@@ -179,13 +193,14 @@ impl SimBenchReport {
     /// A few lines for a terminal.
     pub fn summary(&self) -> String {
         let peer = |p: Option<f64>, r: Option<f64>| match (p, r) {
+            (Some(p), Some(r)) if p < 10.0 => format!("{p:.3} steps/s (we are {r:.0}x)"),
             (Some(p), Some(r)) => format!("{p:.0} steps/s (we are {r:.0}x)"),
             _ => "not run".to_owned(),
         };
         format!(
             "map {} ({} cells, {} objects, {} beams)\n\
              world build from the on-demand database: {:.3} s (simulator {:.3} s; database from map bytes {:.3} s)\n\
-             steps/s one core: {:.0}; all cores ({} threads, {} envs): {:.0}\n\
+             steps/s one core: {:.0} ({} per CPU second); all cores ({} threads, {} envs): {:.0}\n\
              IR-SIM: {}\nIR-SIM-X: {}\n\
              vs paper's Gazebo (2.4/s): {:.0}x; vs bare C grid ray caster (180k/s): {:.2}x; targets met: {}",
             self.map,
@@ -196,6 +211,8 @@ impl SimBenchReport {
             self.world_raster_s,
             self.database_s,
             self.steps_per_s_one_core,
+            self.steps_per_cpu_s_one_core
+                .map_or_else(|| "n/a".to_owned(), |v| format!("{v:.0}")),
             self.threads,
             self.batch_envs,
             self.steps_per_s_all_cores,
@@ -294,7 +311,7 @@ pub fn furnish(grid: &OccupancyGrid, count: usize, seed: u64) -> Vec<ObjectSpec>
         .filter(|(_, c)| **c == Occupancy::Free)
         .map(|(i, _)| i)
         .collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0b1e_c75);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x00b1_ec75);
     let mut out = Vec::with_capacity(count);
     let mut tries = 0usize;
     while out.len() < count && !free.is_empty() && tries < count * 200 {
@@ -321,6 +338,112 @@ pub fn furnish(grid: &OccupancyGrid, count: usize, seed: u64) -> Vec<ObjectSpec>
     out
 }
 
+/// The on-demand database of a map, its furniture and a robot: the map becomes a floor with a
+/// metric map, each object a TOSM object inside it, and the robot's Turtle is read as it is.
+pub fn on_demand_database(
+    yaml_path: &Path,
+    grid: OccupancyGrid,
+    objects: &[ObjectSpec],
+    robot_ttl: &[u8],
+    robot_iri: &str,
+) -> Result<oxrdf::Graph, BenchError> {
+    let bad = |message: String| BenchError::Format {
+        path: yaml_path.to_path_buf(),
+        message,
+    };
+    let stem = yaml_path
+        .parent()
+        .and_then(|p| p.file_name())
+        .map_or_else(|| "map".to_owned(), |n| n.to_string_lossy().into_owned());
+    let floor_iri = format!("https://mentalsim.dev/data/bench/{stem}/floor");
+    let floor = tosm::Place {
+        iri: floor_iri.clone(),
+        kind: tosm::PlaceKind::Floor,
+        symbol: tosm::Symbol::named(&stem),
+        boundary: vec![],
+        parent: None,
+        connected: vec![],
+        complexity: None,
+        level: Some(0),
+        map: Some(tosm::MetricMap::from_grid(
+            &tosm::MetricMap::iri_for_floor(&floor_iri),
+            grid,
+        )),
+    };
+    let mut graph = oxrdf::Graph::new();
+    let triples = tosm::place_to_triples(&floor).map_err(|p| bad(format!("floor: {p}")))?;
+    for t in &triples {
+        graph.insert(t);
+    }
+    for o in objects {
+        let class_local = o
+            .class
+            .as_deref()
+            .and_then(|c| c.rsplit('#').next())
+            .unwrap_or("Object");
+        let (class, class_iri) = match class_local {
+            "Table" => (tosm::ObjectClass::Table, None),
+            "Chair" => (tosm::ObjectClass::Chair, None),
+            "Shelf" => (tosm::ObjectClass::Shelf, None),
+            "Cabinet" => (tosm::ObjectClass::Cabinet, None),
+            "VendingMachine" => (tosm::ObjectClass::VendingMachine, None),
+            "Bin" => (tosm::ObjectClass::Bin, None),
+            "Door" => (tosm::ObjectClass::Door, None),
+            _ => (
+                tosm::ObjectClass::Other,
+                Some(format!("{}Object", tosm::vocab::NS)),
+            ),
+        };
+        let [r, g, b] = o.colour.to_unit();
+        let object = tosm::Object {
+            iri: o.id.clone(),
+            class_iri: class_iri.unwrap_or_else(|| format!("{}{class_local}", tosm::vocab::NS)),
+            class,
+            symbol: tosm::Symbol::named(class_local),
+            pose: tosm::Pose::new(o.pose.x, o.pose.y, o.pose.z, o.pose.yaw),
+            shape: match o.shape {
+                Shape::Box => tosm::Shape::Box {
+                    length: o.size.x,
+                    width: o.size.y,
+                    height: o.size.z,
+                },
+                Shape::Cylinder => tosm::Shape::Cylinder {
+                    diameter: o.size.x.max(o.size.y),
+                    height: o.size.z,
+                },
+                Shape::Sphere => tosm::Shape::Sphere {
+                    diameter: o.size.x.max(o.size.y).max(o.size.z),
+                },
+            },
+            colour: Some(tosm::Colour::rgb(r, g, b)),
+            colour_name: None,
+            physical: tosm::Physical::default(),
+            inside_of: floor_iri.clone(),
+            relations: vec![],
+            is_open: None,
+            reported_by: None,
+            reported_at: None,
+        };
+        let triples = tosm::object_to_triples(&object).map_err(|p| bad(format!("object: {p}")))?;
+        for t in &triples {
+            graph.insert(t);
+        }
+    }
+    for t in oxttl::TurtleParser::new().for_slice(robot_ttl) {
+        let t = t.map_err(|e| bad(format!("robot Turtle: {e}")))?;
+        graph.insert(&t);
+    }
+    if !graph
+        .iter()
+        .any(|t| t.subject.to_string() == format!("<{robot_iri}>"))
+    {
+        return Err(bad(format!(
+            "the robot file does not describe <{robot_iri}>"
+        )));
+    }
+    Ok(graph)
+}
+
 /// Whether every cell within `r` of `(x, y)` is free.
 fn disc_free(grid: &OccupancyGrid, x: f64, y: f64, r: f64) -> bool {
     let res = grid.resolution;
@@ -340,6 +463,14 @@ fn disc_free(grid: &OccupancyGrid, x: f64, y: f64, r: f64) -> bool {
         }
     }
     true
+}
+
+/// CPU time this thread has run, seconds, from the scheduler's own account
+/// (`/proc/thread-self/schedstat`); `None` where that file does not exist.
+fn thread_cpu_s() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
 }
 
 /// The controller both sides run: turn towards the goal, slow down while turning.
@@ -371,30 +502,21 @@ pub fn run_sim_bench(opts: SimBenchOptions) -> Result<SimBenchReport, BenchError
     let map_cells = grid0.cells.len();
     drop(grid0);
 
-    let robot = RobotSpec::example_differential();
+    // The on-demand database, as the knowledge service would hold it: the map as a floor with
+    // its metric map, the furniture as objects inside it, and the bundled robot.
+    let robot_ttl = std::fs::read(&opts.robot_ttl).map_err(io_err(&opts.robot_ttl))?;
     let t = Instant::now();
     let grid = decode(yaml_path, &files)?;
-    let map_id = format!(
-        "file://{}",
-        yaml_path
-            .canonicalize()
-            .unwrap_or_else(|_| yaml_path.to_path_buf())
-            .display()
-    );
+    let graph = on_demand_database(yaml_path, grid, &objects, &robot_ttl, &opts.robot_iri)?;
     let database_s = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
-    let spec = WorldSpec {
-        id: map_id.clone(),
-        floor: Some(GridMap {
-            id: map_id.clone(),
-            grid,
-            wall_height: 2.5,
-        }),
-        walls: vec![],
-        objects: objects.clone(),
-        robot: robot.clone(),
-    };
+    let spec =
+        sim::parse_on_demand(&graph, &opts.robot_iri).map_err(|problems| BenchError::Format {
+            path: yaml_path.to_path_buf(),
+            message: format!("the simulation parser refused the on-demand database: {problems}"),
+        })?;
+    let robot = spec.robot.clone();
     let t_raster = Instant::now();
     let world = World::build(spec).map_err(|problems| BenchError::Format {
         path: yaml_path.to_path_buf(),
@@ -434,9 +556,11 @@ pub fn run_sim_bench(opts: SimBenchOptions) -> Result<SimBenchReport, BenchError
         Ok(())
     };
     run(&mut env, &mut obs, 2_000, &mut [0; 3])?; // warm caches
+    let cpu0 = thread_cpu_s();
     let t = Instant::now();
     run(&mut env, &mut obs, opts.steps_one_core, &mut ends)?;
     let one_s = t.elapsed().as_secs_f64();
+    let one_cpu_s = thread_cpu_s().zip(cpu0).map(|(b, a)| b - a);
 
     // All cores: a rayon batch with auto-reset.
     let mut batch = EnvBatch::new(
@@ -518,6 +642,9 @@ pub fn run_sim_bench(opts: SimBenchOptions) -> Result<SimBenchReport, BenchError
         world_raster_s,
         steps_per_s_one_core: one,
         steps_one_core: opts.steps_one_core,
+        steps_per_cpu_s_one_core: one_cpu_s
+            .filter(|s| *s > 0.0)
+            .map(|s| opts.steps_one_core as f64 / s),
         steps_per_s_all_cores: all,
         steps_all_cores: steps_all,
         threads: rayon::current_num_threads(),
@@ -562,6 +689,8 @@ fn run_peer(
         steps_per_s: None,
         steps: None,
         build_s: None,
+        first_step_s: None,
+        obstacles: None,
         error: Some(error),
     };
     let spec_path = std::env::temp_dir().join(format!(
@@ -626,6 +755,8 @@ fn run_peer(
             steps_per_s: v["steps_per_s"].as_f64(),
             steps: v["steps"].as_u64(),
             build_s: v["build_s"].as_f64(),
+            first_step_s: v["first_step_s"].as_f64(),
+            obstacles: v["obstacles"].as_u64(),
             error: None,
         },
         Err(e) => failed(format!("unreadable result {line:?}: {e}")),

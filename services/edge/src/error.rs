@@ -206,7 +206,9 @@ mod tests {
     async fn response_body_has_code_and_message() {
         let response = ApiError::bad_request("port must be a number").into_response();
         assert_eq!(response.status(), StatusCode::BAD_REQUEST);
-        let bytes = axum::body::to_bytes(response.into_body(), 1 << 16).await.unwrap();
+        let bytes = axum::body::to_bytes(response.into_body(), 1 << 16)
+            .await
+            .unwrap();
         let json: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
         assert_eq!(json["error"]["code"], "bad_request");
         assert_eq!(json["error"]["message"], "port must be a number");

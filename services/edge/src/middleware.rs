@@ -31,6 +31,8 @@ pub struct Limits {
 
 /// Wraps a router in the shared stack. Layers are listed innermost first.
 pub fn stack(router: Router, limits: Limits) -> Router {
+    // Install the recorder before the first request is counted, not at the first scrape.
+    crate::metrics::handle();
     router
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(DefaultBodyLimit::max(limits.body_limit))
@@ -126,10 +128,9 @@ async fn uniform_errors(request: Request, next: Next) -> Response {
     }
     // Keep the original status: e.g. axum answers 422 for a JSON body of the wrong shape.
     *rewritten.status_mut() = status;
-    rewritten.headers_mut().insert(
-        CONTENT_TYPE,
-        HeaderValue::from_static("application/json"),
-    );
+    rewritten
+        .headers_mut()
+        .insert(CONTENT_TYPE, HeaderValue::from_static("application/json"));
     rewritten
 }
 
@@ -188,7 +189,9 @@ mod tests {
     }
 
     async fn json(response: Response) -> serde_json::Value {
-        let bytes = axum::body::to_bytes(response.into_body(), 1 << 20).await.unwrap();
+        let bytes = axum::body::to_bytes(response.into_body(), 1 << 20)
+            .await
+            .unwrap();
         serde_json::from_slice(&bytes).unwrap()
     }
 

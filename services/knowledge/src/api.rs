@@ -159,7 +159,10 @@ fn find_place(places: &[Place], id: &str) -> Result<usize, ApiError> {
 
 /// Every place, buildings to rooms.
 #[utoipa::path(get, path = "/v1/places", responses((status = 200, body = [PlaceView]), (status = 401, body = ErrorBody)))]
-async fn list_places(State(k): State<Arc<Knowledge>>, headers: HeaderMap) -> Result<Json<Vec<PlaceView>>, ApiError> {
+async fn list_places(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+) -> Result<Json<Vec<PlaceView>>, ApiError> {
     k.tokens.authenticate(&headers)?;
     blocking(move || {
         let store = k.store()?;
@@ -171,7 +174,11 @@ async fn list_places(State(k): State<Arc<Knowledge>>, headers: HeaderMap) -> Res
 
 /// One place, by IRI (percent-encoded) or identifier.
 #[utoipa::path(get, path = "/v1/places/{id}", params(("id" = String, Path, description = "IRI or tosm:identifier")), responses((status = 200, body = PlaceView), (status = 404, body = ErrorBody)))]
-async fn get_place(State(k): State<Arc<Knowledge>>, headers: HeaderMap, Path(id): Path<String>) -> Result<Json<PlaceView>, ApiError> {
+async fn get_place(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<PlaceView>, ApiError> {
     k.tokens.authenticate(&headers)?;
     blocking(move || {
         let store = k.store()?;
@@ -184,17 +191,22 @@ async fn get_place(State(k): State<Arc<Knowledge>>, headers: HeaderMap, Path(id)
 
 /// A floor's occupancy grid as a PNG (free 254, occupied 0, unknown 205; top row first).
 #[utoipa::path(get, path = "/v1/places/{id}/map.png", params(("id" = String, Path)), responses((status = 200, content_type = "image/png", body = Vec<u8>), (status = 404, body = ErrorBody)))]
-async fn place_map(State(k): State<Arc<Knowledge>>, headers: HeaderMap, Path(id): Path<String>) -> Result<Response, ApiError> {
+async fn place_map(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     k.tokens.authenticate(&headers)?;
     let png = blocking(move || {
         let store = k.store()?;
         let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
         let place = &places[find_place(&places, &id)?];
-        place
-            .map
-            .as_ref()
-            .map(|m| m.png.clone())
-            .ok_or_else(|| ApiError::not_found(format!("place {} has no metric map (only floors do)", place.iri)))
+        place.map.as_ref().map(|m| m.png.clone()).ok_or_else(|| {
+            ApiError::not_found(format!(
+                "place {} has no metric map (only floors do)",
+                place.iri
+            ))
+        })
     })
     .await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
@@ -225,7 +237,8 @@ pub struct RobotView {
 
 fn read_robots(store: &crate::KnowledgeStore) -> Result<Vec<tosm::Robot>, ApiError> {
     let graph = union_graph(store)?;
-    tosm::read_robots(&graph).map_err(|p| ApiError::internal(format!("stored robots do not validate: {p}")))
+    tosm::read_robots(&graph)
+        .map_err(|p| ApiError::internal(format!("stored robots do not validate: {p}")))
 }
 
 /// Every asserted triple (not the entailments), as one graph.
@@ -260,7 +273,10 @@ impl From<&tosm::Robot> for RobotView {
 
 /// Every robot model.
 #[utoipa::path(get, path = "/v1/robots", responses((status = 200, body = [RobotView])))]
-async fn list_robots(State(k): State<Arc<Knowledge>>, headers: HeaderMap) -> Result<Json<Vec<RobotView>>, ApiError> {
+async fn list_robots(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+) -> Result<Json<Vec<RobotView>>, ApiError> {
     k.tokens.authenticate(&headers)?;
     blocking(move || {
         let robots = read_robots(&k.store()?)?;
@@ -271,7 +287,11 @@ async fn list_robots(State(k): State<Arc<Knowledge>>, headers: HeaderMap) -> Res
 
 /// One robot, by IRI or identifier.
 #[utoipa::path(get, path = "/v1/robots/{id}", params(("id" = String, Path)), responses((status = 200, body = RobotView), (status = 404, body = ErrorBody)))]
-async fn get_robot(State(k): State<Arc<Knowledge>>, headers: HeaderMap, Path(id): Path<String>) -> Result<Json<RobotView>, ApiError> {
+async fn get_robot(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<RobotView>, ApiError> {
     k.tokens.authenticate(&headers)?;
     blocking(move || {
         let robots = read_robots(&k.store()?)?;
@@ -316,9 +336,14 @@ impl From<ImportError> for ApiError {
 /// Imports a ROS map_server map as a floor. Multipart form: `yaml` (the map's YAML), `image`
 /// (its PGM or PNG), `name` (lower-case letters, digits, `-`, `_`). Engineers only.
 #[utoipa::path(post, path = "/v1/maps", request_body(content_type = "multipart/form-data", content = String, description = "fields: name, yaml, image"), responses((status = 201, body = ImportedMap), (status = 400, body = ErrorBody), (status = 422, body = ErrorBody)))]
-async fn import_map(State(k): State<Arc<Knowledge>>, headers: HeaderMap, mut form: Multipart) -> Result<Response, ApiError> {
+async fn import_map(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    mut form: Multipart,
+) -> Result<Response, ApiError> {
     k.tokens.require(&headers, Role::Engineer)?;
-    let (mut name, mut yaml, mut image): (Option<String>, Option<String>, Option<Bytes>) = (None, None, None);
+    let (mut name, mut yaml, mut image): (Option<String>, Option<String>, Option<Bytes>) =
+        (None, None, None);
     while let Some(field) = form
         .next_field()
         .await
@@ -332,16 +357,27 @@ async fn import_map(State(k): State<Arc<Knowledge>>, headers: HeaderMap, mut for
         match field_name.as_str() {
             "name" => name = Some(String::from_utf8_lossy(&data).trim().to_owned()),
             "yaml" => {
-                yaml = Some(String::from_utf8(data.to_vec()).map_err(|_| ApiError::bad_request("field yaml is not UTF-8 text"))?)
+                yaml = Some(
+                    String::from_utf8(data.to_vec())
+                        .map_err(|_| ApiError::bad_request("field yaml is not UTF-8 text"))?,
+                )
             }
             "image" => image = Some(data),
-            other => return Err(ApiError::bad_request(format!("unexpected form field {other:?}: expected name, yaml, image"))),
+            other => {
+                return Err(ApiError::bad_request(format!(
+                    "unexpected form field {other:?}: expected name, yaml, image"
+                )));
+            }
         }
     }
-    let yaml = yaml.ok_or_else(|| ApiError::bad_request("missing form field `yaml` (the map_server YAML)"))?;
-    let image = image.ok_or_else(|| ApiError::bad_request("missing form field `image` (the PGM or PNG the YAML names)"))?;
+    let yaml = yaml
+        .ok_or_else(|| ApiError::bad_request("missing form field `yaml` (the map_server YAML)"))?;
+    let image = image.ok_or_else(|| {
+        ApiError::bad_request("missing form field `image` (the PGM or PNG the YAML names)")
+    })?;
     let name = name.ok_or_else(|| ApiError::bad_request("missing form field `name`"))?;
-    let imported = blocking(move || maps::import(&k, &name, &yaml, &image).map_err(ApiError::from)).await?;
+    let imported =
+        blocking(move || maps::import(&k, &name, &yaml, &image).map_err(ApiError::from)).await?;
     let floor = imported.floor_iri.clone();
     let mut response = (
         StatusCode::CREATED,
@@ -474,24 +510,53 @@ async fn report_object(
         let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
         let place = places[find_place(&places, &id)?].clone();
         if matches!(place.kind, PlaceKind::Building) {
-            return Err(ApiError::new(ErrorCode::Unprocessable, format!("{} is a building: report objects in a floor, room, corridor or hall", place.iri)));
+            return Err(ApiError::new(
+                ErrorCode::Unprocessable,
+                format!(
+                    "{} is a building: report objects in a floor, room, corridor or hall",
+                    place.iri
+                ),
+            ));
         }
         let slug = match &report.id {
-            Some(s) if !s.is_empty() && s.len() <= 64 && s.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-' || c == '_') => s.clone(),
-            Some(s) => return Err(ApiError::bad_request(format!("object id {s:?} must be 1-64 characters of a-z, 0-9, '-' and '_'"))),
+            Some(s)
+                if !s.is_empty()
+                    && s.len() <= 64
+                    && s.chars().all(|c| {
+                        c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-' || c == '_'
+                    }) =>
+            {
+                s.clone()
+            }
+            Some(s) => {
+                return Err(ApiError::bad_request(format!(
+                    "object id {s:?} must be 1-64 characters of a-z, 0-9, '-' and '_'"
+                )));
+            }
             None => uuid_slug(),
         };
         let object = to_object(&place, &slug, &report, &principal.name)?;
-        let triples = tosm::object_to_triples(&object)
-            .map_err(|p| ApiError::new(ErrorCode::Unprocessable, p.to_string()).with_details(serde_json::json!({ "problems": p.to_string() })))?;
+        let triples = tosm::object_to_triples(&object).map_err(|p| {
+            ApiError::new(ErrorCode::Unprocessable, p.to_string())
+                .with_details(serde_json::json!({ "problems": p.to_string() }))
+        })?;
         let graph = NamedNode::new_unchecked(PERCEIVED_GRAPH);
         let storage = |e| ApiError::internal(e);
-        let owned = [object.iri.clone(), format!("{}/pose", object.iri), format!("{}/shape", object.iri)];
+        let owned = [
+            object.iri.clone(),
+            format!("{}/pose", object.iri),
+            format!("{}/shape", object.iri),
+        ];
         let mut updated = false;
         let mut transaction = store.inner().start_transaction().map_err(storage)?;
         let mut stale = Vec::new();
         for subject in &owned {
-            for quad in transaction.quads_for_pattern(Some(NamedNodeRef::new_unchecked(subject).into()), None, None, Some(graph.as_ref().into())) {
+            for quad in transaction.quads_for_pattern(
+                Some(NamedNodeRef::new_unchecked(subject).into()),
+                None,
+                None,
+                Some(graph.as_ref().into()),
+            ) {
                 stale.push(quad.map_err(storage)?);
             }
         }
@@ -499,11 +564,18 @@ async fn report_object(
         for quad in &stale {
             transaction.remove(quad);
         }
-        let quads: Vec<Quad> = triples.into_iter().map(|t| t.in_graph(graph.clone())).collect();
+        let quads: Vec<Quad> = triples
+            .into_iter()
+            .map(|t| t.in_graph(graph.clone()))
+            .collect();
         transaction.extend(quads.iter());
         transaction.commit().map_err(storage)?;
         k.after_write().map_err(ApiError::internal)?;
-        let status = if updated { StatusCode::OK } else { StatusCode::CREATED };
+        let status = if updated {
+            StatusCode::OK
+        } else {
+            StatusCode::CREATED
+        };
         Ok((
             status,
             Json(ReportedObject {
@@ -523,7 +595,12 @@ fn uuid_slug() -> String {
     uuid::Uuid::now_v7().simple().to_string()
 }
 
-fn to_object(place: &Place, slug: &str, report: &ObjectReport, reporter: &str) -> Result<tosm::Object, ApiError> {
+fn to_object(
+    place: &Place,
+    slug: &str,
+    report: &ObjectReport,
+    reporter: &str,
+) -> Result<tosm::Object, ApiError> {
     let class_iri = if report.class.contains("://") {
         report.class.clone()
     } else {
@@ -543,12 +620,33 @@ fn to_object(place: &Place, slug: &str, report: &ObjectReport, reporter: &str) -
         Some("Bin") => tosm::ObjectClass::Bin,
         Some("VendingMachine") => tosm::ObjectClass::VendingMachine,
         Some("Object") => tosm::ObjectClass::Other,
-        Some(other) => return Err(ApiError::new(ErrorCode::Unprocessable, format!("class {other} is not an object class"))),
+        Some(other) => {
+            return Err(ApiError::new(
+                ErrorCode::Unprocessable,
+                format!("class {other} is not an object class"),
+            ));
+        }
         None if report.class.contains("://") => tosm::ObjectClass::Other,
-        None => return Err(ApiError::new(ErrorCode::Unprocessable, format!("unknown object class {:?}: use a TOSM class name such as VendingMachine or Table, or a full IRI", report.class))),
+        None => {
+            return Err(ApiError::new(
+                ErrorCode::Unprocessable,
+                format!(
+                    "unknown object class {:?}: use a TOSM class name such as VendingMachine or Table, or a full IRI",
+                    report.class
+                ),
+            ));
+        }
     };
     let shape = match report.shape {
-        ShapeInput::Box { length, width, height } => tosm::Shape::Box { length, width, height },
+        ShapeInput::Box {
+            length,
+            width,
+            height,
+        } => tosm::Shape::Box {
+            length,
+            width,
+            height,
+        },
         ShapeInput::Cylinder { diameter, height } => tosm::Shape::Cylinder { diameter, height },
         ShapeInput::Sphere { diameter } => tosm::Shape::Sphere { diameter },
     };
@@ -559,19 +657,35 @@ fn to_object(place: &Place, slug: &str, report: &ObjectReport, reporter: &str) -
         class_iri,
         class,
         symbol: tosm::Symbol {
-            name: report.name.clone().unwrap_or_else(|| format!("{} {slug}", report.class)),
+            name: report
+                .name
+                .clone()
+                .unwrap_or_else(|| format!("{} {slug}", report.class)),
             identifier: Some(slug.to_owned()),
             description: None,
         },
         pose: tosm::Pose::new(report.pose.x, report.pose.y, z, report.pose.yaw),
         shape,
-        colour: report.colour.as_ref().map(|c| tosm::Colour { r: c.r, g: c.g, b: c.b, a: c.a }),
+        colour: report.colour.as_ref().map(|c| tosm::Colour {
+            r: c.r,
+            g: c.g,
+            b: c.b,
+            a: c.a,
+        }),
         colour_name: None,
-        physical: tosm::Physical { mass_kg: report.mass_kg, material: None, friction: None },
+        physical: tosm::Physical {
+            mass_kg: report.mass_kg,
+            material: None,
+            friction: None,
+        },
         inside_of: place.iri.clone(),
         relations: Vec::new(),
         is_open: None,
-        reported_by: Some(reporter.to_owned()),
+        reported_by: Some(if reporter.contains("://") {
+            reporter.to_owned()
+        } else {
+            format!("https://mentalsim.dev/data/agents/{reporter}")
+        }),
         reported_at: Some(now),
     })
 }
@@ -598,7 +712,12 @@ fn oxsdatatypes_datetime(unix: i64) -> String {
     let d = doy - (153 * mp + 2) / 5 + 1;
     let m = if mp < 10 { mp + 3 } else { mp - 9 };
     let y = if m <= 2 { y + 1 } else { y };
-    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", secs / 3600, secs % 3600 / 60, secs % 60)
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        secs / 3600,
+        secs % 3600 / 60,
+        secs % 60
+    )
 }
 
 /// A waypoint: a place (IRI or identifier), or a point on a floor.
@@ -634,17 +753,29 @@ pub struct OnDemandRequest {
 fn waypoint(which: &str, w: WaypointInput) -> Result<Waypoint, ApiError> {
     match (w.place, w.x, w.y) {
         (Some(place), None, None) => Ok(Waypoint::Place(place)),
-        (None, Some(x), Some(y)) => Ok(Waypoint::Point { x, y, floor: w.floor }),
-        _ => Err(ApiError::bad_request(format!("{which}: give either `place`, or `x` and `y` (with an optional `floor`)"))),
+        (None, Some(x), Some(y)) => Ok(Waypoint::Point {
+            x,
+            y,
+            floor: w.floor,
+        }),
+        _ => Err(ApiError::bad_request(format!(
+            "{which}: give either `place`, or `x` and `y` (with an optional `floor`)"
+        ))),
     }
 }
 
 impl From<OnDemandError> for ApiError {
     fn from(e: OnDemandError) -> Self {
         match &e {
-            OnDemandError::NoGoals | OnDemandError::NotFinite { .. } => ApiError::bad_request(e.to_string()),
-            OnDemandError::UnknownRobot(_) | OnDemandError::UnknownPlace { .. } => ApiError::not_found(e.to_string()),
-            OnDemandError::OutsideEveryPlace { .. } | OnDemandError::AmbiguousFloor { .. } | OnDemandError::NotConnected { .. } => {
+            OnDemandError::NoGoals | OnDemandError::NotFinite { .. } => {
+                ApiError::bad_request(e.to_string())
+            }
+            OnDemandError::UnknownRobot(_) | OnDemandError::UnknownPlace { .. } => {
+                ApiError::not_found(e.to_string())
+            }
+            OnDemandError::OutsideEveryPlace { .. }
+            | OnDemandError::AmbiguousFloor { .. }
+            | OnDemandError::NotConnected { .. } => {
                 ApiError::new(ErrorCode::Unprocessable, e.to_string())
             }
             OnDemandError::Store(_) => ApiError::internal(e),
@@ -679,7 +810,9 @@ async fn on_demand_database(
         let db = on_demand::build(&store, &mission)?;
         let body = serialize(&db.triples, format)?;
         let mut response = ([(header::CONTENT_TYPE, format.media_type())], body).into_response();
-        response.headers_mut().insert("x-triple-count", HeaderValue::from(db.triples.len()));
+        response
+            .headers_mut()
+            .insert("x-triple-count", HeaderValue::from(db.triples.len()));
         if let Ok(v) = HeaderValue::from_str(&db.route.join(" ")) {
             response.headers_mut().insert("x-route", v);
         }
@@ -690,7 +823,9 @@ async fn on_demand_database(
 
 /// The graph formats the on-demand endpoint writes, by `Accept`.
 fn graph_format(accept: Option<&str>) -> Result<RdfFormat, ApiError> {
-    let Some(accept) = accept else { return Ok(RdfFormat::Turtle) };
+    let Some(accept) = accept else {
+        return Ok(RdfFormat::Turtle);
+    };
     let mut best: Option<(f32, RdfFormat)> = None;
     for part in accept.split(',') {
         let mut pieces = part.split(';');
@@ -702,7 +837,9 @@ fn graph_format(accept: Option<&str>) -> Result<RdfFormat, ApiError> {
         let format = match media.as_str() {
             "text/turtle" | "*/*" | "text/*" => RdfFormat::Turtle,
             "application/n-triples" => RdfFormat::NTriples,
-            "application/ld+json" | "application/json" => RdfFormat::JsonLd { profile: Default::default() },
+            "application/ld+json" | "application/json" => RdfFormat::JsonLd {
+                profile: Default::default(),
+            },
             _ => continue,
         };
         if q > 0.0 && best.as_ref().is_none_or(|(bq, _)| q > *bq) {
@@ -723,7 +860,9 @@ fn serialize(triples: &[oxigraph::model::Triple], format: RdfFormat) -> Result<V
             ("owl", "http://www.w3.org/2002/07/owl#"),
             ("xsd", "http://www.w3.org/2001/XMLSchema#"),
         ] {
-            serializer = serializer.with_prefix(prefix, iri).map_err(ApiError::internal)?;
+            serializer = serializer
+                .with_prefix(prefix, iri)
+                .map_err(ApiError::internal)?;
         }
     }
     let mut writer = serializer.for_writer(Vec::new());

@@ -82,7 +82,10 @@ impl Tokens {
         let token = value
             .to_str()
             .ok()
-            .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
+            .and_then(|v| {
+                v.strip_prefix("Bearer ")
+                    .or_else(|| v.strip_prefix("bearer "))
+            })
             .map(str::trim)
             .ok_or_else(|| {
                 ApiError::new(
@@ -90,9 +93,10 @@ impl Tokens {
                     "malformed Authorization header: expected `Bearer <token>`",
                 )
             })?;
-        self.by_token.get(token).cloned().ok_or_else(|| {
-            ApiError::new(ErrorCode::Unauthorized, "unknown bearer token")
-        })
+        self.by_token
+            .get(token)
+            .cloned()
+            .ok_or_else(|| ApiError::new(ErrorCode::Unauthorized, "unknown bearer token"))
     }
 
     /// Like [`Tokens::authenticate`], and 403 unless the token's role is `role` or engineer.
@@ -125,21 +129,43 @@ mod tests {
     #[test]
     fn open_tokens_let_everyone_write() {
         let t = Tokens::open();
-        assert_eq!(t.require(&HeaderMap::new(), Role::Engineer).unwrap().role, Role::Engineer);
+        assert_eq!(
+            t.require(&HeaderMap::new(), Role::Engineer).unwrap().role,
+            Role::Engineer
+        );
     }
 
     #[test]
     fn roles_are_enforced() {
-        let t = Tokens::default()
-            .with("e1", "alice", Role::Engineer)
-            .with("r1", "robot-7", Role::Robot);
-        assert_eq!(t.authenticate(&HeaderMap::new()).unwrap_err().code(), ErrorCode::Unauthorized);
-        assert_eq!(t.authenticate(&headers("Bearer nope")).unwrap_err().code(), ErrorCode::Unauthorized);
-        assert_eq!(t.authenticate(&headers("Basic x")).unwrap_err().code(), ErrorCode::Unauthorized);
-        assert_eq!(t.require(&headers("Bearer r1"), Role::Robot).unwrap().name, "robot-7");
-        assert_eq!(t.require(&headers("Bearer e1"), Role::Robot).unwrap().name, "alice");
+        let t = Tokens::default().with("e1", "alice", Role::Engineer).with(
+            "r1",
+            "robot-7",
+            Role::Robot,
+        );
         assert_eq!(
-            t.require(&headers("Bearer r1"), Role::Engineer).unwrap_err().code(),
+            t.authenticate(&HeaderMap::new()).unwrap_err().code(),
+            ErrorCode::Unauthorized
+        );
+        assert_eq!(
+            t.authenticate(&headers("Bearer nope")).unwrap_err().code(),
+            ErrorCode::Unauthorized
+        );
+        assert_eq!(
+            t.authenticate(&headers("Basic x")).unwrap_err().code(),
+            ErrorCode::Unauthorized
+        );
+        assert_eq!(
+            t.require(&headers("Bearer r1"), Role::Robot).unwrap().name,
+            "robot-7"
+        );
+        assert_eq!(
+            t.require(&headers("Bearer e1"), Role::Robot).unwrap().name,
+            "alice"
+        );
+        assert_eq!(
+            t.require(&headers("Bearer r1"), Role::Engineer)
+                .unwrap_err()
+                .code(),
             ErrorCode::Forbidden
         );
     }

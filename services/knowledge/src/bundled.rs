@@ -71,7 +71,10 @@ mod tests {
     fn bundled_graphs_load_once_and_parse_as_tosm() {
         let store = KnowledgeStore::in_memory().unwrap();
         assert!(load_if_empty(&store).unwrap());
-        assert!(!load_if_empty(&store).unwrap(), "second start loads nothing");
+        assert!(
+            !load_if_empty(&store).unwrap(),
+            "second start loads nothing"
+        );
         for bundled in BUNDLED {
             assert!(
                 store
@@ -89,6 +92,9 @@ mod tests {
             .on_store(store.inner())
             .execute()
             .unwrap();
-        assert!(matches!(answer, oxigraph::sparql::QueryResults::Boolean(true)));
+        assert!(matches!(
+            answer,
+            oxigraph::sparql::QueryResults::Boolean(true)
+        ));
     }
 }

@@ -91,21 +91,27 @@ impl Schema {
                     .or_default()
                     .push(t.object.clone());
             } else if p == rdfs::SUB_PROPERTY_OF {
-                if let (Some(s), Term::NamedNode(o)) = (named(&t.subject.clone().into()), &t.object) {
+                if let (Some(s), Term::NamedNode(o)) = (named(&t.subject.clone().into()), &t.object)
+                {
                     direct_properties.entry(s).or_default().push(o.clone());
                 }
             } else if p == OWL_INVERSE_OF {
-                if let (Some(s), Term::NamedNode(o)) = (named(&t.subject.clone().into()), &t.object) {
-                    schema.inverses.entry(s.clone()).or_default().push(o.clone());
+                if let (Some(s), Term::NamedNode(o)) = (named(&t.subject.clone().into()), &t.object)
+                {
+                    schema
+                        .inverses
+                        .entry(s.clone())
+                        .or_default()
+                        .push(o.clone());
                     schema.inverses.entry(o.clone()).or_default().push(s);
                 }
-            } else if p == rdf::TYPE {
-                if let Some(s) = named(&t.subject.clone().into()) {
-                    if t.object == Term::NamedNode(OWL_SYMMETRIC.into_owned()) {
-                        schema.symmetric.insert(s);
-                    } else if t.object == Term::NamedNode(OWL_TRANSITIVE.into_owned()) {
-                        schema.transitive.insert(s);
-                    }
+            } else if p == rdf::TYPE
+                && let Some(s) = named(&t.subject.clone().into())
+            {
+                if t.object == Term::NamedNode(OWL_SYMMETRIC.into_owned()) {
+                    schema.symmetric.insert(s);
+                } else if t.object == Term::NamedNode(OWL_TRANSITIVE.into_owned()) {
+                    schema.transitive.insert(s);
                 }
             }
         }
@@ -131,10 +137,10 @@ fn transitive_closure<T: Clone + Eq + std::hash::Hash>(
         let mut seen: HashSet<T> = HashSet::new();
         let mut stack: Vec<T> = direct.get(start).cloned().unwrap_or_default();
         while let Some(next) = stack.pop() {
-            if seen.insert(next.clone()) {
-                if let Some(more) = direct.get(&next) {
-                    stack.extend(more.iter().cloned());
-                }
+            if seen.insert(next.clone())
+                && let Some(more) = direct.get(&next)
+            {
+                stack.extend(more.iter().cloned());
             }
         }
         out.insert(start.clone(), seen.into_iter().collect());
@@ -173,11 +179,11 @@ fn closure(asserted: &HashSet<Triple>) -> HashSet<Triple> {
 
 fn local_consequences(schema: &Schema, t: &Triple) -> Vec<Triple> {
     let mut out = Vec::new();
-    if t.predicate.as_ref() == rdf::TYPE {
-        if let Some(supers) = schema.super_classes.get(&t.object) {
-            for c in supers {
-                out.push(Triple::new(t.subject.clone(), rdf::TYPE, c.clone()));
-            }
+    if t.predicate.as_ref() == rdf::TYPE
+        && let Some(supers) = schema.super_classes.get(&t.object)
+    {
+        for c in supers {
+            out.push(Triple::new(t.subject.clone(), rdf::TYPE, c.clone()));
         }
     }
     if let Some(supers) = schema.super_properties.get(&t.predicate) {

@@ -199,7 +199,12 @@ mod tests {
         let store = k.try_store().unwrap();
         let graph: oxigraph::model::Graph = store
             .inner()
-            .quads_for_pattern(None, None, None, Some(NamedNodeRef::new_unchecked(&imported.graph_iri).into()))
+            .quads_for_pattern(
+                None,
+                None,
+                None,
+                Some(NamedNodeRef::new_unchecked(&imported.graph_iri).into()),
+            )
             .map(|q| oxigraph::model::Triple::from(q.unwrap()))
             .collect();
         let places = tosm::read_places(&graph).unwrap();
@@ -218,14 +223,22 @@ mod tests {
         let cases: Vec<(&str, String, Vec<u8>, &str)> = vec![
             ("lab", "image: [".to_owned(), pgm(4, 4), "yaml"),
             ("lab", YAML.replace("0.5", "-0.5"), pgm(4, 4), "resolution"),
-            ("lab", YAML.to_owned(), b"P5\n10 10\n255\nxx".to_vec(), "image"),
+            (
+                "lab",
+                YAML.to_owned(),
+                b"P5\n10 10\n255\nxx".to_vec(),
+                "image",
+            ),
             ("lab", YAML.to_owned(), Vec::new(), "image"),
             ("Bad Name", YAML.to_owned(), pgm(4, 4), "name"),
         ];
         for (name, yaml, image, needle) in cases {
             let err = import(&k, name, &yaml, &image).unwrap_err();
             assert!(err.is_client_error(), "{err}");
-            assert!(err.to_string().to_lowercase().contains(needle), "{needle}: {err}");
+            assert!(
+                err.to_string().to_lowercase().contains(needle),
+                "{needle}: {err}"
+            );
         }
     }
 }

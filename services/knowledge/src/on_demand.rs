@@ -9,9 +9,7 @@
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
 
 use oxigraph::model::vocab::rdf;
-use oxigraph::model::{
-    Graph, GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple,
-};
+use oxigraph::model::{Graph, GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
 use tosm::{Place, PlaceKind, vocab};
 
 use crate::inference::INFERRED_GRAPH;
@@ -172,10 +170,10 @@ impl Reader<'_> {
     /// Every individual of `class` (asserted or entailed), sorted.
     fn instances(&self, class: NamedNodeRef<'_>) -> Result<BTreeSet<NamedNode>, StoreError> {
         let mut out = BTreeSet::new();
-        for quad in self
-            .store
-            .inner()
-            .quads_for_pattern(None, Some(rdf::TYPE), Some(class.into()), None)
+        for quad in
+            self.store
+                .inner()
+                .quads_for_pattern(None, Some(rdf::TYPE), Some(class.into()), None)
         {
             let quad = quad.map_err(|e| self.err(e))?;
             if let oxigraph::model::NamedOrBlankNode::NamedNode(n) = quad.subject {
@@ -198,13 +196,12 @@ impl Reader<'_> {
             return Ok(());
         }
         for triple in self.about(subject)? {
-            if let Term::NamedNode(object) = &triple.object {
-                if triple.predicate.as_ref() != rdf::TYPE
-                    && (self.is_a(object.as_ref(), vocab::DESCRIPTOR)?
-                        || (parts && self.is_a(object.as_ref(), vocab::ROBOT_PART)?))
-                {
-                    self.closure(object.as_ref(), parts, out, seen)?;
-                }
+            if let Term::NamedNode(object) = &triple.object
+                && triple.predicate.as_ref() != rdf::TYPE
+                && (self.is_a(object.as_ref(), vocab::DESCRIPTOR)?
+                    || (parts && self.is_a(object.as_ref(), vocab::ROBOT_PART)?))
+            {
+                self.closure(object.as_ref(), parts, out, seen)?;
             }
             out.insert(triple);
         }
@@ -268,7 +265,13 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
     let mut stops = Vec::new();
     stops.push(locate(&reader, &places, &index, "start", &mission.start)?);
     for (i, goal) in mission.goals.iter().enumerate() {
-        stops.push(locate(&reader, &places, &index, &format!("goal {}", i + 1), goal)?);
+        stops.push(locate(
+            &reader,
+            &places,
+            &index,
+            &format!("goal {}", i + 1),
+            goal,
+        )?);
     }
 
     let mut route: Vec<String> = Vec::new();
@@ -304,7 +307,12 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
     let mut triples = HashSet::new();
     let mut seen = BTreeSet::new();
     for iri in &included {
-        reader.closure(NamedNodeRef::new_unchecked(iri), false, &mut triples, &mut seen)?;
+        reader.closure(
+            NamedNodeRef::new_unchecked(iri),
+            false,
+            &mut triples,
+            &mut seen,
+        )?;
     }
     // Objects directly inside an included place, and objects inside those objects.
     let mut containers: VecDeque<String> = included.iter().cloned().collect();
@@ -317,11 +325,12 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
             None,
         ) {
             let quad = quad.map_err(|e| reader.err(e))?;
-            if let oxigraph::model::NamedOrBlankNode::NamedNode(object) = quad.subject {
-                if reader.is_a(object.as_ref(), vocab::OBJECT)? && !seen.contains(&object) {
-                    reader.closure(object.as_ref(), false, &mut triples, &mut seen)?;
-                    containers.push_back(object.into_string());
-                }
+            if let oxigraph::model::NamedOrBlankNode::NamedNode(object) = quad.subject
+                && reader.is_a(object.as_ref(), vocab::OBJECT)?
+                && !seen.contains(&object)
+            {
+                reader.closure(object.as_ref(), false, &mut triples, &mut seen)?;
+                containers.push_back(object.into_string());
             }
         }
     }
@@ -388,7 +397,11 @@ fn locate(
                     which: which.to_owned(),
                     x,
                     y,
-                    floors: floors.iter().map(|f| f.iri.as_str()).collect::<Vec<_>>().join(", "),
+                    floors: floors
+                        .iter()
+                        .map(|f| f.iri.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", "),
                 });
             }
             let outside = || OnDemandError::OutsideEveryPlace {
@@ -451,8 +464,14 @@ fn shortest_route(
     let mut neighbours: BTreeMap<&str, BTreeSet<&str>> = BTreeMap::new();
     for place in index.values() {
         for other in &place.connected {
-            neighbours.entry(place.iri.as_str()).or_default().insert(other.as_str());
-            neighbours.entry(other.as_str()).or_default().insert(place.iri.as_str());
+            neighbours
+                .entry(place.iri.as_str())
+                .or_default()
+                .insert(other.as_str());
+            neighbours
+                .entry(other.as_str())
+                .or_default()
+                .insert(place.iri.as_str());
         }
     }
     let mut previous: HashMap<&str, &str> = HashMap::new();
@@ -530,7 +549,11 @@ mod tests {
     fn sample_building_places_read_without_problems() {
         let store = store();
         let places = places(&store);
-        assert!(places.iter().any(|p| p.kind == PlaceKind::Floor && p.map.is_some()));
+        assert!(
+            places
+                .iter()
+                .any(|p| p.kind == PlaceKind::Floor && p.map.is_some())
+        );
         assert!(places.iter().any(|p| p.kind == PlaceKind::Room));
     }
 
@@ -541,7 +564,11 @@ mod tests {
         // Two connected rooms that are not the same place.
         let room = places
             .iter()
-            .find(|p| p.kind != PlaceKind::Floor && p.kind != PlaceKind::Building && !p.connected.is_empty())
+            .find(|p| {
+                p.kind != PlaceKind::Floor
+                    && p.kind != PlaceKind::Building
+                    && !p.connected.is_empty()
+            })
             .unwrap();
         let goal = room.connected[0].clone();
         let mission = Mission {
@@ -559,10 +586,18 @@ mod tests {
         assert!(read.iter().any(|p| p.map.is_some()));
         // Nothing else: no place off the route except ancestors.
         let off_route = places.iter().filter(|p| {
-            !db.route.contains(&p.iri) && p.kind != PlaceKind::Floor && p.kind != PlaceKind::Building
+            !db.route.contains(&p.iri)
+                && p.kind != PlaceKind::Floor
+                && p.kind != PlaceKind::Building
         });
         for p in off_route {
-            assert!(!graph.iter().any(|t| t.subject.to_string() == format!("<{}>", p.iri)), "{} leaked", p.iri);
+            assert!(
+                !graph
+                    .iter()
+                    .any(|t| t.subject.to_string() == format!("<{}>", p.iri)),
+                "{} leaked",
+                p.iri
+            );
         }
         // Deterministic.
         let again = build(&store, &mission).unwrap();
@@ -577,11 +612,18 @@ mod tests {
             .iter()
             .find(|p| p.kind == PlaceKind::Room && p.boundary.len() >= 3)
             .unwrap();
-        let (cx, cy) = room.boundary.iter().fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+        let (cx, cy) = room
+            .boundary
+            .iter()
+            .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
         let n = room.boundary.len() as f64;
         let mission = Mission {
             robot: "R-001".to_owned(),
-            start: Waypoint::Point { x: cx / n, y: cy / n, floor: None },
+            start: Waypoint::Point {
+                x: cx / n,
+                y: cy / n,
+                floor: None,
+            },
             goals: vec![Waypoint::Place(room.iri.clone())],
         };
         let db = build(&store, &mission).unwrap();
@@ -597,17 +639,56 @@ mod tests {
             start,
             goals,
         };
-        let err = build(&store, &mission("R-999", Waypoint::Place(any_place.clone()), vec![Waypoint::Place(any_place.clone())])).unwrap_err();
+        let err = build(
+            &store,
+            &mission(
+                "R-999",
+                Waypoint::Place(any_place.clone()),
+                vec![Waypoint::Place(any_place.clone())],
+            ),
+        )
+        .unwrap_err();
         assert!(matches!(err, OnDemandError::UnknownRobot(_)), "{err}");
-        let err = build(&store, &mission("R-001", Waypoint::Place(any_place.clone()), vec![])).unwrap_err();
+        let err = build(
+            &store,
+            &mission("R-001", Waypoint::Place(any_place.clone()), vec![]),
+        )
+        .unwrap_err();
         assert!(matches!(err, OnDemandError::NoGoals), "{err}");
-        let far = Waypoint::Point { x: 1e6, y: 1e6, floor: None };
-        let err = build(&store, &mission("R-001", far, vec![Waypoint::Place(any_place.clone())])).unwrap_err();
-        assert!(matches!(err, OnDemandError::OutsideEveryPlace { .. }), "{err}");
-        let nan = Waypoint::Point { x: f64::NAN, y: 0.0, floor: None };
-        let err = build(&store, &mission("R-001", nan, vec![Waypoint::Place(any_place.clone())])).unwrap_err();
+        let far = Waypoint::Point {
+            x: 1e6,
+            y: 1e6,
+            floor: None,
+        };
+        let err = build(
+            &store,
+            &mission("R-001", far, vec![Waypoint::Place(any_place.clone())]),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(err, OnDemandError::OutsideEveryPlace { .. }),
+            "{err}"
+        );
+        let nan = Waypoint::Point {
+            x: f64::NAN,
+            y: 0.0,
+            floor: None,
+        };
+        let err = build(
+            &store,
+            &mission("R-001", nan, vec![Waypoint::Place(any_place.clone())]),
+        )
+        .unwrap_err();
         assert!(matches!(err, OnDemandError::NotFinite { .. }), "{err}");
-        let err = build(&store, &mission("R-001", Waypoint::Place("nowhere".into()), vec![Waypoint::Place(any_place)])).unwrap_err();
+        let err = build(
+            &store,
+            &mission(
+                "R-001",
+                Waypoint::Place("nowhere".into()),
+                vec![Waypoint::Place(any_place)],
+            ),
+        )
+        .unwrap_err();
         assert!(matches!(err, OnDemandError::UnknownPlace { .. }), "{err}");
         assert!(err.is_client_error());
     }
@@ -616,16 +697,33 @@ mod tests {
     fn places_on_different_floors_without_a_link_are_not_connected() {
         let store = store();
         let places = places(&store);
-        let floors: Vec<&Place> = places.iter().filter(|p| p.kind == PlaceKind::Floor).collect();
+        let floors: Vec<&Place> = places
+            .iter()
+            .filter(|p| p.kind == PlaceKind::Floor)
+            .collect();
         assert!(floors.len() >= 2, "the sample building has two floors");
         let index: HashMap<&str, &Place> = places.iter().map(|p| (p.iri.as_str(), p)).collect();
-        let a = places.iter().find(|p| p.kind == PlaceKind::Room && on_floor(&index, p, &floors[0].iri)).unwrap();
-        let b = places.iter().find(|p| p.kind != PlaceKind::Floor && p.kind != PlaceKind::Building && on_floor(&index, p, &floors[1].iri)).unwrap();
-        let err = build(&store, &Mission {
-            robot: "R-001".into(),
-            start: Waypoint::Place(a.iri.clone()),
-            goals: vec![Waypoint::Place(b.iri.clone())],
-        }).unwrap_err();
+        let a = places
+            .iter()
+            .find(|p| p.kind == PlaceKind::Room && on_floor(&index, p, &floors[0].iri))
+            .unwrap();
+        let b = places
+            .iter()
+            .find(|p| {
+                p.kind != PlaceKind::Floor
+                    && p.kind != PlaceKind::Building
+                    && on_floor(&index, p, &floors[1].iri)
+            })
+            .unwrap();
+        let err = build(
+            &store,
+            &Mission {
+                robot: "R-001".into(),
+                start: Waypoint::Place(a.iri.clone()),
+                goals: vec![Waypoint::Place(b.iri.clone())],
+            },
+        )
+        .unwrap_err();
         assert!(matches!(err, OnDemandError::NotConnected { .. }), "{err}");
     }
 }

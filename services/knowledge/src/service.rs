@@ -57,10 +57,12 @@ impl Knowledge {
     /// A service over an open store.
     pub fn new(store: KnowledgeStore, tokens: Tokens, limits: QueryLimits) -> Self {
         let mut service = Self::lazy(
-            || Err(StoreError::Query {
-                path: "(none)".into(),
-                message: "no opener".to_owned(),
-            }),
+            || {
+                Err(StoreError::Query {
+                    path: "(none)".into(),
+                    message: "no opener".to_owned(),
+                })
+            },
             tokens,
             limits,
         );

@@ -393,10 +393,10 @@ fn check(
                 .map_err(|e| format!("results do not parse: {e}"))?;
             match (kind, parsed) {
                 ("boolean", SliceQueryResultsParserOutput::Boolean(value)) => {
-                    if let Some(expected) = expected.boolean {
-                        if value != expected {
-                            return Err(format!("boolean {value}, expected {expected}"));
-                        }
+                    if let Some(expected) = expected.boolean
+                        && value != expected
+                    {
+                        return Err(format!("boolean {value}, expected {expected}"));
                     }
                 }
                 ("tabular", SliceQueryResultsParserOutput::Solutions(solutions)) => {

@@ -41,5 +41,8 @@ fn a_gradient_step_reaches_every_parameter_and_lowers_the_loss() {
         opt.backward_step(&loss_of(&net));
     }
     let after = loss_of(&net).double_value(&[]);
-    assert!(after < before * 0.5, "loss did not fall: {before} -> {after}");
+    assert!(
+        after < before * 0.5,
+        "loss did not fall: {before} -> {after}"
+    );
 }

@@ -53,6 +53,48 @@ pub struct ConfigSpace {
     region_start: Vec<u32>,
     /// Free cells on ridges of the distance field (an approximate medial axis).
     pub(crate) skeleton_cells: Vec<u32>,
+    /// A coarser copy of the free space for roadmap bridging: block (bx, by) of `coarse.factor`²
+    /// cells is free when every cell in it is.
+    pub(crate) coarse: CoarseGrid,
+}
+
+/// Free space at a coarser resolution (whole blocks of cells).
+#[derive(Debug, Clone)]
+pub(crate) struct CoarseGrid {
+    /// Cells per block side.
+    pub factor: usize,
+    pub width: usize,
+    pub height: usize,
+    pub free: Vec<bool>,
+}
+
+/// Block side of the coarse grid: about 0.15 m, so that a door the robot fits through with a
+/// few centimetres to spare still holds a whole free block.
+fn coarse_factor(resolution: f64) -> usize {
+    // The epsilon keeps 0.15 / 0.05 (2.9999999999999996 in floating point) at 3.
+    ((0.15 / resolution + 1e-9).floor() as usize).max(1)
+}
+
+fn coarse_grid(w: usize, h: usize, free: &[bool], factor: usize) -> CoarseGrid {
+    let (cw, ch) = (w.div_ceil(factor), h.div_ceil(factor));
+    let mut out = vec![false; cw * ch];
+    for by in 0..ch {
+        for bx in 0..cw {
+            let (x0, y0) = (bx * factor, by * factor);
+            // Blocks hanging over the map edge are not free: they hold no map cells there.
+            if x0 + factor > w || y0 + factor > h {
+                continue;
+            }
+            out[by * cw + bx] =
+                (y0..y0 + factor).all(|y| free[y * w + x0..y * w + x0 + factor].iter().all(|&f| f));
+        }
+    }
+    CoarseGrid {
+        factor,
+        width: cw,
+        height: ch,
+        free: out,
+    }
 }
 
 impl ConfigSpace {
@@ -95,6 +137,7 @@ impl ConfigSpace {
             }
         }
         let skeleton_cells = ridge_cells(w, h, &d2, &free);
+        let coarse = coarse_grid(w, h, &free, coarse_factor(map.resolution));
         Ok(Self {
             width: w,
             height: h,
@@ -109,6 +152,7 @@ impl ConfigSpace {
             free_cells,
             region_start,
             skeleton_cells,
+            coarse,
         })
     }
 
@@ -283,8 +327,18 @@ impl ConfigSpace {
         self.to_world([c as f64 + 0.5, r as f64 + 0.5])
     }
 
+    /// Checks that the robot may stand at `p` (finite, on the map, clear of obstacles), or says
+    /// precisely what is wrong: the check a query runs on its start and goal.
+    pub fn validate_endpoint(&self, endpoint: Endpoint, p: Point2) -> Result<(), QueryError> {
+        self.check_endpoint(endpoint, p).map(|_| ())
+    }
+
     /// Checks a query endpoint and returns it in grid units, or says precisely what is wrong.
-    pub fn check_endpoint(&self, endpoint: Endpoint, p: Point2) -> Result<[f64; 2], QueryError> {
+    pub(crate) fn check_endpoint(
+        &self,
+        endpoint: Endpoint,
+        p: Point2,
+    ) -> Result<[f64; 2], QueryError> {
         if !(p.x.is_finite() && p.y.is_finite()) {
             return Err(QueryError::NonFinite {
                 endpoint,
@@ -368,7 +422,7 @@ impl ConfigSpace {
     /// from the projection of this centre lie within s + √2 of it, hence the 1.5 allowance.
     fn trace(&self, a: [f64; 2], b: [f64; 2], mut on_cell: impl FnMut(usize, f64) -> Step) {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let len = dx.hypot(dy);
+        let len = (dx * dx + dy * dy).sqrt();
         let at = |t: f64| {
             if len > 0.0 {
                 [a[0] + dx * (t / len), a[1] + dy * (t / len)]

@@ -77,13 +77,14 @@ impl PrmParams {
 }
 
 impl Default for PrmParams {
-    /// n = 200, k = 10 (OMPL's default too), d_max = 15 m, 3k tests, half the samples on ridges.
+    /// n = 200, k = 10 (OMPL's default too), d_max = 15 m, the k nearest tested (as OMPL), half
+    /// the samples on ridges, 30% spent on repair.
     fn default() -> Self {
         Self {
             samples: 200,
             neighbours: 10,
             max_edge_m: 15.0,
-            max_tests_per_node: 30,
+            max_tests_per_node: 10,
             skeleton_share: 0.5,
             repair_share: 0.3,
             seed: 0,
@@ -470,6 +471,12 @@ impl Roadmap {
         }
     }
 
+    /// Nodes a query endpoint may test when none of its k nearest is in sight: a query that
+    /// starts in a cluttered corner should still reach the roadmap without densifying.
+    fn query_tests(&self) -> usize {
+        (3 * self.params.neighbours).max(self.params.max_tests_per_node)
+    }
+
     /// The k nearest roadmap nodes within d_max, unchecked.
     fn candidates(&self, g: [f64; 2]) -> Vec<(u32, f64)> {
         let dmax = self.params.max_edge_m / self.cspace.resolution();
@@ -490,7 +497,7 @@ impl Roadmap {
     /// tested, stopping at the first in sight.
     fn links_beyond(&self, g: [f64; 2], skip: usize) -> Vec<(u32, f64)> {
         let dmax = self.params.max_edge_m / self.cspace.resolution();
-        let Some(tests) = NonZeroUsize::new(self.params.max_tests_per_node.max(skip + 1)) else {
+        let Some(tests) = NonZeroUsize::new(self.query_tests().max(skip + 1)) else {
             return Vec::new();
         };
         self.tree
@@ -506,6 +513,67 @@ impl Roadmap {
             })
             .map(|nb| vec![(nb.item, nb.distance.sqrt())])
             .unwrap_or_default()
+    }
+
+    /// Keeps what a densified query learnt: the plan's waypoints become nodes and its segments
+    /// edges, so later queries through the same gap need no densification. Returns the number
+    /// of nodes added. For the cache owner, between queries (it needs `&mut`); plans from other
+    /// roadmaps or with blocked segments are ignored.
+    pub fn absorb(&mut self, plan: &Plan) -> usize {
+        let cs = Arc::clone(&self.cspace);
+        let pts: Vec<[f64; 2]> = plan.waypoints.iter().map(|&p| cs.to_grid(p)).collect();
+        let valid = pts.len() >= 2
+            && pts
+                .iter()
+                .all(|&g| cs.cell_index(g).is_some_and(|i| cs.free[i]))
+            && pts.windows(2).all(|w| cs.segment_free_grid(w[0], w[1]));
+        if plan.densified_nodes == 0 || !valid {
+            return 0;
+        }
+        let mut edges: Vec<(u32, u32, f64)> = Vec::with_capacity(self.stats.edges + pts.len());
+        for i in 0..self.nodes.len() as u32 {
+            edges.extend(
+                self.graph
+                    .neighbours(i)
+                    .filter(|&(j, _)| i < j)
+                    .map(|(j, w)| (i, j, w)),
+            );
+        }
+        // Existing nodes are matched exactly: waypoints that are roadmap nodes carry their bits.
+        let mut ids = Vec::with_capacity(pts.len());
+        let mut added = 0;
+        for &p in &pts {
+            let id = match self.nodes.iter().position(|&q| q == p) {
+                Some(i) => i as u32,
+                None => {
+                    self.nodes.push(p);
+                    added += 1;
+                    self.nodes.len() as u32 - 1
+                }
+            };
+            ids.push(id);
+        }
+        for (w, pair) in pts.windows(2).zip(ids.windows(2)) {
+            if pair[0] != pair[1] {
+                edges.push((pair[0], pair[1], dist(w[0], w[1])));
+            }
+        }
+        let Ok(tree) = kd_tree(&self.nodes) else {
+            // Only past MAX_SAMPLES nodes; keep the roadmap as it was.
+            self.nodes.truncate(self.nodes.len() - added);
+            return 0;
+        };
+        self.graph = Csr::from_edges(self.nodes.len(), &edges);
+        self.component = components(&self.graph);
+        self.tree = tree;
+        self.stats.edges = edges.len();
+        self.stats.components = self
+            .component
+            .iter()
+            .copied()
+            .max()
+            .map_or(0, |m| m as usize + 1);
+        added
     }
 
     /// Removes detours: each waypoint is joined to the farthest later one in straight sight.
@@ -539,8 +607,7 @@ impl Roadmap {
     /// Up to k valid edges from a query point to its nearest roadmap nodes within d_max.
     fn links(&self, g: [f64; 2]) -> Vec<(u32, f64)> {
         let dmax = self.params.max_edge_m / self.cspace.resolution();
-        let tests = NonZeroUsize::new(self.params.max_tests_per_node.max(self.params.neighbours))
-            .unwrap_or(NonZeroUsize::MIN);
+        let tests = NonZeroUsize::new(self.query_tests()).unwrap_or(NonZeroUsize::MIN);
         let near = self
             .tree
             .query(&g)
@@ -805,10 +872,10 @@ fn repair(
 }
 
 /// Joins every roadmap component to the largest one of its free region: waves grow over the
-/// grid from the other components' nodes (from the discs each node sees for certain) until they
-/// touch another component; each meeting becomes a chain of cells, thinned to straight
-/// segments, whose corners are added as nodes. Only the smaller components radiate, so the
-/// flood stays local to the gaps. The region's largest component waits for them.
+/// coarse grid from the other components' nodes until they touch another component; each
+/// meeting becomes a chain of blocks, thinned to straight segments, whose corners are added as
+/// nodes. Only the smaller components radiate, so the flood stays local to the gaps; the
+/// region's largest component waits for them.
 fn bridge_components(
     cs: &ConfigSpace,
     nodes: &mut Vec<[f64; 2]>,
@@ -841,39 +908,56 @@ fn bridge_components(
     if remaining == 0 {
         return;
     }
-    let (w, h) = (cs.width, cs.height);
+    // The flood runs on the coarse grid (factor² fewer cells). A block is entirely free, so a
+    // node reaches its block's centre in a straight line and 4-adjacent block centres see each
+    // other. Gaps narrower than a block are left to query-time densification.
+    let g = &cs.coarse;
+    let f = g.factor;
+    let block_of = |p: [f64; 2]| {
+        let (bx, by) = ((p[0] / f as f64) as usize, (p[1] / f as f64) as usize);
+        (bx < g.width && by < g.height && g.free[by * g.width + bx]).then_some(by * g.width + bx)
+    };
     const LABEL: usize = 0; // seed node + 1
-    const PARENT: usize = 2; // parent cell + 1
-    let chains: Vec<(u32, u32, Vec<usize>)> = CellTables::with(w * h, |t| {
+    const PARENT: usize = 2; // parent block + 1
+    let chains: Vec<(u32, u32, Vec<usize>)> = CellTables::with(g.width * g.height, |t| {
         let mut queue = std::collections::VecDeque::new();
         for i in 0..n as u32 {
             let region = cs.region[cells[i as usize]];
             if roots_in.get(&region).copied().unwrap_or(0) < 2 {
                 continue;
             }
-            let waits = largest.get(&region).is_some_and(|&(_, r)| r == uf.find(i));
-            visible_disc(cs, cells[i as usize], |c| {
-                if t.get(LABEL, c) == 0 {
-                    t.set(LABEL, c, i + 1);
-                    t.set(PARENT, c, c as u32 + 1);
-                    if !waits {
-                        queue.push_back(c);
-                    }
+            let Some(b) = block_of(nodes[i as usize]) else {
+                continue;
+            };
+            if t.get(LABEL, b) == 0 {
+                t.set(LABEL, b, i + 1);
+                t.set(PARENT, b, b as u32 + 1);
+                // The region's largest component waits for the others to reach it.
+                if largest.get(&region).is_none_or(|&(_, r)| r != uf.find(i)) {
+                    queue.push_back(b);
                 }
-            });
+            }
         }
         let mut meetings = Vec::new();
+        let mut budget = FLOOD_CELL_BUDGET;
         'flood: while let Some(c) = queue.pop_front() {
-            for nc in neighbours4(c, w, h) {
-                if !cs.free[nc] {
+            budget = budget.saturating_sub(1);
+            if budget == 0 {
+                // Gaps still open are left to local densification at query time.
+                break;
+            }
+            let lc = t.get(LABEL, c);
+            for nc in neighbours4(c, g.width, g.height) {
+                if !g.free[nc] {
                     continue;
                 }
-                let (lc, ln) = (t.get(LABEL, c), t.get(LABEL, nc));
+                let ln = t.get(LABEL, nc);
                 if ln == 0 {
                     t.set(LABEL, nc, lc);
                     t.set(PARENT, nc, c as u32 + 1);
                     queue.push_back(nc);
-                } else if uf.find(lc - 1) != uf.find(ln - 1) {
+                } else if ln != lc && uf.find(lc - 1) != uf.find(ln - 1) {
+                    // (Most labelled neighbours belong to the same wave: the cheap test first.)
                     uf.union(lc - 1, ln - 1);
                     meetings.push((c, nc));
                     remaining -= 1;
@@ -901,7 +985,15 @@ fn bridge_components(
             })
             .collect()
     });
-    let centre = |c: usize| [(c % w) as f64 + 0.5, (c / w) as f64 + 0.5];
+    // The centre of the block's middle cell, not of the block: for even factors the block
+    // centre lies on a grid line, where converting to metres and back can move a horizontal
+    // segment into the neighbouring row of cells.
+    let centre = |b: usize| {
+        [
+            ((b % g.width) * f + f / 2) as f64 + 0.5,
+            ((b / g.width) * f + f / 2) as f64 + 0.5,
+        ]
+    };
     for (a, b, path) in chains {
         let mut chain = Vec::with_capacity(path.len() + 2);
         chain.push(nodes[a as usize]);
@@ -978,7 +1070,9 @@ fn kd_tree(nodes: &[[f64; 2]]) -> Result<ImmutableKdTree<f64, 2>, BuildError> {
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
+    // Not `hypot`: its overflow care costs several times a square root, and grid coordinates
+    // are far from overflowing.
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
 }
 
 fn pair_key(a: u32, b: u32) -> u64 {
@@ -1078,26 +1172,30 @@ impl CellTables {
 /// work of 8, no corner rule, and the thinning straightens the staircases afterwards.
 fn neighbours4(c: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
     let (x, y) = (c % w, c / w);
-    [
-        (x > 0).then(|| c - 1),
-        (x + 1 < w).then_some(c + 1),
-        (y > 0).then(|| c - w),
-        (y + 1 < h).then_some(c + w),
-    ]
-    .into_iter()
-    .flatten()
+    // Out-of-grid neighbours map to `usize::MAX` and are filtered, which compiles to a simple
+    // unrolled loop (an array of Options did not).
+    let n = [
+        if x > 0 { c - 1 } else { usize::MAX },
+        if x + 1 < w { c + 1 } else { usize::MAX },
+        if y > 0 { c - w } else { usize::MAX },
+        if y + 1 < h { c + w } else { usize::MAX },
+    ];
+    n.into_iter().filter(|&v| v != usize::MAX)
 }
 
 /// Largest radius (cells) of the disc an anchor claims in local densification.
 const DISC_CAP: f64 = 8.0;
+/// Cells the bridging flood may visit per build; it bounds the build time on large cluttered
+/// maps at the price of leaving the longest gaps to query-time densification.
+const FLOOD_CELL_BUDGET: usize = 4_000_000;
 
 /// Calls `f` on every cell an anchor at `p` (in cell `cell`) sees for certain: a cell whose
 /// centre is within d - need - 1.5 of the anchor cell's centre (d its obstacle distance) is
 /// joined to the anchor by a segment inside the free disc of radius d - need.
-fn visible_disc(cs: &ConfigSpace, cell: usize, mut f: impl FnMut(usize)) {
+fn visible_disc(cs: &ConfigSpace, cell: usize, cap: f64, mut f: impl FnMut(usize)) {
     f(cell);
     let need = cs.inflation().total_m() / cs.resolution() + 0.5;
-    let r = (f64::from(cs.dist[cell]) - need - 1.5).min(DISC_CAP);
+    let r = (f64::from(cs.dist[cell]) - need - 1.5).min(cap);
     if r < 1.0 {
         return;
     }
@@ -1134,7 +1232,7 @@ fn wavefront(
         let mut queue = std::collections::VecDeque::new();
         for (k, &(cell, id)) in targets.iter().enumerate() {
             debug_assert_eq!(cs.cell_index(at(id)), Some(cell));
-            visible_disc(cs, cell, |c| {
+            visible_disc(cs, cell, DISC_CAP, |c| {
                 if t.get(TARGET, c) == 0 {
                     t.set(TARGET, c, k as u32 + 1);
                 }
@@ -1142,7 +1240,7 @@ fn wavefront(
         }
         for (k, &(cell, id)) in sources.iter().enumerate() {
             debug_assert_eq!(cs.cell_index(at(id)), Some(cell));
-            visible_disc(cs, cell, |c| {
+            visible_disc(cs, cell, DISC_CAP, |c| {
                 if t.get(PARENT, c) == 0 {
                     t.set(PARENT, c, c as u32 + 1);
                     t.set(SOURCE, c, k as u32 + 1);

@@ -402,6 +402,36 @@ fn a_sparse_roadmap_densifies_locally_instead_of_failing() {
 }
 
 #[test]
+fn an_absorbed_densified_plan_serves_the_next_query_from_the_roadmap() {
+    let mut rm = build(
+        &two_rooms(),
+        point_robot(),
+        &PrmParams {
+            samples: 1,
+            ..small_params(1)
+        },
+    );
+    let (s, g) = (Point2::new(0.5, 0.5), Point2::new(5.5, 2.5));
+    let p = rm.query(s, g, QueryOptions::default()).expect("densified");
+    assert!(p.densified_nodes > 0);
+    assert!(rm.absorb(&p) > 0);
+    let strict = QueryOptions {
+        no_densify: true,
+        ..QueryOptions::default()
+    };
+    let again = rm
+        .query(Point2::new(0.6, 0.4), Point2::new(5.4, 2.6), strict)
+        .expect("roadmap alone now");
+    assert_eq!(again.densified_nodes, 0);
+    assert!(rm.edges().all(|(i, j)| {
+        let n: Vec<Point2> = rm.nodes().collect();
+        rm.cspace().segment_free(n[i], n[j])
+    }));
+    // A plan that needed no densification teaches nothing.
+    assert_eq!(rm.absorb(&again), 0);
+}
+
+#[test]
 fn min_clearance_is_reported_and_respects_the_inflation() {
     let infl = Inflation {
         robot_radius_m: 0.1,
@@ -457,6 +487,32 @@ fn touches_blocked(cs: &ConfigSpace, a: Point2, b: Point2) -> bool {
         let t = i as f64 / steps as f64;
         !cs.is_free(Point2::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t))
     })
+}
+
+/// Regression: with an even coarse-grid factor (0.075 m cells: blocks of 2×2) bridge nodes sat
+/// on grid lines, and a horizontal bridge edge converted to metres and back fell into the row
+/// below, through an obstacle. Every edge must stay free when checked from map coordinates.
+#[test]
+fn issue_bridge_edges_on_grid_lines_stay_free_in_map_coordinates() {
+    for seed in 0..60 {
+        let mut g = cluttered(seed, 120, 90, 90);
+        g.resolution = 0.075;
+        // An origin like the real maps': metres to cells and back is then not exact.
+        (g.origin_x, g.origin_y) = (-37.9, -72.0);
+        let cs = Arc::new(ConfigSpace::new(&g, point_robot()).expect("cspace"));
+        let p = PrmParams {
+            seed,
+            ..small_params(25)
+        };
+        let rm = Roadmap::build(Arc::clone(&cs), &p).expect("roadmap");
+        let nodes: Vec<Point2> = rm.nodes().collect();
+        for (i, j) in rm.edges() {
+            assert!(
+                cs.segment_free(nodes[i], nodes[j]),
+                "seed {seed}: edge {i}-{j}"
+            );
+        }
+    }
 }
 
 proptest! {

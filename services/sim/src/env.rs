@@ -214,7 +214,9 @@ pub enum EnvError {
         message: String,
     },
     /// The start is not finite or the robot does not fit there.
-    #[error("the robot does not fit at the start ({x:.3}, {y:.3}): clearance {clearance:.3} m; nearest free point {nearest_free:?}")]
+    #[error(
+        "the robot does not fit at the start ({x:.3}, {y:.3}): clearance {clearance:.3} m; nearest free point {nearest_free:?}"
+    )]
     StartBlocked {
         /// Start x.
         x: f64,
@@ -226,7 +228,9 @@ pub enum EnvError {
         nearest_free: Option<(f64, f64)>,
     },
     /// The goal is not finite or the robot does not fit there.
-    #[error("the goal ({x:.3}, {y:.3}) is inside an obstacle: the robot does not fit there; nearest free point {nearest_free:?}")]
+    #[error(
+        "the goal ({x:.3}, {y:.3}) is inside an obstacle: the robot does not fit there; nearest free point {nearest_free:?}"
+    )]
     GoalBlocked {
         /// Goal x.
         x: f64,
@@ -274,13 +278,15 @@ impl NavEnv {
     pub fn new(world: Arc<World>, config: EnvConfig, seed: u64) -> Result<NavEnv, EnvError> {
         check_config(&config)?;
         let laser = &world.spec().robot.laser;
-        let angles = laser.beam_angles(config.beams).ok_or_else(|| EnvError::Config {
-            field: "beams",
-            message: format!(
-                "{} beams cannot be picked from a laser with {} samples",
-                config.beams, laser.samples
-            ),
-        })?;
+        let angles = laser
+            .beam_angles(config.beams)
+            .ok_or_else(|| EnvError::Config {
+                field: "beams",
+                message: format!(
+                    "{} beams cannot be picked from a laser with {} samples",
+                    config.beams, laser.samples
+                ),
+            })?;
         let dirs = angles.iter().map(|a| (a.cos(), a.sin())).collect();
         let drive = DiffDrive::new(world.spec().robot.drive.clone());
         Ok(NavEnv {
@@ -339,7 +345,11 @@ impl NavEnv {
         } else {
             f64::NEG_INFINITY
         };
-        if !(clearance >= self.config.collision_clearance) {
+        // NaN clearance (a non-finite start) must be refused too: compare so NaN fails.
+        if clearance
+            .partial_cmp(&self.config.collision_clearance)
+            .is_none_or(|o| o.is_lt())
+        {
             return Err(EnvError::StartBlocked {
                 x: start.x,
                 y: start.y,
@@ -347,7 +357,8 @@ impl NavEnv {
                 nearest_free: self.world.nearest_free_point(start.x, start.y),
             });
         }
-        let goal_ok = goal.0.is_finite() && goal.1.is_finite() && self.world.clearance(goal.0, goal.1) > 0.0;
+        let goal_ok =
+            goal.0.is_finite() && goal.1.is_finite() && self.world.clearance(goal.0, goal.1) > 0.0;
         if !goal_ok {
             return Err(EnvError::GoalBlocked {
                 x: goal.0,
@@ -356,6 +367,29 @@ impl NavEnv {
             });
         }
         Ok(self.begin(Pose2::new(start.x, start.y, wrap_angle(start.yaw)), goal))
+    }
+
+    /// Gives the episode a new goal (the next waypoint of a plan) and keeps the robot where it
+    /// is: an episode that ended at its goal goes on; one that ended in a collision or out of
+    /// time stays ended. Time and steps keep counting.
+    pub fn set_goal(&mut self, goal: (f64, f64)) -> Result<Observation, EnvError> {
+        let fits =
+            goal.0.is_finite() && goal.1.is_finite() && self.world.clearance(goal.0, goal.1) > 0.0;
+        if !fits {
+            return Err(EnvError::GoalBlocked {
+                x: goal.0,
+                y: goal.1,
+                nearest_free: self.world.nearest_free_point(goal.0, goal.1),
+            });
+        }
+        self.goal = goal;
+        self.distance = (goal.0 - self.pose.x).hypot(goal.1 - self.pose.y);
+        if self.outcome == Outcome::ReachedGoal {
+            self.outcome = Outcome::Running;
+        }
+        let obs = self.observe();
+        self.remember(&obs);
+        Ok(obs)
     }
 
     /// Starts an episode at a random start with a random goal, both in the world's free region,
@@ -417,7 +451,7 @@ impl NavEnv {
             self.trajectory.push(start);
         }
         let obs = self.observe();
-        self.last_observation = Some(obs.clone());
+        self.remember(&obs);
         obs
     }
 
@@ -428,11 +462,14 @@ impl NavEnv {
     pub fn step(&mut self, action: Action) -> StepResult {
         if !self.started || self.outcome != Outcome::Running {
             return StepResult {
-                observation: self.last_observation.clone().unwrap_or_else(|| Observation {
-                    ranges: vec![0.0; self.config.beams],
-                    goal_distance: 0.0,
-                    goal_angle: 0.0,
-                }),
+                observation: self
+                    .last_observation
+                    .clone()
+                    .unwrap_or_else(|| Observation {
+                        ranges: vec![0.0; self.config.beams],
+                        goal_distance: 0.0,
+                        goal_angle: 0.0,
+                    }),
                 reward: 0.0,
                 done: true,
                 info: self.info(f64::NAN),
@@ -497,13 +534,25 @@ impl NavEnv {
         };
         self.distance = distance;
         let observation = self.observe();
-        self.last_observation = Some(observation.clone());
+        self.remember(&observation);
         StepResult {
             observation,
             reward,
             done: self.outcome != Outcome::Running,
             info: self.info(min_clearance),
             reset_observation: None,
+        }
+    }
+
+    /// Keeps a copy of the latest observation for steps after the end, reusing its buffer.
+    fn remember(&mut self, obs: &Observation) {
+        match &mut self.last_observation {
+            Some(last) => {
+                last.ranges.clone_from(&obs.ranges);
+                last.goal_distance = obs.goal_distance;
+                last.goal_angle = obs.goal_angle;
+            }
+            None => self.last_observation = Some(obs.clone()),
         }
     }
 
@@ -520,9 +569,13 @@ impl NavEnv {
     }
 
     /// The noisy observation at the current pose.
-    #[allow(clippy::cast_possible_truncation, reason = "observations are f32 by design")]
+    #[allow(
+        clippy::cast_possible_truncation,
+        reason = "observations are f32 by design"
+    )]
     fn observe(&mut self) -> Observation {
-        self.world.scan_dirs(self.pose, &self.dirs, &mut self.ranges);
+        self.world
+            .scan_dirs(self.pose, &self.dirs, &mut self.ranges);
         let laser = &self.world.spec().robot.laser;
         let (lo, hi) = (laser.range_min, laser.range_max);
         let noise = self.config.noise;
@@ -533,7 +586,8 @@ impl NavEnv {
             .collect();
         let (dx, dy) = (self.goal.0 - self.pose.x, self.goal.1 - self.pose.y);
         let dist = dx.hypot(dy) + gauss(&mut self.rng, noise.goal_distance);
-        let angle = wrap_angle(dy.atan2(dx) - self.pose.yaw + gauss(&mut self.rng, noise.goal_angle));
+        let angle =
+            wrap_angle(dy.atan2(dx) - self.pose.yaw + gauss(&mut self.rng, noise.goal_angle));
         Observation {
             ranges,
             goal_distance: dist.max(0.0) as f32,
@@ -564,7 +618,10 @@ fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
     if !pos(c.control_period) {
         return bad(
             "control_period",
-            format!("must be a positive number of seconds, got {}", c.control_period),
+            format!(
+                "must be a positive number of seconds, got {}",
+                c.control_period
+            ),
         );
     }
     let l = &c.limits;
@@ -575,7 +632,10 @@ fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
         );
     }
     if !nonneg(l.angular_max) {
-        return bad("limits.angular_max", format!("must be finite and not negative, got {}", l.angular_max));
+        return bad(
+            "limits.angular_max",
+            format!("must be finite and not negative, got {}", l.angular_max),
+        );
     }
     let n = &c.noise;
     for (field, v) in [
@@ -586,7 +646,10 @@ fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
         ("noise.angular", n.angular),
     ] {
         if !nonneg(v) {
-            return bad(field, format!("a standard deviation must be finite and not negative, got {v}"));
+            return bad(
+                field,
+                format!("a standard deviation must be finite and not negative, got {v}"),
+            );
         }
     }
     let r = &c.reward;
@@ -597,21 +660,33 @@ fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
         ("reward.collision", r.collision),
     ] {
         if !nonneg(v) {
-            return bad(field, format!("Eq. 1's constants are positive numbers, got {v}"));
+            return bad(
+                field,
+                format!("Eq. 1's constants are positive numbers, got {v}"),
+            );
         }
     }
     if !pos(c.goal_tolerance) {
-        return bad("goal_tolerance", format!("must be positive, got {}", c.goal_tolerance));
+        return bad(
+            "goal_tolerance",
+            format!("must be positive, got {}", c.goal_tolerance),
+        );
     }
     if !c.collision_clearance.is_finite() {
-        return bad("collision_clearance", format!("must be finite, got {}", c.collision_clearance));
+        return bad(
+            "collision_clearance",
+            format!("must be finite, got {}", c.collision_clearance),
+        );
     }
     if c.max_steps == 0 {
         return bad("max_steps", "an episode needs at least one step".into());
     }
     let (a, b) = c.goal_distance;
     if !(nonneg(a) && b.is_finite() && a <= b && b > 0.0) {
-        return bad("goal_distance", format!("need 0 <= min <= max, max > 0, got ({a}, {b})"));
+        return bad(
+            "goal_distance",
+            format!("need 0 <= min <= max, max > 0, got ({a}, {b})"),
+        );
     }
     Ok(())
 }

@@ -85,16 +85,32 @@ impl DiffDrive {
     }
 
     /// What the drive executes when commanded `wanted` after executing `previous` for the last
-    /// period of `dt` seconds: acceleration limits first, then wheel-speed saturation, which
-    /// scales both wheels together so the turning radius is kept.
+    /// period of `dt` seconds: the robot's top speeds, then acceleration limits, then wheel-speed
+    /// saturation, which scales both wheels together so the turning radius is kept.
     pub fn execute(&self, previous: Action, wanted: Action, dt: f64) -> Action {
+        let top = |v: f64, max: Option<f64>| match max {
+            Some(m) => v.clamp(-m, m),
+            None => v,
+        };
         let limit = |prev: f64, want: f64, max: Option<f64>| match max {
             Some(a) => want.clamp(prev - a * dt, prev + a * dt),
             None => want,
         };
+        let wanted = Action {
+            linear: top(wanted.linear, self.spec.max_linear_speed),
+            angular: top(wanted.angular, self.spec.max_angular_speed),
+        };
         let mut a = Action {
-            linear: limit(previous.linear, wanted.linear, self.spec.max_linear_acceleration),
-            angular: limit(previous.angular, wanted.angular, self.spec.max_angular_acceleration),
+            linear: limit(
+                previous.linear,
+                wanted.linear,
+                self.spec.max_linear_acceleration,
+            ),
+            angular: limit(
+                previous.angular,
+                wanted.angular,
+                self.spec.max_angular_acceleration,
+            ),
         };
         if let Some(max) = self.spec.max_wheel_speed {
             let (l, r) = self.wheel_speeds(a);
@@ -153,6 +169,8 @@ mod tests {
             wheel_separation: 0.4,
             wheel_radius: 0.1,
             max_wheel_speed: None,
+            max_linear_speed: None,
+            max_angular_speed: None,
             max_linear_acceleration: None,
             max_angular_acceleration: None,
         })
@@ -182,7 +200,9 @@ mod tests {
             p = integrate(p, a, 0.01);
         }
         let q = integrate(Pose2::new(0.3, -0.2, 1.0), a, 1.0);
-        assert!((p.x - q.x).abs() < 1e-9 && (p.y - q.y).abs() < 1e-9 && (p.yaw - q.yaw).abs() < 1e-9);
+        assert!(
+            (p.x - q.x).abs() < 1e-9 && (p.y - q.y).abs() < 1e-9 && (p.yaw - q.yaw).abs() < 1e-9
+        );
     }
 
     #[test]
@@ -208,7 +228,10 @@ mod tests {
         let l = CommandLimits::default();
         assert_eq!(l.clamp(Action::new(2.0, -3.0)), Action::new(0.8, -0.5));
         assert_eq!(l.clamp(Action::new(-1.0, 0.2)), Action::new(0.0, 0.2));
-        assert_eq!(l.clamp(Action::new(f64::NAN, f64::INFINITY)), Action::new(0.0, 0.0));
+        assert_eq!(
+            l.clamp(Action::new(f64::NAN, f64::INFINITY)),
+            Action::new(0.0, 0.0)
+        );
     }
 
     #[test]
@@ -235,7 +258,9 @@ mod tests {
         for a in [-7.0, -PI, -3.0, 0.0, 3.0, PI, 7.0, 100.0] {
             let w = wrap_angle(a);
             assert!(w > -PI - 1e-12 && w <= PI + 1e-12, "{a} -> {w}");
-            assert!(((w - a) / std::f64::consts::TAU).round() * std::f64::consts::TAU - (w - a) < 1e-9);
+            assert!(
+                ((w - a) / std::f64::consts::TAU).round() * std::f64::consts::TAU - (w - a) < 1e-9
+            );
         }
     }
 }

@@ -8,12 +8,16 @@
 //! - [`world`]: [`World`], the built world with exact laser casts and clearance queries;
 //! - [`kinematics`]: differential drive;
 //! - [`env`] and [`batch`]: the reinforcement-learning environment of the paper's §4.1.1;
-//! - [`render`]: top-down PNG and SVG pictures.
+//! - [`render`]: top-down PNG and SVG pictures;
+//! - [`parse`]: the simulation parser, on-demand database (RDF) to [`WorldSpec`];
+//! - [`export`]: SDF 1.9 worlds and URDF robots for Gazebo and ROS.
 
 pub mod batch;
 pub mod env;
+pub mod export;
 pub mod kinematics;
 pub mod library;
+pub mod parse;
 mod raster;
 pub mod render;
 pub mod spec;
@@ -26,6 +30,7 @@ pub use env::{
 };
 pub use kinematics::{Action, CommandLimits, DiffDrive};
 pub use library::{LibraryModel, Model};
+pub use parse::{parse_floor, parse_on_demand};
 pub use spec::{
     CameraSpec, Colour, DiffDriveSpec, GridMap, LaserSpec, ObjectSpec, Occupancy, OccupancyGrid,
     Pose2, Pose3, Problem, Problems, RobotPartSpec, RobotSpec, Severity, Shape, Size3, WallSpec,

@@ -144,7 +144,12 @@ fn library_parts(model: LibraryModel, size: Size3, open: bool) -> Vec<LocalPart>
             let (lx, ly) = (hx - leg / 2.0, hy - leg / 2.0);
             let legz = -hz + leg_h / 2.0;
             vec![
-                ("top", b, Size3::new(size.x, size.y, top), [0.0, 0.0, hz - top / 2.0]),
+                (
+                    "top",
+                    b,
+                    Size3::new(size.x, size.y, top),
+                    [0.0, 0.0, hz - top / 2.0],
+                ),
                 ("leg_1", b, Size3::new(leg, leg, leg_h), [lx, ly, legz]),
                 ("leg_2", b, Size3::new(leg, leg, leg_h), [lx, -ly, legz]),
                 ("leg_3", b, Size3::new(leg, leg, leg_h), [-lx, ly, legz]),
@@ -162,12 +167,22 @@ fn library_parts(model: LibraryModel, size: Size3, open: bool) -> Vec<LocalPart>
             let legz = -hz + leg_h / 2.0;
             let back_h = size.z - seat_top;
             vec![
-                ("seat", b, Size3::new(size.x, size.y, seat), [0.0, 0.0, -hz + seat_top - seat / 2.0]),
+                (
+                    "seat",
+                    b,
+                    Size3::new(size.x, size.y, seat),
+                    [0.0, 0.0, -hz + seat_top - seat / 2.0],
+                ),
                 ("leg_1", b, Size3::new(leg, leg, leg_h), [lx, ly, legz]),
                 ("leg_2", b, Size3::new(leg, leg, leg_h), [lx, -ly, legz]),
                 ("leg_3", b, Size3::new(leg, leg, leg_h), [-lx, ly, legz]),
                 ("leg_4", b, Size3::new(leg, leg, leg_h), [-lx, -ly, legz]),
-                ("backrest", b, Size3::new(back, size.y, back_h), [-hx + back / 2.0, 0.0, hz - back_h / 2.0]),
+                (
+                    "backrest",
+                    b,
+                    Size3::new(back, size.y, back_h),
+                    [-hx + back / 2.0, 0.0, hz - back_h / 2.0],
+                ),
             ]
         }
         LibraryModel::Shelf => {
@@ -176,13 +191,34 @@ fn library_parts(model: LibraryModel, size: Size3, open: bool) -> Vec<LocalPart>
             let back = (size.x / 10.0).min(0.01);
             let plinth = (size.z / 10.0).min(0.08);
             let mut parts: Vec<LocalPart> = vec![
-                ("side_left", b, Size3::new(size.x, panel, size.z), [0.0, hy - panel / 2.0, 0.0]),
-                ("side_right", b, Size3::new(size.x, panel, size.z), [0.0, -hy + panel / 2.0, 0.0]),
-                ("back", b, Size3::new(back, size.y, size.z), [-hx + back / 2.0, 0.0, 0.0]),
-                ("plinth", b, Size3::new(size.x, size.y, plinth), [0.0, 0.0, -hz + plinth / 2.0]),
+                (
+                    "side_left",
+                    b,
+                    Size3::new(size.x, panel, size.z),
+                    [0.0, hy - panel / 2.0, 0.0],
+                ),
+                (
+                    "side_right",
+                    b,
+                    Size3::new(size.x, panel, size.z),
+                    [0.0, -hy + panel / 2.0, 0.0],
+                ),
+                (
+                    "back",
+                    b,
+                    Size3::new(back, size.y, size.z),
+                    [-hx + back / 2.0, 0.0, 0.0],
+                ),
+                (
+                    "plinth",
+                    b,
+                    Size3::new(size.x, size.y, plinth),
+                    [0.0, 0.0, -hz + plinth / 2.0],
+                ),
             ];
             const BOARD_NAMES: [&str; 8] = [
-                "board_1", "board_2", "board_3", "board_4", "board_5", "board_6", "board_7", "board_8",
+                "board_1", "board_2", "board_3", "board_4", "board_5", "board_6", "board_7",
+                "board_8",
             ];
             let board = panel;
             let span = size.z - plinth;
@@ -209,9 +245,24 @@ fn library_parts(model: LibraryModel, size: Size3, open: bool) -> Vec<LocalPart>
             let jamb = (size.y / 10.0).min(0.06);
             let lintel = (size.z / 10.0).min(0.06);
             let mut parts: Vec<LocalPart> = vec![
-                ("jamb_left", b, Size3::new(size.x, jamb, size.z), [0.0, hy - jamb / 2.0, 0.0]),
-                ("jamb_right", b, Size3::new(size.x, jamb, size.z), [0.0, -hy + jamb / 2.0, 0.0]),
-                ("lintel", b, Size3::new(size.x, size.y - 2.0 * jamb, lintel), [0.0, 0.0, hz - lintel / 2.0]),
+                (
+                    "jamb_left",
+                    b,
+                    Size3::new(size.x, jamb, size.z),
+                    [0.0, hy - jamb / 2.0, 0.0],
+                ),
+                (
+                    "jamb_right",
+                    b,
+                    Size3::new(size.x, jamb, size.z),
+                    [0.0, -hy + jamb / 2.0, 0.0],
+                ),
+                (
+                    "lintel",
+                    b,
+                    Size3::new(size.x, size.y - 2.0 * jamb, lintel),
+                    [0.0, 0.0, hz - lintel / 2.0],
+                ),
             ];
             if !open {
                 let leaf = (size.x * 0.8).min(0.045);

@@ -63,7 +63,10 @@ pub(crate) fn feature_transform(blocked: &[bool], w: usize, h: usize) -> Vec<u32
 
 /// The second pass for one row `y`: `rows[x]` is the nearest blocked row in column `x`.
 fn envelope_row(y: usize, rows: &[u32], out: &mut [u32], v: &mut [usize], z: &mut [f64], w: usize) {
-    #[allow(clippy::cast_precision_loss, reason = "grid coordinates are far below 2^52")]
+    #[allow(
+        clippy::cast_precision_loss,
+        reason = "grid coordinates are far below 2^52"
+    )]
     let f = |x: usize| -> f64 {
         let r = rows[x];
         if r == NO_FEATURE {
@@ -81,7 +84,10 @@ fn envelope_row(y: usize, rows: &[u32], out: &mut [u32], v: &mut [usize], z: &mu
         if fq.is_infinite() {
             continue;
         }
-        #[allow(clippy::cast_precision_loss, reason = "grid coordinates are far below 2^52")]
+        #[allow(
+            clippy::cast_precision_loss,
+            reason = "grid coordinates are far below 2^52"
+        )]
         let qf = q as f64;
         loop {
             match k {
@@ -94,7 +100,10 @@ fn envelope_row(y: usize, rows: &[u32], out: &mut [u32], v: &mut [usize], z: &mu
                 }
                 Some(kk) => {
                     let p = v[kk];
-                    #[allow(clippy::cast_precision_loss, reason = "grid coordinates are far below 2^52")]
+                    #[allow(
+                        clippy::cast_precision_loss,
+                        reason = "grid coordinates are far below 2^52"
+                    )]
                     let pf = p as f64;
                     let s = ((fq + qf * qf) - (f(p) + pf * pf)) / (2.0 * (qf - pf));
                     if s <= z[kk] {
@@ -116,7 +125,10 @@ fn envelope_row(y: usize, rows: &[u32], out: &mut [u32], v: &mut [usize], z: &mu
     };
     let mut j = 0usize;
     for (x, slot) in out.iter_mut().enumerate() {
-        #[allow(clippy::cast_precision_loss, reason = "grid coordinates are far below 2^52")]
+        #[allow(
+            clippy::cast_precision_loss,
+            reason = "grid coordinates are far below 2^52"
+        )]
         let xf = x as f64;
         while z[j + 1] < xf {
             j += 1;
@@ -136,7 +148,10 @@ pub(crate) fn as_u32(v: usize) -> u32 {
 }
 
 /// Squared centre distance, in cells, between cell `i` and cell `j` of a grid `w` wide.
-#[allow(clippy::cast_precision_loss, reason = "grid coordinates are far below 2^52")]
+#[allow(
+    clippy::cast_precision_loss,
+    reason = "grid coordinates are far below 2^52"
+)]
 pub(crate) fn centre_distance(i: usize, j: usize, w: usize) -> f64 {
     let (xi, yi) = ((i % w) as f64, (i / w) as f64);
     let (xj, yj) = ((j % w) as f64, (j / w) as f64);
@@ -218,8 +233,10 @@ mod tests {
         let mut s = 12345u64;
         let blocked: Vec<bool> = (0..w * h)
             .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                (s >> 33) % 13 == 0
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 33).is_multiple_of(13)
             })
             .collect();
         let f = feature_transform(&blocked, w, h);
@@ -229,7 +246,7 @@ mod tests {
             assert!((d - b[i]).abs() < 1e-9, "cell {i}: {d} vs {}", b[i]);
             assert!(blocked[f[i] as usize]);
         }
-        let none = feature_transform(&vec![false; 12], 4, 3);
+        let none = feature_transform(&[false; 12], 4, 3);
         assert!(none.iter().all(|v| *v == NO_FEATURE));
     }
 

@@ -103,9 +103,7 @@ impl View {
     fn new(world: &World, options: &RenderOptions) -> Result<View, RenderError> {
         let b = world.bounds();
         let (w_m, h_m) = (b[2] - b[0], b[3] - b[1]);
-        let mut ppm = options
-            .pixels_per_metre
-            .unwrap_or(1.0 / world.resolution());
+        let mut ppm = options.pixels_per_metre.unwrap_or(1.0 / world.resolution());
         if !(ppm.is_finite() && ppm > 0.0) || options.max_side == 0 {
             return Err(RenderError::Options(format!(
                 "pixels per metre must be positive and max_side non-zero, got {ppm} and {}",
@@ -123,11 +121,11 @@ impl View {
         })
     }
 
-    fn to_px(&self, x: f64, y: f64) -> (f64, f64) {
+    fn to_px(self, x: f64, y: f64) -> (f64, f64) {
         ((x - self.min_x) * self.ppm, (self.max_y - y) * self.ppm)
     }
 
-    fn to_world(&self, px: f64, py: f64) -> (f64, f64) {
+    fn to_world(self, px: f64, py: f64) -> (f64, f64) {
         (self.min_x + px / self.ppm, self.max_y - py / self.ppm)
     }
 }
@@ -164,7 +162,11 @@ fn round_radius(p: &Part) -> f64 {
 }
 
 /// A PNG picture of `world` with `overlay`, as file bytes.
-pub fn png(world: &World, overlay: &Overlay, options: &RenderOptions) -> Result<Vec<u8>, RenderError> {
+pub fn png(
+    world: &World,
+    overlay: &Overlay,
+    options: &RenderOptions,
+) -> Result<Vec<u8>, RenderError> {
     let view = View::new(world, options)?;
     let mut img = Canvas::new(view.width, view.height);
     // Background: sample the grid at each pixel centre (handles any scale and grid rotation).
@@ -214,7 +216,10 @@ pub fn png(world: &World, overlay: &Overlay, options: &RenderOptions) -> Result<
         let radius = world.spec().robot.footprint_radius;
         let (cx, cy) = view.to_px(pose.x, pose.y);
         img.circle(cx, cy, radius * view.ppm, ROBOT);
-        let tip = view.to_px(pose.x + radius * pose.yaw.cos(), pose.y + radius * pose.yaw.sin());
+        let tip = view.to_px(
+            pose.x + radius * pose.yaw.cos(),
+            pose.y + radius * pose.yaw.sin(),
+        );
         img.line((cx, cy), tip, ROBOT);
     }
     img.encode()
@@ -336,7 +341,11 @@ impl Canvas {
 
     fn circle(&mut self, cx: f64, cy: f64, r: f64, c: [u8; 3]) {
         let n = ((r * 8.0).ceil()).clamp(16.0, 4096.0);
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "clamped to [16, 4096]")]
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "clamped to [16, 4096]"
+        )]
         let steps = n as usize;
         for k in 0..steps {
             #[allow(clippy::cast_precision_loss, reason = "k < 4096")]
@@ -351,7 +360,11 @@ impl Canvas {
             return;
         }
         let n = len.ceil().clamp(1.0, 100_000.0);
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "clamped to [1, 1e5]")]
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "clamped to [1, 1e5]"
+        )]
         let steps = n as usize;
         for k in 0..=steps {
             #[allow(clippy::cast_precision_loss, reason = "k <= 1e5")]
@@ -376,7 +389,11 @@ impl Canvas {
 /// An SVG picture of `world` with `overlay`. Walls are merged into rectangles in the grid's own
 /// frame, so a large map stays a few hundred kilobytes; objects carry their identifiers as
 /// tooltips.
-pub fn svg(world: &World, overlay: &Overlay, options: &RenderOptions) -> Result<String, RenderError> {
+pub fn svg(
+    world: &World,
+    overlay: &Overlay,
+    options: &RenderOptions,
+) -> Result<String, RenderError> {
     let mut opts = *options;
     // An SVG scales freely: default to 20 px/m, and allow larger sides than a PNG.
     if opts.pixels_per_metre.is_none() {
@@ -391,7 +408,11 @@ pub fn svg(world: &World, overlay: &Overlay, options: &RenderOptions) -> Result<
         w = view.width,
         h = view.height
     );
-    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="{}"/>"#, hex(FREE));
+    let _ = writeln!(
+        s,
+        r#"<rect width="100%" height="100%" fill="{}"/>"#,
+        hex(FREE)
+    );
     // Grid-local metres to picture pixels.
     let o = world.grid_origin();
     let (sn, cs) = o.yaw.sin_cos();

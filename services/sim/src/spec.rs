@@ -232,6 +232,10 @@ pub struct DiffDriveSpec {
     pub wheel_radius: f64,
     /// Largest wheel angular speed, rad/s, when the model gives one.
     pub max_wheel_speed: Option<f64>,
+    /// Top linear speed either way, m/s, when the model gives one.
+    pub max_linear_speed: Option<f64>,
+    /// Top angular speed either way, rad/s, when the model gives one.
+    pub max_angular_speed: Option<f64>,
     /// Largest linear acceleration, m/s², when the model gives one.
     pub max_linear_acceleration: Option<f64>,
     /// Largest angular acceleration, rad/s², when the model gives one.
@@ -401,6 +405,8 @@ impl RobotSpec {
                 wheel_separation: 0.34,
                 wheel_radius: 0.05,
                 max_wheel_speed: None,
+                max_linear_speed: None,
+                max_angular_speed: None,
                 max_linear_acceleration: None,
                 max_angular_acceleration: None,
             },
@@ -432,11 +438,10 @@ impl RobotSpec {
     /// bounding boxes seen from above; `None` with no parts or wheels.
     pub fn footprint_from_parts(parts: &[RobotPartSpec], wheels: &[WheelSpec]) -> Option<f64> {
         let mut radius: Option<f64> = None;
-        let boxes = parts.iter().map(|p| (p.pose, half_extents_xy(p.shape, p.size))).chain(
-            wheels
-                .iter()
-                .map(|w| (w.pose, (w.radius, w.width / 2.0))),
-        );
+        let boxes = parts
+            .iter()
+            .map(|p| (p.pose, half_extents_xy(p.shape, p.size)))
+            .chain(wheels.iter().map(|w| (w.pose, (w.radius, w.width / 2.0))));
         for (pose, (hx, hy)) in boxes {
             let (s, c) = pose.yaw.sin_cos();
             for (sx, sy) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
@@ -479,6 +484,9 @@ pub struct WorldSpec {
     pub objects: Vec<ObjectSpec>,
     /// The robot.
     pub robot: RobotSpec,
+    /// Problems found while reading the description that did not stop it (an object skipped,
+    /// a value assumed); [`crate::World`] reports them with its own warnings.
+    pub notes: Vec<Problem>,
 }
 
 /// How serious a problem is.
@@ -505,7 +513,11 @@ pub struct Problem {
 
 impl Problem {
     /// An error about `item`'s `field`.
-    pub fn error(item: impl Into<String>, field: impl Into<String>, message: impl Into<String>) -> Self {
+    pub fn error(
+        item: impl Into<String>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
         Self {
             severity: Severity::Error,
             item: item.into(),
@@ -564,7 +576,11 @@ impl Problems {
 
     /// `Ok(warnings)` when there is no error, else `Err(self)`.
     pub fn into_result(self) -> Result<Vec<Problem>, Problems> {
-        if self.has_errors() { Err(self) } else { Ok(self.0) }
+        if self.has_errors() {
+            Err(self)
+        } else {
+            Ok(self.0)
+        }
     }
 }
 
@@ -639,7 +655,7 @@ impl WorldSpec {
     /// Every problem with this description: errors that stop the world from being built and
     /// warnings about what the simulation changes. Never panics, whatever the values.
     pub fn validate(&self) -> Problems {
-        let mut out = Problems::default();
+        let mut out = Problems(self.notes.clone());
         if let Some(floor) = &self.floor {
             validate_floor(floor, &self.robot, &mut out);
         }
@@ -792,12 +808,34 @@ fn validate_robot(robot: &RobotSpec, out: &mut Problems) {
         out,
         item: &robot.id,
     };
-    c.positive("footprint_radius", robot.footprint_radius, "the footprint radius");
+    c.positive(
+        "footprint_radius",
+        robot.footprint_radius,
+        "the footprint radius",
+    );
     c.positive("height", robot.height, "the robot height");
     let d = &robot.drive;
-    c.positive("drive.wheel_separation", d.wheel_separation, "the wheel separation");
+    c.positive(
+        "drive.wheel_separation",
+        d.wheel_separation,
+        "the wheel separation",
+    );
     c.positive("drive.wheel_radius", d.wheel_radius, "the wheel radius");
-    c.optional_positive("drive.max_wheel_speed", d.max_wheel_speed, "the wheel speed limit");
+    c.optional_positive(
+        "drive.max_wheel_speed",
+        d.max_wheel_speed,
+        "the wheel speed limit",
+    );
+    c.optional_positive(
+        "drive.max_linear_speed",
+        d.max_linear_speed,
+        "the linear speed limit",
+    );
+    c.optional_positive(
+        "drive.max_angular_speed",
+        d.max_angular_speed,
+        "the angular speed limit",
+    );
     c.optional_positive(
         "drive.max_linear_acceleration",
         d.max_linear_acceleration,
@@ -813,7 +851,10 @@ fn validate_robot(robot: &RobotSpec, out: &mut Problems) {
     if !(l.range_min.is_finite() && l.range_min >= 0.0) {
         c.error(
             "range_min",
-            format!("the shortest range must be finite and not negative, got {}", l.range_min),
+            format!(
+                "the shortest range must be finite and not negative, got {}",
+                l.range_min
+            ),
         );
     }
     c.positive("range_max", l.range_max, "the longest range");
@@ -829,7 +870,10 @@ fn validate_robot(robot: &RobotSpec, out: &mut Problems) {
     if !(l.fov.is_finite() && l.fov > 0.0 && l.fov <= std::f64::consts::TAU + 1e-9) {
         c.error(
             "fov",
-            format!("the field of view must be in (0, 2π] radians, got {}", l.fov),
+            format!(
+                "the field of view must be in (0, 2π] radians, got {}",
+                l.fov
+            ),
         );
     }
     if l.samples == 0 {
@@ -858,21 +902,24 @@ fn validate_robot(robot: &RobotSpec, out: &mut Problems) {
         }
     }
     for cam in &robot.cameras {
-        let mut c = Checker {
-            out,
-            item: &cam.id,
-        };
+        let mut c = Checker { out, item: &cam.id };
         if cam.width == 0 || cam.height == 0 {
             c.error(
                 "resolution",
-                format!("a camera image of {} x {} pixels is empty", cam.width, cam.height),
+                format!(
+                    "a camera image of {} x {} pixels is empty",
+                    cam.width, cam.height
+                ),
             );
         }
         c.positive("fps", cam.fps, "the frame rate");
         if !(cam.hfov.is_finite() && cam.hfov > 0.0 && cam.hfov < std::f64::consts::PI) {
             c.error(
                 "hfov",
-                format!("the horizontal field of view must be in (0, π) radians, got {}", cam.hfov),
+                format!(
+                    "the horizontal field of view must be in (0, π) radians, got {}",
+                    cam.hfov
+                ),
             );
         }
         if let Some((near, far)) = cam.depth_range

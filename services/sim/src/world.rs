@@ -1,5 +1,5 @@
 //! The built world: exact laser ray casts, footprint clearance and the free region to sample
-//! starts and goals from, all answered from precomputed grids and parry shapes.
+//! starts and goals from, all answered from precomputed grids and per-object primitives.
 //!
 //! Why not one rapier world with every wall cell as a collider? A map like the IPA production
 //! plant has three million cells; a BVH over them costs seconds to build and microseconds per ray.
@@ -8,9 +8,18 @@
 //! geometry, and casting on it is exact. A precomputed Euclidean distance field lets the ray jump
 //! across open space in one step (never past a blocked cell: the jump is the distance to the
 //! nearest blocked cell minus √2 cells) and gives the footprint's clearance to walls in constant
-//! time. Objects keep their real 3-D shapes as parry primitives, filtered by height: the laser
-//! tests the parts that cross its mounting height (a table's legs, not its top) and the footprint
-//! tests the parts below the robot's height, both found through per-bucket lists.
+//! time.
+//!
+//! Objects keep their 3-D shapes as parry primitives (boxes, upright cylinders, spheres), filtered
+//! by height: the laser tests the parts that cross its mounting height (a table's legs, not its
+//! top) and the footprint tests the parts lower than the robot, each found through small
+//! per-bucket lists. Two queries use closed forms instead of parry's general algorithms, and the
+//! unit tests below check them against parry: a horizontal ray meets an upright cylinder where it
+//! meets its circle (parry's cylinder cast runs its convex-shape algorithm, about 4 µs a ray), and
+//! the distance between the robot's upright cylinder and a part whose height range overlaps it
+//! is planar (parry's GJK distance costs a few hundred nanoseconds a pair). The robot moves
+//! kinematically and nothing is pushed, so no rigid-body dynamics (rapier) is needed: a collision
+//! ends the episode, as in the paper.
 
 use std::sync::Arc;
 
@@ -20,7 +29,7 @@ use parry3d_f64::shape::{Ball, Cuboid, Cylinder};
 
 use crate::library::{self, Part};
 use crate::raster::{self, NO_FEATURE, as_u32};
-use crate::spec::{Occupancy, Pose2, Problem, Problems, Shape, WorldSpec, MAX_GRID_CELLS};
+use crate::spec::{MAX_GRID_CELLS, Occupancy, Pose2, Problem, Problems, Shape, WorldSpec};
 
 /// Laser code of a wall cell (occupied or unknown map cell, a wall, or the border).
 const BLOCKED: u8 = 255;
@@ -28,8 +37,11 @@ const BLOCKED: u8 = 255;
 const OBJECT: u8 = 254;
 /// Largest jump a laser code can hold, in cells.
 const MAX_SKIP: u8 = 253;
-/// Side of a bucket of the object lists, in cells (a power of two).
-const BUCKET_SHIFT: usize = 3;
+/// Side of a bucket of the laser's object lists, as a power of two of cells: small, so a ray
+/// entering an object cell tests about one part.
+const LASER_BUCKET_SHIFT: usize = 2;
+/// Side of a bucket of the footprint's object lists, as a power of two of cells.
+const COLLISION_BUCKET_SHIFT: usize = 3;
 /// Objects farther from the footprint than this are not measured by [`World::clearance`].
 pub const CLEARANCE_REACH: f64 = 0.5;
 /// Cell size of the grid built around a world that has no metric map, metres.
@@ -56,15 +68,37 @@ impl Default for BuildOptions {
 struct Solid {
     shape: SolidShape,
     pose: Pose,
+    /// The same solid in closed form, for the footprint's clearance.
+    footprint: Footprint,
     zmin: f64,
     zmax: f64,
     /// World-frame bounding rectangle: min x, min y, max x, max y.
     rect: [f64; 4],
 }
 
+/// An upright solid in closed form.
+#[derive(Clone, Copy, Debug)]
+enum Footprint {
+    /// A box turned by `yaw`: centre, (cos, sin) of the yaw, half extents.
+    Rect {
+        cx: f64,
+        cy: f64,
+        c: f64,
+        s: f64,
+        hx: f64,
+        hy: f64,
+    },
+    /// An upright cylinder.
+    Disc { cx: f64, cy: f64, r: f64 },
+    /// A sphere.
+    Ball { cx: f64, cy: f64, cz: f64, r: f64 },
+}
+
 #[derive(Clone, Debug)]
 enum SolidShape {
     Cuboid(Cuboid),
+    /// Kept as the reference model the closed-form casts and distances are tested against.
+    #[cfg_attr(not(test), allow(dead_code))]
     Cylinder(Cylinder),
     Ball(Ball),
 }
@@ -75,7 +109,7 @@ impl Solid {
         let (hx, hy, hz) = (part.size.x / 2.0, part.size.y / 2.0, part.size.z / 2.0);
         let centre = Vector::new(p.x, p.y, p.z);
         let yaw = Rot3::from_rotation_z(p.yaw);
-        let (shape, pose, half_z, rect_half) = match part.shape {
+        let (shape, pose, half_z, rect_half, footprint) = match part.shape {
             Shape::Box => {
                 let (s, c) = p.yaw.sin_cos();
                 let ex = (c * hx).abs() + (s * hy).abs();
@@ -85,6 +119,14 @@ impl Solid {
                     Pose::from_parts(centre, yaw),
                     hz,
                     (ex, ey),
+                    Footprint::Rect {
+                        cx: p.x,
+                        cy: p.y,
+                        c,
+                        s,
+                        hx,
+                        hy,
+                    },
                 )
             }
             Shape::Cylinder => {
@@ -96,6 +138,11 @@ impl Solid {
                     Pose::from_parts(centre, upright),
                     hz,
                     (r, r),
+                    Footprint::Disc {
+                        cx: p.x,
+                        cy: p.y,
+                        r,
+                    },
                 )
             }
             Shape::Sphere => {
@@ -105,12 +152,19 @@ impl Solid {
                     Pose::from_parts(centre, yaw),
                     r,
                     (r, r),
+                    Footprint::Ball {
+                        cx: p.x,
+                        cy: p.y,
+                        cz: p.z,
+                        r,
+                    },
                 )
             }
         };
         Solid {
             shape,
             pose,
+            footprint,
             zmin: p.z - half_z,
             zmax: p.z + half_z,
             rect: [
@@ -122,28 +176,75 @@ impl Solid {
         }
     }
 
+    /// First hit of a horizontal ray at a height within this solid's height range.
     fn cast(&self, ray: &Ray, max: f64) -> Option<f64> {
         match &self.shape {
             SolidShape::Cuboid(s) => s.cast_ray(&self.pose, ray, max, true),
-            SolidShape::Cylinder(s) => s.cast_ray(&self.pose, ray, max, true),
             SolidShape::Ball(s) => s.cast_ray(&self.pose, ray, max, true),
+            // parry casts rays on cylinders with its general convex-shape algorithm, about 4 µs a
+            // ray; a horizontal ray within the height range of an upright cylinder meets it
+            // where it meets its circle, which is a quadratic.
+            SolidShape::Cylinder(_) => {
+                let Footprint::Disc { cx, cy, r } = self.footprint else {
+                    return None;
+                };
+                let (ox, oy) = (ray.origin.x - cx, ray.origin.y - cy);
+                let (dx, dy) = (ray.dir.x, ray.dir.y);
+                let a = dx * dx + dy * dy;
+                let c = ox * ox + oy * oy - r * r;
+                if c <= 0.0 {
+                    return Some(0.0); // starts inside: solid
+                }
+                let b = ox * dx + oy * dy;
+                let disc = b * b - a * c;
+                if b >= 0.0 || disc < 0.0 || a == 0.0 {
+                    return None;
+                }
+                let t = (-b - disc.sqrt()) / a;
+                (t <= max).then_some(t)
+            }
         }
     }
 
-    fn distance_to(&self, robot_pose: &Pose, robot: &Cylinder) -> Option<f64> {
-        use parry3d_f64::query::distance;
-        let r = match &self.shape {
-            SolidShape::Cuboid(s) => distance(robot_pose, robot, &self.pose, s),
-            SolidShape::Cylinder(s) => distance(robot_pose, robot, &self.pose, s),
-            SolidShape::Ball(s) => distance(robot_pose, robot, &self.pose, s),
-        };
-        r.ok().map(|d| d.distance)
+    /// Signed clearance between this solid and an upright cylinder of radius `radius` standing
+    /// on the floor at `(x, y)` and `height` tall, for solids whose height range overlaps the
+    /// cylinder's (the only ones the footprint is tested against): then the closest points of a
+    /// box or an upright cylinder lie at the same height and the distance is planar. Negative
+    /// values measure overlap in the plane.
+    fn clearance_to(&self, x: f64, y: f64, radius: f64, height: f64) -> f64 {
+        match self.footprint {
+            Footprint::Rect {
+                cx,
+                cy,
+                c,
+                s,
+                hx,
+                hy,
+            } => {
+                let (dx, dy) = (x - cx, y - cy);
+                let (lx, ly) = (c * dx + s * dy, -s * dx + c * dy);
+                let (ox, oy) = (lx.abs() - hx, ly.abs() - hy);
+                let outside = ox.max(0.0).hypot(oy.max(0.0));
+                let inside = ox.max(oy).min(0.0);
+                outside + inside - radius
+            }
+            Footprint::Disc { cx, cy, r } => (x - cx).hypot(y - cy) - r - radius,
+            Footprint::Ball { cx, cy, cz, r } => {
+                // Closest point of the cylinder to the centre: the horizontal gap to its side and
+                // the vertical gap to its height range.
+                let dh = ((x - cx).hypot(y - cy) - radius).max(0.0);
+                let dz = (cz - height).max(-cz).max(0.0);
+                let d = dh.hypot(dz);
+                if d > 0.0 { d - r } else { -r }
+            }
+        }
     }
 }
 
-/// Lists of solids per bucket of `2^BUCKET_SHIFT` cells, stored compactly (CSR).
+/// Lists of solids per square bucket of `2^shift` cells, stored compactly (CSR).
 #[derive(Clone, Debug, Default)]
 struct Buckets {
+    shift: usize,
     /// Buckets per row.
     bw: usize,
     /// `start[b]..start[b + 1]` indexes `items` for bucket `b`.
@@ -153,13 +254,13 @@ struct Buckets {
 
 impl Buckets {
     /// Buckets for solids covering the given inclusive cell rectangles `[x0, y0, x1, y1]`.
-    fn build(pw: usize, ph: usize, rects: &[(u32, [usize; 4])]) -> Buckets {
-        let bw = (pw >> BUCKET_SHIFT) + 1;
-        let bh = (ph >> BUCKET_SHIFT) + 1;
+    fn build(shift: usize, pw: usize, ph: usize, rects: &[(u32, [usize; 4])]) -> Buckets {
+        let bw = (pw >> shift) + 1;
+        let bh = (ph >> shift) + 1;
         let mut count = vec![0u32; bw * bh + 1];
         let each = |r: &[usize; 4], f: &mut dyn FnMut(usize)| {
-            for by in (r[1] >> BUCKET_SHIFT)..=(r[3] >> BUCKET_SHIFT) {
-                for bx in (r[0] >> BUCKET_SHIFT)..=(r[2] >> BUCKET_SHIFT) {
+            for by in (r[1] >> shift)..=(r[3] >> shift) {
+                for bx in (r[0] >> shift)..=(r[2] >> shift) {
                     f(by * bw + bx);
                 }
             }
@@ -179,6 +280,7 @@ impl Buckets {
             });
         }
         Buckets {
+            shift,
             bw,
             start: count,
             items,
@@ -187,7 +289,7 @@ impl Buckets {
 
     #[inline]
     fn bucket_of(&self, cx: usize, cy: usize) -> usize {
-        (cy >> BUCKET_SHIFT) * self.bw + (cx >> BUCKET_SHIFT)
+        (cy >> self.shift) * self.bw + (cx >> self.shift)
     }
 
     #[inline]
@@ -263,7 +365,10 @@ impl Frame {
     /// A world direction in the grid frame.
     #[inline]
     fn dir_to_grid(&self, dx: f64, dy: f64) -> (f64, f64) {
-        (self.cos * dx + self.sin * dy, -self.sin * dx + self.cos * dy)
+        (
+            self.cos * dx + self.sin * dy,
+            -self.sin * dx + self.cos * dy,
+        )
     }
 
     /// Inclusive padded-cell rectangle covering a world rectangle, clamped to the grid.
@@ -314,8 +419,7 @@ pub struct World {
     region: FreeRegion,
     laser_z: f64,
     robot_radius: f64,
-    robot_shape: Cylinder,
-    robot_half_height: f64,
+    robot_height: f64,
 }
 
 /// Why a world could not be built.
@@ -428,8 +532,8 @@ impl World {
                 }
             }
         }
-        let laser_buckets = Buckets::build(pw, ph, &laser_rects);
-        let collision_buckets = Buckets::build(pw, ph, &collision_rects);
+        let laser_buckets = Buckets::build(LASER_BUCKET_SHIFT, pw, ph, &laser_rects);
+        let collision_buckets = Buckets::build(COLLISION_BUCKET_SHIFT, pw, ph, &collision_rects);
 
         // The free region: cells whose whole square keeps the footprint plus margin clear of
         // walls and of the bounding rectangles of objects within the robot's height.
@@ -461,11 +565,9 @@ impl World {
         }
         drop(navigable);
 
-        let half_h = robot.height / 2.0;
         Ok(Arc::new(World {
             robot_radius: robot.footprint_radius,
-            robot_shape: Cylinder::new(half_h, robot.footprint_radius),
-            robot_half_height: half_h,
+            robot_height: robot.height,
             laser_z,
             warnings: problems.0,
             spec,
@@ -531,7 +633,10 @@ impl World {
         })?;
         let c = *best as usize;
         #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
-        Some(self.frame.to_world((c % pw) as f64 + 0.5, (c / pw) as f64 + 0.5))
+        Some(
+            self.frame
+                .to_world((c % pw) as f64 + 0.5, (c / pw) as f64 + 0.5),
+        )
     }
 
     /// Cell size, metres.
@@ -549,7 +654,12 @@ impl World {
     pub fn bounds(&self) -> [f64; 4] {
         let f = &self.frame;
         let (w, h) = ((f.pw - 1) as f64, (f.ph - 1) as f64);
-        let corners = [f.to_world(1.0, 1.0), f.to_world(w, 1.0), f.to_world(1.0, h), f.to_world(w, h)];
+        let corners = [
+            f.to_world(1.0, 1.0),
+            f.to_world(w, 1.0),
+            f.to_world(1.0, h),
+            f.to_world(w, h),
+        ];
         let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
         for (x, y) in corners {
             b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
@@ -589,7 +699,9 @@ impl World {
         let heading = pose.yaw + m.yaw;
         for (a, o) in angles.iter().zip(out.iter_mut()) {
             let (s, c) = (heading + a).sin_cos();
-            *o = self.cast(lx, ly, c, s, laser.range_max).max(laser.range_min);
+            *o = self
+                .cast(lx, ly, c, s, laser.range_max)
+                .max(laser.range_min);
         }
     }
 
@@ -603,7 +715,9 @@ impl World {
         let (lx, ly) = (pose.x + cy * m.x - sy * m.y, pose.y + sy * m.x + cy * m.y);
         for ((bc, bs), o) in dirs.iter().zip(out.iter_mut()) {
             let (dx, dy) = (c * bc - s * bs, s * bc + c * bs);
-            *o = self.cast(lx, ly, dx, dy, laser.range_max).max(laser.range_min);
+            *o = self
+                .cast(lx, ly, dx, dy, laser.range_max)
+                .max(laser.range_min);
         }
     }
 
@@ -623,8 +737,16 @@ impl World {
         let (gdx, gdy) = f.dir_to_grid(dx, dy);
         let max_t = max_range.max(0.0) * f.inv_res;
         let (pwf, phf) = (f.pw as f64, f.ph as f64);
-        let inv_x = if gdx != 0.0 { 1.0 / gdx.abs() } else { f64::INFINITY };
-        let inv_y = if gdy != 0.0 { 1.0 / gdy.abs() } else { f64::INFINITY };
+        let inv_x = if gdx != 0.0 {
+            1.0 / gdx.abs()
+        } else {
+            f64::INFINITY
+        };
+        let inv_y = if gdy != 0.0 {
+            1.0 / gdy.abs()
+        } else {
+            f64::INFINITY
+        };
         let pw = f.pw;
         let code = &self.laser_code;
         let mut best = max_t;
@@ -647,7 +769,6 @@ impl World {
             }
             if c != 0 && c != OBJECT {
                 t += f64::from(c);
-                JUMPS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 continue 'jump;
             }
             // Step cell by cell (Amanatides–Woo) until a jump is possible again.
@@ -677,7 +798,6 @@ impl World {
                 if c == OBJECT {
                     let b = self.laser_buckets.bucket_of(cx, cy);
                     if b != last_bucket {
-                        OBJ.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         last_bucket = b;
                         best = best.min(self.hit_objects(b, x, y, dx, dy, best));
                     }
@@ -685,15 +805,22 @@ impl World {
                     t = enter + f64::from(c);
                     continue 'jump;
                 }
-                STEPS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 if next_x < next_y {
                     enter = next_x;
                     next_x += inv_x;
-                    cx = if gdx > 0.0 { cx + 1 } else { cx.wrapping_sub(1) };
+                    cx = if gdx > 0.0 {
+                        cx + 1
+                    } else {
+                        cx.wrapping_sub(1)
+                    };
                 } else {
                     enter = next_y;
                     next_y += inv_y;
-                    cy = if gdy > 0.0 { cy + 1 } else { cy.wrapping_sub(1) };
+                    cy = if gdy > 0.0 {
+                        cy + 1
+                    } else {
+                        cy.wrapping_sub(1)
+                    };
                 }
                 if cx >= pw || cy >= f.ph {
                     return enter.min(best) * f.res;
@@ -765,27 +892,10 @@ impl World {
         };
         let pw = self.frame.pw;
         let b = self.collision_buckets.bucket_of(i % pw, i / pw);
-        let list = self.collision_buckets.get(b);
-        if list.is_empty() {
-            return bound;
-        }
-        let pose = Pose::from_parts(
-            Vector::new(x, y, self.robot_half_height),
-            Rot3::from_rotation_x(std::f64::consts::FRAC_PI_2),
-        );
         let mut best = bound;
-        for &k in list {
-            let Some(s) = self.solids.get(k as usize) else {
-                continue;
-            };
-            // Distance to the bounding rectangle bounds the true distance from below.
-            let ddx = (s.rect[0] - x).max(x - s.rect[2]).max(0.0);
-            let ddy = (s.rect[1] - y).max(y - s.rect[3]).max(0.0);
-            if ddx.hypot(ddy) - self.robot_radius >= best {
-                continue;
-            }
-            if let Some(d) = s.distance_to(&pose, &self.robot_shape) {
-                best = best.min(d);
+        for &k in self.collision_buckets.get(b) {
+            if let Some(s) = self.solids.get(k as usize) {
+                best = best.min(s.clearance_to(x, y, self.robot_radius, self.robot_height));
             }
         }
         best
@@ -802,9 +912,11 @@ impl World {
         if !blocked {
             return None;
         }
-        let unknown = self.spec.floor.as_ref().is_some_and(|f| {
-            f.grid.get(col, row) == Some(Occupancy::Unknown)
-        });
+        let unknown = self
+            .spec
+            .floor
+            .as_ref()
+            .is_some_and(|f| f.grid.get(col, row) == Some(Occupancy::Unknown));
         Some(unknown)
     }
 
@@ -815,7 +927,11 @@ impl World {
 
     /// The grid's origin (world pose of the lower-left corner of cell (0, 0)).
     pub(crate) fn grid_origin(&self) -> Pose2 {
-        Pose2::new(self.frame.ox, self.frame.oy, self.frame.sin.atan2(self.frame.cos))
+        Pose2::new(
+            self.frame.ox,
+            self.frame.oy,
+            self.frame.sin.atan2(self.frame.cos),
+        )
     }
 
     /// The grid cell holding world point `(x, y)` (no border), if inside the grid.
@@ -916,7 +1032,12 @@ fn frame_for(spec: &WorldSpec, parts: &[Part]) -> Result<Frame, Problem> {
     }
     let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
     let mut grow = |x: f64, y: f64, r: f64| {
-        b = [b[0].min(x - r), b[1].min(y - r), b[2].max(x + r), b[3].max(y + r)];
+        b = [
+            b[0].min(x - r),
+            b[1].min(y - r),
+            b[2].max(x + r),
+            b[3].max(y + r),
+        ];
     };
     for w in &spec.walls {
         grow(w.start[0], w.start[1], w.thickness);
@@ -961,9 +1082,119 @@ fn frame_for(spec: &WorldSpec, parts: &[Part]) -> Result<Frame, Problem> {
     })
 }
 
-#[doc(hidden)]
-pub static JUMPS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-#[doc(hidden)]
-pub static STEPS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-#[doc(hidden)]
-pub static OBJ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::{Colour, Pose3, Size3};
+
+    fn part(shape: Shape, size: Size3, pose: Pose3) -> Part {
+        Part {
+            name: "p",
+            shape,
+            size,
+            pose,
+            colour: Colour::GREY,
+        }
+    }
+
+    /// The closed-form footprint clearance equals parry's 3-D distance between the robot's
+    /// cylinder and the solid wherever they are apart (and is not positive where they touch).
+    #[test]
+    fn closed_form_clearance_matches_parry() {
+        use parry3d_f64::query::distance;
+        let (radius, height) = (0.25, 0.6);
+        let robot = Cylinder::new(height / 2.0, radius);
+        let solids = [
+            part(
+                Shape::Box,
+                Size3::new(1.0, 0.4, 0.8),
+                Pose3::new(0.3, -0.2, 0.4, 0.7),
+            ),
+            part(
+                Shape::Cylinder,
+                Size3::new(0.5, 0.5, 1.5),
+                Pose3::new(-0.4, 0.5, 0.75, 0.0),
+            ),
+            part(
+                Shape::Sphere,
+                Size3::new(0.6, 0.6, 0.6),
+                Pose3::new(0.2, 0.9, 0.5, 0.0),
+            ),
+            part(
+                Shape::Sphere,
+                Size3::new(0.4, 0.4, 0.4),
+                Pose3::new(-0.6, -0.6, 0.9, 0.0),
+            ),
+        ]
+        .map(|p| Solid::from_part(&p));
+        let mut checked = 0;
+        for i in 0..60 {
+            for j in 0..60 {
+                let (x, y) = (-2.0 + f64::from(i) * 0.067, -2.0 + f64::from(j) * 0.067);
+                let pose = Pose::from_parts(
+                    Vector::new(x, y, height / 2.0),
+                    Rot3::from_rotation_x(std::f64::consts::FRAC_PI_2),
+                );
+                for s in &solids {
+                    let ours = s.clearance_to(x, y, radius, height);
+                    let theirs = match &s.shape {
+                        SolidShape::Cuboid(c) => distance(&pose, &robot, &s.pose, c),
+                        SolidShape::Cylinder(c) => distance(&pose, &robot, &s.pose, c),
+                        SolidShape::Ball(c) => distance(&pose, &robot, &s.pose, c),
+                    }
+                    .expect("supported")
+                    .distance;
+                    if theirs > 1e-6 {
+                        assert!(
+                            (ours - theirs).abs() < 1e-6,
+                            "at ({x}, {y}): {ours} vs {theirs}"
+                        );
+                        checked += 1;
+                    } else {
+                        assert!(ours <= 1e-6, "at ({x}, {y}): {ours} vs touching");
+                    }
+                }
+            }
+        }
+        assert!(checked > 5000);
+    }
+
+    /// The closed-form ray cast on upright cylinders equals parry's.
+    #[test]
+    fn cylinder_ray_cast_matches_parry() {
+        let s = Solid::from_part(&part(
+            Shape::Cylinder,
+            Size3::new(0.6, 0.6, 1.0),
+            Pose3::new(1.0, 0.5, 0.5, 0.3),
+        ));
+        let SolidShape::Cylinder(cyl) = &s.shape else {
+            panic!("a cylinder");
+        };
+        let mut hits = 0;
+        for k in 0..360 {
+            let a = f64::from(k).to_radians();
+            for (x, y) in [(-1.0, 0.2), (2.5, 2.0), (1.1, 0.5), (1.0, -0.5)] {
+                let ray = Ray::new(Vector::new(x, y, 0.3), Vector::new(a.cos(), a.sin(), 0.0));
+                let ours = s.cast(&ray, 5.0);
+                let theirs = cyl.cast_ray(&s.pose, &ray, 5.0, true);
+                match (ours, theirs) {
+                    (Some(o), Some(t)) => {
+                        assert!((o - t).abs() < 1e-6, "{o} vs {t}");
+                        hits += 1;
+                    }
+                    (None, None) => {}
+                    other => {
+                        // Only a tangent ray may be a hit for one and a miss for the other.
+                        let (ox, oy) = (1.0 - x, 0.5 - y);
+                        let miss = (ox * a.sin() - oy * a.cos()).abs();
+                        assert!(
+                            (miss - 0.3).abs() < 1e-6,
+                            "from ({x}, {y}) at {a}: {other:?}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(hits > 300);
+    }
+}

@@ -4,7 +4,9 @@ use std::str::FromStr;
 use std::time::Duration;
 
 use sqlx::migrate::Migrator;
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteSynchronous};
+use sqlx::sqlite::{
+    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteSynchronous,
+};
 
 static SQLITE_MIGRATIONS: Migrator = sqlx::migrate!("../../migrations/sqlite");
 
@@ -60,7 +62,9 @@ impl JobDatabase {
     /// reached the disk, even if the machine loses power right after.
     pub async fn connect(url: &str) -> Result<Self, DatabaseError> {
         if !url.starts_with("sqlite:") {
-            return Err(DatabaseError::UnsupportedUrl { url: url.to_owned() });
+            return Err(DatabaseError::UnsupportedUrl {
+                url: url.to_owned(),
+            });
         }
         let err = |source| DatabaseError::Sqlx {
             url: url.to_owned(),

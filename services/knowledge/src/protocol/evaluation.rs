@@ -1,14 +1,16 @@
 //! Evaluation of parsed SPARQL queries and updates on the store, into fully serialized
 //! answers, under a cancellation token and the CONSTRUCT cap. Knows nothing of HTTP.
 
-use oxigraph::io::{RdfFormat, RdfSerializer};
+use oxigraph::io::RdfSerializer;
 use oxigraph::model::{GraphName, NamedNode, NamedOrBlankNode};
-use oxigraph::sparql::results::{QueryResultsFormat, QueryResultsSerializer};
+use oxigraph::sparql::results::QueryResultsSerializer;
 use oxigraph::sparql::{
     CancellationToken, QueryDataset, QueryEvaluationError, QueryResults, SparqlEvaluator,
     UpdateEvaluationError,
 };
 use oxigraph::store::Store;
+
+use super::negotiation::Format;
 
 /// rdflib's name for "the default graph" of a `Dataset`. rdflib sends it as
 /// `default-graph-uri`, and writes either into the real default graph (`Dataset.add`) or into a
@@ -99,20 +101,14 @@ impl ProtocolDataset {
     }
 }
 
-/// The serialization of a query answer. The negotiated format must fit the query form:
-/// results formats for SELECT and ASK, RDF formats for CONSTRUCT and DESCRIBE.
-#[derive(Debug, Clone, Copy)]
-pub(crate) enum AnswerFormat {
-    Results(QueryResultsFormat),
-    Rdf(RdfFormat),
-}
-
-/// Evaluates `query` and serializes its whole answer. Blocking.
+/// Evaluates `query` and serializes its whole answer in `format`, which must fit the query
+/// form: a results format for SELECT and ASK, an RDF format for CONSTRUCT and DESCRIBE.
+/// Blocking.
 pub(crate) fn run_query(
     store: &Store,
     query: spargebra::Query,
     dataset: Option<&ProtocolDataset>,
-    format: AnswerFormat,
+    format: Format,
     max_triples: usize,
     token: CancellationToken,
 ) -> Result<Vec<u8>, EvaluationError> {
@@ -124,12 +120,12 @@ pub(crate) fn run_query(
     }
     let results = prepared.on_store(store).execute().map_err(query_error)?;
     match (results, format) {
-        (QueryResults::Boolean(value), AnswerFormat::Results(format)) => {
+        (QueryResults::Boolean(value), Format::Results(format)) => {
             QueryResultsSerializer::from_format(format)
                 .serialize_boolean_to_writer(Vec::new(), value)
                 .map_err(|e| unserializable(format.name(), e))
         }
-        (QueryResults::Solutions(solutions), AnswerFormat::Results(format)) => {
+        (QueryResults::Solutions(solutions), Format::Results(format)) => {
             let unserializable = |e| unserializable(format.name(), e);
             let mut serializer = QueryResultsSerializer::from_format(format)
                 .serialize_solutions_to_writer(Vec::new(), solutions.variables().to_vec())
@@ -146,7 +142,7 @@ pub(crate) fn run_query(
             }
             serializer.finish().map_err(unserializable)
         }
-        (QueryResults::Graph(triples), AnswerFormat::Rdf(format)) => {
+        (QueryResults::Graph(triples), Format::Rdf(format)) => {
             let unserializable = |e| unserializable(format.name(), e);
             let mut serializer = RdfSerializer::from_format(format).for_writer(Vec::new());
             let mut count = 0_usize;

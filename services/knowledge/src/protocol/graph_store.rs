@@ -119,17 +119,17 @@ async fn handle(
     body: Bytes,
 ) -> Result<Response, ApiError> {
     let is_write = matches!(method, Method::PUT | Method::POST | Method::DELETE);
-    if is_write {
-        if let Target::Named(graph) = &target {
-            if graph.as_ref() == INFERRED_GRAPH {
-                return Err(ApiError::new(
-                    ErrorCode::Conflict,
-                    format!(
-                        "<{INFERRED_GRAPH}> is rebuilt by the service after every write; write the asserted graphs instead"
-                    ),
-                ));
-            }
-        }
+    if is_write
+        && let Target::Named(graph) = &target
+        && graph.as_ref() == INFERRED_GRAPH
+    {
+        return Err(ApiError::new(
+            ErrorCode::Conflict,
+            format!(
+                "<{INFERRED_GRAPH}> is rebuilt by the service after every write; write the \
+                 asserted graphs instead"
+            ),
+        ));
     }
     match method {
         Method::GET | Method::HEAD => {
@@ -166,15 +166,14 @@ async fn read(
         .read(move || {
             let store = knowledge.store()?;
             let store = store.inner();
-            if let Target::Named(graph) = &target {
-                if !store
+            if let Target::Named(graph) = &target
+                && !store
                     .contains_named_graph(graph)
                     .map_err(ApiError::internal)?
-                {
-                    return Err(ApiError::not_found(format!(
-                        "graph <{graph}> does not exist"
-                    )));
-                }
+            {
+                return Err(ApiError::not_found(format!(
+                    "graph <{graph}> does not exist"
+                )));
             }
             if head {
                 return Ok(Vec::new());

@@ -4,7 +4,7 @@
 //!
 //! Handlers are thin adapters: they read a request into a typed operation, check the bearer
 //! token, and run the operation on a blocking thread (Oxigraph is blocking) under a
-//! [`Deadline`]. Evaluation itself ([`evaluation`]) knows nothing of HTTP. Answers are
+//! `Deadline`. Evaluation itself (`evaluation.rs`) knows nothing of HTTP. Answers are
 //! serialized completely before the response starts, so a query that is cut short, by its
 //! deadline or by the CONSTRUCT cap, is always an error status, never a truncated 200 body.
 
@@ -191,12 +191,11 @@ fn body_media_type(headers: &HeaderMap) -> Option<(String, bool)> {
     let essence = parts.next()?.trim().to_ascii_lowercase();
     let mut utf8 = true;
     for parameter in parts {
-        if let Some((name, value)) = parameter.split_once('=') {
-            if name.trim().eq_ignore_ascii_case("charset") {
-                let charset = value.trim().trim_matches('"');
-                utf8 =
-                    charset.eq_ignore_ascii_case("utf-8") || charset.eq_ignore_ascii_case("utf8");
-            }
+        if let Some((name, value)) = parameter.split_once('=')
+            && name.trim().eq_ignore_ascii_case("charset")
+        {
+            let charset = value.trim().trim_matches('"');
+            utf8 = charset.eq_ignore_ascii_case("utf-8") || charset.eq_ignore_ascii_case("utf8");
         }
     }
     Some((essence, utf8))
@@ -206,26 +205,19 @@ fn body_media_type(headers: &HeaderMap) -> Option<(String, bool)> {
 /// away.
 ///
 /// Dropping a future does not stop a blocking Oxigraph evaluation, so the token is cancelled
-/// from `Drop` too: when axum drops the handler's future (the client disconnected, or the
-/// outer request timeout fired) the evaluation sees the cancelled token at its next step and
-/// returns.
+/// from `Drop`: when axum drops the handler's future (the client disconnected, or the outer
+/// request timeout fired) the evaluation sees the cancelled token at its next step and
+/// returns. The deadline itself is a timer raced against the blocking task, so a request
+/// costs no extra task.
 struct Deadline {
     token: CancellationToken,
-    timer: tokio::task::JoinHandle<()>,
     limit: Duration,
 }
 
 impl Deadline {
     fn start(limit: Duration) -> Self {
-        let token = CancellationToken::new();
-        let timer_token = token.clone();
-        let timer = tokio::spawn(async move {
-            tokio::time::sleep(limit).await;
-            timer_token.cancel();
-        });
         Self {
-            token,
-            timer,
+            token: CancellationToken::new(),
             limit,
         }
     }
@@ -246,7 +238,7 @@ impl Deadline {
 
     /// Runs a read on a blocking thread. At the deadline the answer is a 503 at once, even if
     /// the evaluation has not yet noticed its cancelled token: it has no side effects, so
-    /// nothing is lost by not waiting for it.
+    /// nothing is lost by not waiting for it. (Returning drops `self`, which cancels.)
     async fn read<T: Send + 'static>(
         &self,
         work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
@@ -256,7 +248,10 @@ impl Deadline {
             work()
         };
         match tokio::time::timeout(self.limit, tokio::task::spawn_blocking(work)).await {
-            Err(_elapsed) => Err(self.exceeded()),
+            Err(_elapsed) => {
+                self.token.cancel();
+                Err(self.exceeded())
+            }
             Ok(Err(join)) => Err(ApiError::internal(format!(
                 "evaluation task failed: {join}"
             ))),
@@ -264,14 +259,29 @@ impl Deadline {
         }
     }
 
-    /// Runs a write on a blocking thread and waits for its real outcome: an update that
-    /// committed just after the deadline did happen, and saying otherwise would mislead the
-    /// client. Cancellation makes Oxigraph abandon the transaction uncommitted.
+    /// Runs a write on a blocking thread, cancels it at the deadline, and waits for its real
+    /// outcome: an update that committed just as the deadline passed did happen, and saying
+    /// otherwise would mislead the client. A cancelled update leaves its transaction
+    /// uncommitted.
     async fn write<T: Send + 'static>(
         &self,
         work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
     ) -> Result<T, ApiError> {
-        blocking(work).await
+        let mut task = tokio::task::spawn_blocking(work);
+        let joined = tokio::select! {
+            joined = &mut task => joined,
+            () = tokio::time::sleep(self.limit) => {
+                self.token.cancel();
+                task.await
+            }
+        };
+        joined.unwrap_or_else(|join| Err(ApiError::internal(format!("write task failed: {join}"))))
+    }
+}
+
+impl Drop for Deadline {
+    fn drop(&mut self) {
+        self.token.cancel();
     }
 }
 
@@ -307,13 +317,6 @@ async fn blocking<T: Send + 'static>(
     match tokio::task::spawn_blocking(work).await {
         Err(join) => Err(ApiError::internal(format!("blocking task failed: {join}"))),
         Ok(result) => result,
-    }
-}
-
-impl Drop for Deadline {
-    fn drop(&mut self) {
-        self.timer.abort();
-        self.token.cancel();
     }
 }
 

@@ -159,10 +159,10 @@ fn parse_accept(header: &str) -> Vec<MediaRange> {
             }
             let mut q = 1.0;
             for parameter in parts {
-                if let Some((name, value)) = parameter.split_once('=') {
-                    if name.trim().eq_ignore_ascii_case("q") {
-                        q = value.trim().parse::<f32>().ok()?.clamp(0.0, 1.0);
-                    }
+                if let Some((name, value)) = parameter.split_once('=')
+                    && name.trim().eq_ignore_ascii_case("q")
+                {
+                    q = value.trim().parse::<f32>().ok()?.clamp(0.0, 1.0);
                 }
             }
             Some(MediaRange {
@@ -238,7 +238,10 @@ pub fn negotiate(
         }
     }
     best.map(|(format, _)| format).ok_or_else(|| {
-        let available: Vec<&str> = offered.iter().map(|&f| aliases(f).0[0]).collect();
+        let available: Vec<&str> = offered
+            .iter()
+            .map(|&f| content_type(f).split(';').next().unwrap_or_default())
+            .collect();
         ApiError::new(
             ErrorCode::NotAcceptable,
             format!(
@@ -284,6 +287,7 @@ pub fn rdf_format(
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // reason: tests
 mod tests {
     use super::*;
 

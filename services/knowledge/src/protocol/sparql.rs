@@ -13,7 +13,7 @@ use edge::{ApiError, ErrorCode};
 use oxigraph::model::NamedNode;
 use spargebra::{GraphUpdateOperation, Query, SparqlParser};
 
-use super::evaluation::{self, AnswerFormat, EvaluationError, ProtocolDataset};
+use super::evaluation::{self, EvaluationError, ProtocolDataset};
 use super::negotiation::{self, Format, GRAPH_FORMATS};
 use super::{Deadline, Params, body_media_type, method_not_allowed, request_origin};
 use crate::auth::Role;
@@ -127,25 +127,23 @@ async fn answer_query(
     })?;
     let accept = headers.get(ACCEPT).and_then(|v| v.to_str().ok());
     let hints = params.format_hints();
-    let format = match &query {
-        Query::Select { .. } => AnswerFormat::Results(negotiation::results_format(
-            accept,
-            &hints,
-            "a SELECT result",
-        )?),
-        Query::Ask { .. } => AnswerFormat::Results(negotiation::results_format(
-            accept,
-            &hints,
-            "an ASK result",
-        )?),
-        Query::Construct { .. } | Query::Describe { .. } => AnswerFormat::Rdf(
-            negotiation::rdf_format(accept, &hints, GRAPH_FORMATS, "a graph result")?,
-        ),
-    };
-    let content_type = negotiation::content_type(match format {
-        AnswerFormat::Results(f) => Format::Results(f),
-        AnswerFormat::Rdf(f) => Format::Rdf(f),
-    });
+    let format =
+        match &query {
+            Query::Select { .. } => Format::Results(negotiation::results_format(
+                accept,
+                &hints,
+                "a SELECT result",
+            )?),
+            Query::Ask { .. } => Format::Results(negotiation::results_format(
+                accept,
+                &hints,
+                "an ASK result",
+            )?),
+            Query::Construct { .. } | Query::Describe { .. } => Format::Rdf(
+                negotiation::rdf_format(accept, &hints, GRAPH_FORMATS, "a graph result")?,
+            ),
+        };
+    let content_type = negotiation::content_type(format);
     let dataset = protocol_dataset(params, "default-graph-uri", "named-graph-uri")?;
     let limits = knowledge.limits;
     let deadline = Deadline::start(limits.deadline);

@@ -19,11 +19,37 @@ async fn dropping_the_deadline_cancels_its_token() {
 }
 
 #[tokio::test]
-async fn the_deadline_cancels_its_token_when_it_passes() {
+async fn a_write_is_cancelled_at_its_deadline_and_its_outcome_awaited() {
     let deadline = Deadline::start(Duration::from_millis(50));
     let token = deadline.token();
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    assert!(token.is_cancelled());
+    let started = Instant::now();
+    let outcome = deadline
+        .write(move || {
+            while !token.is_cancelled() {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            Ok("unwound")
+        })
+        .await;
+    assert_eq!(outcome.unwrap(), "unwound");
+    assert!(started.elapsed() >= Duration::from_millis(50));
+}
+
+#[tokio::test]
+async fn a_read_answers_at_its_deadline_and_cancels() {
+    let deadline = Deadline::start(Duration::from_millis(50));
+    let token = deadline.token();
+    let seen = token.clone();
+    let outcome = deadline
+        .read(move || {
+            while !token.is_cancelled() {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            Ok(())
+        })
+        .await;
+    assert_eq!(outcome.unwrap_err().code(), ErrorCode::Timeout);
+    assert!(seen.is_cancelled());
 }
 
 #[test]

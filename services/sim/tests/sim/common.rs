@@ -37,6 +37,7 @@ pub fn room_at(w: f64, h: f64, origin: Pose2) -> WorldSpec {
         walls: vec![],
         objects: vec![],
         robot: RobotSpec::example_differential(),
+        notes: vec![],
     }
 }
 
@@ -56,7 +57,19 @@ pub fn object(id: &str, class: Option<&str>, shape: Shape, size: Size3, pose: Po
 /// [y0, y1]` that contains the point.
 pub fn box_exit(x: f64, y: f64, angle: f64, [x0, y0, x1, y1]: [f64; 4]) -> f64 {
     let (dx, dy) = (angle.cos(), angle.sin());
-    let tx = if dx > 0.0 { (x1 - x) / dx } else if dx < 0.0 { (x0 - x) / dx } else { f64::INFINITY };
-    let ty = if dy > 0.0 { (y1 - y) / dy } else if dy < 0.0 { (y0 - y) / dy } else { f64::INFINITY };
+    let tx = if dx > 0.0 {
+        (x1 - x) / dx
+    } else if dx < 0.0 {
+        (x0 - x) / dx
+    } else {
+        f64::INFINITY
+    };
+    let ty = if dy > 0.0 {
+        (y1 - y) / dy
+    } else if dy < 0.0 {
+        (y0 - y) / dy
+    } else {
+        f64::INFINITY
+    };
     tx.min(ty)
 }

@@ -13,9 +13,27 @@ use crate::common::{object, room};
 
 fn furnished() -> Arc<World> {
     let mut spec = room(12.0, 8.0);
-    spec.objects.push(object("t", Some("Table"), Shape::Box, Size3::new(1.2, 0.8, 0.75), Pose3::new(4.0, 4.0, 0.375, 0.3)));
-    spec.objects.push(object("v", Some("VendingMachine"), Shape::Box, Size3::new(0.8, 0.7, 1.8), Pose3::new(8.0, 2.0, 0.9, 0.0)));
-    spec.objects.push(object("s", Some("Shelf"), Shape::Box, Size3::new(0.4, 1.5, 1.8), Pose3::new(9.0, 6.5, 0.9, 1.0)));
+    spec.objects.push(object(
+        "t",
+        Some("Table"),
+        Shape::Box,
+        Size3::new(1.2, 0.8, 0.75),
+        Pose3::new(4.0, 4.0, 0.375, 0.3),
+    ));
+    spec.objects.push(object(
+        "v",
+        Some("VendingMachine"),
+        Shape::Box,
+        Size3::new(0.8, 0.7, 1.8),
+        Pose3::new(8.0, 2.0, 0.9, 0.0),
+    ));
+    spec.objects.push(object(
+        "s",
+        Some("Shelf"),
+        Shape::Box,
+        Size3::new(0.4, 1.5, 1.8),
+        Pose3::new(9.0, 6.5, 0.9, 1.0),
+    ));
     World::build(spec).expect("builds")
 }
 
@@ -30,7 +48,9 @@ fn quiet() -> EnvConfig {
 fn reaching_the_goal_pays_completion_minus_time() {
     let world = World::build(room(12.0, 8.0)).expect("builds");
     let mut env = NavEnv::new(world, quiet(), 1).expect("env");
-    let obs = env.reset(Pose2::new(2.0, 4.0, 0.0), (4.0, 4.0)).expect("reset");
+    let obs = env
+        .reset(Pose2::new(2.0, 4.0, 0.0), (4.0, 4.0))
+        .expect("reset");
     assert_eq!(obs.ranges.len(), 23);
     assert!((obs.goal_distance - 2.0).abs() < 1e-6 && obs.goal_angle.abs() < 1e-6);
     let mut last = None;
@@ -57,7 +77,8 @@ fn reaching_the_goal_pays_completion_minus_time() {
 fn driving_into_a_wall_is_a_collision() {
     let world = World::build(room(12.0, 8.0)).expect("builds");
     let mut env = NavEnv::new(world, quiet(), 1).expect("env");
-    env.reset(Pose2::new(10.0, 4.0, 0.0), (2.0, 4.0)).expect("reset");
+    env.reset(Pose2::new(10.0, 4.0, 0.0), (2.0, 4.0))
+        .expect("reset");
     let mut steps = 0;
     let r = loop {
         let r = env.step(Action::new(0.8, 0.0));
@@ -73,14 +94,19 @@ fn driving_into_a_wall_is_a_collision() {
     // x = 11.68 its clearance is 0.07 m, at 11.76 it is -0.01 m, below the 0.02 m threshold.
     assert_eq!(steps, 22);
     assert!((r.info.pose.x - 11.76).abs() < 1e-9, "{:?}", r.info.pose);
-    assert!((r.info.min_clearance + 0.01).abs() < 1e-9, "{}", r.info.min_clearance);
+    assert!(
+        (r.info.min_clearance + 0.01).abs() < 1e-9,
+        "{}",
+        r.info.min_clearance
+    );
 }
 
 #[test]
 fn turning_in_place_keeps_the_position() {
     let world = World::build(room(12.0, 8.0)).expect("builds");
     let mut env = NavEnv::new(world, quiet(), 1).expect("env");
-    env.reset(Pose2::new(6.0, 4.0, 0.0), (2.0, 4.0)).expect("reset");
+    env.reset(Pose2::new(6.0, 4.0, 0.0), (2.0, 4.0))
+        .expect("reset");
     for _ in 0..10 {
         let r = env.step(Action::new(0.0, 0.5));
         assert_eq!(r.info.outcome, Outcome::Running);
@@ -95,11 +121,17 @@ fn blocked_starts_and_goals_are_refused_with_a_free_point() {
     let world = World::build(room(12.0, 8.0)).expect("builds");
     let mut env = NavEnv::new(world, quiet(), 1).expect("env");
     match env.reset(Pose2::new(0.1, 4.0, 0.0), (6.0, 4.0)) {
-        Err(EnvError::StartBlocked { nearest_free: Some((x, _)), .. }) => assert!(x > 0.3),
+        Err(EnvError::StartBlocked {
+            nearest_free: Some((x, _)),
+            ..
+        }) => assert!(x > 0.3),
         other => panic!("{other:?}"),
     }
     match env.reset(Pose2::new(6.0, 4.0, 0.0), (11.99, 4.0)) {
-        Err(EnvError::GoalBlocked { nearest_free: Some((x, _)), .. }) => assert!(x < 11.7),
+        Err(EnvError::GoalBlocked {
+            nearest_free: Some((x, _)),
+            ..
+        }) => assert!(x < 11.7),
         other => panic!("{other:?}"),
     }
     assert!(matches!(
@@ -111,7 +143,10 @@ fn blocked_starts_and_goals_are_refused_with_a_free_point() {
 #[test]
 fn random_resets_respect_the_distance_range() {
     let world = furnished();
-    let config = EnvConfig { goal_distance: (2.0, 6.0), ..EnvConfig::default() };
+    let config = EnvConfig {
+        goal_distance: (2.0, 6.0),
+        ..EnvConfig::default()
+    };
     let mut env = NavEnv::new(Arc::clone(&world), config, 7).expect("env");
     for _ in 0..200 {
         let (s, g) = env.sample_start_goal().expect("sample");
@@ -128,7 +163,10 @@ fn roll(env: &mut NavEnv, actions: &mut ChaCha8Rng, steps: usize) -> Vec<(Vec<f3
     let obs = env.reset_random().expect("reset");
     out.push((obs.to_vec(), 0.0, false));
     for _ in 0..steps {
-        let a = Action::new(actions.random_range(0.0..0.8), actions.random_range(-0.5..0.5));
+        let a = Action::new(
+            actions.random_range(0.0..0.8),
+            actions.random_range(-0.5..0.5),
+        );
         let r = env.step(a);
         out.push((r.observation.to_vec(), r.reward, r.done));
         if r.done {
@@ -154,10 +192,13 @@ fn the_same_seed_gives_the_same_episode() {
 fn a_batch_equals_its_environments_stepped_one_by_one() {
     let world = furnished();
     let n = 6;
-    let mut batch = EnvBatch::new(Arc::clone(&world), EnvConfig::default(), n, 42, true).expect("batch");
+    let mut batch =
+        EnvBatch::new(Arc::clone(&world), EnvConfig::default(), n, 42, true).expect("batch");
     let first = batch.reset_random().expect("reset");
     let mut singles: Vec<NavEnv> = (0..n)
-        .map(|i| NavEnv::new(Arc::clone(&world), EnvConfig::default(), env_seed(42, i)).expect("env"))
+        .map(|i| {
+            NavEnv::new(Arc::clone(&world), EnvConfig::default(), env_seed(42, i)).expect("env")
+        })
         .collect();
     for (env, obs) in singles.iter_mut().zip(&first) {
         assert_eq!(&env.reset_random().expect("reset"), obs);
@@ -179,19 +220,55 @@ fn a_batch_equals_its_environments_stepped_one_by_one() {
         }
     }
     assert!(ended > 0, "some episodes ended and were reset");
-    assert!(matches!(batch.step(&[Action::default()]), Err(EnvError::Config { field: "actions", .. })));
+    assert!(matches!(
+        batch.step(&[Action::default()]),
+        Err(EnvError::Config {
+            field: "actions",
+            ..
+        })
+    ));
 }
 
 #[test]
 fn bad_settings_are_refused() {
     let world = World::build(room(6.0, 6.0)).expect("builds");
     let cases: Vec<(EnvConfig, &str)> = vec![
-        (EnvConfig { beams: 0, ..EnvConfig::default() }, "beams"),
-        (EnvConfig { beams: 10_000, ..EnvConfig::default() }, "beams"),
-        (EnvConfig { control_period: 0.0, ..EnvConfig::default() }, "control_period"),
-        (EnvConfig { goal_distance: (5.0, 2.0), ..EnvConfig::default() }, "goal_distance"),
         (
-            EnvConfig { noise: NoiseConfig { range: -1.0, ..NoiseConfig::default() }, ..EnvConfig::default() },
+            EnvConfig {
+                beams: 0,
+                ..EnvConfig::default()
+            },
+            "beams",
+        ),
+        (
+            EnvConfig {
+                beams: 10_000,
+                ..EnvConfig::default()
+            },
+            "beams",
+        ),
+        (
+            EnvConfig {
+                control_period: 0.0,
+                ..EnvConfig::default()
+            },
+            "control_period",
+        ),
+        (
+            EnvConfig {
+                goal_distance: (5.0, 2.0),
+                ..EnvConfig::default()
+            },
+            "goal_distance",
+        ),
+        (
+            EnvConfig {
+                noise: NoiseConfig {
+                    range: -1.0,
+                    ..NoiseConfig::default()
+                },
+                ..EnvConfig::default()
+            },
             "noise.range",
         ),
     ];
@@ -201,4 +278,40 @@ fn bad_settings_are_refused() {
             other => panic!("{want}: {other:?}"),
         }
     }
+}
+
+#[test]
+fn a_plan_is_followed_waypoint_by_waypoint() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let config = EnvConfig {
+        record_trajectory: true,
+        ..quiet()
+    };
+    let mut env = NavEnv::new(world, config, 1).expect("env");
+    let mut obs = env
+        .reset(Pose2::new(2.0, 2.0, 0.0), (5.0, 2.0))
+        .expect("reset");
+    let waypoints = [(5.0, 2.0), (5.0, 5.0), (9.0, 6.0)];
+    for (k, w) in waypoints.iter().enumerate() {
+        if k > 0 {
+            obs = env.set_goal(*w).expect("free waypoint");
+        }
+        let reached = loop {
+            let b = f64::from(obs.goal_angle);
+            let r = env.step(Action::new(
+                0.6 * b.cos().max(0.0),
+                (1.5 * b).clamp(-0.5, 0.5),
+            ));
+            obs = r.observation;
+            if r.done {
+                break r.info.outcome;
+            }
+        };
+        assert_eq!(reached, Outcome::ReachedGoal, "waypoint {k}");
+    }
+    assert!(env.trajectory().len() > 20);
+    assert!(matches!(
+        env.set_goal((0.0, 0.0)),
+        Err(EnvError::GoalBlocked { .. })
+    ));
 }

@@ -3,6 +3,8 @@
 
 mod common;
 mod env;
+mod export;
+mod parse;
 mod raycast;
 mod render;
 mod ros_map;

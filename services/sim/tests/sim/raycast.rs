@@ -24,13 +24,22 @@ fn ray_to_a_wall_at_a_known_distance() {
 fn rays_in_every_direction_match_the_analytic_box() {
     let world = World::build(room(12.0, 7.0)).expect("room builds");
     let inner = [RES, RES, 12.0 - RES, 7.0 - RES];
-    let origins = [(2.0, 3.0), (6.123, 0.4567), (11.9, 6.9), (0.06, 0.06), (5.5, 3.5)];
+    let origins = [
+        (2.0, 3.0),
+        (6.123, 0.4567),
+        (11.9, 6.9),
+        (0.06, 0.06),
+        (5.5, 3.5),
+    ];
     for (x, y) in origins {
         for k in 0..720 {
             let a = k as f64 * PI / 360.0 + 1e-3;
             let want = box_exit(x, y, a, inner);
             let got = world.cast_ray(x, y, a, 100.0);
-            assert!((got - want).abs() < 1e-9, "from ({x}, {y}) at {a}: {got} vs {want}");
+            assert!(
+                (got - want).abs() < 1e-9,
+                "from ({x}, {y}) at {a}: {got} vs {want}"
+            );
         }
     }
 }
@@ -50,7 +59,10 @@ fn a_rotated_and_shifted_map_is_cast_in_its_own_frame() {
             assert!((got - want).abs() < 1e-9, "{got} vs {want}");
         }
         let clear = world.wall_clearance(x, y) + world.spec().robot.footprint_radius;
-        let want = (lx - RES).min(ly - RES).min(8.0 - RES - lx).min(5.0 - RES - ly);
+        let want = (lx - RES)
+            .min(ly - RES)
+            .min(8.0 - RES - lx)
+            .min(5.0 - RES - ly);
         assert!((clear - want).abs() < 1e-9, "{clear} vs {want}");
     }
 }
@@ -91,12 +103,18 @@ fn a_table_is_seen_through_its_legs_not_its_top() {
     high.robot.laser.mount.z = 0.8;
     high.robot.height = 1.0;
     let w3 = World::build(high).expect("builds");
-    assert!((w3.cast_ray(2.0, 3.0, 0.0, 20.0) - 7.95).abs() < 1e-9, "nothing at 0.8 m");
+    assert!(
+        (w3.cast_ray(2.0, 3.0, 0.0, 20.0) - 7.95).abs() < 1e-9,
+        "nothing at 0.8 m"
+    );
     let mut top = spec;
     top.robot.laser.mount.z = 0.74;
     top.robot.height = 1.0;
     let w4 = World::build(top).expect("builds");
-    assert!((w4.cast_ray(2.0, 3.0, 0.0, 20.0) - 2.4).abs() < 1e-9, "the top at 0.74 m");
+    assert!(
+        (w4.cast_ray(2.0, 3.0, 0.0, 20.0) - 2.4).abs() < 1e-9,
+        "the top at 0.74 m"
+    );
 }
 
 #[test]
@@ -138,9 +156,27 @@ fn clearance_to_walls_is_exact() {
 #[test]
 fn cylinders_spheres_and_rotated_boxes_are_hit_exactly() {
     let mut spec = room(10.0, 10.0);
-    spec.objects.push(object("pillar", Some("Pillar"), Shape::Cylinder, Size3::new(0.6, 0.6, 2.0), Pose3::new(5.0, 5.0, 1.0, 0.0)));
-    spec.objects.push(object("ball", None, Shape::Sphere, Size3::new(1.0, 1.0, 1.0), Pose3::new(2.0, 8.0, 0.3, 0.0)));
-    spec.objects.push(object("crate", None, Shape::Box, Size3::new(1.0, 1.0, 1.0), Pose3::new(8.0, 2.0, 0.5, PI / 4.0)));
+    spec.objects.push(object(
+        "pillar",
+        Some("Pillar"),
+        Shape::Cylinder,
+        Size3::new(0.6, 0.6, 2.0),
+        Pose3::new(5.0, 5.0, 1.0, 0.0),
+    ));
+    spec.objects.push(object(
+        "ball",
+        None,
+        Shape::Sphere,
+        Size3::new(1.0, 1.0, 1.0),
+        Pose3::new(2.0, 8.0, 0.3, 0.0),
+    ));
+    spec.objects.push(object(
+        "crate",
+        None,
+        Shape::Box,
+        Size3::new(1.0, 1.0, 1.0),
+        Pose3::new(8.0, 2.0, 0.5, PI / 4.0),
+    ));
     let world = World::build(spec).expect("builds");
     // Ray along y = 5 from x = 1 meets the pillar's surface at x = 4.7.
     assert!((world.cast_ray(1.0, 5.0, 0.0, 20.0) - 3.7).abs() < 1e-9);
@@ -166,7 +202,11 @@ fn scans_use_the_mounting_pose_and_clamp_to_the_range() {
     // wall at x = 0.05, from the laser at x = 1.9.
     world.scan(Pose2::new(2.0, 3.0, PI), &angles, &mut out);
     let want = box_exit(1.9, 3.0, PI + angles[11], [RES, RES, 30.0 - RES, 6.0 - RES]);
-    assert!((out[11] - want).abs() < 1e-9 && (want - 1.85).abs() < 1e-4, "{}", out[11]);
+    assert!(
+        (out[11] - want).abs() < 1e-9 && (want - 1.85).abs() < 1e-4,
+        "{}",
+        out[11]
+    );
     // Rightmost beam (-90°) facing -x points to +y: wall at 5.95.
     assert!((out[0] - 2.95).abs() < 1e-9, "{}", out[0]);
 }

@@ -7,11 +7,29 @@ use crate::common::{object, room};
 
 fn scene() -> (std::sync::Arc<World>, Overlay) {
     let mut spec = room(10.0, 6.0);
-    let mut vending = object("http://example.org/env#vending<1>", Some("VendingMachine"), Shape::Box, Size3::new(0.8, 0.7, 1.8), Pose3::new(7.0, 2.0, 0.9, 0.2));
+    let mut vending = object(
+        "http://example.org/env#vending<1>",
+        Some("VendingMachine"),
+        Shape::Box,
+        Size3::new(0.8, 0.7, 1.8),
+        Pose3::new(7.0, 2.0, 0.9, 0.2),
+    );
     vending.colour = Colour::rgb(220, 0, 0);
     spec.objects.push(vending);
-    spec.objects.push(object("t", Some("Table"), Shape::Box, Size3::new(1.2, 0.8, 0.75), Pose3::new(3.0, 4.0, 0.375, 0.0)));
-    spec.objects.push(object("bin", None, Shape::Cylinder, Size3::new(0.4, 0.4, 0.6), Pose3::new(5.0, 5.0, 0.3, 0.0)));
+    spec.objects.push(object(
+        "t",
+        Some("Table"),
+        Shape::Box,
+        Size3::new(1.2, 0.8, 0.75),
+        Pose3::new(3.0, 4.0, 0.375, 0.0),
+    ));
+    spec.objects.push(object(
+        "bin",
+        None,
+        Shape::Cylinder,
+        Size3::new(0.4, 0.4, 0.6),
+        Pose3::new(5.0, 5.0, 0.3, 0.0),
+    ));
     let world = World::build(spec).expect("builds");
     let pose = Pose2::new(2.0, 2.0, 0.3);
     let overlay = Overlay {
@@ -35,15 +53,36 @@ fn png_decodes_with_the_expected_size_and_colours() {
         .to_rgb8();
     assert_eq!((img.width(), img.height()), (200, 120));
     // The vending machine's centre pixel is its red; a wall pixel is dark.
-    let px = |x: f64, y: f64| img.get_pixel((x / 0.05) as u32, ((6.0 - y) / 0.05) as u32).0;
+    let px = |x: f64, y: f64| {
+        img.get_pixel((x / 0.05) as u32, ((6.0 - y) / 0.05) as u32)
+            .0
+    };
     assert_eq!(px(7.0, 2.0), [220, 0, 0]);
     assert_eq!(px(0.01, 3.0), [30, 30, 30]);
     assert_eq!(overlay.beams.len(), 23);
     // Scaled down to fit.
-    let small = png(&world, &overlay, &RenderOptions { pixels_per_metre: Some(100.0), max_side: 100 }).expect("png");
+    let small = png(
+        &world,
+        &overlay,
+        &RenderOptions {
+            pixels_per_metre: Some(100.0),
+            max_side: 100,
+        },
+    )
+    .expect("png");
     let img = image::load_from_memory(&small).expect("decodes");
     assert!(img.width() <= 100 && img.height() <= 100);
-    assert!(png(&world, &overlay, &RenderOptions { pixels_per_metre: Some(-1.0), max_side: 10 }).is_err());
+    assert!(
+        png(
+            &world,
+            &overlay,
+            &RenderOptions {
+                pixels_per_metre: Some(-1.0),
+                max_side: 10
+            }
+        )
+        .is_err()
+    );
 }
 
 #[test]
@@ -53,7 +92,10 @@ fn svg_is_well_formed_and_names_objects() {
     let doc = roxmltree::Document::parse(&text).expect("well-formed XML");
     let root = doc.root_element();
     assert_eq!(root.tag_name().name(), "svg");
-    assert!(text.contains("vending&lt;1&gt;"), "escaped identifier as a tooltip");
+    assert!(
+        text.contains("vending&lt;1&gt;"),
+        "escaped identifier as a tooltip"
+    );
     assert!(text.contains("#dc0000"), "the placeholder's colour");
     let lines = doc.descendants().filter(|n| n.has_tag_name("line")).count();
     assert!(lines >= 23, "{lines} lines");

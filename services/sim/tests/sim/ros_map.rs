@@ -6,7 +6,9 @@ use std::sync::Arc;
 use sim::{Action, EnvConfig, GridMap, NavEnv, OccupancyGrid, RobotSpec, World, WorldSpec};
 
 fn shared_map(folder: &str, yaml: &str) -> Option<(String, OccupancyGrid)> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/maps/ros").join(folder);
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/maps/ros")
+        .join(folder);
     let yaml_path = dir.join(yaml);
     let Ok(text) = std::fs::read_to_string(&yaml_path) else {
         println!("skipped: {} is missing", yaml_path.display());
@@ -30,15 +32,23 @@ fn a_world_from_a_real_ros_map() {
     let free_area = grid.free_area_m2();
     let spec = WorldSpec {
         id: id.clone(),
-        floor: Some(GridMap { id, grid, wall_height: 2.5 }),
+        floor: Some(GridMap {
+            id,
+            grid,
+            wall_height: 2.5,
+        }),
         walls: vec![],
         objects: vec![],
         robot: RobotSpec::example_differential(),
+        notes: vec![],
     };
     let world = World::build(spec).expect("builds");
     let region = world.free_region_area_m2();
     // The largest region where the robot fits is part of the free area, and most of the house.
-    assert!(region < free_area && region > 0.3 * free_area, "{region} of {free_area}");
+    assert!(
+        region < free_area && region > 0.3 * free_area,
+        "{region} of {free_area}"
+    );
     let mut env = NavEnv::new(Arc::clone(&world), EnvConfig::default(), 1).expect("env");
     for _ in 0..20 {
         let obs = env.reset_random().expect("reset");

@@ -13,7 +13,9 @@ fn problems_of(spec: &WorldSpec) -> Vec<(Severity, String, String)> {
 }
 
 fn has(problems: &[(Severity, String, String)], sev: Severity, item: &str, field: &str) -> bool {
-    problems.iter().any(|(s, i, f)| *s == sev && i == item && f == field)
+    problems
+        .iter()
+        .any(|(s, i, f)| *s == sev && i == item && f == field)
 }
 
 #[test]
@@ -24,19 +26,52 @@ fn a_good_room_has_no_problems() {
 #[test]
 fn bad_objects_are_named_with_their_fields() {
     let mut spec = room(5.0, 5.0);
-    spec.objects.push(object("neg", None, Shape::Box, Size3::new(-1.0, 1.0, 1.0), Pose3::new(1.0, 1.0, 0.5, 0.0)));
-    spec.objects.push(object("nan", None, Shape::Box, Size3::new(1.0, 1.0, 1.0), Pose3::new(f64::NAN, 1.0, 0.5, 0.0)));
-    spec.objects.push(object("nan", None, Shape::Box, Size3::new(1.0, 1.0, 1.0), Pose3::new(2.0, 1.0, 0.5, 0.0)));
-    let mut tilted = object("tilt", None, Shape::Box, Size3::new(1.0, 1.0, 1.0), Pose3::new(2.0, 2.0, 0.0, 0.0));
+    spec.objects.push(object(
+        "neg",
+        None,
+        Shape::Box,
+        Size3::new(-1.0, 1.0, 1.0),
+        Pose3::new(1.0, 1.0, 0.5, 0.0),
+    ));
+    spec.objects.push(object(
+        "nan",
+        None,
+        Shape::Box,
+        Size3::new(1.0, 1.0, 1.0),
+        Pose3::new(f64::NAN, 1.0, 0.5, 0.0),
+    ));
+    spec.objects.push(object(
+        "nan",
+        None,
+        Shape::Box,
+        Size3::new(1.0, 1.0, 1.0),
+        Pose3::new(2.0, 1.0, 0.5, 0.0),
+    ));
+    let mut tilted = object(
+        "tilt",
+        None,
+        Shape::Box,
+        Size3::new(1.0, 1.0, 1.0),
+        Pose3::new(2.0, 2.0, 0.0, 0.0),
+    );
     tilted.pose.roll = 0.3;
     spec.objects.push(tilted);
-    spec.objects.push(object("egg", None, Shape::Sphere, Size3::new(1.0, 1.0, 2.0), Pose3::new(3.0, 3.0, 1.0, 0.0)));
+    spec.objects.push(object(
+        "egg",
+        None,
+        Shape::Sphere,
+        Size3::new(1.0, 1.0, 2.0),
+        Pose3::new(3.0, 3.0, 1.0, 0.0),
+    ));
     let p = problems_of(&spec);
     assert!(has(&p, Severity::Error, "neg", "size.x"), "{p:?}");
     assert!(has(&p, Severity::Error, "nan", "pose"), "{p:?}");
     assert!(has(&p, Severity::Error, "nan", "id"), "duplicate: {p:?}");
     assert!(has(&p, Severity::Warning, "tilt", "pose"), "{p:?}");
-    assert!(has(&p, Severity::Warning, "tilt", "pose.z"), "below the floor: {p:?}");
+    assert!(
+        has(&p, Severity::Warning, "tilt", "pose.z"),
+        "below the floor: {p:?}"
+    );
     assert!(has(&p, Severity::Warning, "egg", "size"), "{p:?}");
     let err = World::build(spec).expect_err("errors stop the build");
     assert!(err.has_errors());
@@ -56,8 +91,19 @@ fn bad_robots_and_maps_are_named_with_their_fields() {
         f.grid.cells.pop();
     }
     let p = problems_of(&spec);
-    assert!(has(&p, Severity::Error, "example_robot", "footprint_radius"), "{p:?}");
-    assert!(has(&p, Severity::Error, "example_robot", "drive.wheel_separation"), "{p:?}");
+    assert!(
+        has(&p, Severity::Error, "example_robot", "footprint_radius"),
+        "{p:?}"
+    );
+    assert!(
+        has(
+            &p,
+            Severity::Error,
+            "example_robot",
+            "drive.wheel_separation"
+        ),
+        "{p:?}"
+    );
     assert!(has(&p, Severity::Error, "laser", "range_max"), "{p:?}");
     assert!(has(&p, Severity::Error, "laser", "samples"), "{p:?}");
     assert!(has(&p, Severity::Error, "laser", "mount.z"), "{p:?}");
@@ -79,8 +125,20 @@ fn a_map_with_no_free_cell_is_an_error() {
 fn a_world_without_a_map_is_bounded_around_its_items() {
     let mut spec = room(5.0, 5.0);
     spec.floor = None;
-    spec.walls.push(sim::WallSpec { id: "b1".into(), start: [0.0, 0.0], end: [6.0, 0.0], thickness: 0.1, height: 2.0 });
-    spec.objects.push(object("box", None, Shape::Box, Size3::new(1.0, 1.0, 1.0), Pose3::new(3.0, 3.0, 0.5, 0.0)));
+    spec.walls.push(sim::WallSpec {
+        id: "b1".into(),
+        start: [0.0, 0.0],
+        end: [6.0, 0.0],
+        thickness: 0.1,
+        height: 2.0,
+    });
+    spec.objects.push(object(
+        "box",
+        None,
+        Shape::Box,
+        Size3::new(1.0, 1.0, 1.0),
+        Pose3::new(3.0, 3.0, 0.5, 0.0),
+    ));
     let world = World::build(spec.clone()).expect("builds");
     // The wall along y = 0 (0.05 m either side, rasterised by cell centres) is seen from above.
     let d = world.cast_ray(3.0, 1.0, -std::f64::consts::FRAC_PI_2, 10.0);
@@ -89,7 +147,10 @@ fn a_world_without_a_map_is_bounded_around_its_items() {
     spec.objects.clear();
     let err = World::build(spec).expect_err("nothing to bound");
     assert!(has(
-        &err.0.iter().map(|p| (p.severity, p.item.clone(), p.field.clone())).collect::<Vec<_>>(),
+        &err.0
+            .iter()
+            .map(|p| (p.severity, p.item.clone(), p.field.clone()))
+            .collect::<Vec<_>>(),
         Severity::Error,
         "test-room",
         "floor"

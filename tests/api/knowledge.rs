@@ -1,0 +1,412 @@
+//! The knowledge service through the real app: bundled data on first start, places and robots,
+//! map import (every shared ROS map), perceived objects, on-demand databases, and tokens.
+
+use std::path::PathBuf;
+
+use reqwest::Method;
+use serde_json::{Value, json};
+
+use crate::helpers::spawn_app;
+
+fn shared_ros_maps() -> Option<Vec<PathBuf>> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/maps/ros");
+    if !root.is_dir() {
+        eprintln!("skipping: {} is absent", root.display());
+        return None;
+    }
+    let mut yamls = Vec::new();
+    for dir in std::fs::read_dir(&root).unwrap() {
+        let dir = dir.unwrap().path();
+        for file in std::fs::read_dir(&dir).unwrap() {
+            let file = file.unwrap().path();
+            if file.extension().is_some_and(|e| e == "yaml") {
+                yamls.push(file);
+            }
+        }
+    }
+    yamls.sort();
+    Some(yamls)
+}
+
+async fn import(
+    app: &crate::helpers::TestApp,
+    name: &str,
+    yaml: &str,
+    image: Vec<u8>,
+) -> reqwest::Response {
+    let form = reqwest::multipart::Form::new()
+        .text("name", name.to_owned())
+        .text("yaml", yaml.to_owned())
+        .part(
+            "image",
+            reqwest::multipart::Part::bytes(image).file_name("map.pgm"),
+        );
+    app.request(Method::POST, "/v1/maps")
+        .multipart(form)
+        .send()
+        .await
+        .unwrap()
+}
+
+#[tokio::test]
+async fn first_start_serves_the_bundled_building_and_robot() {
+    let app = spawn_app().await;
+    assert!(!app.token.is_empty(), "an admin token was created");
+    let places: Vec<Value> = app
+        .request(Method::GET, "/v1/places")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert!(
+        places
+            .iter()
+            .any(|p| p["kind"] == "floor" && p["map"]["width"].as_u64().unwrap() > 0)
+    );
+    assert!(places.iter().any(|p| p["kind"] == "room"));
+    let robots: Vec<Value> = app
+        .request(Method::GET, "/v1/robots")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(robots.len(), 1);
+    assert_eq!(robots[0]["id"], "R-001");
+    let robot = app
+        .request(Method::GET, "/v1/robots/R-001")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(robot.status(), 200);
+
+    let floor = places.iter().find(|p| p["kind"] == "floor").unwrap();
+    let id = floor["id"].as_str().unwrap();
+    let png = app
+        .request(Method::GET, &format!("/v1/places/{id}/map.png"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(png.status(), 200);
+    assert_eq!(png.headers()["content-type"], "image/png");
+    let bytes = png.bytes().await.unwrap();
+    assert_eq!(&bytes[..4], b"\x89PNG");
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn requests_without_a_valid_token_are_refused() {
+    let app = spawn_app().await;
+    let anonymous = app.get("/v1/places").await;
+    assert_eq!(anonymous.status(), 401);
+    let body: Value = anonymous.json().await.unwrap();
+    assert_eq!(body["error"]["code"], "unauthorized");
+    let wrong = app
+        .client
+        .get(format!("{}/sparql?query=ASK%7B%7D", app.address))
+        .bearer_auth("nope")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(wrong.status(), 401);
+    let ok = app
+        .request(Method::GET, "/sparql?query=ASK%7B%7D")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(ok.status(), 200);
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn every_shared_ros_map_imports_and_reads_back() {
+    let Some(yamls) = shared_ros_maps() else {
+        return;
+    };
+    let app = spawn_app().await;
+    for yaml_path in &yamls {
+        let yaml = std::fs::read_to_string(yaml_path).unwrap();
+        let meta = tosm::RosMapMeta::parse_yaml(&yaml).unwrap();
+        let image = std::fs::read(yaml_path.parent().unwrap().join(&meta.image)).unwrap();
+        let name = yaml_path
+            .parent()
+            .unwrap()
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .replace('.', "-");
+        let response = import(&app, &name, &yaml, image).await;
+        assert_eq!(
+            response.status(),
+            201,
+            "{}: {}",
+            yaml_path.display(),
+            response.text().await.unwrap()
+        );
+        let body: Value = response.json().await.unwrap();
+        assert!(body["free_area_m2"].as_f64().unwrap() > 10.0, "{body}");
+        let floor = body["floor"].as_str().unwrap();
+        let encoded: String = url_encode(floor);
+        let place: Value = app
+            .request(Method::GET, &format!("/v1/places/{encoded}"))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        assert_eq!(place["kind"], "floor", "{place}");
+    }
+    app.stop().await;
+}
+
+fn url_encode(s: &str) -> String {
+    s.bytes()
+        .map(|b| {
+            if b.is_ascii_alphanumeric() || b == b'-' || b == b'_' || b == b'.' {
+                (b as char).to_string()
+            } else {
+                format!("%{b:02X}")
+            }
+        })
+        .collect()
+}
+
+#[tokio::test]
+async fn bad_maps_are_4xx_naming_the_problem() {
+    let app = spawn_app().await;
+    let good_yaml = "image: m.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
+    let pgm = |w: usize, h: usize| {
+        let mut v = format!("P5\n{w} {h}\n255\n").into_bytes();
+        v.extend(std::iter::repeat_n(254u8, w * h));
+        v
+    };
+    let cases = [
+        (
+            "malformed yaml",
+            "resolution: [".to_owned(),
+            pgm(8, 8),
+            "yaml",
+        ),
+        (
+            "negative resolution",
+            good_yaml.replace("0.05", "-0.05"),
+            pgm(8, 8),
+            "resolution",
+        ),
+        (
+            "truncated image",
+            good_yaml.to_owned(),
+            pgm(8, 8)[..20].to_vec(),
+            "image",
+        ),
+        ("missing image", good_yaml.to_owned(), Vec::new(), "image"),
+    ];
+    for (what, yaml, image, needle) in cases {
+        let response = import(&app, "bad", &yaml, image).await;
+        let status = response.status();
+        let body: Value = response.json().await.unwrap();
+        assert!(status.is_client_error(), "{what}: {status} {body}");
+        let message = body["error"]["message"].as_str().unwrap().to_lowercase();
+        assert!(message.contains(needle), "{what}: {message}");
+    }
+    // A form without the image field at all.
+    let form = reqwest::multipart::Form::new()
+        .text("name", "x")
+        .text("yaml", good_yaml);
+    let response = app
+        .request(Method::POST, "/v1/maps")
+        .multipart(form)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 400);
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn a_reported_object_appears_in_the_next_on_demand_database() {
+    let app = spawn_app().await;
+    let places: Vec<Value> = app
+        .request(Method::GET, "/v1/places")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let room = places
+        .iter()
+        .find(|p| p["kind"] == "room" && !p["connected"].as_array().unwrap().is_empty())
+        .unwrap();
+    let room_iri = room["iri"].as_str().unwrap();
+    let neighbour = room["connected"][0].as_str().unwrap();
+    let boundary = room["boundary"].as_array().unwrap();
+    let (mut cx, mut cy) = (0.0, 0.0);
+    for p in boundary {
+        cx += p[0].as_f64().unwrap();
+        cy += p[1].as_f64().unwrap();
+    }
+    let n = boundary.len() as f64;
+    let report = json!({
+        "id": "vending-42",
+        "class": "VendingMachine",
+        "pose": {"x": cx / n, "y": cy / n, "yaw": 0.3},
+        "shape": {"type": "box", "length": 0.8, "width": 0.7, "height": 1.8},
+        "colour": {"r": 0.9, "g": 0.1, "b": 0.1}
+    });
+    let id = url_encode(room_iri);
+    let created = app
+        .request(Method::POST, &format!("/v1/places/{id}/objects"))
+        .json(&report)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(created.status(), 201, "{}", created.text().await.unwrap());
+    let again = app
+        .request(Method::POST, &format!("/v1/places/{id}/objects"))
+        .json(&report)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(again.status(), 200, "the same id updates");
+
+    let mission =
+        json!({"robot": "R-001", "start": {"place": room_iri}, "goals": [{"place": neighbour}]});
+    let response = app
+        .request(Method::POST, "/v1/on-demand")
+        .header("accept", "application/n-triples")
+        .json(&mission)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let count: usize = response.headers()["x-triple-count"]
+        .to_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let body = response.text().await.unwrap();
+    assert_eq!(body.lines().filter(|l| !l.trim().is_empty()).count(), count);
+    assert!(
+        body.contains("objects/vending-42>"),
+        "the reported object is included"
+    );
+    assert!(body.contains("VendingMachine"));
+    assert!(body.contains("differential-robot"));
+    assert_eq!(
+        body.matches("objects/vending-42> <https://mentalsim.dev/ontology/tosm#hasShape>")
+            .count(),
+        1,
+        "updated, not duplicated"
+    );
+
+    // Turtle and JSON-LD by Accept; something else is 406.
+    for (accept, status) in [
+        ("text/turtle", 200),
+        ("application/ld+json", 200),
+        ("image/gif", 406),
+    ] {
+        let r = app
+            .request(Method::POST, "/v1/on-demand")
+            .header("accept", accept)
+            .json(&mission)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), status, "{accept}");
+    }
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn impossible_missions_are_distinct_4xx() {
+    let app = spawn_app().await;
+    let places: Vec<Value> = app
+        .request(Method::GET, "/v1/places")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let room = places.iter().find(|p| p["kind"] == "room").unwrap()["iri"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let cases = [
+        (
+            json!({"robot": "R-404", "start": {"place": room}, "goals": [{"place": room}]}),
+            404,
+            "unknown robot",
+        ),
+        (
+            json!({"robot": "R-001", "start": {"x": 5000.0, "y": 5000.0}, "goals": [{"place": room}]}),
+            422,
+            "outside every known place",
+        ),
+        (
+            json!({"robot": "R-001", "start": {"place": room}, "goals": []}),
+            400,
+            "no goals",
+        ),
+        (
+            json!({"robot": "R-001", "start": {"place": room, "x": 1.0}, "goals": [{"place": room}]}),
+            400,
+            "either",
+        ),
+        (
+            json!({"robot": "R-001", "start": {"place": "nowhere"}, "goals": [{"place": room}]}),
+            404,
+            "unknown place",
+        ),
+        (
+            json!({"robot": "R-001", "start": {"place": room}}),
+            422,
+            "goals",
+        ),
+    ];
+    for (mission, status, needle) in cases {
+        let response = app
+            .request(Method::POST, "/v1/on-demand")
+            .json(&mission)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(response.status(), status, "{mission}");
+        let body: Value = response.json().await.unwrap();
+        let message = body["error"]["message"].as_str().unwrap();
+        assert!(message.contains(needle), "{needle}: {message}");
+    }
+    // Rooms on the two floors of the sample building are not linked.
+    let floors: Vec<&Value> = places.iter().filter(|p| p["kind"] == "floor").collect();
+    let on = |floor: &Value| -> String {
+        let f = floor["iri"].as_str().unwrap();
+        places
+            .iter()
+            .find(|p| p["parent"] == f && p["kind"] != "floor")
+            .unwrap()["iri"]
+            .as_str()
+            .unwrap()
+            .to_owned()
+    };
+    let (a, b) = (on(floors[0]), on(floors[1]));
+    let response = app
+        .request(Method::POST, "/v1/on-demand")
+        .json(&json!({"robot": "R-001", "start": {"place": a}, "goals": [{"place": b}]}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 422);
+    let body: Value = response.json().await.unwrap();
+    assert!(
+        body["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("not connected")
+    );
+    app.stop().await;
+}
