@@ -46,9 +46,35 @@ pub enum Command {
         #[arg(long, env = "MENTALSIM_TOKEN", hide_env_values = true)]
         token: Option<String>,
     },
+    /// Export a floor's world as SDF, or a robot as URDF, from a running service.
+    Export {
+        /// `sdf` (a place's floor) or `urdf` (a robot).
+        #[arg(value_enum)]
+        kind: ExportKind,
+        /// The place or robot: IRI or identifier.
+        id: String,
+        /// Where to write the file [default: standard output].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The service's URL.
+        #[arg(long, env = "MENTALSIM_URL", default_value = "http://127.0.0.1:8080")]
+        url: String,
+        /// A bearer token [default: read from ./data/admin.token].
+        #[arg(long, env = "MENTALSIM_TOKEN", hide_env_values = true)]
+        token: Option<String>,
+    },
     /// Run a benchmark and write its figures.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+/// What `mentalsim export` writes.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ExportKind {
+    /// SDF 1.9 world for Gazebo.
+    Sdf,
+    /// URDF robot for ROS and Gazebo.
+    Urdf,
 }
 
 /// Benchmarks: each prints its figures and writes them to files.
@@ -103,6 +129,13 @@ pub fn main() -> ExitCode {
             url,
             token,
         } => import_map(&yaml, name, &url, token),
+        Command::Export {
+            kind,
+            id,
+            out,
+            url,
+            token,
+        } => export(kind, &id, out, &url, token),
         Command::Bench(bench) => run_bench(bench),
     };
     match result {
@@ -174,12 +207,7 @@ fn import_map(
         Some(n) => n,
         None => default_map_name(yaml),
     };
-    let token = match token {
-        Some(t) => t,
-        None => std::fs::read_to_string("data/admin.token")
-            .map(|t| t.trim().to_owned())
-            .context("no --token given and ./data/admin.token is not readable")?,
-    };
+    let token = token_or_default(token)?;
     let form = reqwest::blocking::multipart::Form::new()
         .text("name", name.clone())
         .text("yaml", yaml_text)
@@ -199,6 +227,59 @@ fn import_map(
         anyhow::bail!("the service refused the map ({status}): {body}");
     }
     println!("{body}");
+    Ok(())
+}
+
+fn token_or_default(token: Option<String>) -> anyhow::Result<String> {
+    use anyhow::Context;
+    match token {
+        Some(t) => Ok(t),
+        None => std::fs::read_to_string("data/admin.token")
+            .map(|t| t.trim().to_owned())
+            .context("no --token given and ./data/admin.token is not readable"),
+    }
+}
+
+fn export(
+    kind: ExportKind,
+    id: &str,
+    out: Option<PathBuf>,
+    url: &str,
+    token: Option<String>,
+) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let encoded: String = id
+        .bytes()
+        .map(|b| {
+            if b.is_ascii_alphanumeric() || b"-_.".contains(&b) {
+                (b as char).to_string()
+            } else {
+                format!("%{b:02X}")
+            }
+        })
+        .collect();
+    let path = match kind {
+        ExportKind::Sdf => format!("/v1/places/{encoded}/world.sdf"),
+        ExportKind::Urdf => format!("/v1/robots/{encoded}/robot.urdf"),
+    };
+    let response = reqwest::blocking::Client::new()
+        .get(format!("{}{path}", url.trim_end_matches('/')))
+        .bearer_auth(token_or_default(token)?)
+        .send()
+        .with_context(|| format!("cannot reach the service at {url}"))?;
+    let status = response.status();
+    let body = response.text().unwrap_or_default();
+    if !status.is_success() {
+        anyhow::bail!("the service refused the export ({status}): {body}");
+    }
+    match out {
+        Some(path) => {
+            std::fs::write(&path, body)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+            eprintln!("wrote {}", path.display());
+        }
+        None => print!("{body}"),
+    }
     Ok(())
 }
 

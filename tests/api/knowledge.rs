@@ -410,3 +410,59 @@ async fn impossible_missions_are_distinct_4xx() {
     );
     app.stop().await;
 }
+
+#[tokio::test]
+async fn a_floor_exports_as_sdf_and_the_robot_as_urdf_that_check_urdf_accepts() {
+    let app = spawn_app().await;
+    let places: Vec<Value> = app
+        .request(Method::GET, "/v1/places")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let room = places.iter().find(|p| p["kind"] == "room").unwrap();
+    let id = url_encode(room["iri"].as_str().unwrap());
+    let sdf = app
+        .request(Method::GET, &format!("/v1/places/{id}/world.sdf"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(sdf.status(), 200);
+    let sdf = sdf.text().await.unwrap();
+    assert!(
+        sdf.contains("<sdf version=\"1.9\">"),
+        "{}",
+        &sdf[..200.min(sdf.len())]
+    );
+    assert!(sdf.contains("<world"));
+
+    let urdf = app
+        .request(Method::GET, "/v1/robots/R-001/robot.urdf")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(urdf.status(), 200);
+    let urdf = urdf.text().await.unwrap();
+    assert!(urdf.contains("<robot"));
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("robot.urdf");
+    std::fs::write(&file, &urdf).unwrap();
+    match std::process::Command::new("check_urdf").arg(&file).output() {
+        Ok(out) => assert!(
+            out.status.success(),
+            "check_urdf: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+        Err(_) => eprintln!("skipping check_urdf: not installed (Debian liburdfdom-tools)"),
+    }
+    let missing = app
+        .request(Method::GET, "/v1/robots/R-404/robot.urdf")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(missing.status(), 404);
+    app.stop().await;
+}

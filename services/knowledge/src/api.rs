@@ -27,7 +27,7 @@ use crate::service::Knowledge;
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
-    paths(list_places, get_place, place_map, list_robots, get_robot, import_map, report_object, on_demand_database),
+    paths(list_places, get_place, place_map, world_sdf, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database),
     components(schemas(PlaceView, RobotView, ImportedMap, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointInput, ErrorBody, ErrorDetail)),
     modifiers(&BearerAuth),
     security(("bearer" = []))
@@ -69,6 +69,8 @@ pub fn router(knowledge: Arc<Knowledge>) -> Router {
         .route("/v1/places/{id}", get(get_place))
         .route("/v1/places/{id}/map.png", get(place_map))
         .route("/v1/places/{id}/objects", post(report_object))
+        .route("/v1/places/{id}/world.sdf", get(world_sdf))
+        .route("/v1/robots/{id}/robot.urdf", get(robot_urdf))
         .route("/v1/robots", get(list_robots))
         .route("/v1/robots/{id}", get(get_robot))
         .route("/v1/maps", post(import_map))
@@ -210,6 +212,91 @@ async fn place_map(
     })
     .await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
+}
+
+/// Which robot to place in an exported world.
+#[derive(Deserialize, utoipa::IntoParams)]
+pub struct WorldQuery {
+    /// The robot's IRI or identifier [default: the first robot in the store].
+    robot: Option<String>,
+}
+
+/// The SDF 1.9 world of a floor (or of the floor a place is on), generated from the graph alone
+/// by the simulation parser: walls from the metric map, library models, and placeholders of
+/// their stated shape and colour. Gazebo loads it as it is.
+#[utoipa::path(get, path = "/v1/places/{id}/world.sdf", params(("id" = String, Path), WorldQuery), responses((status = 200, content_type = "application/xml", body = String), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody)))]
+async fn world_sdf(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    axum::extract::Query(query): axum::extract::Query<WorldQuery>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    let sdf = blocking(move || {
+        let store = k.store()?;
+        let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
+        let place = &places[find_place(&places, &id)?];
+        let mut floor = Some(place);
+        while let Some(p) = floor {
+            if p.kind == PlaceKind::Floor {
+                break;
+            }
+            floor = p
+                .parent
+                .as_deref()
+                .and_then(|parent| places.iter().find(|q| q.iri == parent));
+        }
+        let floor = floor.ok_or_else(|| {
+            ApiError::new(
+                ErrorCode::Unprocessable,
+                format!(
+                    "{} is on no floor: only floors and the places on them have a world",
+                    place.iri
+                ),
+            )
+        })?;
+        let db = on_demand::floor_database(&store, &floor.iri, query.robot.as_deref())?;
+        let graph: Graph = db.triples.into_iter().collect();
+        let spec = sim::parse_floor(&graph, &db.robot, &floor.iri).map_err(|p| {
+            ApiError::new(
+                ErrorCode::Unprocessable,
+                format!("the stored knowledge does not make a world: {p}"),
+            )
+        })?;
+        Ok(sim::export::world_sdf(&spec))
+    })
+    .await?;
+    Ok(([(header::CONTENT_TYPE, "application/xml")], sdf).into_response())
+}
+
+/// The URDF of a robot, generated from its TOSM description: links, joints, wheels, laser
+/// and camera sensors. `check_urdf` and ROS load it as it is.
+#[utoipa::path(get, path = "/v1/robots/{id}/robot.urdf", params(("id" = String, Path)), responses((status = 200, content_type = "application/xml", body = String), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody)))]
+async fn robot_urdf(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    let urdf = blocking(move || {
+        let store = k.store()?;
+        let graph = union_graph(&store)?;
+        let robots = tosm::read_robots(&graph)
+            .map_err(|p| ApiError::internal(format!("stored robots do not validate: {p}")))?;
+        let robot = robots
+            .iter()
+            .find(|r| r.iri == id || r.symbol.identifier.as_deref() == Some(id.as_str()))
+            .ok_or_else(|| ApiError::not_found(format!("no robot has IRI or identifier {id:?}")))?;
+        let spec = sim::parse_robot(&graph, &robot.iri).map_err(|p| {
+            ApiError::new(
+                ErrorCode::Unprocessable,
+                format!("the robot's description does not make a simulated robot: {p}"),
+            )
+        })?;
+        Ok(sim::export::robot_urdf(&spec))
+    })
+    .await?;
+    Ok(([(header::CONTENT_TYPE, "application/xml")], urdf).into_response())
 }
 
 /// A robot as described in TOSM.

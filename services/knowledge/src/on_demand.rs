@@ -304,9 +304,26 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
         }
     }
 
+    let triples = assemble(&reader, &included, &robot)?;
+    Ok(OnDemandDatabase {
+        triples,
+        robot: robot.into_string(),
+        route,
+        floors,
+    })
+}
+
+/// The triples of the `included` places, the objects inside them (recursively), and the
+/// robot, sorted by their N-Triples form so the same input gives byte-identical output.
+fn assemble(
+    reader: &Reader<'_>,
+    included: &BTreeSet<String>,
+    robot: &NamedNode,
+) -> Result<Vec<Triple>, OnDemandError> {
+    let store = reader.store;
     let mut triples = HashSet::new();
     let mut seen = BTreeSet::new();
-    for iri in &included {
+    for iri in included {
         reader.closure(
             NamedNodeRef::new_unchecked(iri),
             false,
@@ -340,11 +357,57 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
     let mut triples: Vec<(String, Triple)> =
         triples.into_iter().map(|t| (t.to_string(), t)).collect();
     triples.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    Ok(triples.into_iter().map(|(_, t)| t).collect())
+}
+
+/// A whole floor as one self-sufficient graph: the floor, every place below it and their
+/// ancestors, the objects in them, and the robot — what a world export of the floor needs.
+/// `robot` may be `None` to take the first robot in the store. Blocking.
+pub fn floor_database(
+    store: &KnowledgeStore,
+    floor: &str,
+    robot: Option<&str>,
+) -> Result<OnDemandDatabase, OnDemandError> {
+    let reader = Reader { store };
+    let robot = match robot {
+        Some(name) => reader
+            .resolve(name)?
+            .filter(|r| reader.is_a(r.as_ref(), vocab::ROBOT).unwrap_or(false))
+            .ok_or_else(|| OnDemandError::UnknownRobot(name.to_owned()))?,
+        None => reader
+            .instances(vocab::ROBOT)?
+            .into_iter()
+            .next()
+            .ok_or_else(|| OnDemandError::UnknownRobot("(any)".to_owned()))?,
+    };
+    let places = all_places(store)?;
+    let index: HashMap<&str, &Place> = places.iter().map(|p| (p.iri.as_str(), p)).collect();
+    let floor_place = index
+        .get(floor)
+        .filter(|p| p.kind == PlaceKind::Floor)
+        .ok_or_else(|| OnDemandError::UnknownPlace {
+            which: "floor".to_owned(),
+            name: floor.to_owned(),
+        })?;
+    let mut included: BTreeSet<String> = places
+        .iter()
+        .filter(|p| on_floor(&index, p, floor))
+        .map(|p| p.iri.clone())
+        .collect();
+    let mut cursor = Some(floor_place.iri.clone());
+    while let Some(iri) = cursor {
+        if !included.insert(iri.clone()) {
+            break;
+        }
+        cursor = index.get(iri.as_str()).and_then(|p| p.parent.clone());
+    }
+    let route: Vec<String> = included.iter().cloned().collect();
+    let triples = assemble(&reader, &included, &robot)?;
     Ok(OnDemandDatabase {
-        triples: triples.into_iter().map(|(_, t)| t).collect(),
+        triples,
         robot: robot.into_string(),
         route,
-        floors,
+        floors: vec![floor.to_owned()],
     })
 }
 

@@ -30,7 +30,7 @@ pub use env::{
 };
 pub use kinematics::{Action, CommandLimits, DiffDrive};
 pub use library::{LibraryModel, Model};
-pub use parse::{parse_floor, parse_on_demand};
+pub use parse::{parse_floor, parse_on_demand, parse_robot};
 pub use spec::{
     CameraSpec, Colour, DiffDriveSpec, GridMap, LaserSpec, ObjectSpec, Occupancy, OccupancyGrid,
     Pose2, Pose3, Problem, Problems, RobotPartSpec, RobotSpec, Severity, Shape, Size3, WallSpec,

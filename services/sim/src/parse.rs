@@ -32,6 +32,22 @@ pub fn parse_floor(graph: &Graph, robot_iri: &str, floor_iri: &str) -> Result<Wo
     parse(graph, robot_iri, Some(floor_iri))
 }
 
+/// The robot `robot_iri` of a graph as the simulator and the URDF export need it.
+pub fn parse_robot(graph: &Graph, robot_iri: &str) -> Result<RobotSpec, Problems> {
+    let mut out = Problems::default();
+    let robot = match tosm::read_robot(graph, robot_iri) {
+        Ok(r) => robot_spec(&r, &mut out),
+        Err(p) => {
+            from_tosm(p, &mut out);
+            None
+        }
+    };
+    match robot {
+        Some(robot) if !out.has_errors() => Ok(robot),
+        _ => Err(out),
+    }
+}
+
 fn from_tosm(problems: tosm::Problems, out: &mut Problems) {
     for p in problems.0 {
         out.push(Problem::error(p.individual, p.property, p.message));
