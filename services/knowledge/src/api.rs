@@ -283,10 +283,7 @@ async fn robot_urdf(
         let graph = union_graph(&store)?;
         let robots = tosm::read_robots(&graph)
             .map_err(|p| ApiError::internal(format!("stored robots do not validate: {p}")))?;
-        let robot = robots
-            .iter()
-            .find(|r| r.iri == id || r.symbol.identifier.as_deref() == Some(id.as_str()))
-            .ok_or_else(|| ApiError::not_found(format!("no robot has IRI or identifier {id:?}")))?;
+        let robot = find_robot(&robots, &id)?;
         let spec = sim::parse_robot(&graph, &robot.iri).map_err(|p| {
             ApiError::new(
                 ErrorCode::Unprocessable,
@@ -320,6 +317,13 @@ pub struct RobotView {
     lasers: usize,
     /// Cameras.
     cameras: usize,
+}
+
+fn find_robot<'a>(robots: &'a [tosm::Robot], id: &str) -> Result<&'a tosm::Robot, ApiError> {
+    robots
+        .iter()
+        .find(|r| r.iri == id || r.symbol.identifier.as_deref() == Some(id))
+        .ok_or_else(|| ApiError::not_found(format!("no robot has IRI or identifier {id:?}")))
 }
 
 fn read_robots(store: &crate::KnowledgeStore) -> Result<Vec<tosm::Robot>, ApiError> {
@@ -382,11 +386,7 @@ async fn get_robot(
     k.tokens.authenticate(&headers)?;
     blocking(move || {
         let robots = read_robots(&k.store()?)?;
-        robots
-            .iter()
-            .find(|r| r.iri == id || r.symbol.identifier.as_deref() == Some(id.as_str()))
-            .map(|r| Json(RobotView::from(r)))
-            .ok_or_else(|| ApiError::not_found(format!("no robot has IRI or identifier {id:?}")))
+        Ok(Json(RobotView::from(find_robot(&robots, &id)?)))
     })
     .await
 }
