@@ -248,16 +248,7 @@ fn export(
     token: Option<String>,
 ) -> anyhow::Result<()> {
     use anyhow::Context;
-    let encoded: String = id
-        .bytes()
-        .map(|b| {
-            if b.is_ascii_alphanumeric() || b"-_.".contains(&b) {
-                (b as char).to_string()
-            } else {
-                format!("%{b:02X}")
-            }
-        })
-        .collect();
+    let encoded = percent_encoding::utf8_percent_encode(id, percent_encoding::NON_ALPHANUMERIC);
     let path = match kind {
         ExportKind::Sdf => format!("/v1/places/{encoded}/world.sdf"),
         ExportKind::Urdf => format!("/v1/robots/{encoded}/robot.urdf"),

@@ -738,7 +738,7 @@ fn to_object(
         ShapeInput::Sphere { diameter } => tosm::Shape::Sphere { diameter },
     };
     let z = report.pose.z.unwrap_or(shape.size()[2] / 2.0);
-    let now = chrono_like_now();
+    let now = oxsdatatypes::DateTime::now().to_string();
     Ok(tosm::Object {
         iri: format!("{}/objects/{slug}", place.iri),
         class_iri,
@@ -775,36 +775,6 @@ fn to_object(
         }),
         reported_at: Some(now),
     })
-}
-
-/// The current UTC time as an `xsd:dateTime` lexical form.
-fn chrono_like_now() -> String {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    oxsdatatypes_datetime(now.as_secs() as i64)
-}
-
-fn oxsdatatypes_datetime(unix: i64) -> String {
-    // Civil-from-days (proleptic Gregorian), enough for timestamps.
-    let days = unix.div_euclid(86_400);
-    let secs = unix.rem_euclid(86_400);
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let y = yoe + era * 400;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = if m <= 2 { y + 1 } else { y };
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
-        secs / 3600,
-        secs % 3600 / 60,
-        secs % 60
-    )
 }
 
 /// A waypoint: a place (IRI or identifier), or a point on a floor.
