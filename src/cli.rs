@@ -63,6 +63,52 @@ pub enum Command {
         #[arg(long, env = "MENTALSIM_TOKEN", hide_env_values = true)]
         token: Option<String>,
     },
+    /// Train a navigation policy (TD3) in the mental simulation of a ROS map; resumes the run
+    /// checkpointed in --out unless --fresh.
+    Train {
+        /// The ROS map_server YAML of the place to train in.
+        #[arg(long)]
+        map: PathBuf,
+        /// Wall-clock budget in minutes (counting earlier sessions of a resumed run).
+        #[arg(long, default_value_t = 10.0)]
+        minutes: f64,
+        /// Where the exported policy, curves, checkpoint and eval.json go.
+        #[arg(long)]
+        out: PathBuf,
+        /// Training configuration (JSON; any subset of the keys, defaults for the rest).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Seed of the run.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// β1 = β2 of Eq. 18.
+        #[arg(long)]
+        beta: Option<f64>,
+        /// Start from scratch even if --out holds a checkpoint.
+        #[arg(long)]
+        fresh: bool,
+        /// Held-out missions of the final evaluation.
+        #[arg(long, default_value_t = 200)]
+        eval_episodes: usize,
+    },
+    /// Evaluate an exported policy on random missions (goals 2–10 m away) in any ROS map.
+    Eval {
+        /// The policy directory (policy.safetensors + policy.json).
+        #[arg(long)]
+        policy: PathBuf,
+        /// The ROS map_server YAML.
+        #[arg(long)]
+        map: PathBuf,
+        /// Missions to run.
+        #[arg(long, default_value_t = 200)]
+        episodes: usize,
+        /// Seed of the mission set.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        /// Write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Run a benchmark and write its figures.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -116,6 +162,24 @@ pub enum BenchCommand {
         #[arg(long)]
         irsim_x_python: Option<PathBuf>,
     },
+    /// TD3 gradient steps per second, ours beside Stable-Baselines3's, same sizes, one run.
+    Learner {
+        /// Write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Timed gradient steps of each learner.
+        #[arg(long, default_value_t = 2000)]
+        steps: u64,
+        /// libtorch intra-op threads of both (0: libtorch's default).
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
+        /// Batch size.
+        #[arg(long, default_value_t = 256)]
+        batch_size: usize,
+        /// Skip Stable-Baselines3.
+        #[arg(long)]
+        no_sb3: bool,
+    },
 }
 
 /// Runs the command line; the process exit code says whether it worked.
@@ -136,6 +200,33 @@ pub fn main() -> ExitCode {
             url,
             token,
         } => export(kind, &id, out, &url, token),
+        Command::Train {
+            map,
+            minutes,
+            out,
+            config,
+            seed,
+            beta,
+            fresh,
+            eval_episodes,
+        } => run_train(crate::train::TrainArgs {
+            map,
+            minutes,
+            out,
+            config,
+            seed,
+            beta,
+            fresh,
+            eval_episodes,
+            progress: true,
+        }),
+        Command::Eval {
+            policy,
+            map,
+            episodes,
+            seed,
+            json,
+        } => crate::train::eval(&policy, &map, episodes, seed).and_then(|v| print_json(&v, json)),
         Command::Bench(bench) => run_bench(bench),
     };
     match result {
@@ -293,6 +384,42 @@ fn default_map_name(yaml: &std::path::Path) -> String {
         .collect()
 }
 
+/// The project's Python (the virtual environment `scripts/env.sh` activates).
+fn venv_python() -> PathBuf {
+    std::env::var_os("VIRTUAL_ENV")
+        .map(|v| PathBuf::from(v).join("bin/python"))
+        .unwrap_or_else(|| PathBuf::from(".venv/bin/python"))
+}
+
+/// Prints `value` and writes it to `path` when given.
+fn print_json(value: &serde_json::Value, path: Option<PathBuf>) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    println!("{text}");
+    if let Some(path) = path {
+        std::fs::write(&path, format!("{text}\n"))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Trains until the budget is spent; Ctrl-C (or SIGTERM) stops early with a checkpoint and
+/// still exports what was learned.
+fn run_train(args: crate::train::TrainArgs) -> anyhow::Result<()> {
+    use std::sync::Arc;
+    use std::sync::atomic::AtomicBool;
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, Arc::clone(&stop))?;
+    }
+    let json = crate::train::train(&args, &stop)?;
+    print_json(&json, None)?;
+    eprintln!(
+        "wrote the policy, curves.csv, curves.png and eval.json to {}",
+        args.out.display()
+    );
+    Ok(())
+}
+
 fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
     match command {
         BenchCommand::Prm {
@@ -302,9 +429,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             movingai,
             no_ompl,
         } => {
-            let python = std::env::var_os("VIRTUAL_ENV")
-                .map(|v| PathBuf::from(v).join("bin/python"))
-                .unwrap_or_else(|| PathBuf::from(".venv/bin/python"));
+            let python = venv_python();
             let options = bench::prm::PrmBenchOptions {
                 maps_dir: maps,
                 runs,
@@ -327,6 +452,23 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 report.plot_path.display()
             );
             Ok(())
+        }
+        BenchCommand::Learner {
+            json,
+            steps,
+            threads,
+            batch_size,
+            no_sb3,
+        } => {
+            let options = bench::learner::LearnerBenchOptions {
+                steps,
+                threads,
+                batch_size,
+                python: (!no_sb3).then(venv_python),
+                ..Default::default()
+            };
+            let report = bench::learner::run_learner_bench(&options)?;
+            print_json(&serde_json::to_value(&report)?, json)
         }
         BenchCommand::Sim {
             map,

@@ -7,3 +7,4 @@ mod health;
 pub mod startup;
 pub mod telemetry;
 mod tokens;
+pub mod train;

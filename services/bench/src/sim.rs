@@ -444,6 +444,34 @@ pub fn on_demand_database(
     Ok(graph)
 }
 
+/// The mental simulation of a ROS map_server map, built the way the service builds one: the map
+/// becomes a floor with its metric map, `objects` furniture items are placed from `seed`, the
+/// robot comes from its TOSM Turtle, and the simulation parser reads that on-demand database.
+pub fn world_from_map(
+    yaml_path: &Path,
+    robot_ttl: &[u8],
+    robot_iri: &str,
+    objects: usize,
+    seed: u64,
+) -> Result<Arc<World>, BenchError> {
+    let files = read_map(yaml_path)?;
+    let grid = decode(yaml_path, &files)?;
+    let furniture = if objects > 0 {
+        furnish(&grid, objects, seed)
+    } else {
+        Vec::new()
+    };
+    let graph = on_demand_database(yaml_path, grid, &furniture, robot_ttl, robot_iri)?;
+    let spec = sim::parse_on_demand(&graph, robot_iri).map_err(|problems| BenchError::Format {
+        path: yaml_path.to_path_buf(),
+        message: format!("the simulation parser refused the on-demand database: {problems}"),
+    })?;
+    World::build(spec).map_err(|problems| BenchError::Format {
+        path: yaml_path.to_path_buf(),
+        message: format!("the world could not be built: {problems}"),
+    })
+}
+
 /// Whether every cell within `r` of `(x, y)` is free.
 fn disc_free(grid: &OccupancyGrid, x: f64, y: f64, r: f64) -> bool {
     let res = grid.resolution;

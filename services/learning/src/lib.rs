@@ -1,15 +1,45 @@
-//! TD3 training with tch (libtorch), checkpoints and policy export.
+//! Navigation policies: TD3 training with tch (libtorch) in the mental simulation, checkpoints,
+//! and the exported policy with its pure-Rust runtime.
 //!
-//! Only this crate knows tch: everything else sees plain values and exported policies.
+//! Only this crate knows tch, and only behind the `train` feature (default). Without it the
+//! crate is what a robot or a validation worker embeds: [`policy::Policy`] (safetensors weights
+//! and JSON metadata, a forward pass in plain Rust), [`observation::Scaling`] and
+//! [`evaluation`].
+//!
+//! - [`config`]: every hyperparameter, with the TD3 reference defaults;
+//! - [`observation`]: network input from an observation, command from the network output;
+//! - [`replay`]: the experience buffer;
+//! - [`td3`]: the learner (Algorithm 1), with Adam state a checkpoint can hold;
+//! - [`trainer`]: the loop, evaluation, checkpoints, export;
+//! - [`curves`]: training curves as CSV and PNG (Figure 10);
+//! - [`policy`]: the exported policy and its runtime;
+//! - [`evaluation`]: success and collision rates on a fixed mission set.
 
-use tch::Device;
+pub mod config;
+#[cfg(feature = "train")]
+pub mod curves;
+pub mod evaluation;
+pub mod observation;
+pub mod policy;
+pub mod replay;
+#[cfg(feature = "train")]
+pub mod td3;
+#[cfg(feature = "train")]
+pub mod trainer;
+
+pub use config::{Td3Config, TrainConfig};
+pub use evaluation::{BatchActor, EvalReport, Mission, evaluate, mission_set};
+pub use observation::Scaling;
+pub use policy::{Policy, PolicyError, PolicyMetadata};
 
 /// The device training runs on: the first CUDA device when libtorch sees one, else the CPU.
-pub fn training_device() -> Device {
-    Device::cuda_if_available()
+#[cfg(feature = "train")]
+pub fn training_device() -> tch::Device {
+    tch::Device::cuda_if_available()
 }
 
 /// The libtorch build this crate runs against, for logs and `/readyz`.
+#[cfg(feature = "train")]
 pub fn libtorch_summary() -> String {
     let device = training_device();
     format!(

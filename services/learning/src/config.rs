@@ -1,0 +1,201 @@
+//! Every hyperparameter of training, with documented defaults.
+//!
+//! The TD3 defaults are the TD3 authors' current reference implementation (Fujimoto et al.,
+//! `TD3.py`): 256-256 hidden units, learning rate 3e-4, batch 256, γ 0.99, τ 0.005, policy noise
+//! 0.2 clipped at 0.5, policy delay 2, exploration N(0, 0.1). The regularisers β1, β2 are the
+//! paper's Eq. 18 (its §5.2 compares 0, 1 and 5). Noise scales are in the network's action
+//! space (linear in [0, 1], angular in [-1, 1]).
+
+use serde::{Deserialize, Serialize};
+
+/// The TD3 learner.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Td3Config {
+    /// Hidden layer widths of the actor and of each critic.
+    pub hidden: Vec<usize>,
+    /// Adam learning rate of the actor.
+    pub actor_lr: f64,
+    /// Adam learning rate of the critics.
+    pub critic_lr: f64,
+    /// Transitions per gradient step.
+    pub batch_size: usize,
+    /// Discount γ.
+    pub gamma: f64,
+    /// Polyak rate τ of the target networks.
+    pub tau: f64,
+    /// Standard deviation of the target policy smoothing noise (Eq. 14's σ).
+    pub policy_noise: f64,
+    /// Clip of the target policy smoothing noise (Eq. 14's ε_max).
+    pub noise_clip: f64,
+    /// Critic updates per actor (and target) update.
+    pub policy_delay: u32,
+    /// Standard deviation of the exploration noise added to the actor's output.
+    pub exploration_noise: f64,
+    /// Eq. 18's β1: pushes the linear speed towards its maximum.
+    pub beta1: f64,
+    /// Eq. 18's β2: pushes the angular speed towards zero.
+    pub beta2: f64,
+}
+
+impl Default for Td3Config {
+    fn default() -> Self {
+        Self {
+            hidden: vec![256, 256],
+            actor_lr: 3e-4,
+            critic_lr: 3e-4,
+            batch_size: 256,
+            gamma: 0.99,
+            tau: 0.005,
+            policy_noise: 0.2,
+            noise_clip: 0.5,
+            policy_delay: 2,
+            exploration_noise: 0.1,
+            beta1: 1.0,
+            beta2: 1.0,
+        }
+    }
+}
+
+/// The training loop around the learner.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// The learner.
+    pub td3: Td3Config,
+    /// Seed of everything random: networks, environments, replay sampling, noise.
+    pub seed: u64,
+    /// Environments stepped together (one batched actor call per step).
+    pub envs: usize,
+    /// Replay buffer capacity, transitions.
+    pub buffer_capacity: usize,
+    /// Environment steps with uniformly random actions before the actor takes over.
+    pub random_steps: u64,
+    /// Gradient steps per environment step (summed over the batch of environments).
+    pub updates_per_step: f64,
+    /// Environment steps between evaluations.
+    pub eval_every: u64,
+    /// Start/goal pairs of the fixed evaluation set.
+    pub eval_episodes: usize,
+    /// Seed of the evaluation set (kept apart from the training seed, so that policies trained
+    /// with different seeds are evaluated on the same missions).
+    pub eval_seed: u64,
+    /// Seconds between checkpoints (0: only at the end).
+    pub checkpoint_every_s: f64,
+    /// libtorch intra-op threads (0: libtorch's default). One is fastest for these small
+    /// networks: with more, OpenMP threads wait on each other at every operation, and on a busy
+    /// machine a training ran 7x slower with two threads than with one.
+    pub threads: usize,
+    /// Goal distances of training episodes, metres (min, max).
+    pub goal_distance: (f64, f64),
+    /// Steps per episode before it is cut off (a truncation: the value is bootstrapped).
+    pub max_episode_steps: u32,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            td3: Td3Config::default(),
+            seed: 1,
+            envs: 8,
+            buffer_capacity: 1_000_000,
+            random_steps: 10_000,
+            updates_per_step: 0.5,
+            eval_every: 20_000,
+            eval_episodes: 100,
+            eval_seed: 20_261_122,
+            checkpoint_every_s: 60.0,
+            threads: 1,
+            goal_distance: (2.0, 10.0),
+            max_episode_steps: 400,
+        }
+    }
+}
+
+impl TrainConfig {
+    /// The first setting out of range, named.
+    pub fn validate(&self) -> Result<(), String> {
+        let t = &self.td3;
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        let nonneg = |v: f64| v.is_finite() && v >= 0.0;
+        let checks: [(bool, &str); 17] = [
+            (
+                !t.hidden.is_empty() && !t.hidden.contains(&0),
+                "td3.hidden: at least one layer, no zero width",
+            ),
+            (pos(t.actor_lr), "td3.actor_lr must be positive"),
+            (pos(t.critic_lr), "td3.critic_lr must be positive"),
+            (t.batch_size > 0, "td3.batch_size must be at least 1"),
+            (
+                (0.0..=1.0).contains(&t.gamma),
+                "td3.gamma must be in [0, 1]",
+            ),
+            (t.tau > 0.0 && t.tau <= 1.0, "td3.tau must be in (0, 1]"),
+            (
+                nonneg(t.policy_noise) && nonneg(t.noise_clip),
+                "td3.policy_noise and td3.noise_clip must not be negative",
+            ),
+            (t.policy_delay > 0, "td3.policy_delay must be at least 1"),
+            (
+                nonneg(t.exploration_noise),
+                "td3.exploration_noise must not be negative",
+            ),
+            (
+                nonneg(t.beta1) && nonneg(t.beta2),
+                "td3.beta1 and td3.beta2 must not be negative",
+            ),
+            (self.envs > 0, "envs must be at least 1"),
+            (
+                self.buffer_capacity >= t.batch_size,
+                "buffer_capacity must hold at least one batch",
+            ),
+            (
+                pos(self.updates_per_step),
+                "updates_per_step must be positive",
+            ),
+            (
+                self.eval_every > 0 && self.eval_episodes > 0,
+                "eval_every and eval_episodes must be at least 1",
+            ),
+            (
+                nonneg(self.checkpoint_every_s),
+                "checkpoint_every_s must not be negative",
+            ),
+            (
+                nonneg(self.goal_distance.0)
+                    && self.goal_distance.1.is_finite()
+                    && self.goal_distance.0 <= self.goal_distance.1
+                    && self.goal_distance.1 > 0.0,
+                "goal_distance must be (min, max) with 0 <= min <= max, max > 0",
+            ),
+            (
+                self.max_episode_steps > 0,
+                "max_episode_steps must be at least 1",
+            ),
+        ];
+        match checks.iter().find(|(ok, _)| !ok) {
+            Some((_, msg)) => Err((*msg).to_owned()),
+            None => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_bad_values_are_named() {
+        assert_eq!(TrainConfig::default().validate(), Ok(()));
+        let mut c = TrainConfig::default();
+        c.td3.tau = 0.0;
+        assert!(c.validate().unwrap_err().contains("td3.tau"));
+        let c = TrainConfig {
+            envs: 0,
+            ..TrainConfig::default()
+        };
+        assert!(c.validate().unwrap_err().contains("envs"));
+        let parsed: Result<TrainConfig, _> = serde_json::from_str(r#"{"td3": {"gama": 0.9}}"#);
+        assert!(parsed.unwrap_err().to_string().contains("gama"));
+    }
+}

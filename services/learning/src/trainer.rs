@@ -1,0 +1,599 @@
+//! The training loop: environments in the mental simulation of a place, a replay buffer, the
+//! TD3 learner, periodic evaluation on a fixed mission set, checkpoints a run resumes from, and
+//! the exported policy at the end.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::{Deserialize, Serialize};
+use sim::{EnvConfig, EnvError, NavEnv, Outcome, World};
+
+use crate::config::TrainConfig;
+use crate::evaluation::{BatchActor, EvalReport, Mission, evaluate, mission_set};
+use crate::observation::{ACTION_DIM, Scaling};
+use crate::policy::{PolicyError, PolicyMetadata, write_atomic, write_policy};
+use crate::replay::{Batch, ReplayBuffer};
+use crate::td3::{Learner, LearnerError};
+
+/// Name of the checkpoint directory inside a run's output directory.
+pub const CHECKPOINT_DIR: &str = "checkpoint";
+
+/// Why training stopped or could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// A setting is out of range.
+    #[error("invalid training configuration: {0}")]
+    Config(String),
+    /// The environment refused a setting or the world has no room.
+    #[error("environment: {0}")]
+    Env(#[from] EnvError),
+    /// The learner failed.
+    #[error(transparent)]
+    Learner(#[from] LearnerError),
+    /// Writing or reading the policy or buffer failed.
+    #[error(transparent)]
+    Policy(#[from] PolicyError),
+    /// A checkpoint could not be written or read.
+    #[error("checkpoint {path}: {message}")]
+    Checkpoint {
+        /// The checkpoint directory.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl BatchActor for Learner {
+    fn act_batch(&self, inputs: &[f32], n: usize, out: &mut Vec<f32>) {
+        self.act(inputs, n, out);
+    }
+}
+
+/// What training needs besides the world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainOptions {
+    /// Hyperparameters.
+    pub config: TrainConfig,
+    /// The environment (beam count, limits, noise, reward); `goal_distance` and `max_steps` are
+    /// taken from `config`.
+    pub env: EnvConfig,
+    /// Input and output scaling (its beam count must equal `env.beams`).
+    pub scaling: Scaling,
+    /// Where checkpoints, curves and the exported policy go.
+    pub out_dir: PathBuf,
+}
+
+impl TrainOptions {
+    /// Options with defaults for everything but the output directory.
+    pub fn new(out_dir: impl Into<PathBuf>) -> TrainOptions {
+        TrainOptions {
+            config: TrainConfig::default(),
+            env: EnvConfig::default(),
+            scaling: Scaling::default(),
+            out_dir: out_dir.into(),
+        }
+    }
+
+    fn env_config(&self) -> EnvConfig {
+        EnvConfig {
+            goal_distance: self.config.goal_distance,
+            max_steps: self.config.max_episode_steps,
+            ..self.env.clone()
+        }
+    }
+}
+
+/// When a call to [`Trainer::run`] ends.
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct Budget {
+    /// Total wall-clock seconds of training, counting earlier sessions of a resumed run.
+    pub wall_s: Option<f64>,
+    /// Total environment steps.
+    pub env_steps: Option<u64>,
+}
+
+/// One finished training episode, for the curves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeRecord {
+    /// Index, from 1.
+    pub episode: u64,
+    /// Environment steps of the run when it ended.
+    pub env_steps: u64,
+    /// Training wall-clock seconds when it ended.
+    pub wall_s: f64,
+    /// Undiscounted return.
+    pub reward: f64,
+    /// `goal`, `collision` or `timeout`.
+    pub outcome: String,
+    /// Steps in the episode.
+    pub steps: u32,
+}
+
+/// One evaluation during training.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EvalRecord {
+    /// Environment steps when it ran.
+    pub env_steps: u64,
+    /// Training wall-clock seconds when it ran.
+    pub wall_s: f64,
+    /// The result.
+    pub report: EvalReport,
+}
+
+/// Counters of a run, carried across resumes.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Counters {
+    /// Environment steps.
+    pub env_steps: u64,
+    /// Finished episodes.
+    pub episodes: u64,
+    /// Gradient steps.
+    pub grad_steps: u64,
+    /// Wall-clock seconds spent training, over all sessions.
+    pub wall_s: f64,
+    /// Sessions of this run (1 + resumes).
+    pub sessions: u32,
+    /// Fractional gradient steps owed (updates_per_step is not an integer in general).
+    pub update_debt: f64,
+    /// Environment steps at which the next evaluation runs.
+    pub next_eval: u64,
+}
+
+/// A snapshot for progress bars and job progress.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Progress {
+    /// Counters.
+    pub counters: Counters,
+    /// Success rate over the last 100 training episodes (exploration noise on).
+    pub success_rate_100: f64,
+    /// Mean return over the last 100 training episodes.
+    pub mean_reward_100: f64,
+    /// The latest evaluation.
+    pub last_eval: Option<EvalRecord>,
+    /// Share of the budget used, in [0, 1], when the budget is bounded.
+    pub fraction_done: Option<f64>,
+}
+
+/// The random generator's position, to continue the same stream after a resume.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct RngState {
+    seed: [u8; 32],
+    stream: u64,
+    word_pos: u128,
+}
+
+impl RngState {
+    fn of(rng: &ChaCha8Rng) -> RngState {
+        RngState {
+            seed: rng.get_seed(),
+            stream: rng.get_stream(),
+            word_pos: rng.get_word_pos(),
+        }
+    }
+
+    fn restore(&self) -> ChaCha8Rng {
+        let mut rng = ChaCha8Rng::from_seed(self.seed);
+        rng.set_stream(self.stream);
+        rng.set_word_pos(self.word_pos);
+        rng
+    }
+}
+
+/// What `state.json` of a checkpoint holds besides the tensors.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct TrainerState {
+    config: TrainConfig,
+    scaling: Scaling,
+    counters: Counters,
+    rng: RngState,
+    episodes: Vec<EpisodeRecord>,
+    evals: Vec<EvalRecord>,
+}
+
+/// A training run.
+pub struct Trainer {
+    options: TrainOptions,
+    env_config: EnvConfig,
+    world: Arc<World>,
+    learner: Learner,
+    buffer: ReplayBuffer,
+    envs: Vec<NavEnv>,
+    inputs: Vec<f32>,
+    returns: Vec<f64>,
+    rng: ChaCha8Rng,
+    counters: Counters,
+    episodes: Vec<EpisodeRecord>,
+    evals: Vec<EvalRecord>,
+    missions: Vec<Mission>,
+}
+
+impl std::fmt::Debug for Trainer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Trainer")
+            .field("out_dir", &self.options.out_dir)
+            .field("counters", &self.counters)
+            .finish_non_exhaustive()
+    }
+}
+
+fn outcome_name(o: Outcome) -> &'static str {
+    match o {
+        Outcome::ReachedGoal => "goal",
+        Outcome::Collision => "collision",
+        Outcome::TimeLimit | Outcome::Running => "timeout",
+    }
+}
+
+impl Trainer {
+    /// A fresh run in `world`.
+    pub fn new(world: Arc<World>, options: TrainOptions) -> Result<Trainer, TrainError> {
+        options.config.validate().map_err(TrainError::Config)?;
+        if options.scaling.beams != options.env.beams {
+            return Err(TrainError::Config(format!(
+                "the scaling has {} beams, the environment {}",
+                options.scaling.beams, options.env.beams
+            )));
+        }
+        let c = &options.config;
+        if c.threads > 0 {
+            #[allow(
+                clippy::cast_possible_truncation,
+                clippy::cast_possible_wrap,
+                reason = "thread counts are small"
+            )]
+            tch::set_num_threads(c.threads as i32);
+        }
+        let env_config = options.env_config();
+        let dim = options.scaling.input_len();
+        let learner = Learner::new(c.td3.clone(), dim, crate::training_device(), c.seed);
+        let missions = mission_set(&world, &env_config, c.eval_episodes, c.eval_seed)?;
+        let mut trainer = Trainer {
+            buffer: ReplayBuffer::new(dim, c.buffer_capacity),
+            envs: Vec::new(),
+            inputs: vec![0.0; c.envs * dim],
+            returns: vec![0.0; c.envs],
+            rng: ChaCha8Rng::seed_from_u64(c.seed),
+            counters: Counters {
+                sessions: 1,
+                next_eval: c.eval_every,
+                ..Counters::default()
+            },
+            episodes: Vec::new(),
+            evals: Vec::new(),
+            missions,
+            learner,
+            env_config,
+            world,
+            options,
+        };
+        trainer.start_envs()?;
+        Ok(trainer)
+    }
+
+    /// Whether `out_dir` holds a checkpoint to resume from.
+    pub fn has_checkpoint(out_dir: &Path) -> bool {
+        out_dir.join(CHECKPOINT_DIR).join("state.json").is_file()
+            || out_dir.join("checkpoint.old").join("state.json").is_file()
+    }
+
+    /// Continues the run checkpointed in `options.out_dir`. Its configuration comes from the
+    /// checkpoint; `options.config` must equal it (a changed configuration is refused, named).
+    pub fn resume(world: Arc<World>, options: TrainOptions) -> Result<Trainer, TrainError> {
+        let mut dir = options.out_dir.join(CHECKPOINT_DIR);
+        if !dir.join("state.json").is_file() {
+            // A crash between the two renames of `checkpoint` leaves the previous one here.
+            dir = options.out_dir.join("checkpoint.old");
+        }
+        let bad = |message: String| TrainError::Checkpoint {
+            path: dir.clone(),
+            message,
+        };
+        let state_bytes = std::fs::read(dir.join("state.json")).map_err(|e| bad(e.to_string()))?;
+        let state: TrainerState =
+            serde_json::from_slice(&state_bytes).map_err(|e| bad(format!("state.json: {e}")))?;
+        if state.config != options.config {
+            return Err(bad(
+                "the checkpoint was written with another training configuration".into(),
+            ));
+        }
+        if state.scaling != options.scaling {
+            return Err(bad("the checkpoint was written with another scaling".into()));
+        }
+        let mut trainer = Trainer::new(world, options)?;
+        trainer.learner.load(&dir.join("learner.safetensors"))?;
+        trainer.buffer = ReplayBuffer::load(&dir.join("replay.safetensors"))?;
+        trainer.rng = state.rng.restore();
+        trainer.counters = state.counters;
+        trainer.counters.sessions += 1;
+        trainer.episodes = state.episodes;
+        trainer.evals = state.evals;
+        // Episodes that were under way when the run stopped start afresh, from new seeds.
+        trainer.start_envs()?;
+        Ok(trainer)
+    }
+
+    fn start_envs(&mut self) -> Result<(), TrainError> {
+        let c = &self.options.config;
+        let dim = self.options.scaling.input_len();
+        let base = c.seed ^ (u64::from(self.counters.sessions) << 32);
+        self.envs = (0..c.envs)
+            .map(|i| {
+                NavEnv::new(
+                    Arc::clone(&self.world),
+                    self.env_config.clone(),
+                    sim::env_seed(base, i),
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        for (i, env) in self.envs.iter_mut().enumerate() {
+            let obs = env.reset_random()?;
+            self.options
+                .scaling
+                .encode_into(&obs, &mut self.inputs[i * dim..(i + 1) * dim]);
+            self.returns[i] = 0.0;
+        }
+        Ok(())
+    }
+
+    /// The counters.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// The learner.
+    pub fn learner(&self) -> &Learner {
+        &self.learner
+    }
+
+    /// Finished training episodes.
+    pub fn episodes(&self) -> &[EpisodeRecord] {
+        &self.episodes
+    }
+
+    /// Evaluations so far.
+    pub fn evals(&self) -> &[EvalRecord] {
+        &self.evals
+    }
+
+    /// The options.
+    pub fn options(&self) -> &TrainOptions {
+        &self.options
+    }
+
+    /// The progress snapshot.
+    pub fn progress(&self, budget: &Budget) -> Progress {
+        let last: Vec<&EpisodeRecord> = self.episodes.iter().rev().take(100).collect();
+        #[allow(clippy::cast_precision_loss, reason = "at most 100")]
+        let n = last.len().max(1) as f64;
+        let success = last.iter().filter(|e| e.outcome == "goal").count();
+        #[allow(clippy::cast_precision_loss, reason = "counts are small")]
+        let fraction = match (budget.wall_s, budget.env_steps) {
+            (Some(w), _) if w > 0.0 => Some((self.counters.wall_s / w).min(1.0)),
+            (_, Some(s)) if s > 0 => Some((self.counters.env_steps as f64 / s as f64).min(1.0)),
+            _ => None,
+        };
+        #[allow(clippy::cast_precision_loss, reason = "at most 100")]
+        let success_rate_100 = success as f64 / n;
+        Progress {
+            counters: self.counters.clone(),
+            success_rate_100,
+            mean_reward_100: last.iter().map(|e| e.reward).sum::<f64>() / n,
+            last_eval: self.evals.last().cloned(),
+            fraction_done: fraction,
+        }
+    }
+
+    /// Trains until the budget is spent or `on_progress` (called a few times a second) returns
+    /// false. Checkpoints every `checkpoint_every_s` seconds and when it returns.
+    pub fn run(
+        &mut self,
+        budget: Budget,
+        on_progress: &mut dyn FnMut(&Progress) -> bool,
+    ) -> Result<(), TrainError> {
+        let session_start = Instant::now();
+        let wall_before = self.counters.wall_s;
+        let mut last_report = Instant::now();
+        let mut last_checkpoint = Instant::now();
+        let c = self.options.config.clone();
+        let dim = self.options.scaling.input_len();
+        let n = self.envs.len();
+        let mut actions = vec![0.0f32; n * ACTION_DIM];
+        let mut next = vec![0.0f32; dim];
+        let mut batch = Batch::default();
+        loop {
+            self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
+            let spent = budget.wall_s.is_some_and(|w| self.counters.wall_s >= w)
+                || budget
+                    .env_steps
+                    .is_some_and(|s| self.counters.env_steps >= s);
+            if spent {
+                break;
+            }
+            if last_report.elapsed().as_secs_f64() >= 0.25 {
+                last_report = Instant::now();
+                if !on_progress(&self.progress(&budget)) {
+                    break;
+                }
+            }
+            // Algorithm 1, line 4: act (uniformly at random while the buffer warms up).
+            if self.counters.env_steps < c.random_steps {
+                for a in actions.chunks_exact_mut(ACTION_DIM) {
+                    a[0] = self.rng.random::<f32>();
+                    a[1] = self.rng.random::<f32>() * 2.0 - 1.0;
+                }
+            } else {
+                let mut out = Vec::with_capacity(n * ACTION_DIM);
+                self.learner.act(&self.inputs, n, &mut out);
+                #[allow(clippy::cast_possible_truncation, reason = "noise is f32")]
+                for (k, (a, y)) in actions.iter_mut().zip(&out).enumerate() {
+                    let z: f64 = self.rng.sample(StandardNormal);
+                    let v = y + (z * c.td3.exploration_noise) as f32;
+                    *a = if k % 2 == 0 {
+                        v.clamp(0.0, 1.0)
+                    } else {
+                        v.clamp(-1.0, 1.0)
+                    };
+                }
+            }
+            // Lines 5–7: step, store, reset finished episodes.
+            for i in 0..n {
+                let a = [actions[i * 2], actions[i * 2 + 1]];
+                let r = self.envs[i].step(self.options.scaling.command(a));
+                self.options.scaling.encode_into(&r.observation, &mut next);
+                let terminal = matches!(r.info.outcome, Outcome::ReachedGoal | Outcome::Collision);
+                #[allow(
+                    clippy::cast_possible_truncation,
+                    reason = "rewards are f32 in the buffer"
+                )]
+                self.buffer.push(
+                    &self.inputs[i * dim..(i + 1) * dim],
+                    a,
+                    r.reward as f32,
+                    &next,
+                    terminal,
+                );
+                self.returns[i] += r.reward;
+                self.counters.env_steps += 1;
+                if r.done {
+                    self.counters.episodes += 1;
+                    self.episodes.push(EpisodeRecord {
+                        episode: self.counters.episodes,
+                        env_steps: self.counters.env_steps,
+                        wall_s: wall_before + session_start.elapsed().as_secs_f64(),
+                        reward: self.returns[i],
+                        outcome: outcome_name(r.info.outcome).into(),
+                        steps: r.info.steps,
+                    });
+                    self.returns[i] = 0.0;
+                    let obs = self.envs[i].reset_random()?;
+                    self.options
+                        .scaling
+                        .encode_into(&obs, &mut self.inputs[i * dim..(i + 1) * dim]);
+                } else {
+                    self.inputs[i * dim..(i + 1) * dim].copy_from_slice(&next);
+                }
+            }
+            // Lines 8–17: gradient steps.
+            if self.buffer.len() >= c.td3.batch_size {
+                #[allow(clippy::cast_precision_loss, reason = "a handful of environments")]
+                {
+                    self.counters.update_debt += n as f64 * c.updates_per_step;
+                }
+                while self.counters.update_debt >= 1.0 {
+                    self.buffer
+                        .sample_into(&mut self.rng, c.td3.batch_size, &mut batch);
+                    let _ = self.learner.update(&batch, &mut self.rng);
+                    self.counters.grad_steps += 1;
+                    self.counters.update_debt -= 1.0;
+                }
+            }
+            if self.counters.env_steps >= self.counters.next_eval {
+                self.counters.next_eval += c.eval_every;
+                self.evaluate_and_record(wall_before + session_start.elapsed().as_secs_f64())?;
+            }
+            if c.checkpoint_every_s > 0.0
+                && last_checkpoint.elapsed().as_secs_f64() >= c.checkpoint_every_s
+            {
+                self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
+                self.checkpoint()?;
+                last_checkpoint = Instant::now();
+            }
+        }
+        self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
+        self.checkpoint()?;
+        let _ = on_progress(&self.progress(&budget));
+        Ok(())
+    }
+
+    /// Evaluates the current actor on the fixed mission set and records the result.
+    pub fn evaluate_and_record(&mut self, wall_s: f64) -> Result<EvalReport, TrainError> {
+        let report = self.evaluate(&self.missions.clone())?;
+        self.evals.push(EvalRecord {
+            env_steps: self.counters.env_steps,
+            wall_s,
+            report: report.clone(),
+        });
+        Ok(report)
+    }
+
+    /// Evaluates the current actor on `missions` in the training world.
+    pub fn evaluate(&self, missions: &[Mission]) -> Result<EvalReport, TrainError> {
+        Ok(evaluate(
+            &self.learner,
+            &self.world,
+            &self.env_config,
+            &self.options.scaling,
+            missions,
+            self.options.config.eval_seed,
+        )?)
+    }
+
+    /// Writes a checkpoint: networks, targets and optimiser moments, the replay buffer, the
+    /// counters, the random state and the logs. The directory is replaced as a whole, so a crash
+    /// leaves the previous checkpoint or the new one.
+    pub fn checkpoint(&mut self) -> Result<(), TrainError> {
+        let out = &self.options.out_dir;
+        let final_dir = out.join(CHECKPOINT_DIR);
+        let new_dir = out.join("checkpoint.new");
+        let old_dir = out.join("checkpoint.old");
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |e: std::io::Error| TrainError::Checkpoint {
+                path,
+                message: e.to_string(),
+            }
+        };
+        if new_dir.exists() {
+            std::fs::remove_dir_all(&new_dir).map_err(io(&new_dir))?;
+        }
+        std::fs::create_dir_all(&new_dir).map_err(io(&new_dir))?;
+        self.learner.save(&new_dir.join("learner.safetensors"))?;
+        self.buffer.save(&new_dir.join("replay.safetensors"))?;
+        let state = TrainerState {
+            config: self.options.config.clone(),
+            scaling: self.options.scaling,
+            counters: self.counters.clone(),
+            rng: RngState::of(&self.rng),
+            episodes: self.episodes.clone(),
+            evals: self.evals.clone(),
+        };
+        let json = serde_json::to_vec(&state).map_err(|e| TrainError::Checkpoint {
+            path: new_dir.clone(),
+            message: e.to_string(),
+        })?;
+        write_atomic(&new_dir.join("state.json"), &json).map_err(io(&new_dir))?;
+        if old_dir.exists() {
+            std::fs::remove_dir_all(&old_dir).map_err(io(&old_dir))?;
+        }
+        if final_dir.exists() {
+            std::fs::rename(&final_dir, &old_dir).map_err(io(&final_dir))?;
+        }
+        std::fs::rename(&new_dir, &final_dir).map_err(io(&final_dir))?;
+        if old_dir.exists() {
+            std::fs::remove_dir_all(&old_dir).map_err(io(&old_dir))?;
+        }
+        Ok(())
+    }
+
+    /// Writes the exported policy (`policy.safetensors`, `policy.json`) into `dir`, with a
+    /// training summary in its metadata.
+    pub fn export(&self, dir: &Path, summary: serde_json::Value) -> Result<(), TrainError> {
+        let meta = PolicyMetadata::new(
+            self.options.scaling,
+            self.options.config.td3.hidden.clone(),
+            serde_json::json!({
+                "algorithm": "TD3 (Fujimoto et al. 2018) with the regularised actor objective of Eq. 18",
+                "config": self.options.config,
+                "counters": self.counters,
+                "last_eval": self.evals.last(),
+                "summary": summary,
+            }),
+        );
+        write_policy(dir, &meta, &self.learner.actor_layers())?;
+        Ok(())
+    }
+}

@@ -1,0 +1,293 @@
+//! `mentalsim train` and `mentalsim eval`: a navigation policy trained in the mental simulation
+//! of a ROS map, and an exported policy evaluated on any map.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use learning::trainer::{Budget, TrainOptions, Trainer};
+use learning::{Policy, Scaling, TrainConfig};
+use sim::{EnvConfig, World};
+
+/// The bundled robot, as the knowledge service loads it.
+const ROBOT_IRI: &str = "https://mentalsim.dev/data/robots/differential-robot";
+
+fn bundled_robot_ttl() -> &'static str {
+    knowledge::bundled::BUNDLED
+        .iter()
+        .find(|b| b.file.starts_with("robots/"))
+        .map_or("", |b| b.turtle)
+}
+
+/// The mental simulation of a ROS map with the bundled robot.
+pub fn load_world(map: &Path, objects: usize, seed: u64) -> anyhow::Result<Arc<World>> {
+    if !map.is_file() {
+        anyhow::bail!(
+            "the map {} does not exist (give a ROS map_server YAML file)",
+            map.display()
+        );
+    }
+    Ok(bench::sim::world_from_map(
+        map,
+        bundled_robot_ttl().as_bytes(),
+        ROBOT_IRI,
+        objects,
+        seed,
+    )?)
+}
+
+/// What `mentalsim train` was asked.
+#[derive(Debug)]
+pub struct TrainArgs {
+    /// ROS map_server YAML.
+    pub map: PathBuf,
+    /// Wall-clock budget.
+    pub minutes: f64,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Training configuration file (JSON), if any.
+    pub config: Option<PathBuf>,
+    /// Seed override.
+    pub seed: Option<u64>,
+    /// β1 = β2 override.
+    pub beta: Option<f64>,
+    /// Start again even if `out` holds a checkpoint.
+    pub fresh: bool,
+    /// Held-out missions of the final evaluation.
+    pub eval_episodes: usize,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// Reads the configuration file and applies the command line's overrides.
+pub fn train_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
+    let mut config: TrainConfig = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| {
+                format!("cannot read the training configuration {}", path.display())
+            })?;
+            serde_json::from_str(&text)
+                .with_context(|| format!("invalid training configuration {}", path.display()))?
+        }
+        None => TrainConfig::default(),
+    };
+    if let Some(seed) = args.seed {
+        config.seed = seed;
+    }
+    if let Some(beta) = args.beta {
+        config.td3.beta1 = beta;
+        config.td3.beta2 = beta;
+    }
+    config
+        .validate()
+        .map_err(|e| anyhow::anyhow!("invalid training configuration: {e}"))?;
+    Ok(config)
+}
+
+/// Trains, exports the policy into `out`, writes the curves and `eval.json`; returns the JSON.
+pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::Value> {
+    if !(args.minutes.is_finite() && args.minutes > 0.0) {
+        anyhow::bail!("--minutes must be a positive number, got {}", args.minutes);
+    }
+    if args.eval_episodes == 0 {
+        anyhow::bail!("--eval-episodes must be at least 1");
+    }
+    let config = train_config(args)?;
+    let world = load_world(&args.map, 0, config.seed)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let options = TrainOptions {
+        config,
+        env: EnvConfig::default(),
+        scaling: Scaling::default(),
+        out_dir: args.out.clone(),
+    };
+    let mut trainer = if !args.fresh && Trainer::has_checkpoint(&args.out) {
+        eprintln!("resuming the run checkpointed in {}", args.out.display());
+        Trainer::resume(Arc::clone(&world), options)?
+    } else {
+        Trainer::new(Arc::clone(&world), options)?
+    };
+    let budget = Budget {
+        wall_s: Some(args.minutes * 60.0),
+        env_steps: None,
+    };
+    let bar = if args.progress {
+        let bar = ProgressBar::new(1000);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% ETA {eta} {msg}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar.enable_steady_tick(Duration::from_millis(250));
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut on_progress = |p: &learning::trainer::Progress| {
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "a permille"
+        )]
+        bar.set_position((p.fraction_done.unwrap_or(0.0) * 1000.0) as u64);
+        let eval = p
+            .last_eval
+            .as_ref()
+            .map(|e| format!(" eval {:.0}%", e.report.success_rate * 100.0))
+            .unwrap_or_default();
+        bar.set_message(format!(
+            "steps {} episodes {} success {:.0}% reward {:.1}{eval}",
+            p.counters.env_steps,
+            p.counters.episodes,
+            p.success_rate_100 * 100.0,
+            p.mean_reward_100,
+        ));
+        !stop.load(Ordering::Relaxed)
+    };
+    trainer.run(budget, &mut on_progress)?;
+    bar.finish_and_clear();
+    let interrupted = stop.load(Ordering::Relaxed);
+    let counters = trainer.counters().clone();
+
+    // Curves.
+    let episodes = trainer.episodes();
+    std::fs::write(
+        args.out.join("curves.csv"),
+        learning::curves::curves_csv(episodes),
+    )?;
+    let title = format!(
+        "TD3 in the mental simulation of {} (β1 = β2 = {})",
+        map_name(&args.map),
+        trainer.options().config.td3.beta1
+    );
+    learning::curves::plot_curves(
+        &args.out.join("curves.png"),
+        &title,
+        &[("reward".into(), learning::curves::smooth(episodes))],
+    )?;
+    let mut evals_csv = String::from(
+        "env_steps,wall_s,success_rate,collision_rate,timeout_rate,mean_time_to_goal_s,mean_return\n",
+    );
+    for e in trainer.evals() {
+        evals_csv.push_str(&format!(
+            "{},{:.1},{:.4},{:.4},{:.4},{:.2},{:.2}\n",
+            e.env_steps,
+            e.wall_s,
+            e.report.success_rate,
+            e.report.collision_rate,
+            e.report.timeout_rate,
+            e.report.mean_time_to_goal_s,
+            e.report.mean_return
+        ));
+    }
+    std::fs::write(args.out.join("evals.csv"), evals_csv)?;
+
+    // Export, then evaluate the exported policy (the pure-Rust runtime robots embed) on
+    // held-out missions drawn from a seed training never used.
+    trainer.export(
+        &args.out,
+        serde_json::json!({ "map": args.map.display().to_string() }),
+    )?;
+    let policy = Policy::load(&args.out)?;
+    let held_out_seed = trainer.options().config.eval_seed.wrapping_add(1);
+    let report = evaluate_policy(&policy, &world, args.eval_episodes, held_out_seed)?;
+    let json = serde_json::json!({
+        "success_rate": report.success_rate,
+        "collision_rate": report.collision_rate,
+        "timeout_rate": report.timeout_rate,
+        "mean_time_to_goal_s": report.mean_time_to_goal_s,
+        "eval_episodes": report.episodes,
+        "episodes": counters.episodes,
+        "env_steps": counters.env_steps,
+        "grad_steps": counters.grad_steps,
+        "wall_s": counters.wall_s,
+        "sessions": counters.sessions,
+        "interrupted": interrupted,
+        "map": args.map.display().to_string(),
+        "seed": trainer.options().config.seed,
+        "beta": trainer.options().config.td3.beta1,
+        "evaluation": report,
+        "config": trainer.options().config,
+    });
+    std::fs::write(
+        args.out.join("eval.json"),
+        format!("{}\n", serde_json::to_string_pretty(&json)?),
+    )?;
+    Ok(json)
+}
+
+fn map_name(map: &Path) -> String {
+    map.parent()
+        .and_then(|p| p.file_name())
+        .or_else(|| map.file_stem())
+        .map_or_else(|| "map".into(), |s| s.to_string_lossy().into_owned())
+}
+
+/// Evaluates `policy` on `episodes` random missions in `world` drawn from `seed`.
+pub fn evaluate_policy(
+    policy: &Policy,
+    world: &Arc<World>,
+    episodes: usize,
+    seed: u64,
+) -> anyhow::Result<learning::EvalReport> {
+    let env = EnvConfig {
+        beams: policy.scaling().beams,
+        goal_distance: (2.0, 10.0),
+        ..EnvConfig::default()
+    };
+    let missions = learning::mission_set(world, &env, episodes, seed)?;
+    Ok(learning::evaluate(
+        policy,
+        world,
+        &env,
+        policy.scaling(),
+        &missions,
+        seed,
+    )?)
+}
+
+/// `mentalsim eval`: an exported policy on a map, written as JSON.
+pub fn eval(
+    policy_dir: &Path,
+    map: &Path,
+    episodes: usize,
+    seed: u64,
+) -> anyhow::Result<serde_json::Value> {
+    if episodes == 0 {
+        anyhow::bail!("--episodes must be at least 1");
+    }
+    let policy = Policy::load(policy_dir)
+        .with_context(|| format!("cannot load the policy in {}", policy_dir.display()))?;
+    let world = load_world(map, 0, seed)?;
+    let report = evaluate_policy(&policy, &world, episodes, seed)?;
+    // Time per control command of the pure-Rust runtime: encode + forward + scale.
+    let obs = sim::Observation {
+        ranges: vec![3.0; policy.scaling().beams],
+        goal_distance: 4.0,
+        goal_angle: 0.3,
+    };
+    let reps = 2000u32;
+    let t = std::time::Instant::now();
+    for _ in 0..reps {
+        std::hint::black_box(policy.act(std::hint::black_box(&obs))?);
+    }
+    let per_command_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
+    Ok(serde_json::json!({
+        "success_rate": report.success_rate,
+        "collision_rate": report.collision_rate,
+        "timeout_rate": report.timeout_rate,
+        "mean_time_to_goal_s": report.mean_time_to_goal_s,
+        "episodes": report.episodes,
+        "env_steps": report.env_steps,
+        "wall_s": report.wall_s,
+        "control_command_us": per_command_us,
+        "map": map.display().to_string(),
+        "policy": policy_dir.display().to_string(),
+        "seed": seed,
+    }))
+}
