@@ -918,9 +918,9 @@ fn to_markdown(
     let _ = writeln!(
         s,
         "What is timed: *build* = sampling, k-NN, edge checks, re-sampling of isolated nodes, visibility repair, \
-         bridging of components that share a free region, and the graph (not the configuration space, which is computed once per map and robot and shown in its own column); \
+         bridging of components that share a free region, and the graph with each edge's clearance (not the configuration space, which is computed once per map and robot and shown in its own column); \
          *search* = checking start and goal, linking them to the roadmap, the shortest-path search, local \
-         densification when needed, and the path's clearance. OMPL: *build* = `growRoadmap` until n milestones, \
+         densification when needed, and the path's clearance (traced along the links and densification segments the query adds; the roadmap edges' own clearance is read, as computed in the build). OMPL: *build* = `growRoadmap` until n milestones, \
          *search* = `solve` (adds start and goal, checks for a solution in a second thread, keeps growing the \
          roadmap until it finds one; 2 s limit).\n"
     );
@@ -1370,6 +1370,71 @@ mod tests {
             queries[queries.len() * 9 / 10],
             queries.iter().sum::<f64>() / queries.len() as f64
         );
+    }
+
+    /// The benchmark's own runs (`run_ours`: fresh roadmap and one query per run, timed as in
+    /// `prm.csv`) at n* only, every map, without OMPL or plots: the quick way to check the
+    /// Table 2 targets.
+    /// `cargo test --release -p bench --lib prm::tests::n_star_table -- --ignored --nocapture`
+    /// (`PRM_BENCH_MAPS`, `PRM_BENCH_RUNS` as for the full benchmark; `PRM_BENCH_VERBOSE=1`
+    /// prints every run).
+    #[test]
+    #[ignore = "measuring aid; run by hand in release"]
+    fn n_star_table() {
+        let Some(shared) = shared_maps() else { return };
+        let env = |k: &str| std::env::var(k).ok();
+        let dir = env("PRM_BENCH_MAPS").map_or(shared, PathBuf::from);
+        let opts = PrmBenchOptions {
+            runs: env("PRM_BENCH_RUNS")
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(50),
+            ompl: None,
+            ..PrmBenchOptions::default()
+        };
+        let verbose = env("PRM_BENCH_VERBOSE").is_some_and(|v| v != "0");
+        let inflation = Inflation {
+            robot_radius_m: opts.robot_radius_m,
+            safety_margin_m: opts.safety_margin_m,
+        };
+        let yamls = find_yamls(&dir).expect("maps");
+        println!(
+            "| map | cells | n* | build ms mean / p50 | search ms mean / p50 / max | success | densified |"
+        );
+        println!("|---|---:|---:|---|---|---:|---:|");
+        for (yaml, name) in yamls.iter().zip(map_names(&dir, &yamls)) {
+            let grid = load_ros_map(yaml).expect("map loads");
+            let free_area_m2 = grid.free_area_m2();
+            let cs = Arc::new(ConfigSpace::new(&grid, inflation).expect("cspace"));
+            let Some(region) = cs.largest_region() else {
+                continue;
+            };
+            let n = optimal_samples(free_area_m2);
+            let pairs = random_pairs(&cs, region, opts.runs, mix(opts.seed, hash_str(&name)));
+            let rows = run_ours(&cs, &opts, &name, free_area_m2, n, &pairs, false).expect("runs");
+            if verbose {
+                for r in &rows {
+                    println!(
+                        "  {name} run {}: build {:.4} search {:.5} densified {} length {:?}",
+                        r.run, r.build_ms, r.search_ms, r.densified, r.length_m
+                    );
+                }
+            }
+            let s = &summarize(&rows)[&("ours", name.clone(), n)];
+            let mut builds: Vec<f64> = rows.iter().map(|r| r.build_ms).collect();
+            builds.sort_by(f64::total_cmp);
+            println!(
+                "| {name} | {}×{} | {n} | {:.3} / {:.3} | {:.4} / {:.4} / {:.4} | {:.0}% | {} |",
+                grid.width,
+                grid.height,
+                s.build_ms,
+                builds[builds.len() / 2],
+                s.search_ms,
+                s.search_p50_ms,
+                s.search_max_ms,
+                s.success_pct,
+                s.densified
+            );
+        }
     }
 
     /// The full benchmark, for measuring by hand:

@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::cspace::{ConfigSpace, Inflation, RegionId, jitter};
 use crate::error::{BuildError, Endpoint, QueryError};
 use crate::grid::Point2;
-use crate::search::{Csr, SearchAlgorithm, Terminals, shortest_path};
+use crate::search::{Csr, Edge, Search, SearchAlgorithm};
 
 /// The paper's optimal number of samples (Eq. 19): `ceil(0.05 · free area in m² + 84)`.
 pub fn optimal_samples(free_area_m2: f64) -> usize {
@@ -328,11 +328,14 @@ impl Roadmap {
         }
         stats.isolated = adj.iter().filter(|a| a.is_empty()).count();
 
-        let mut edges = Vec::with_capacity(adj.iter().map(Vec::len).sum::<usize>() / 2);
+        // Each edge's clearance is computed once here, so a query reads it for the roadmap part
+        // of its path and traces only the segments it adds (start and goal links).
+        let mut edges: Vec<Edge> = Vec::with_capacity(adj.iter().map(Vec::len).sum::<usize>() / 2);
         for (i, list) in adj.iter().enumerate() {
             for &(j, len) in list {
                 if (i as u32) < j {
-                    edges.push((i as u32, j, len));
+                    let min = cs.segment_min_dist(nodes[i], nodes[j as usize]) as f32;
+                    edges.push((i as u32, j, len, min));
                 }
             }
         }
@@ -374,12 +377,7 @@ impl Roadmap {
     }
     /// Edges as pairs of node indices (each once).
     pub fn edges(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
-        (0..self.nodes.len() as u32).flat_map(move |i| {
-            self.graph
-                .neighbours(i)
-                .filter(move |&(j, _)| i < j)
-                .map(move |(j, _)| (i as usize, j as usize))
-        })
+        self.graph.edges().map(|e| (e.0 as usize, e.1 as usize))
     }
 
     /// Shortest roadmap path from `start` to `goal`, densifying locally when the roadmap does
@@ -403,7 +401,7 @@ impl Roadmap {
         let dmax = self.params.max_edge_m / cs.resolution();
         let direct = dist(gs, gg);
         if direct <= dmax && cs.segment_free_grid(gs, gg) {
-            return Ok(self.plan(&[gs, gg], direct, 0, 0));
+            return Ok(self.plan(&[gs, gg], &[f32::NAN], direct, 0, 0));
         }
         if let Some(plan) = self.lazy_search(gs, gg, opts.algorithm) {
             return Ok(plan);
@@ -417,57 +415,76 @@ impl Roadmap {
     }
 
     /// Shortest path with the start and goal joined to their k nearest nodes lazily: the search
-    /// assumes every such link is free and only the links its path uses are checked; a blocked
-    /// one is dropped and the search repeated. The answer is the same as checking all 2k links
-    /// first (the final path is shortest in a graph that contains every valid link), at a
-    /// fraction of the segment checks, which dominate a query.
+    /// assumes every such link is free and checks a link only when it would use it. A start
+    /// link is checked when the search is about to expand its node through it; the goal link
+    /// when a path ends with it. A blocked link is withdrawn and the search resumes, redoing
+    /// only the one label derived from it. The answer is the same as checking all 2k links
+    /// first (the final path is shortest in a graph that contains every valid link), with
+    /// fewer segment checks, which dominate a query.
     fn lazy_search(&self, gs: [f64; 2], gg: [f64; 2], algorithm: SearchAlgorithm) -> Option<Plan> {
+        let k = self.params.neighbours;
+        // Verdicts on start links (node, free), so that no link is checked twice; the eager
+        // fallbacks' links are free by construction.
+        let start_known = std::cell::RefCell::new(Vec::<(u32, bool)>::new());
+        let mut g_ok = Vec::new();
         let mut sl = self.candidates(gs);
+        if sl.is_empty() {
+            sl = self.links_beyond(gs, k);
+            start_known
+                .borrow_mut()
+                .extend(sl.iter().map(|l| (l.0, true)));
+        }
         let mut gl = self.candidates(gg);
-        let (mut s_ok, mut g_ok) = (Vec::new(), Vec::new());
+        if gl.is_empty() {
+            gl = self.links_beyond(gg, k);
+            g_ok.extend(gl.iter().map(|l| l.0));
+        }
         let h = |i: u32| dist(self.nodes[i as usize], gg);
+        let mut start_free = |i: u32| {
+            let known = start_known.borrow().iter().find(|v| v.0 == i).map(|v| v.1);
+            known.unwrap_or_else(|| {
+                let free = self.cspace.segment_free_grid(gs, self.nodes[i as usize]);
+                start_known.borrow_mut().push((i, free));
+                free
+            })
+        };
+        let mut search = Search::new(&self.graph, &sl, &gl, algorithm, h);
+        let mut found = search.run(&mut start_free);
         let mut expanded = 0;
+        if found.is_none() && search.start_links_left() == 0 {
+            // None of the k nearest is in sight of the start: check farther nodes eagerly.
+            let beyond = self.links_beyond(gs, k);
+            if !beyond.is_empty() {
+                expanded += search.expanded;
+                start_known
+                    .borrow_mut()
+                    .extend(beyond.iter().map(|l| (l.0, true)));
+                search = Search::new(&self.graph, &beyond, &gl, algorithm, h);
+                found = search.run(&mut start_free);
+            }
+        }
         loop {
-            // None of the k nearest in sight: fall back to checking farther nodes eagerly.
-            if sl.is_empty() {
-                sl = self.links_beyond(gs, self.params.neighbours);
-                s_ok.extend(sl.iter().map(|l| l.0));
+            let path = found?;
+            let last = path.nodes[path.nodes.len() - 2];
+            if g_ok.contains(&last) || self.cspace.segment_free_grid(self.nodes[last as usize], gg)
+            {
+                let pts = self.points(&path.nodes, &self.nodes, gs, gg);
+                let mins = segment_mins(&self.graph, &path.nodes);
+                let expanded = expanded + search.expanded;
+                return Some(self.plan(&pts, &mins, path.length, 0, expanded));
             }
+            gl.retain(|l| l.0 != last);
             if gl.is_empty() {
-                gl = self.links_beyond(gg, self.params.neighbours);
+                // None of the k nearest in sight of the goal: check farther nodes eagerly.
+                gl = self.links_beyond(gg, k);
                 g_ok.extend(gl.iter().map(|l| l.0));
+                expanded += search.expanded;
+                let sl_now = search.start_links().to_vec();
+                search = Search::new(&self.graph, &sl_now, &gl, algorithm, h);
+            } else {
+                search.withdraw_goal(last);
             }
-            let t = Terminals {
-                start_links: &sl,
-                goal_links: &gl,
-            };
-            let found = shortest_path(&self.graph, &t, algorithm, h)?;
-            expanded += found.expanded;
-            let (first, last) = (found.nodes[1], found.nodes[found.nodes.len() - 2]);
-            let mut valid = true;
-            if !s_ok.contains(&first) {
-                if self
-                    .cspace
-                    .segment_free_grid(gs, self.nodes[first as usize])
-                {
-                    s_ok.push(first);
-                } else {
-                    sl.retain(|l| l.0 != first);
-                    valid = false;
-                }
-            }
-            if !g_ok.contains(&last) {
-                if self.cspace.segment_free_grid(self.nodes[last as usize], gg) {
-                    g_ok.push(last);
-                } else {
-                    gl.retain(|l| l.0 != last);
-                    valid = false;
-                }
-            }
-            if valid {
-                let pts = self.points(&found.nodes, &self.nodes, gs, gg);
-                return Some(self.plan(&pts, found.length, 0, expanded));
-            }
+            found = search.run(&mut start_free);
         }
     }
 
@@ -530,15 +547,8 @@ impl Roadmap {
         if plan.densified_nodes == 0 || !valid {
             return 0;
         }
-        let mut edges: Vec<(u32, u32, f64)> = Vec::with_capacity(self.stats.edges + pts.len());
-        for i in 0..self.nodes.len() as u32 {
-            edges.extend(
-                self.graph
-                    .neighbours(i)
-                    .filter(|&(j, _)| i < j)
-                    .map(|(j, w)| (i, j, w)),
-            );
-        }
+        let mut edges: Vec<Edge> = Vec::with_capacity(self.stats.edges + pts.len());
+        edges.extend(self.graph.edges());
         // Existing nodes are matched exactly: waypoints that are roadmap nodes carry their bits.
         let mut ids = Vec::with_capacity(pts.len());
         let mut added = 0;
@@ -555,7 +565,8 @@ impl Roadmap {
         }
         for (w, pair) in pts.windows(2).zip(ids.windows(2)) {
             if pair[0] != pair[1] {
-                edges.push((pair[0], pair[1], dist(w[0], w[1])));
+                let min = cs.segment_min_dist(w[0], w[1]) as f32;
+                edges.push((pair[0], pair[1], dist(w[0], w[1]), min));
             }
         }
         let Ok(tree) = kd_tree(&self.nodes) else {
@@ -595,7 +606,8 @@ impl Roadmap {
             i = j;
         }
         let len = out.windows(2).map(|w| dist(w[0], w[1])).sum();
-        self.plan(&out, len, plan.densified_nodes, plan.expanded)
+        let mins = vec![f32::NAN; out.len() - 1];
+        self.plan(&out, &mins, len, plan.densified_nodes, plan.expanded)
     }
 
     fn region(&self, g: [f64; 2]) -> RegionId {
@@ -653,11 +665,26 @@ impl Roadmap {
             .collect()
     }
 
-    fn plan(&self, pts: &[[f64; 2]], length_cells: f64, densified: usize, expanded: usize) -> Plan {
+    /// A plan through `pts`. `mins[k]` is the obstacle distance (cells) along segment k when
+    /// already known (a roadmap edge's, computed at build), NaN when it must be traced here.
+    fn plan(
+        &self,
+        pts: &[[f64; 2]],
+        mins: &[f32],
+        length_cells: f64,
+        densified: usize,
+        expanded: usize,
+    ) -> Plan {
         let cs = &*self.cspace;
+        debug_assert_eq!(mins.len() + 1, pts.len().max(1));
         let mut min = f64::INFINITY;
-        for w in pts.windows(2) {
-            min = min.min(cs.segment_min_dist(w[0], w[1]));
+        for (w, &known) in pts.windows(2).zip(mins) {
+            let d = if known.is_nan() {
+                cs.segment_min_dist(w[0], w[1])
+            } else {
+                f64::from(known)
+            };
+            min = min.min(d);
         }
         if pts.len() == 1
             && let Some(i) = cs.cell_index(pts[0])
@@ -760,35 +787,28 @@ impl Roadmap {
             .chain(std::iter::once(to))
             .collect();
         let m = positions.len() as u32;
-        let mut edges: Vec<(u32, u32, f64)> = Vec::with_capacity(self.stats.edges + added + 1);
-        for i in 0..n {
-            for (j, w) in self.graph.neighbours(i) {
-                if i < j {
-                    edges.push((i, j, w));
-                }
-            }
-        }
+        let mut edges: Vec<Edge> = Vec::with_capacity(self.stats.edges + added + 1);
+        edges.extend(self.graph.edges());
         let mut sl = start_links.to_vec();
         let mut gl = goal_links.to_vec();
         for (w, pair) in thin.windows(2).zip(ids.windows(2)) {
             let len = dist(w[0], w[1]);
             let (a, b) = (pair[0], pair[1]);
             match (a == virtual_start, b == virtual_goal) {
-                (true, true) => return Ok(self.plan(&[gs, gg], len, 0, 0)),
+                (true, true) => return Ok(self.plan(&[gs, gg], &[f32::NAN], len, 0, 0)),
                 (true, false) => sl.push((b, len)),
                 (false, true) => gl.push((a, len)),
-                (false, false) => edges.push((a, b, len)),
+                // Traced in `plan` only if the path uses it.
+                (false, false) => edges.push((a, b, len, f32::NAN)),
             }
         }
         let graph = Csr::from_edges(m as usize, &edges);
-        let t = Terminals {
-            start_links: &sl,
-            goal_links: &gl,
-        };
         let h = |i: u32| dist(positions[i as usize], gg);
-        let found = shortest_path(&graph, &t, algorithm, h).ok_or(QueryError::NotConnected)?;
+        let mut search = Search::new(&graph, &sl, &gl, algorithm, h);
+        let found = search.run(|_| true).ok_or(QueryError::NotConnected)?;
         let pts = self.points(&found.nodes, &positions, gs, gg);
-        Ok(self.plan(&pts, found.length, added, found.expanded))
+        let mins = segment_mins(&graph, &found.nodes);
+        Ok(self.plan(&pts, &mins, found.length, added, search.expanded))
     }
 }
 
@@ -1073,6 +1093,14 @@ fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     // Not `hypot`: its overflow care costs several times a square root, and grid coordinates
     // are far from overflowing.
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+}
+
+/// The stored obstacle distance of each segment of a search result (NaN for the start and goal
+/// links and for edges without one).
+fn segment_mins(graph: &Csr, ids: &[u32]) -> Vec<f32> {
+    ids.windows(2)
+        .map(|w| graph.edge_min_dist(w[0], w[1]))
+        .collect()
 }
 
 fn pair_key(a: u32, b: u32) -> u64 {

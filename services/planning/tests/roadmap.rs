@@ -571,4 +571,80 @@ proptest! {
             prop_assert!(!touches_blocked(&cs, a, b));
         }
     }
+
+    /// The lazy query (links checked only when the search would use them, search resumed after
+    /// a blocked one, roadmap edges' clearance read from the build) answers as the eager
+    /// reference: every valid link among the k nearest, Dijkstra from scratch, and the
+    /// clearance traced along every segment of the path.
+    #[test]
+    fn lazy_query_equals_the_eager_reference(seed in any::<u64>(), density in 10u64..70) {
+        let g = cluttered(seed, 90, 70, density);
+        let infl = Inflation { robot_radius_m: 0.05, safety_margin_m: 0.0 };
+        let cs = Arc::new(ConfigSpace::new(&g, infl).expect("cspace"));
+        let Some(region) = cs.largest_region() else { return Ok(()) };
+        let params = PrmParams { seed, repair_share: 0.0, skeleton_share: 0.0, ..small_params(40) };
+        let Ok(rm) = Roadmap::build(Arc::clone(&cs), &params) else { return Ok(()) };
+        let nodes: Vec<Point2> = rm.nodes().collect();
+        let n = nodes.len();
+        let mut adj = vec![Vec::new(); n];
+        for (i, j) in rm.edges() {
+            let w = nodes[i].distance(nodes[j]);
+            adj[i].push((j, w));
+            adj[j].push((i, w));
+        }
+        let links = |p: Point2| -> Vec<(usize, f64)> {
+            let mut near: Vec<(usize, f64)> = (0..n)
+                .map(|j| (j, p.distance(nodes[j])))
+                .filter(|&(_, d)| d <= params.max_edge_m)
+                .collect();
+            near.sort_by(|a, b| a.1.total_cmp(&b.1));
+            near.truncate(params.neighbours);
+            near.retain(|&(j, _)| cs.segment_free(p, nodes[j]));
+            near
+        };
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+        let strict = QueryOptions { algorithm: SearchAlgorithm::AStar, no_densify: true };
+        for _ in 0..8 {
+            let s = cs.sample_free(&mut rng, Some(region)).expect("free");
+            let t = cs.sample_free(&mut rng, Some(region)).expect("free");
+            let (sl, tl) = (links(s), links(t));
+            let direct = s.distance(t) <= params.max_edge_m && cs.segment_free(s, t);
+            if direct || sl.is_empty() || tl.is_empty() {
+                continue; // Answered without the roadmap, or by the eager fallback.
+            }
+            // Dijkstra over nodes 0..n, start n, goal n + 1.
+            let mut dist = vec![f64::INFINITY; n + 2];
+            let mut done = vec![false; n + 2];
+            dist[n] = 0.0;
+            while let Some(u) = (0..n + 2)
+                .filter(|&u| !done[u] && dist[u].is_finite())
+                .min_by(|&a, &b| dist[a].total_cmp(&dist[b]))
+            {
+                done[u] = true;
+                let out: Vec<(usize, f64)> = if u == n {
+                    sl.clone()
+                } else if u == n + 1 {
+                    break;
+                } else {
+                    let mut o = adj[u].clone();
+                    o.extend(tl.iter().filter(|l| l.0 == u).map(|l| (n + 1, l.1)));
+                    o
+                };
+                for (v, w) in out {
+                    dist[v] = dist[v].min(dist[u] + w);
+                }
+            }
+            let reference = dist[n + 1];
+            match rm.query(s, t, strict) {
+                Ok(p) => {
+                    prop_assert!((p.length_m - reference).abs() < 1e-6, "{} vs {}", p.length_m, reference);
+                    let traced = p.waypoints.windows(2)
+                        .map(|w| cs.segment_clearance_m(w[0], w[1]))
+                        .fold(f64::INFINITY, f64::min);
+                    prop_assert!((p.min_clearance_m - traced).abs() < 1e-9, "{} vs {}", p.min_clearance_m, traced);
+                }
+                Err(_) => prop_assert!(reference.is_infinite()),
+            }
+        }
+    }
 }
