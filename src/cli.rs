@@ -162,6 +162,30 @@ pub enum BenchCommand {
         #[arg(long)]
         irsim_x_python: Option<PathBuf>,
     },
+    /// The paper's §5.2: one policy per (β1 = β2, seed), final success and reward curves.
+    Beta {
+        /// The ROS map_server YAML of the place.
+        #[arg(long)]
+        map: PathBuf,
+        /// Minutes per training.
+        #[arg(long, default_value_t = 10.0)]
+        minutes: f64,
+        /// Values of β1 = β2 (the paper: 0, 1, 5).
+        #[arg(long, value_delimiter = ',', default_values_t = [0.0, 1.0, 5.0])]
+        betas: Vec<f64>,
+        /// Seeds per value.
+        #[arg(long, value_delimiter = ',', default_values_t = [1, 2, 3])]
+        seeds: Vec<u64>,
+        /// Where the runs, beta.md and beta.png go.
+        #[arg(long, default_value = "bench-out/beta")]
+        out: PathBuf,
+        /// Training configuration shared by all runs (JSON).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Held-out missions of each final evaluation.
+        #[arg(long, default_value_t = 200)]
+        eval_episodes: usize,
+    },
     /// TD3 gradient steps per second, ours beside Stable-Baselines3's, same sizes, one run.
     Learner {
         /// Write the figures as JSON to this file.
@@ -402,15 +426,19 @@ fn print_json(value: &serde_json::Value, path: Option<PathBuf>) -> anyhow::Resul
     Ok(())
 }
 
+/// A flag set by SIGINT or SIGTERM, for commands that stop cleanly at the next step.
+fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, std::sync::Arc::clone(&stop))?;
+    }
+    Ok(stop)
+}
+
 /// Trains until the budget is spent; Ctrl-C (or SIGTERM) stops early with a checkpoint and
 /// still exports what was learned.
 fn run_train(args: crate::train::TrainArgs) -> anyhow::Result<()> {
-    use std::sync::Arc;
-    use std::sync::atomic::AtomicBool;
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, Arc::clone(&stop))?;
-    }
+    let stop = stop_flag()?;
     let json = crate::train::train(&args, &stop)?;
     print_json(&json, None)?;
     eprintln!(
@@ -451,6 +479,32 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 report.markdown_path.display(),
                 report.plot_path.display()
             );
+            Ok(())
+        }
+        BenchCommand::Beta {
+            map,
+            minutes,
+            betas,
+            seeds,
+            out,
+            config,
+            eval_episodes,
+        } => {
+            let stop = stop_flag()?;
+            let text = crate::train::beta_experiment(
+                &crate::train::BetaArgs {
+                    map,
+                    minutes,
+                    betas,
+                    seeds,
+                    out: out.clone(),
+                    config,
+                    eval_episodes,
+                },
+                &stop,
+            )?;
+            println!("{text}");
+            eprintln!("wrote beta.md and beta.png to {}", out.display());
             Ok(())
         }
         BenchCommand::Learner {

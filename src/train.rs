@@ -128,6 +128,9 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::
     } else {
         ProgressBar::hidden()
     };
+    // Without a terminal (a log file, a job) the bar is hidden: print a line now and then.
+    let plain = !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let mut last_line = std::time::Instant::now();
     let mut on_progress = |p: &learning::trainer::Progress| {
         #[allow(
             clippy::cast_possible_truncation,
@@ -140,13 +143,19 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::
             .as_ref()
             .map(|e| format!(" eval {:.0}%", e.report.success_rate * 100.0))
             .unwrap_or_default();
-        bar.set_message(format!(
-            "steps {} episodes {} success {:.0}% reward {:.1}{eval}",
+        let line = format!(
+            "steps {} episodes {} grad steps {} success {:.0}% reward {:.1}{eval}",
             p.counters.env_steps,
             p.counters.episodes,
+            p.counters.grad_steps,
             p.success_rate_100 * 100.0,
             p.mean_reward_100,
-        ));
+        );
+        if plain && last_line.elapsed() >= Duration::from_secs(15) {
+            last_line = std::time::Instant::now();
+            eprintln!("[{:>6.0} s] {line}", p.counters.wall_s);
+        }
+        bar.set_message(line);
         !stop.load(Ordering::Relaxed)
     };
     trainer.run(budget, &mut on_progress)?;
@@ -290,4 +299,144 @@ pub fn eval(
         "policy": policy_dir.display().to_string(),
         "seed": seed,
     }))
+}
+
+/// What `mentalsim bench beta` was asked: the paper's §5.2 experiment.
+#[derive(Debug)]
+pub struct BetaArgs {
+    /// ROS map_server YAML of the place.
+    pub map: PathBuf,
+    /// Minutes per training.
+    pub minutes: f64,
+    /// Values of β1 = β2.
+    pub betas: Vec<f64>,
+    /// Seeds per value.
+    pub seeds: Vec<u64>,
+    /// Output directory: one run per (β, seed), the table and the plot.
+    pub out: PathBuf,
+    /// Training configuration shared by all runs.
+    pub config: Option<PathBuf>,
+    /// Held-out missions of each final evaluation.
+    pub eval_episodes: usize,
+}
+
+/// Trains one policy per (β, seed), then writes `beta.md` (final success per β: mean, spread
+/// over seeds) and `beta.png` (reward curves, mean over seeds ± their standard deviation).
+pub fn beta_experiment(args: &BetaArgs, stop: &AtomicBool) -> anyhow::Result<String> {
+    use learning::curves::{CurvePoint, plot_curves};
+    if args.betas.is_empty() || args.seeds.is_empty() {
+        anyhow::bail!("give at least one --betas value and one --seeds value");
+    }
+    if let Some(b) = args.betas.iter().find(|b| !(b.is_finite() && **b >= 0.0)) {
+        anyhow::bail!("--betas values must be finite and not negative, got {b}");
+    }
+    let mut table = String::from(
+        "| β1 = β2 | seed | success (held-out) | collision | episodes | env steps | wall s |\n|---|---|---|---|---|---|---|\n",
+    );
+    let mut summary =
+        String::from("\n| β1 = β2 | mean success | min | max | seeds |\n|---|---|---|---|---|\n");
+    let mut series = Vec::new();
+    for &beta in &args.betas {
+        let mut rates = Vec::new();
+        let mut curves: Vec<Vec<CurvePoint>> = Vec::new();
+        for &seed in &args.seeds {
+            if stop.load(Ordering::Relaxed) {
+                anyhow::bail!("stopped");
+            }
+            let out = args
+                .out
+                .join(format!("beta-{beta}"))
+                .join(format!("seed-{seed}"));
+            eprintln!(
+                "training β = {beta}, seed {seed} for {} min into {}",
+                args.minutes,
+                out.display()
+            );
+            let run = TrainArgs {
+                map: args.map.clone(),
+                minutes: args.minutes,
+                out: out.clone(),
+                config: args.config.clone(),
+                seed: Some(seed),
+                beta: Some(beta),
+                fresh: false,
+                eval_episodes: args.eval_episodes,
+                progress: false,
+            };
+            let json = train(&run, stop)?;
+            let rate = json["success_rate"].as_f64().unwrap_or(0.0);
+            rates.push(rate);
+            table.push_str(&format!(
+                "| {beta} | {seed} | {:.1}% | {:.1}% | {} | {} | {:.0} |\n",
+                rate * 100.0,
+                json["collision_rate"].as_f64().unwrap_or(0.0) * 100.0,
+                json["episodes"],
+                json["env_steps"],
+                json["wall_s"].as_f64().unwrap_or(0.0),
+            ));
+            let state = std::fs::read_to_string(out.join("curves.csv"))?;
+            curves.push(read_curve(&state));
+        }
+        #[allow(clippy::cast_precision_loss, reason = "a few seeds")]
+        let mean = rates.iter().sum::<f64>() / rates.len() as f64;
+        let lo = rates.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = rates.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        summary.push_str(&format!(
+            "| {beta} | {:.1}% | {:.1}% | {:.1}% | {} |\n",
+            mean * 100.0,
+            lo * 100.0,
+            hi * 100.0,
+            rates.len()
+        ));
+        // Mean over seeds of the moving average, band = spread over seeds.
+        let len = curves.iter().map(Vec::len).min().unwrap_or(0);
+        let points: Vec<CurvePoint> = (0..len)
+            .map(|i| {
+                let vals: Vec<f64> = curves.iter().map(|c| c[i].mean).collect();
+                #[allow(clippy::cast_precision_loss, reason = "a few seeds")]
+                let n = vals.len() as f64;
+                let m = vals.iter().sum::<f64>() / n;
+                let sd = (vals.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n).sqrt();
+                CurvePoint {
+                    mean: m,
+                    std: sd,
+                    ..curves[0][i]
+                }
+            })
+            .collect();
+        series.push((format!("β1 = β2 = {beta}"), points));
+    }
+    plot_curves(
+        &args.out.join("beta.png"),
+        &format!(
+            "Eq. 18 regulariser, {} (mean over seeds ± spread)",
+            map_name(&args.map)
+        ),
+        &series,
+    )?;
+    let text = format!(
+        "# β experiment (paper §5.2) on {}\n\n{} minutes per run; success on held-out missions (goals 2–10 m) with the exported policy.\n\n{table}{summary}",
+        map_name(&args.map),
+        args.minutes
+    );
+    std::fs::write(args.out.join("beta.md"), &text)?;
+    Ok(text)
+}
+
+/// The smoothed curve of a run's `curves.csv`.
+fn read_curve(csv: &str) -> Vec<learning::curves::CurvePoint> {
+    csv.lines()
+        .skip(1)
+        .filter_map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            Some(learning::curves::CurvePoint {
+                episode: f.first()?.parse().ok()?,
+                env_steps: f.get(1)?.parse().ok()?,
+                wall_s: f.get(2)?.parse().ok()?,
+                mean: f.get(6)?.parse().ok()?,
+                std: f.get(7)?.parse().ok()?,
+                success: f.get(8)?.parse().ok()?,
+            })
+        })
+        .collect()
 }

@@ -13,6 +13,8 @@ use std::time::{Duration, Instant};
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
+mod train;
+
 fn mentalsim() -> Command {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_mentalsim"));
     // The developer's own environment must not leak into the tests.

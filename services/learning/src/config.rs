@@ -90,6 +90,9 @@ pub struct TrainConfig {
     pub goal_distance: (f64, f64),
     /// Steps per episode before it is cut off (a truncation: the value is bootstrapped).
     pub max_episode_steps: u32,
+    /// Pay Eq. 1's r_closer in proportion to the progress made (see
+    /// `sim::RewardConfig::progress`); false is the paper's constant r_closer.
+    pub progress_reward: bool,
 }
 
 impl Default for TrainConfig {
@@ -108,6 +111,7 @@ impl Default for TrainConfig {
             threads: 1,
             goal_distance: (2.0, 10.0),
             max_episode_steps: 400,
+            progress_reward: true,
         }
     }
 }

@@ -82,6 +82,10 @@ impl TrainOptions {
         EnvConfig {
             goal_distance: self.config.goal_distance,
             max_steps: self.config.max_episode_steps,
+            reward: sim::RewardConfig {
+                progress: self.config.progress_reward,
+                ..self.env.reward
+            },
             ..self.env.clone()
         }
     }

@@ -315,3 +315,33 @@ fn a_plan_is_followed_waypoint_by_waypoint() {
         Err(EnvError::GoalBlocked { .. })
     ));
 }
+
+#[test]
+fn the_progress_reward_pays_for_distance_gained_and_charges_for_distance_lost() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let mut config = quiet();
+    config.reward.progress = true;
+    let mut env = NavEnv::new(world, config, 1).expect("env");
+    env.reset(Pose2::new(6.0, 4.0, 0.0), (9.0, 4.0))
+        .expect("reset");
+    let mut toward = Vec::new();
+    for _ in 0..10 {
+        toward.push(env.step(Action::new(0.8, 0.0)).reward);
+    }
+    assert!(
+        toward.iter().all(|r| *r > 0.0 && *r <= 0.5 + 1e-9),
+        "{toward:?}"
+    );
+    // At top speed straight at the goal a step earns the full r_closer.
+    assert!((toward[9] - 0.5).abs() < 1e-6, "{toward:?}");
+    env.reset(Pose2::new(6.0, 4.0, std::f64::consts::PI), (9.0, 4.0))
+        .expect("reset");
+    let mut away = Vec::new();
+    for _ in 0..10 {
+        away.push(env.step(Action::new(0.8, 0.0)).reward);
+    }
+    assert!(
+        away.iter().all(|r| *r < 0.0 && *r >= -0.5 - 1e-9),
+        "{away:?}"
+    );
+}

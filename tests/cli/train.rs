@@ -1,0 +1,174 @@
+//! `mentalsim train` and `mentalsim eval` on real shared maps, through the real binary.
+
+use std::path::PathBuf;
+
+use super::mentalsim;
+
+fn shared_map(folder: &str, yaml: &str) -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/maps/ros")
+        .join(folder)
+        .join(yaml);
+    if p.is_file() {
+        Some(p)
+    } else {
+        println!("skipped: the shared map {} is missing", p.display());
+        None
+    }
+}
+
+fn json(path: &std::path::Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+#[test]
+fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
+    let (Some(map), Some(other)) = (
+        shared_map("strands_tum_kitchen", "tum_kitchen.yaml"),
+        shared_map("aws_bookstore", "map.yaml"),
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    // A short run with small networks: the interface, not the policy's quality.
+    let config = dir.path().join("config.json");
+    std::fs::write(
+        &config,
+        r#"{"td3": {"hidden": [32, 32], "batch_size": 64}, "envs": 4, "random_steps": 200,
+            "eval_every": 400, "eval_episodes": 5, "max_episode_steps": 100}"#,
+    )
+    .unwrap();
+    let output = mentalsim()
+        .args(["train", "--minutes", "0.1", "--eval-episodes", "5", "--map"])
+        .arg(&map)
+        .arg("--out")
+        .arg(&out)
+        .arg("--config")
+        .arg(&config)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    for file in [
+        "policy.safetensors",
+        "policy.json",
+        "curves.csv",
+        "curves.png",
+        "evals.csv",
+        "eval.json",
+        "checkpoint/state.json",
+    ] {
+        assert!(out.join(file).is_file(), "{file} missing");
+    }
+    let eval = json(&out.join("eval.json"));
+    for key in [
+        "success_rate",
+        "collision_rate",
+        "episodes",
+        "env_steps",
+        "wall_s",
+    ] {
+        assert!(eval[key].is_number(), "eval.json lacks {key}: {eval}");
+    }
+    assert!(eval["env_steps"].as_u64().unwrap() > 0);
+    assert!((0.0..=1.0).contains(&eval["success_rate"].as_f64().unwrap()));
+    assert!(eval["wall_s"].as_f64().unwrap() >= 6.0);
+
+    // Running again with the same budget resumes and finds it already spent.
+    let again = mentalsim()
+        .args(["train", "--minutes", "0.1", "--eval-episodes", "5", "--map"])
+        .arg(&map)
+        .arg("--out")
+        .arg(&out)
+        .arg("--config")
+        .arg(&config)
+        .output()
+        .unwrap();
+    assert!(again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("resuming"));
+    let eval2 = json(&out.join("eval.json"));
+    assert_eq!(eval2["sessions"], 2);
+    assert_eq!(eval2["env_steps"], eval["env_steps"]);
+
+    let report = dir.path().join("eval-other.json");
+    let output = mentalsim()
+        .args(["eval", "--episodes", "6", "--policy"])
+        .arg(&out)
+        .arg("--map")
+        .arg(&other)
+        .arg("--json")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let e = json(&report);
+    assert_eq!(e["episodes"], 6);
+    for key in [
+        "success_rate",
+        "collision_rate",
+        "env_steps",
+        "wall_s",
+        "control_command_us",
+    ] {
+        assert!(e[key].is_number(), "{key}: {e}");
+    }
+}
+
+#[test]
+fn train_and_eval_refuse_bad_input_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["train", "--map", "/nonexistent/map.yaml", "--out"],
+            "does not exist",
+        ),
+        (
+            &["train", "--minutes=-1", "--map", "x.yaml", "--out"],
+            "--minutes",
+        ),
+        (
+            &["eval", "--map", "x.yaml", "--policy"],
+            "cannot load the policy",
+        ),
+        (
+            &[
+                "train",
+                "--map",
+                "x.yaml",
+                "--config",
+                "/nonexistent.json",
+                "--out",
+            ],
+            "cannot read the training configuration",
+        ),
+        (
+            &["eval", "--episodes", "0", "--map", "x.yaml", "--policy"],
+            "--episodes",
+        ),
+    ];
+    for (args, expected) in cases {
+        let output = mentalsim()
+            .args(args)
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        assert!(!output.status.success(), "{args:?} succeeded");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+    }
+    // An unknown key in the configuration is named.
+    let config = dir.path().join("bad.json");
+    std::fs::write(&config, r#"{"td3": {"gama": 0.9}}"#).unwrap();
+    let output = mentalsim()
+        .args(["train", "--map", "x.yaml", "--out", "o", "--config"])
+        .arg(&config)
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("gama"));
+}
