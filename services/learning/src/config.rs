@@ -93,6 +93,9 @@ pub struct TrainConfig {
     /// Pay Eq. 1's r_closer in proportion to the progress made (see
     /// `sim::RewardConfig::progress`); false is the paper's constant r_closer.
     pub progress_reward: bool,
+    /// Rewards are multiplied by this before they enter the replay buffer (the optimal policy
+    /// is unchanged; Eq. 1's ±100 would otherwise give the critics targets in the hundreds).
+    pub reward_scale: f64,
 }
 
 impl Default for TrainConfig {
@@ -112,6 +115,7 @@ impl Default for TrainConfig {
             goal_distance: (2.0, 10.0),
             max_episode_steps: 400,
             progress_reward: true,
+            reward_scale: 0.1,
         }
     }
 }
@@ -122,7 +126,7 @@ impl TrainConfig {
         let t = &self.td3;
         let pos = |v: f64| v.is_finite() && v > 0.0;
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
-        let checks: [(bool, &str); 17] = [
+        let checks: [(bool, &str); 18] = [
             (
                 !t.hidden.is_empty() && !t.hidden.contains(&0),
                 "td3.hidden: at least one layer, no zero width",
@@ -176,6 +180,7 @@ impl TrainConfig {
                 self.max_episode_steps > 0,
                 "max_episode_steps must be at least 1",
             ),
+            (pos(self.reward_scale), "reward_scale must be positive"),
         ];
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, msg)) => Err((*msg).to_owned()),

@@ -249,3 +249,43 @@ fn bad_settings_are_named() {
     let missing = tempfile::tempdir().unwrap();
     assert!(Trainer::resume(room(), small_options(missing.path())).is_err());
 }
+
+/// Learning, not just running: in an open room the success rate on held-out missions must beat
+/// the untrained policy's by a wide margin. Minutes of CPU in release; run by hand:
+/// `cargo test --release -p learning --test td3 learns_an_open_room -- --ignored --nocapture`.
+#[test]
+#[ignore = "minutes of training; run in release by hand"]
+fn learns_an_open_room() {
+    let world = room();
+    let dir = tempfile::tempdir().unwrap();
+    let mut options = TrainOptions::new(dir.path());
+    options.config = TrainConfig {
+        td3: Td3Config {
+            hidden: vec![64, 64],
+            actor_lr: 1e-3,
+            critic_lr: 1e-3,
+            ..Td3Config::default()
+        },
+        goal_distance: (1.0, 5.0),
+        eval_every: 10_000,
+        eval_episodes: 100,
+        checkpoint_every_s: 0.0,
+        ..TrainConfig::default()
+    };
+    let mut trainer = Trainer::new(world, options).unwrap();
+    let before = trainer.evaluate_and_record(0.0).unwrap().success_rate;
+    let steps: u64 = std::env::var("LEARN_STEPS").ok().and_then(|v| v.parse().ok()).unwrap_or(60_000);
+    trainer
+        .run(Budget { wall_s: None, env_steps: Some(steps) }, &mut |p| {
+            if p.counters.episodes % 50 == 0 {
+                eprintln!("{} steps, {} episodes, success {:.2}", p.counters.env_steps, p.counters.episodes, p.success_rate_100);
+            }
+            true
+        })
+        .unwrap();
+    for e in trainer.evals() {
+        println!("{} steps: success {:.2} collision {:.2} timeout {:.2}", e.env_steps, e.report.success_rate, e.report.collision_rate, e.report.timeout_rate);
+    }
+    let after = trainer.evals().last().unwrap().report.success_rate;
+    assert!(after >= before + 0.3, "success {before} -> {after}");
+}
