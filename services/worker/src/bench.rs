@@ -173,8 +173,8 @@ pub async fn run(options: &BenchOptions) -> Result<Vec<ThroughputReport>, BenchE
         let db = JobDatabase::connect_with(&url, pool)
             .await
             .map_err(QueueError::from)?;
-        let report = queue_throughput(&Queue::new(db.clone()), options.jobs, options.concurrency)
-            .await;
+        let report =
+            queue_throughput(&Queue::new(db.clone()), options.jobs, options.concurrency).await;
         db.close().await;
         report
     }

@@ -518,7 +518,9 @@ impl Queue {
             return Err(QueueError::Invalid("kind is empty".to_owned()));
         }
         if job.max_attempts == 0 {
-            return Err(QueueError::Invalid("max_attempts must be at least 1".to_owned()));
+            return Err(QueueError::Invalid(
+                "max_attempts must be at least 1".to_owned(),
+            ));
         }
         let id = Uuid::now_v7();
         let now = self.now_ms();
@@ -737,7 +739,9 @@ impl Queue {
     ) -> Result<(WriteAck, i64), QueueError> {
         let now = self.now_ms();
         let sql = if blob.is_some() {
-            format!("UPDATE jobs SET {set}, checkpoint_blob = $5 WHERE {FENCE} RETURNING cancel_requested")
+            format!(
+                "UPDATE jobs SET {set}, checkpoint_blob = $5 WHERE {FENCE} RETURNING cancel_requested"
+            )
         } else {
             format!("UPDATE jobs SET {set} WHERE {FENCE} RETURNING cancel_requested")
         };
@@ -1017,15 +1021,13 @@ impl Queue {
     pub async fn expire_lease(&self, id: Uuid) -> Result<bool, QueueError> {
         let past = self.now_ms().saturating_sub(1);
         let done = on_pool!(self, |pool, pg| {
-            sqlx::query(
-                "UPDATE jobs SET lease_expires_ms = $2 WHERE id = $1 AND state = 'running'",
-            )
-            .bind(id.to_string())
-            .bind(past)
-            .execute(pool)
-            .await
-            .map_err(|e| self.db_err(e))?
-            .rows_affected()
+            sqlx::query("UPDATE jobs SET lease_expires_ms = $2 WHERE id = $1 AND state = 'running'")
+                .bind(id.to_string())
+                .bind(past)
+                .execute(pool)
+                .await
+                .map_err(|e| self.db_err(e))?
+                .rows_affected()
         });
         Ok(done > 0)
     }

@@ -409,7 +409,11 @@ impl Worker {
                     Err(_) => break,
                 },
             };
-            match self.queue.claim(&self.config.id, &kinds, self.config.lease).await {
+            match self
+                .queue
+                .claim(&self.config.id, &kinds, self.config.lease)
+                .await
+            {
                 Ok(Some(claimed)) => {
                     report.claimed += 1;
                     let Some(handler) = self.handlers.get(&claimed.job.kind).cloned() else {
@@ -579,11 +583,13 @@ async fn run_job(
     let reason = ctx.stop_reason();
     let job = lease.job_id;
     let outcome = match result {
-        Ok(Ok(value)) => record(&queue, &lease, |q, l| {
-            let value = value.clone();
-            async move { q.complete(&l, &value).await.map(|()| Outcome::Succeeded) }
-        })
-        .await,
+        Ok(Ok(value)) => {
+            record(&queue, &lease, |q, l| {
+                let value = value.clone();
+                async move { q.complete(&l, &value).await.map(|()| Outcome::Succeeded) }
+            })
+            .await
+        }
         Ok(Err(JobError::Queue(QueueError::LeaseLost { .. }))) => Outcome::Lost,
         Ok(Err(_)) if reason == Some(StopReason::LeaseLost) => Outcome::Lost,
         Ok(Err(JobError::Fatal(message))) => fail(&queue, &lease, message, false).await,

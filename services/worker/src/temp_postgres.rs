@@ -103,10 +103,8 @@ impl TempPostgres {
     pub fn start(durability: Durability) -> Result<Self, TempPostgresError> {
         let bin = bin_dir().ok_or(TempPostgresError::NotInstalled)?;
         let as_postgres = running_as_root();
-        let dir = std::env::temp_dir().join(format!(
-            "mentalsim-pg-{}",
-            uuid::Uuid::new_v4().simple()
-        ));
+        let dir =
+            std::env::temp_dir().join(format!("mentalsim-pg-{}", uuid::Uuid::new_v4().simple()));
         std::fs::create_dir(&dir).map_err(|e| failed(format!("{}: {e}", dir.display())))?;
         let mut cluster = Self {
             dir: dir.clone(),
@@ -125,7 +123,16 @@ impl TempPostgres {
         }
         let data = dir.join("data");
         let out = command(as_postgres, &bin.join("initdb"))
-            .args(["-U", "postgres", "--auth=trust", "-E", "UTF8", "--no-locale", "--no-sync", "-D"])
+            .args([
+                "-U",
+                "postgres",
+                "--auth=trust",
+                "-E",
+                "UTF8",
+                "--no-locale",
+                "--no-sync",
+                "-D",
+            ])
             .arg(&data)
             .stdin(Stdio::null())
             .output()
@@ -185,7 +192,8 @@ impl TempPostgres {
                 Some(Err(_)) => true,
             };
             if exited || Instant::now() > deadline {
-                let log = std::fs::read_to_string(self.dir.join("postgres.log")).unwrap_or_default();
+                let log =
+                    std::fs::read_to_string(self.dir.join("postgres.log")).unwrap_or_default();
                 return Err(failed(format!("postgres did not start: {}", log.trim())));
             }
             std::thread::sleep(Duration::from_millis(100));

@@ -1,6 +1,8 @@
 //! The queue conformance suite: every case runs against SQLite and against PostgreSQL (a
 //! temporary cluster), through the same public API, and must behave the same.
 
+#![allow(clippy::unwrap_used)] // reason: tests panic on failure
+
 mod common;
 
 use std::collections::HashMap;
@@ -18,6 +20,9 @@ use worker::{
 };
 
 const LEASE: Duration = Duration::from_secs(30);
+
+/// Where each handler run stopped, and why.
+type Seen = Arc<Mutex<Vec<(Option<StopReason>, i64)>>>;
 
 macro_rules! backend {
     ($backend:ident, $setup:path, [$($case:ident),* $(,)?]) => {
@@ -137,7 +142,11 @@ async fn claim_order_and_delay(f: Fixture) {
     let q = &f.queue;
     let low = q.enqueue(NewJob::new("k", json!(1))).await.unwrap();
     let later = q
-        .enqueue(NewJob::new("k", json!(2)).priority(5).delay(Duration::from_secs(60)))
+        .enqueue(
+            NewJob::new("k", json!(2))
+                .priority(5)
+                .delay(Duration::from_secs(60)),
+        )
         .await
         .unwrap();
     let high = q
@@ -162,7 +171,12 @@ async fn claim_order_and_delay(f: Fixture) {
 async fn stale_lease_writes_are_rejected(f: Fixture) {
     let q = &f.queue;
     let id = q.enqueue(NewJob::new("train", json!({}))).await.unwrap();
-    let old = q.claim("w1", &["train"], LEASE).await.unwrap().unwrap().lease;
+    let old = q
+        .claim("w1", &["train"], LEASE)
+        .await
+        .unwrap()
+        .unwrap()
+        .lease;
     q.report_progress(&old, &json!({"step": 1})).await.unwrap();
     f.clock.advance(LEASE + Duration::from_millis(1));
     let new = q.claim("w2", &["train"], LEASE).await.unwrap().unwrap();
@@ -171,14 +185,18 @@ async fn stale_lease_writes_are_rejected(f: Fixture) {
     assert!(new.lease.token > old.token);
     // The new owner sees the old owner's last progress, and writes its own.
     assert_eq!(new.job.progress, Some(json!({"step": 1})));
-    q.report_progress(&new.lease, &json!({"step": 7})).await.unwrap();
+    q.report_progress(&new.lease, &json!({"step": 7}))
+        .await
+        .unwrap();
     q.save_checkpoint(&new.lease, &Checkpoint::new(json!({"step": 5})))
         .await
         .unwrap();
 
     // Every write under the old lease is rejected with a typed error, and changes nothing.
     assert!(is_lease_lost(q.heartbeat(&old, LEASE).await));
-    assert!(is_lease_lost(q.report_progress(&old, &json!({"step": 99})).await));
+    assert!(is_lease_lost(
+        q.report_progress(&old, &json!({"step": 99})).await
+    ));
     assert!(is_lease_lost(
         q.save_checkpoint(&old, &Checkpoint::new(json!({"step": 99})))
             .await
@@ -223,7 +241,10 @@ async fn expired_lease_is_reclaimed_as_an_attempt(f: Fixture) {
     assert_eq!(job.heartbeat_ms, Some(START_MS + 20_000));
     f.clock.advance(Duration::from_millis(5_001));
     let second = q.claim("w2", &["train"], LEASE).await.unwrap().unwrap();
-    assert_eq!((second.lease.attempt, second.lease.owner.as_str()), (2, "w2"));
+    assert_eq!(
+        (second.lease.attempt, second.lease.owner.as_str()),
+        (2, "w2")
+    );
 
     // The last attempt's lease expires too: the job fails instead of running a third time.
     f.clock.advance(LEASE + Duration::from_millis(1));
@@ -258,13 +279,19 @@ async fn retries_back_off_exponentially_up_to_the_cap(f: Fixture) {
     for (attempt, delay_s) in [(1, 10), (2, 20), (3, 25)] {
         let c = q.claim("w", &["k"], LEASE).await.unwrap().unwrap();
         assert_eq!(c.lease.attempt, attempt);
-        let outcome = q.fail(&c.lease, &format!("boom {attempt}"), true).await.unwrap();
+        let outcome = q
+            .fail(&c.lease, &format!("boom {attempt}"), true)
+            .await
+            .unwrap();
         let due = now + delay_s * 1000;
         assert_eq!(outcome, FailOutcome::Retrying { run_after_ms: due });
         let job = q.get(id).await.unwrap().unwrap();
         assert_eq!(job.state, JobState::Queued);
         assert_eq!(job.run_after_ms, due);
-        assert_eq!(job.last_error.as_deref(), Some(format!("boom {attempt}").as_str()));
+        assert_eq!(
+            job.last_error.as_deref(),
+            Some(format!("boom {attempt}").as_str())
+        );
         assert_eq!(job.finished_ms, None);
         f.clock.set(due - 1);
         assert!(q.claim("w", &["k"], LEASE).await.unwrap().is_none());
@@ -309,10 +336,16 @@ async fn cancellation(f: Fixture) {
     assert!(!q.heartbeat(&c.lease, LEASE).await.unwrap().cancel_requested);
     assert_eq!(q.request_cancel(running).await.unwrap(), JobState::Running);
     assert!(q.heartbeat(&c.lease, LEASE).await.unwrap().cancel_requested);
-    let (ack, _) = q.report_progress(&c.lease, &json!({"step": 3})).await.unwrap();
+    let (ack, _) = q
+        .report_progress(&c.lease, &json!({"step": 3}))
+        .await
+        .unwrap();
     assert!(ack.cancel_requested);
     q.mark_cancelled(&c.lease).await.unwrap();
-    assert_eq!(q.get(running).await.unwrap().unwrap().state, JobState::Cancelled);
+    assert_eq!(
+        q.get(running).await.unwrap().unwrap().state,
+        JobState::Cancelled
+    );
 
     // Finished jobs stay as they are; unknown ids are an error.
     assert_eq!(q.request_cancel(queued).await.unwrap(), JobState::Cancelled);
@@ -341,7 +374,11 @@ async fn cancellation(f: Fixture) {
                 assert!(q.claim("w2", &["k"], LEASE).await.unwrap().is_none());
             }
         }
-        assert_eq!(q.get(id).await.unwrap().unwrap().state, JobState::Cancelled, "{how}");
+        assert_eq!(
+            q.get(id).await.unwrap().unwrap().state,
+            JobState::Cancelled,
+            "{how}"
+        );
     }
 }
 
@@ -412,7 +449,10 @@ async fn retention_deletes_old_finished_jobs_and_their_events(f: Fixture) {
         assert!(q.get(kept).await.unwrap().is_some());
         assert!(!q.events(kept, 0, 10).await.unwrap().is_empty());
     }
-    assert_eq!(q.purge_finished(Duration::from_secs(3600)).await.unwrap(), 0);
+    assert_eq!(
+        q.purge_finished(Duration::from_secs(3600)).await.unwrap(),
+        0
+    );
     assert_eq!(q.purge_finished(Duration::ZERO).await.unwrap(), 0);
     f.clock.advance(Duration::from_millis(1));
     assert_eq!(q.purge_finished(Duration::ZERO).await.unwrap(), 1);
@@ -442,13 +482,27 @@ async fn events_are_ordered_and_resumable(f: Fixture) {
     let kinds: Vec<&str> = events.iter().map(|e| e.kind.as_str()).collect();
     assert_eq!(
         kinds,
-        ["state", "state", "progress", "progress", "progress", "progress", "progress", "checkpoint", "state"]
+        [
+            "state",
+            "state",
+            "progress",
+            "progress",
+            "progress",
+            "progress",
+            "progress",
+            "checkpoint",
+            "state"
+        ]
     );
     assert_eq!(events[0].data["state"], "queued");
     assert_eq!(events[1].data["state"], "running");
     assert_eq!(events[8].data["state"], "succeeded");
     assert!(events.windows(2).all(|w| w[0].id < w[1].id));
-    assert!(events.windows(2).all(|w| w[0].created_ms <= w[1].created_ms));
+    assert!(
+        events
+            .windows(2)
+            .all(|w| w[0].created_ms <= w[1].created_ms)
+    );
     assert!(events.iter().all(|e| e.job_id == id));
     let steps: Vec<i64> = events[2..7]
         .iter()
@@ -459,7 +513,10 @@ async fn events_are_ordered_and_resumable(f: Fixture) {
         progress_ids,
         events[2..7].iter().map(|e| e.id).collect::<Vec<_>>()
     );
-    assert_eq!(q.get(id).await.unwrap().unwrap().progress.unwrap()["step"], 5);
+    assert_eq!(
+        q.get(id).await.unwrap().unwrap().progress.unwrap()["step"],
+        5
+    );
 
     // Resume after the third progress event (Last-Event-ID), in pages.
     let resumed = q.events(id, progress_ids[2], 2).await.unwrap();
@@ -545,7 +602,11 @@ async fn workers_run_every_job_exactly_once(f: Fixture) {
     let q = f.system_queue();
     let mut ids = Vec::new();
     for i in 0..JOBS {
-        ids.push(q.enqueue(NewJob::new("count", json!({"i": i}))).await.unwrap());
+        ids.push(
+            q.enqueue(NewJob::new("count", json!({"i": i})))
+                .await
+                .unwrap(),
+        );
     }
     let runs: Arc<Mutex<HashMap<Uuid, u32>>> = Arc::default();
     let shutdown = CancellationToken::new();
@@ -576,7 +637,7 @@ async fn workers_run_every_job_exactly_once(f: Fixture) {
         claimed += report.claimed;
     }
     assert_eq!((succeeded, claimed), (JOBS as u64, JOBS as u64));
-    let runs = runs.lock().unwrap();
+    let runs = runs.lock().unwrap().clone();
     assert_eq!(runs.len(), JOBS);
     assert!(runs.values().all(|&n| n == 1), "{runs:?}");
     for (i, id) in ids.iter().enumerate() {
@@ -640,10 +701,7 @@ async fn runner_records_outcomes(f: Fixture) {
     wait_until("all finished", || finished(&q, 5)).await;
     shutdown.cancel();
     let report = run.await.unwrap();
-    assert_eq!(
-        (report.succeeded, report.failed, report.retried),
-        (2, 3, 3)
-    );
+    assert_eq!((report.succeeded, report.failed, report.retried), (2, 3, 3));
 
     let job = |id| {
         let q = q.clone();
@@ -667,15 +725,14 @@ async fn runner_records_outcomes(f: Fixture) {
 
 /// Counts steps until `target`, checkpointing every 5 steps; stops on the token after saving
 /// a checkpoint. Resumes from the last checkpoint.
-fn counting_handler(
-    step: Duration,
-    seen: Arc<Mutex<Vec<(Option<StopReason>, i64)>>>,
-) -> impl worker::JobHandler {
+fn counting_handler(step: Duration, seen: Seen) -> impl worker::JobHandler {
     handler_fn(move |ctx: JobContext| {
         let seen = seen.clone();
         async move {
             let target = ctx.payload()["target"].as_i64().unwrap_or(0);
-            let start = ctx.checkpoint().map_or(0, |c| c.data["i"].as_i64().unwrap_or(0));
+            let start = ctx
+                .checkpoint()
+                .map_or(0, |c| c.data["i"].as_i64().unwrap_or(0));
             let mut i = start;
             let result: Result<(), JobError> = async {
                 while i < target {
@@ -714,14 +771,21 @@ async fn runner_cancel_request_stops_the_handler(f: Fixture) {
         .await
         .unwrap();
     let seen = Arc::default();
-    let worker = Worker::new(q.clone(), fast_config("w"))
-        .register("count", counting_handler(Duration::from_millis(5), Arc::clone(&seen)));
+    let worker = Worker::new(q.clone(), fast_config("w")).register(
+        "count",
+        counting_handler(Duration::from_millis(5), Arc::clone(&seen)),
+    );
     let shutdown = CancellationToken::new();
     let run = tokio::spawn(worker.run(shutdown.clone()));
     wait_until("progress", || {
         let q = q.clone();
         async move {
-            q.get(id).await.unwrap().unwrap().progress.is_some_and(|p| p["i"].as_i64() > Some(3))
+            q.get(id)
+                .await
+                .unwrap()
+                .unwrap()
+                .progress
+                .is_some_and(|p| p["i"].as_i64() > Some(3))
         }
     })
     .await;
@@ -747,15 +811,22 @@ async fn runner_shutdown_releases_and_another_worker_resumes(f: Fixture) {
         .enqueue(NewJob::new("count", json!({"target": 60})).max_attempts(1))
         .await
         .unwrap();
-    let seen: Arc<Mutex<Vec<(Option<StopReason>, i64)>>> = Arc::default();
-    let first = Worker::new(q.clone(), fast_config("first"))
-        .register("count", counting_handler(Duration::from_millis(10), seen.clone()));
+    let seen: Seen = Arc::default();
+    let first = Worker::new(q.clone(), fast_config("first")).register(
+        "count",
+        counting_handler(Duration::from_millis(10), seen.clone()),
+    );
     let shutdown = CancellationToken::new();
     let run = tokio::spawn(first.run(shutdown.clone()));
     wait_until("progress", || {
         let q = q.clone();
         async move {
-            q.get(id).await.unwrap().unwrap().progress.is_some_and(|p| p["i"].as_i64() >= Some(12))
+            q.get(id)
+                .await
+                .unwrap()
+                .unwrap()
+                .progress
+                .is_some_and(|p| p["i"].as_i64() >= Some(12))
         }
     })
     .await;
@@ -773,8 +844,10 @@ async fn runner_shutdown_releases_and_another_worker_resumes(f: Fixture) {
     assert_eq!((job.state, job.attempt), (JobState::Queued, 0));
     assert_eq!(job.checkpoint.unwrap().data["i"], stopped_at);
 
-    let second = Worker::new(q.clone(), fast_config("second"))
-        .register("count", counting_handler(Duration::from_millis(1), seen.clone()));
+    let second = Worker::new(q.clone(), fast_config("second")).register(
+        "count",
+        counting_handler(Duration::from_millis(1), seen.clone()),
+    );
     let shutdown = CancellationToken::new();
     let run = tokio::spawn(second.run(shutdown.clone()));
     wait_until("finished", || finished(&q, 1)).await;
@@ -794,9 +867,11 @@ async fn runner_stops_a_handler_whose_lease_was_taken(f: Fixture) {
         .enqueue(NewJob::new("count", json!({"target": 100_000})))
         .await
         .unwrap();
-    let seen: Arc<Mutex<Vec<(Option<StopReason>, i64)>>> = Arc::default();
-    let worker = Worker::new(q.clone(), fast_config("slow"))
-        .register("count", counting_handler(Duration::from_millis(5), seen.clone()));
+    let seen: Seen = Arc::default();
+    let worker = Worker::new(q.clone(), fast_config("slow")).register(
+        "count",
+        counting_handler(Duration::from_millis(5), seen.clone()),
+    );
     let shutdown = CancellationToken::new();
     let run = tokio::spawn(worker.run(shutdown.clone()));
     wait_until("running", || {

@@ -5,6 +5,8 @@
 //! that the job finishes with the right sum, resumed from the last checkpoint rather than from
 //! zero. On SQLite and on PostgreSQL.
 
+#![allow(clippy::unwrap_used)] // reason: tests panic on failure
+
 mod common;
 
 use std::process::{Child, Command, Stdio};
@@ -97,7 +99,10 @@ async fn crash_child() {
             let target = ctx.payload()["target"].as_i64().unwrap();
             let step = Duration::from_millis(ctx.payload()["step_ms"].as_u64().unwrap());
             let (mut i, mut sum) = ctx.checkpoint().map_or((0, 0), |c| {
-                (c.data["i"].as_i64().unwrap(), c.data["sum"].as_i64().unwrap())
+                (
+                    c.data["i"].as_i64().unwrap(),
+                    c.data["sum"].as_i64().unwrap(),
+                )
             });
             let resumed_from = i;
             while i < target {
@@ -124,7 +129,13 @@ async fn crash_child() {
 
 fn spawn_child(url: &str, job: Uuid) -> Child {
     Command::new(std::env::current_exe().unwrap())
-        .args(["--exact", "crash_child", "--ignored", "--nocapture", "--test-threads=1"])
+        .args([
+            "--exact",
+            "crash_child",
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .env("WORKER_CRASH_CHILD_URL", url)
         .env("WORKER_CRASH_CHILD_JOB", job.to_string())
         .stdin(Stdio::null())
@@ -189,17 +200,23 @@ async fn sigkill_mid_job_resumes_from_the_last_checkpoint(
     first.wait().unwrap();
 
     let job = queue.get(id).await.unwrap().unwrap();
-    assert_eq!(job.state, JobState::Running, "the dead worker still holds the lease");
+    assert_eq!(
+        job.state,
+        JobState::Running,
+        "the dead worker still holds the lease"
+    );
     let checkpoint = checkpoint_i(&job);
     assert!((20..TARGET).contains(&checkpoint), "{job:?}");
     let progress = job.progress.as_ref().unwrap()["i"].as_i64().unwrap();
     assert!(progress >= checkpoint);
     // Its lease is still valid: nobody can take the job yet...
-    assert!(queue
-        .claim("probe", &["sum"], Duration::from_secs(1))
-        .await
-        .unwrap()
-        .is_none());
+    assert!(
+        queue
+            .claim("probe", &["sum"], Duration::from_secs(1))
+            .await
+            .unwrap()
+            .is_none()
+    );
     // ...until it expires (here at once, as an operator would).
     assert!(queue.expire_lease(id).await.unwrap());
 
@@ -222,7 +239,9 @@ async fn sigterm_releases_the_job_to_the_next_process(
     let (queue, id) = enqueue(&url).await;
     let mut first = spawn_child(&url, id);
     wait_for(&queue, id, "progress past step 12", &mut first, |j| {
-        j.progress.as_ref().is_some_and(|p| p["i"].as_i64() >= Some(12))
+        j.progress
+            .as_ref()
+            .is_some_and(|p| p["i"].as_i64() >= Some(12))
     })
     .await;
     let status = Command::new("kill")

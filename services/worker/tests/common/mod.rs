@@ -4,7 +4,7 @@
 //! watchdog when the binary exits), one fresh database per test. When the PostgreSQL binaries
 //! are missing the PostgreSQL tests print why and pass, unless `MENTALSIM_REQUIRE_POSTGRES=1`
 //! (set by `scripts/test`, whose setup installs PostgreSQL), which makes them fail instead.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::unwrap_used)] // reason: shared by several test binaries; tests panic on failure
 
 use std::sync::{Arc, OnceLock};
 
