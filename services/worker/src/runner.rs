@@ -414,6 +414,14 @@ impl Worker {
                 .claim(&self.config.id, &kinds, self.config.lease)
                 .await
             {
+                Ok(Some(claimed)) if shutdown.is_cancelled() => {
+                    // Shutdown began while the claim was in flight (it may even have picked up
+                    // a job another handler just released): give it back unrun.
+                    if let Err(e) = self.queue.release(&claimed.lease).await {
+                        tracing::warn!(job = %claimed.job.id, error = %e, "releasing a job claimed during shutdown failed; its lease will expire");
+                    }
+                    break;
+                }
                 Ok(Some(claimed)) => {
                     report.claimed += 1;
                     let Some(handler) = self.handlers.get(&claimed.job.kind).cloned() else {

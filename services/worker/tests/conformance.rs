@@ -832,7 +832,11 @@ async fn runner_shutdown_releases_and_another_worker_resumes(f: Fixture) {
     .await;
     shutdown.cancel();
     let report = run.await.unwrap();
-    assert_eq!((report.released, report.failed), (1, 0));
+    assert_eq!(
+        (report.released, report.failed),
+        (1, 0),
+        "{report:?} {seen:?}"
+    );
     let stopped_at = {
         let seen = seen.lock().unwrap();
         assert_eq!(seen.len(), 1);
@@ -868,7 +872,12 @@ async fn runner_stops_a_handler_whose_lease_was_taken(f: Fixture) {
         .await
         .unwrap();
     let seen: Seen = Arc::default();
-    let worker = Worker::new(q.clone(), fast_config("slow")).register(
+    // One job at a time, so this worker cannot reclaim the expired lease itself.
+    let config = WorkerConfig {
+        concurrency: 1,
+        ..fast_config("slow")
+    };
+    let worker = Worker::new(q.clone(), config).register(
         "count",
         counting_handler(Duration::from_millis(5), seen.clone()),
     );
@@ -879,9 +888,14 @@ async fn runner_stops_a_handler_whose_lease_was_taken(f: Fixture) {
         async move { q.get(id).await.unwrap().unwrap().progress.is_some() }
     })
     .await;
-    // Another worker takes the job over (as if the first one had stalled past its lease).
-    assert!(q.expire_lease(id).await.unwrap());
-    let thief = q.claim("thief", &["count"], LEASE).await.unwrap().unwrap();
+    // Another worker takes the job over (as if the first one had stalled past its lease). The
+    // first worker's heartbeat may renew the expired lease before the thief claims: retry.
+    let thief = loop {
+        assert!(q.expire_lease(id).await.unwrap());
+        if let Some(thief) = q.claim("thief", &["count"], LEASE).await.unwrap() {
+            break thief;
+        }
+    };
     wait_until("the first handler stopped", || {
         let seen = seen.clone();
         async move { !seen.lock().unwrap().is_empty() }
