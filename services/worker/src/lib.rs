@@ -1,7 +1,29 @@
 //! Simulation worker service: durable job queue, job runners, plan endpoint, jobs API.
 //!
 //! Only this crate knows the job database.
+//!
+//! - [`JobDatabase`]: connection and migrations, SQLite (default) or PostgreSQL by URL.
+//! - [`Queue`]: enqueue, claim (leases with fencing tokens), heartbeats, progress events,
+//!   checkpoints, outcomes with capped exponential backoff, cancellation, retention.
+//! - [`Worker`]: claims jobs for the [`JobHandler`]s registered by kind and runs them with
+//!   heartbeats, cooperative cancellation and graceful shutdown.
+//! - [`temp_postgres`]: a throw-away PostgreSQL cluster for tests and benchmarks.
+//! - [`bench`]: the queue throughput benchmark.
 
+pub mod bench;
+pub mod clock;
 pub mod database;
+pub mod queue;
+pub mod runner;
+pub mod temp_postgres;
 
-pub use database::{DatabaseError, JobDatabase};
+pub use clock::{Clock, ManualClock, SystemClock};
+pub use database::{Backend, DatabaseError, DatabaseStatus, JobDatabase, PoolSize};
+pub use queue::{
+    Backoff, Checkpoint, Claimed, FailOutcome, Job, JobEvent, JobState, Lease, NewJob, Queue,
+    QueueError, QueueStats, WriteAck,
+};
+pub use runner::{
+    FnHandler, JobContext, JobError, JobHandler, StopReason, Worker, WorkerConfig, WorkerReport,
+    handler_fn,
+};

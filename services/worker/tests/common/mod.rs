@@ -1,0 +1,79 @@
+//! Test fixtures: a fresh job database on each backend.
+//!
+//! PostgreSQL: one temporary cluster per test binary (started on first use, stopped by its
+//! watchdog when the binary exits), one fresh database per test. When the PostgreSQL binaries
+//! are missing the PostgreSQL tests print why and pass, unless `MENTALSIM_REQUIRE_POSTGRES=1`
+//! (set by `scripts/test`, whose setup installs PostgreSQL), which makes them fail instead.
+#![allow(dead_code, clippy::unwrap_used)] // reason: shared by several test binaries; tests panic on failure
+
+use std::sync::{Arc, OnceLock};
+
+use worker::temp_postgres::{Durability, TempPostgres, TempPostgresError};
+use worker::{JobDatabase, ManualClock, Queue};
+
+pub const START_MS: i64 = 1_700_000_000_000;
+
+pub struct Fixture {
+    pub db: JobDatabase,
+    pub url: String,
+    pub clock: Arc<ManualClock>,
+    /// A queue on the manual clock: time moves only by `clock.advance`.
+    pub queue: Queue,
+    _dir: Option<tempfile::TempDir>,
+}
+
+impl Fixture {
+    async fn new(url: String, dir: Option<tempfile::TempDir>) -> Self {
+        let db = JobDatabase::connect(&url).await.unwrap();
+        let clock = Arc::new(ManualClock::new(START_MS));
+        let queue = Queue::new(db.clone()).with_clock(clock.clone());
+        Self {
+            db,
+            url,
+            clock,
+            queue,
+            _dir: dir,
+        }
+    }
+
+    /// A queue on the system clock, for tests that run real workers.
+    pub fn system_queue(&self) -> Queue {
+        Queue::new(self.db.clone())
+    }
+}
+
+pub async fn sqlite() -> Option<Fixture> {
+    let dir = tempfile::tempdir().unwrap();
+    let url = format!("sqlite://{}", dir.path().join("jobs.sqlite").display());
+    Some(Fixture::new(url, Some(dir)).await)
+}
+
+fn cluster() -> Option<&'static TempPostgres> {
+    static CLUSTER: OnceLock<Option<TempPostgres>> = OnceLock::new();
+    CLUSTER
+        .get_or_init(|| match TempPostgres::start(Durability::Fast) {
+            Ok(pg) => Some(pg),
+            Err(TempPostgresError::NotInstalled)
+                if std::env::var("MENTALSIM_REQUIRE_POSTGRES").as_deref() != Ok("1") =>
+            {
+                eprintln!(
+                    "SKIPPED: PostgreSQL tests: binaries not found (scripts/setup installs postgresql)"
+                );
+                None
+            }
+            Err(e) => panic!("{e}"),
+        })
+        .as_ref()
+}
+
+/// A fresh database in the shared temporary cluster, or `None` (skip) without PostgreSQL.
+pub async fn postgres_url() -> Option<String> {
+    let pg = tokio::task::spawn_blocking(cluster).await.unwrap()?;
+    let name = format!("t_{}", uuid::Uuid::new_v4().simple());
+    Some(pg.create_database(&name).await.unwrap())
+}
+
+pub async fn postgres() -> Option<Fixture> {
+    let url = postgres_url().await?;
+    Some(Fixture::new(url, None).await)
+}
