@@ -36,6 +36,12 @@ pub struct Td3Config {
     pub beta1: f64,
     /// Eq. 18's β2: pushes the angular speed towards zero.
     pub beta2: f64,
+    /// Rewards are multiplied by this before the critics see them (Eq. 1's ±100 would give
+    /// targets in the hundreds; the optimal policy is unchanged). Eq. 18's β terms are
+    /// multiplied by it too, so that β keeps the paper's meaning relative to unscaled returns:
+    /// without that, β = 1 with rewards scaled by 0.1 acts like β = 10 and the actor learns to
+    /// drive straight at full speed into walls.
+    pub reward_scale: f64,
 }
 
 impl Default for Td3Config {
@@ -53,6 +59,7 @@ impl Default for Td3Config {
             exploration_noise: 0.1,
             beta1: 1.0,
             beta2: 1.0,
+            reward_scale: 0.1,
         }
     }
 }
@@ -93,9 +100,6 @@ pub struct TrainConfig {
     /// Pay Eq. 1's r_closer in proportion to the progress made (see
     /// `sim::RewardConfig::progress`); false is the paper's constant r_closer.
     pub progress_reward: bool,
-    /// Rewards are multiplied by this before they enter the replay buffer (the optimal policy
-    /// is unchanged; Eq. 1's ±100 would otherwise give the critics targets in the hundreds).
-    pub reward_scale: f64,
 }
 
 impl Default for TrainConfig {
@@ -115,7 +119,6 @@ impl Default for TrainConfig {
             goal_distance: (2.0, 10.0),
             max_episode_steps: 400,
             progress_reward: true,
-            reward_scale: 0.1,
         }
     }
 }
@@ -180,7 +183,7 @@ impl TrainConfig {
                 self.max_episode_steps > 0,
                 "max_episode_steps must be at least 1",
             ),
-            (pos(self.reward_scale), "reward_scale must be positive"),
+            (pos(t.reward_scale), "td3.reward_scale must be positive"),
         ];
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, msg)) => Err((*msg).to_owned()),

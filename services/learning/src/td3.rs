@@ -368,8 +368,8 @@ impl Learner {
             let linear = pi.narrow(1, 0, 1);
             let angular = pi.narrow(1, 1, 1);
             let objective = q.mean(Kind::Float)
-                - (linear - 1.0).square().mean(Kind::Float) * c.beta1
-                - angular.square().mean(Kind::Float) * c.beta2;
+                - (linear - 1.0).square().mean(Kind::Float) * (c.beta1 * c.reward_scale)
+                - angular.square().mean(Kind::Float) * (c.beta2 * c.reward_scale);
             let actor_loss = -objective;
             self.actor_opt.zero_grad();
             actor_loss.backward();

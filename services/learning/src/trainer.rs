@@ -456,7 +456,7 @@ impl Trainer {
                 self.buffer.push(
                     &self.inputs[i * dim..(i + 1) * dim],
                     a,
-                    (r.reward * c.reward_scale) as f32,
+                    (r.reward * c.td3.reward_scale) as f32,
                     &next,
                     terminal,
                 );
