@@ -65,32 +65,7 @@ pub enum Command {
     },
     /// Train a navigation policy (TD3) in the mental simulation of a ROS map; resumes the run
     /// checkpointed in --out unless --fresh.
-    Train {
-        /// The ROS map_server YAML of the place to train in.
-        #[arg(long)]
-        map: PathBuf,
-        /// Wall-clock budget in minutes (counting earlier sessions of a resumed run).
-        #[arg(long, default_value_t = 10.0)]
-        minutes: f64,
-        /// Where the exported policy, curves, checkpoint and eval.json go.
-        #[arg(long)]
-        out: PathBuf,
-        /// Training configuration (JSON; any subset of the keys, defaults for the rest).
-        #[arg(long)]
-        config: Option<PathBuf>,
-        /// Seed of the run.
-        #[arg(long)]
-        seed: Option<u64>,
-        /// β1 = β2 of Eq. 18.
-        #[arg(long)]
-        beta: Option<f64>,
-        /// Start from scratch even if --out holds a checkpoint.
-        #[arg(long)]
-        fresh: bool,
-        /// Held-out missions of the final evaluation.
-        #[arg(long, default_value_t = 200)]
-        eval_episodes: usize,
-    },
+    Train(crate::train::TrainArgs),
     /// Evaluate an exported policy on random missions (goals 2–10 m away) in any ROS map.
     Eval {
         /// The policy directory (policy.safetensors + policy.json).
@@ -224,26 +199,7 @@ pub fn main() -> ExitCode {
             url,
             token,
         } => export(kind, &id, out, &url, token),
-        Command::Train {
-            map,
-            minutes,
-            out,
-            config,
-            seed,
-            beta,
-            fresh,
-            eval_episodes,
-        } => run_train(crate::train::TrainArgs {
-            map,
-            minutes,
-            out,
-            config,
-            seed,
-            beta,
-            fresh,
-            eval_episodes,
-            progress: true,
-        }),
+        Command::Train(args) => run_train(args),
         Command::Eval {
             policy,
             map,

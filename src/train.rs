@@ -40,25 +40,34 @@ pub fn load_world(map: &Path, objects: usize, seed: u64) -> anyhow::Result<Arc<W
 }
 
 /// What `mentalsim train` was asked.
-#[derive(Debug)]
+#[derive(Debug, clap::Args)]
 pub struct TrainArgs {
-    /// ROS map_server YAML.
+    /// The ROS map_server YAML of the place to train in.
+    #[arg(long)]
     pub map: PathBuf,
-    /// Wall-clock budget.
+    /// Wall-clock budget in minutes (counting earlier sessions of a resumed run).
+    #[arg(long, default_value_t = 10.0)]
     pub minutes: f64,
-    /// Output directory.
+    /// Where the exported policy, curves, checkpoint and eval.json go.
+    #[arg(long)]
     pub out: PathBuf,
-    /// Training configuration file (JSON), if any.
+    /// Training configuration (JSON; any subset of the keys, defaults for the rest).
+    #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Seed override.
+    /// Seed of the run.
+    #[arg(long)]
     pub seed: Option<u64>,
-    /// β1 = β2 override.
+    /// β1 = β2 of Eq. 18.
+    #[arg(long)]
     pub beta: Option<f64>,
-    /// Start again even if `out` holds a checkpoint.
+    /// Start from scratch even if --out holds a checkpoint.
+    #[arg(long)]
     pub fresh: bool,
     /// Held-out missions of the final evaluation.
+    #[arg(long, default_value_t = 200)]
     pub eval_episodes: usize,
-    /// Show a progress bar.
+    /// Show a progress bar (the command line always does).
+    #[arg(skip = true)]
     pub progress: bool,
 }
 

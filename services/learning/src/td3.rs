@@ -408,15 +408,20 @@ impl Learner {
             .collect()
     }
 
-    /// Writes every network, target and optimiser moment to one safetensors file.
-    pub fn save(&self, path: &Path) -> Result<(), LearnerError> {
-        let mut named: Vec<(String, Tensor)> = Vec::new();
-        for (prefix, vs) in [
+    /// Every network and target with the prefix its variables are saved under.
+    fn networks(&self) -> [(&'static str, &nn::VarStore); 4] {
+        [
             ("actor", &self.actor_vs),
             ("critic", &self.critic_vs),
             ("actor_target", &self.actor_target_vs),
             ("critic_target", &self.critic_target_vs),
-        ] {
+        ]
+    }
+
+    /// Writes every network, target and optimiser moment to one safetensors file.
+    pub fn save(&self, path: &Path) -> Result<(), LearnerError> {
+        let mut named: Vec<(String, Tensor)> = Vec::new();
+        for (prefix, vs) in self.networks() {
             for (name, t) in sorted_variables(vs) {
                 named.push((format!("{prefix}/{name}"), t));
             }
@@ -464,12 +469,7 @@ impl Learner {
             tch::no_grad(|| dst.shallow_clone().copy_(&src.to_device(dst.device())));
             Ok(())
         };
-        for (prefix, vs) in [
-            ("actor", &self.actor_vs),
-            ("critic", &self.critic_vs),
-            ("actor_target", &self.actor_target_vs),
-            ("critic_target", &self.critic_target_vs),
-        ] {
+        for (prefix, vs) in self.networks() {
             for (name, t) in sorted_variables(vs) {
                 let key = format!("{prefix}/{name}");
                 restore(&t, get(&key)?, &key)?;
