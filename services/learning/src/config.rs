@@ -100,6 +100,15 @@ pub struct TrainConfig {
     /// Pay Eq. 1's r_closer in proportion to the progress made (see
     /// `sim::RewardConfig::progress`); false is the paper's constant r_closer.
     pub progress_reward: bool,
+    /// Charge Eq. 1's r_time per step instead of only on arrival (see
+    /// `sim::RewardConfig::time_per_step`).
+    pub time_per_step_reward: bool,
+    /// Start with goals at most 2 m beyond the minimum distance and widen the range by 1 m
+    /// whenever 60% of the last 100 training episodes reached their goal, up to
+    /// `goal_distance`. Evaluation always uses the full range.
+    pub curriculum: bool,
+    /// Weight of the heading term of the progress reward (`sim::RewardConfig::heading`).
+    pub heading_reward: f64,
 }
 
 impl Default for TrainConfig {
@@ -119,6 +128,9 @@ impl Default for TrainConfig {
             goal_distance: (2.0, 10.0),
             max_episode_steps: 400,
             progress_reward: true,
+            time_per_step_reward: true,
+            curriculum: true,
+            heading_reward: 0.5,
         }
     }
 }

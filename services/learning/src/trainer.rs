@@ -84,6 +84,8 @@ impl TrainOptions {
             max_steps: self.config.max_episode_steps,
             reward: sim::RewardConfig {
                 progress: self.config.progress_reward,
+                time_per_step: self.config.time_per_step_reward,
+                heading: self.config.heading_reward,
                 ..self.env.reward
             },
             ..self.env.clone()
@@ -145,6 +147,12 @@ pub struct Counters {
     pub update_debt: f64,
     /// Environment steps at which the next evaluation runs.
     pub next_eval: u64,
+    /// The curriculum's current largest goal distance, metres (0: no curriculum yet).
+    #[serde(default)]
+    pub goal_max: f64,
+    /// Episodes finished when the curriculum last widened.
+    #[serde(default)]
+    pub curriculum_mark: u64,
 }
 
 /// A snapshot for progress bars and job progress.
@@ -333,12 +341,49 @@ impl Trainer {
                 )
             })
             .collect::<Result<_, _>>()?;
+        if c.curriculum && self.counters.goal_max <= 0.0 {
+            self.counters.goal_max = (c.goal_distance.0 + 2.0).min(c.goal_distance.1);
+        }
+        let range = self.training_range();
         for (i, env) in self.envs.iter_mut().enumerate() {
+            env.set_goal_distance(range)?;
             let obs = env.reset_random()?;
             self.options
                 .scaling
                 .encode_into(&obs, &mut self.inputs[i * dim..(i + 1) * dim]);
             self.returns[i] = 0.0;
+        }
+        Ok(())
+    }
+
+    /// Goal distances of training episodes now: the curriculum's range, or the configured one.
+    fn training_range(&self) -> (f64, f64) {
+        let (lo, hi) = self.options.config.goal_distance;
+        if self.options.config.curriculum && self.counters.goal_max > 0.0 {
+            (lo, self.counters.goal_max.clamp(lo, hi))
+        } else {
+            (lo, hi)
+        }
+    }
+
+    /// Widens the curriculum when the last 100 episodes mostly succeeded.
+    fn advance_curriculum(&mut self) -> Result<(), TrainError> {
+        let c = &self.options.config;
+        if !c.curriculum
+            || self.counters.goal_max >= c.goal_distance.1
+            || self.counters.episodes < self.counters.curriculum_mark + 100
+        {
+            return Ok(());
+        }
+        let last = &self.episodes[self.episodes.len().saturating_sub(100)..];
+        let successes = last.iter().filter(|e| e.outcome == "goal").count();
+        if successes * 10 >= last.len() * 6 {
+            self.counters.goal_max = (self.counters.goal_max + 1.0).min(c.goal_distance.1);
+            self.counters.curriculum_mark = self.counters.episodes;
+            let range = self.training_range();
+            for env in &mut self.envs {
+                env.set_goal_distance(range)?;
+            }
         }
         Ok(())
     }
@@ -473,6 +518,7 @@ impl Trainer {
                         steps: r.info.steps,
                     });
                     self.returns[i] = 0.0;
+                    self.advance_curriculum()?;
                     let obs = self.envs[i].reset_random()?;
                     self.options
                         .scaling

@@ -75,6 +75,17 @@ pub struct RewardConfig {
     /// goal, and TD3 finds it. The proportional form is potential-based shaping (Ng et al.
     /// 1999): it leaves the optimal policy unchanged.
     pub progress: bool,
+    /// Charge `time` per second as the episode goes (`time × control period` every step) and
+    /// pay `completion` alone on arrival, instead of `completion - t × time` on arrival only.
+    /// A successful episode earns the same; one that never arrives pays for its time, so
+    /// circling near the goal or standing still is no longer free.
+    pub time_per_step: bool,
+    /// With `progress`: also pay `closer × heading` in proportion to the bearing error removed
+    /// in the step (the full amount for turning towards the goal at top angular speed) and
+    /// charge it for bearing error added; potential-based too. The laser sees only ahead, so
+    /// without it a goal behind the robot offers no reward for turning round, and a policy
+    /// learns to stop and wait. 0 turns it off.
+    pub heading: f64,
 }
 
 impl Default for RewardConfig {
@@ -85,6 +96,8 @@ impl Default for RewardConfig {
             closer: 0.5,
             collision: 100.0,
             progress: false,
+            time_per_step: false,
+            heading: 0.0,
         }
     }
 }
@@ -327,6 +340,16 @@ impl NavEnv {
         &self.config
     }
 
+    /// Changes the distance range of random goals (a training curriculum widens it as the
+    /// policy improves). Takes effect at the next random reset.
+    pub fn set_goal_distance(&mut self, range: (f64, f64)) -> Result<(), EnvError> {
+        let mut config = self.config.clone();
+        config.goal_distance = range;
+        check_config(&config)?;
+        self.config = config;
+        Ok(())
+    }
+
     /// True pose of the robot.
     pub fn pose(&self) -> Pose2 {
         self.pose
@@ -506,6 +529,7 @@ impl NavEnv {
         )]
         let n = ((travel / (0.5 * radius)).ceil() as usize).clamp(1, 1000);
         let start = self.pose;
+        let bearing_before = self.bearing_error();
         let mut min_clearance = f64::INFINITY;
         let mut collided = false;
         for k in 1..=n {
@@ -535,12 +559,17 @@ impl NavEnv {
             Outcome::Running
         };
         let r = &cfg.reward;
-        let reward = match self.outcome {
+        let step_cost = if r.time_per_step { r.time * dt } else { 0.0 };
+        let reward = -step_cost + match self.outcome {
+            Outcome::ReachedGoal if r.time_per_step => r.completion,
             Outcome::ReachedGoal => r.completion - time_s * r.time,
             Outcome::Collision => -r.collision,
             Outcome::Running | Outcome::TimeLimit if r.progress => {
                 let most = (cfg.limits.linear_max.abs() * dt).max(1e-9);
+                let turn = (cfg.limits.angular_max.abs() * dt).max(1e-9);
+                let turned = bearing_before - self.bearing_error();
                 r.closer * ((self.distance - distance) / most).clamp(-1.0, 1.0)
+                    + r.closer * r.heading * (turned / turn).clamp(-1.0, 1.0)
             }
             Outcome::Running | Outcome::TimeLimit if distance < self.distance => r.closer,
             Outcome::Running | Outcome::TimeLimit => 0.0,
@@ -555,6 +584,12 @@ impl NavEnv {
             info: self.info(min_clearance),
             reset_observation: None,
         }
+    }
+
+    /// The true angle between the robot's heading and the goal, radians in [0, π].
+    fn bearing_error(&self) -> f64 {
+        let (dx, dy) = (self.goal.0 - self.pose.x, self.goal.1 - self.pose.y);
+        wrap_angle(dy.atan2(dx) - self.pose.yaw).abs()
     }
 
     /// Keeps a copy of the latest observation for steps after the end, reusing its buffer.
@@ -671,6 +706,7 @@ fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
         ("reward.time", r.time),
         ("reward.closer", r.closer),
         ("reward.collision", r.collision),
+        ("reward.heading", r.heading),
     ] {
         if !nonneg(v) {
             return bad(
