@@ -403,7 +403,13 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
             .await
     );
     let floor = app
-        .request(Method::GET, "/v1/places/remote-lab")
+        .request(
+            Method::GET,
+            &format!(
+                "/v1/places/{}",
+                url_encode("https://mentalsim.dev/data/maps/remote-lab")
+            ),
+        )
         .send()
         .await
         .unwrap();

@@ -19,7 +19,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use oxrdf::{Literal, NamedNode, Subject, Term, Triple};
+use oxrdf::{Literal, NamedNode, NamedOrBlankNode, Term, Triple};
 use serde::Serialize;
 
 /// Target of the query-throughput ratio ours / oxigraph server: our layers cost under 10 %.
@@ -208,7 +208,7 @@ pub fn replicate(extra_triples: usize) -> Result<Replicas, KnowledgeBenchError> 
     let below: Vec<&Triple> = sample
         .iter()
         .filter(
-            |t| matches!(&t.subject, Subject::NamedNode(n) if copied_iri(n.as_str(), 0).is_some()),
+            |t| matches!(&t.subject, NamedOrBlankNode::NamedNode(n) if copied_iri(n.as_str(), 0).is_some()),
         )
         .collect();
     let per_copy = below.len().max(1);
@@ -216,7 +216,7 @@ pub fn replicate(extra_triples: usize) -> Result<Replicas, KnowledgeBenchError> 
     let mut triples = Vec::with_capacity(copies * per_copy);
     for k in 1..=copies {
         for t in &below {
-            let Subject::NamedNode(s) = &t.subject else {
+            let NamedOrBlankNode::NamedNode(s) = &t.subject else {
                 continue;
             };
             let subject = NamedNode::new_unchecked(copied_iri(s.as_str(), k).unwrap_or_default());
@@ -249,7 +249,7 @@ fn mission(k: usize) -> Result<(String, String, usize), KnowledgeBenchError> {
     let mut edges: HashMap<String, Vec<String>> = HashMap::new();
     let mut ids: HashMap<String, String> = HashMap::new();
     for t in &sample {
-        let Subject::NamedNode(s) = &t.subject else {
+        let NamedOrBlankNode::NamedNode(s) = &t.subject else {
             continue;
         };
         if t.predicate.as_str() == connected
@@ -786,7 +786,7 @@ pub fn run_knowledge_bench(
             .iter()
             .filter(|t| t.predicate.as_str() == format!("{TOSM}isConnectedTo"))
             .filter_map(|t| match &t.subject {
-                Subject::NamedNode(n) if seen.insert(n.as_str().to_owned()) => {
+                NamedOrBlankNode::NamedNode(n) if seen.insert(n.as_str().to_owned()) => {
                     Some(n.as_str().to_owned())
                 }
                 _ => None,
