@@ -63,7 +63,7 @@ impl Components {
             data_dir: config.data_dir.clone(),
             database_url: config.database_url(),
             knowledge: Arc::new(Knowledge::lazy(
-                move || opener(),
+                opener,
                 crate::tokens::load(config),
                 config.query_limits(),
             )),
