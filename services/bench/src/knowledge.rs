@@ -301,11 +301,71 @@ fn mission(k: usize) -> Result<(String, String, usize), KnowledgeBenchError> {
     Ok((id(&start)?, id(&goal)?, hops + 1))
 }
 
-/// A child process killed when dropped.
+/// A child process killed when dropped, and how to start it again.
 struct Server {
     child: Child,
     url: String,
+    /// Its RocksDB directory.
+    store_dir: PathBuf,
+    binary: PathBuf,
+    args: Vec<std::ffi::OsString>,
+    stderr: Option<PathBuf>,
+    ready: String,
     _dir: tempfile::TempDir,
+}
+
+impl Server {
+    fn spawn(
+        binary: &Path,
+        args: &[std::ffi::OsString],
+        stderr: Option<&Path>,
+    ) -> Result<Child, KnowledgeBenchError> {
+        let stderr = match stderr {
+            Some(path) => Stdio::from(
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(path)
+                    .map_err(|e| fail(format!("log file: {e}")))?,
+            ),
+            None => Stdio::null(),
+        };
+        Command::new(binary)
+            .args(args)
+            .env_remove("MENTALSIM_STORE_URL")
+            .env_remove("MENTALSIM_CONFIG")
+            .stdout(Stdio::null())
+            .stderr(stderr)
+            .spawn()
+            .map_err(|e| fail(format!("cannot start {}: {e}", binary.display())))
+    }
+
+    /// Stops the server, compacts its RocksDB store with `oxigraph optimize`, and starts it
+    /// again on the same port: both servers are measured on compacted stores, whatever path
+    /// the data took in (our transactional PUT, their bulk load).
+    fn optimize_and_restart(
+        &mut self,
+        oxigraph: &Path,
+        client: &reqwest::blocking::Client,
+    ) -> Result<(), KnowledgeBenchError> {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let status = Command::new(oxigraph)
+            .arg("optimize")
+            .arg("--location")
+            .arg(&self.store_dir)
+            .stdout(Stdio::null())
+            .status()
+            .map_err(|e| fail(format!("oxigraph optimize: {e}")))?;
+        if !status.success() {
+            return Err(fail(format!(
+                "oxigraph optimize --location {} failed: {status}",
+                self.store_dir.display()
+            )));
+        }
+        self.child = Self::spawn(&self.binary, &self.args, self.stderr.as_deref())?;
+        wait_until_ready(client, &self.ready, &mut self.child, "the restarted server")
+    }
 }
 
 impl Drop for Server {
@@ -354,26 +414,18 @@ fn start_ours(
     let dir = tempfile::tempdir().map_err(|e| fail(format!("temporary directory: {e}")))?;
     let port = free_port()?;
     let data = dir.path().join("data");
-    let log = std::fs::File::create(dir.path().join("serve.log"))
-        .map_err(|e| fail(format!("log file: {e}")))?;
-    let mut child = Command::new(&options.mentalsim)
-        .arg("serve")
-        .args(["--bind", &format!("127.0.0.1:{port}")])
-        .arg("--data-dir")
-        .arg(&data)
-        .env_remove("MENTALSIM_STORE_URL")
-        .env_remove("MENTALSIM_CONFIG")
-        .stdout(Stdio::null())
-        .stderr(log)
-        .spawn()
-        .map_err(|e| fail(format!("cannot start {}: {e}", options.mentalsim.display())))?;
+    let log = dir.path().join("serve.log");
+    let args: Vec<std::ffi::OsString> = vec![
+        "serve".into(),
+        "--bind".into(),
+        format!("127.0.0.1:{port}").into(),
+        "--data-dir".into(),
+        data.clone().into(),
+    ];
+    let mut child = Server::spawn(&options.mentalsim, &args, Some(&log))?;
     let url = format!("http://127.0.0.1:{port}");
-    wait_until_ready(
-        client,
-        &format!("{url}/readyz"),
-        &mut child,
-        "mentalsim serve",
-    )?;
+    let ready = format!("{url}/readyz");
+    wait_until_ready(client, &ready, &mut child, "mentalsim serve")?;
     let token = std::fs::read_to_string(data.join("admin.token"))
         .map_err(|e| fail(format!("no admin token in {}: {e}", data.display())))?
         .trim()
@@ -382,6 +434,11 @@ fn start_ours(
         Server {
             child,
             url,
+            store_dir: data.join("oxigraph"),
+            binary: options.mentalsim.clone(),
+            args,
+            stderr: Some(log),
+            ready,
             _dir: dir,
         },
         token,
@@ -394,30 +451,27 @@ fn start_oxigraph(
 ) -> Result<Server, KnowledgeBenchError> {
     let dir = tempfile::tempdir().map_err(|e| fail(format!("temporary directory: {e}")))?;
     let port = free_port()?;
-    let mut child = Command::new(&options.oxigraph)
-        .arg("serve")
-        .arg("--location")
-        .arg(dir.path().join("oxigraph"))
-        .args(["--bind", &format!("127.0.0.1:{port}")])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .map_err(|e| {
-            fail(format!(
-                "cannot start {} (pip install oxigraph): {e}",
-                options.oxigraph.display()
-            ))
-        })?;
+    let store_dir = dir.path().join("oxigraph");
+    let args: Vec<std::ffi::OsString> = vec![
+        "serve".into(),
+        "--location".into(),
+        store_dir.clone().into(),
+        "--bind".into(),
+        format!("127.0.0.1:{port}").into(),
+    ];
+    let mut child = Server::spawn(&options.oxigraph, &args, None)
+        .map_err(|e| fail(format!("{e} (pip install oxigraph)")))?;
     let url = format!("http://127.0.0.1:{port}");
-    wait_until_ready(
-        client,
-        &format!("{url}/query?query=ASK%7B%7D"),
-        &mut child,
-        "oxigraph serve",
-    )?;
+    let ready = format!("{url}/query?query=ASK%7B%7D");
+    wait_until_ready(client, &ready, &mut child, "oxigraph serve")?;
     Ok(Server {
         child,
         url,
+        store_dir,
+        binary: options.oxigraph.clone(),
+        args,
+        stderr: None,
+        ready,
         _dir: dir,
     })
 }
@@ -777,6 +831,12 @@ pub fn run_knowledge_bench(
             "oxigraph serve holds {theirs_count} triples, ours {triples}: not the same data"
         )));
     }
+
+    say("compacting both stores (oxigraph optimize) and restarting both servers");
+    let mut ours = ours;
+    let mut oxigraph = oxigraph;
+    ours.optimize_and_restart(&options.oxigraph, &client)?;
+    oxigraph.optimize_and_restart(&options.oxigraph, &client)?;
 
     // Throughput, side by side: warm both, then measure each in turn, twice, interleaved.
     let places: Vec<String> = {

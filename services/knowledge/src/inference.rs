@@ -48,6 +48,7 @@ pub fn refresh(store: &KnowledgeStore) -> Result<Refreshed, StoreError> {
         let asserted: HashSet<Triple> = quads.iter().cloned().map(Triple::from).collect();
         let inferred = entailed_only(&asserted);
         let count = remote.write_inferred(quads, &inferred)?;
+        store.bump_generation();
         return Ok(Refreshed {
             asserted: asserted.len(),
             inferred: count,
@@ -72,6 +73,7 @@ pub fn refresh(store: &KnowledgeStore) -> Result<Refreshed, StoreError> {
     transaction.clear_graph(INFERRED_GRAPH).map_err(storage)?;
     transaction.extend(inferred.iter());
     transaction.commit().map_err(storage)?;
+    store.bump_generation();
     Ok(Refreshed {
         asserted: asserted.len(),
         inferred: count,

@@ -7,6 +7,7 @@
 //! stable IRIs of the graph, so two downloads of overlapping missions merge cleanly.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
+use std::sync::Arc;
 
 use oxigraph::model::vocab::rdf;
 use oxigraph::model::{Graph, GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
@@ -128,13 +129,18 @@ impl OnDemandError {
 struct Reader {
     store: oxigraph::store::Store,
     location: String,
+    owner: KnowledgeStore,
+    key: crate::store::CacheKey,
 }
 
 impl Reader {
     fn new(store: &KnowledgeStore) -> Result<Self, StoreError> {
+        let snapshot = store.snapshot()?;
         Ok(Self {
-            store: store.snapshot()?,
+            store: snapshot,
             location: store.location().to_owned(),
+            owner: store.clone(),
+            key: store.cache_key(),
         })
     }
 
@@ -239,12 +245,22 @@ impl Reader {
 }
 
 /// Every place in the store as typed values, read leniently: a broken place is logged and
-/// left out rather than failing every mission.
-pub fn all_places(store: &KnowledgeStore) -> Result<Vec<Place>, StoreError> {
+/// left out rather than failing every mission. Read once per state of the graph and shared
+/// until the next write.
+pub fn all_places(store: &KnowledgeStore) -> Result<Arc<Vec<Place>>, StoreError> {
     places_of(&Reader::new(store)?)
 }
 
-fn places_of(reader: &Reader) -> Result<Vec<Place>, StoreError> {
+fn places_of(reader: &Reader) -> Result<Arc<Vec<Place>>, StoreError> {
+    if let Some(places) = reader.owner.cached_places(reader.key) {
+        return Ok(places);
+    }
+    let places = Arc::new(read_places(reader)?);
+    reader.owner.cache_places(reader.key, places.clone());
+    Ok(places)
+}
+
+fn read_places(reader: &Reader) -> Result<Vec<Place>, StoreError> {
     let mut triples = HashSet::new();
     let mut seen = BTreeSet::new();
     for place in reader.instances(vocab::PLACE)? {
@@ -615,7 +631,7 @@ mod tests {
     }
 
     fn places(store: &KnowledgeStore) -> Vec<Place> {
-        all_places(store).unwrap()
+        all_places(store).unwrap().to_vec()
     }
 
     #[test]

@@ -76,6 +76,8 @@ pub struct RemoteStore {
     client: reqwest::Client,
     runtime: tokio::runtime::Handle,
     snapshot: Mutex<Option<Snapshot>>,
+    /// Counts snapshots installed: what was derived from an older one is stale.
+    serial: std::sync::atomic::AtomicU64,
     /// Held while a snapshot downloads, so concurrent readers wait for one download.
     loading: Mutex<()>,
 }
@@ -117,8 +119,14 @@ impl RemoteStore {
             client,
             runtime,
             snapshot: Mutex::new(None),
+            serial: std::sync::atomic::AtomicU64::new(0),
             loading: Mutex::new(()),
         })
+    }
+
+    /// How many snapshots were installed so far.
+    pub fn snapshot_serial(&self) -> u64 {
+        self.serial.load(std::sync::atomic::Ordering::SeqCst)
     }
 
     /// The query endpoint.
@@ -384,6 +392,8 @@ impl RemoteStore {
             version,
             fetched: Instant::now(),
         });
+        self.serial
+            .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         Ok(store)
     }
 

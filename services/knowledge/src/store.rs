@@ -13,11 +13,14 @@
 //! remote asynchronously through [`KnowledgeStore::remote`].
 
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use oxigraph::io::{RdfFormat, RdfParser};
 use oxigraph::model::{GraphName, GraphNameRef, NamedNode, NamedNodeRef, Quad};
 use oxigraph::store::Store;
+
+use tosm::Place;
 
 use crate::remote::{RemoteConfig, RemoteStore};
 
@@ -95,7 +98,22 @@ enum Backend {
 pub struct KnowledgeStore {
     backend: Backend,
     location: String,
+    derived: Arc<Derived>,
 }
+
+/// What the service derives from the graph and keeps until the next write: the typed places
+/// every on-demand database and place lookup starts from (reading them decodes every floor's
+/// map, which on a large building costs far more than the rest of a request).
+#[derive(Default)]
+struct Derived {
+    /// Bumped after every write through the service (see [`crate::inference::refresh`]).
+    generation: AtomicU64,
+    places: Mutex<Option<(CacheKey, Arc<Vec<Place>>)>>,
+}
+
+/// Identifies one state of the graph: the write generation, and for a remote store the
+/// snapshot it was read from.
+pub(crate) type CacheKey = (u64, u64);
 
 impl std::fmt::Debug for KnowledgeStore {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -117,6 +135,7 @@ impl KnowledgeStore {
         Ok(Self {
             backend: Backend::Embedded(store),
             location,
+            derived: Arc::default(),
         })
     }
 
@@ -139,6 +158,7 @@ impl KnowledgeStore {
         Ok(Self {
             backend: Backend::Embedded(store),
             location,
+            derived: Arc::default(),
         })
     }
 
@@ -149,6 +169,7 @@ impl KnowledgeStore {
         Ok(Self {
             location: remote.query_url().to_owned(),
             backend: Backend::Remote(Arc::new(remote)),
+            derived: Arc::default(),
         })
     }
 
@@ -216,6 +237,48 @@ impl KnowledgeStore {
             #[cfg(not(feature = "rocksdb"))]
             Backend::Embedded(_) => Ok(()),
             Backend::Remote(_) => Ok(()),
+        }
+    }
+
+    /// Called after every write through the service: what was derived is stale.
+    pub(crate) fn bump_generation(&self) {
+        self.derived.generation.fetch_add(1, Ordering::SeqCst);
+        *self
+            .derived
+            .places
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = None;
+    }
+
+    /// The current state's key; take it after [`Self::snapshot`].
+    pub(crate) fn cache_key(&self) -> CacheKey {
+        let remote = match &self.backend {
+            Backend::Embedded(_) => 0,
+            Backend::Remote(remote) => remote.snapshot_serial(),
+        };
+        (self.derived.generation.load(Ordering::SeqCst), remote)
+    }
+
+    /// The places read for state `key`, if they are cached.
+    pub(crate) fn cached_places(&self, key: CacheKey) -> Option<Arc<Vec<Place>>> {
+        let slot = self
+            .derived
+            .places
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        slot.as_ref()
+            .filter(|(k, _)| *k == key)
+            .map(|(_, places)| places.clone())
+    }
+
+    /// Keeps the places read for state `key`, unless a write happened meanwhile.
+    pub(crate) fn cache_places(&self, key: CacheKey, places: Arc<Vec<Place>>) {
+        if self.cache_key() == key {
+            *self
+                .derived
+                .places
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner) = Some((key, places));
         }
     }
 
