@@ -31,6 +31,10 @@ pub enum Command {
         /// Directory for the graph store, job database and tokens [default: ./data; env: MENTALSIM_DATA_DIR].
         #[arg(long, value_name = "DIR")]
         data_dir: Option<PathBuf>,
+        /// Keep the knowledge graph in this SPARQL 1.1 store (its query endpoint, or an Oxigraph
+        /// server's base URL) instead of the embedded one [env: MENTALSIM_STORE_URL].
+        #[arg(long, value_name = "URL")]
+        store_url: Option<String>,
     },
     /// Import a ROS map_server map (YAML + PGM/PNG) into a running service as a TOSM floor.
     ImportMap {
@@ -179,13 +183,46 @@ pub enum BenchCommand {
         #[arg(long)]
         no_sb3: bool,
     },
+    /// On-demand database latency on a 100,000-triple building, and SPARQL query throughput of
+    /// our /sparql beside `oxigraph serve` holding the same data.
+    Knowledge {
+        /// Write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// The `oxigraph` server binary (PyPI `oxigraph`) [default: .venv/bin/oxigraph, else PATH].
+        #[arg(long)]
+        oxigraph: Option<PathBuf>,
+        /// At least this many triples in the store.
+        #[arg(long, default_value_t = 100_000)]
+        triples: usize,
+        /// Timed on-demand requests.
+        #[arg(long, default_value_t = 200)]
+        requests: usize,
+        /// Concurrent SPARQL clients (the same for both servers).
+        #[arg(long, default_value_t = 4)]
+        clients: usize,
+        /// Seconds of measurement per server.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+    },
 }
 
 /// Runs the command line; the process exit code says whether it worked.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Serve { bind, data_dir } => return serve_command(cli.config, bind, data_dir),
+        Command::Serve {
+            bind,
+            data_dir,
+            store_url,
+        } => {
+            let overrides = Overrides {
+                bind,
+                data_dir,
+                store_url,
+            };
+            return serve_command(cli.config, overrides);
+        }
         Command::ImportMap {
             yaml,
             name,
@@ -218,12 +255,7 @@ pub fn main() -> ExitCode {
     }
 }
 
-fn serve_command(
-    config_file: Option<PathBuf>,
-    bind: Option<String>,
-    data_dir: Option<PathBuf>,
-) -> ExitCode {
-    let overrides = Overrides { bind, data_dir };
+fn serve_command(config_file: Option<PathBuf>, overrides: Overrides) -> ExitCode {
     let config = match Config::load(config_file.as_deref(), &overrides) {
         Ok(config) => config,
         Err(e) => {
@@ -406,6 +438,14 @@ fn run_train(args: crate::train::TrainArgs) -> anyhow::Result<()> {
 
 fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
     match command {
+        BenchCommand::Knowledge {
+            json,
+            oxigraph,
+            triples,
+            requests,
+            clients,
+            seconds,
+        } => knowledge_bench(json, oxigraph, triples, requests, clients, seconds),
         BenchCommand::Prm {
             maps,
             runs,
@@ -506,13 +546,62 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
     }
 }
 
+fn knowledge_bench(
+    json: Option<PathBuf>,
+    oxigraph: Option<PathBuf>,
+    triples: usize,
+    requests: usize,
+    clients: usize,
+    seconds: f64,
+) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let mentalsim = std::env::current_exe().context("cannot locate the mentalsim binary")?;
+    let oxigraph = match oxigraph {
+        Some(path) => path,
+        None => find_oxigraph().context(
+            "no `oxigraph` binary: `pip install oxigraph` into .venv (scripts/setup does), or pass --oxigraph",
+        )?,
+    };
+    let mut options = bench::knowledge::KnowledgeBenchOptions::new(mentalsim, oxigraph);
+    options.min_triples = triples;
+    options.on_demand_requests = requests;
+    options.clients = clients;
+    options.seconds = seconds;
+    let report = bench::knowledge::run_knowledge_bench(options)?;
+    println!("{}", report.table());
+    if let Some(path) = json {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(&path, format!("{text}\n"))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// The `oxigraph` server: the active venv's, the project's `.venv`, or one on the PATH.
+fn find_oxigraph() -> Option<PathBuf> {
+    let mut candidates = Vec::new();
+    if let Some(venv) = std::env::var_os("VIRTUAL_ENV") {
+        candidates.push(PathBuf::from(venv).join("bin/oxigraph"));
+    }
+    candidates.push(PathBuf::from(".venv/bin/oxigraph"));
+    if let Some(path) = std::env::var_os("PATH") {
+        candidates.extend(std::env::split_paths(&path).map(|d| d.join("oxigraph")));
+    }
+    candidates.into_iter().find(|p| p.is_file())
+}
+
 async fn serve(config: Config) -> anyhow::Result<()> {
     let data_dir = config.data_dir.clone();
+    let graph = match &config.store_url {
+        Some(url) => format!("graph store: {url}"),
+        None => "graph store: embedded".to_owned(),
+    };
     let app = Application::build(config).await?;
     let addr = app.local_addr();
-    tracing::info!(%addr, data_dir = %data_dir.display(), "mentalsim listening");
+    tracing::info!(%addr, data_dir = %data_dir.display(), %graph, "mentalsim listening");
     println!(
-        "Mentalsim is listening on http://{addr}  (data: {})",
+        "Mentalsim is listening on http://{addr}  (data: {}; {graph})",
         data_dir.display()
     );
     app.run_until(shutdown_signal()).await

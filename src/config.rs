@@ -69,6 +69,13 @@ pub struct Config {
     pub max_construct_triples: usize,
     /// Bearer tokens. With none, `serve` creates an engineer token in `<data_dir>/admin.token`.
     pub tokens: Vec<TokenConfig>,
+    /// A SPARQL 1.1 store to keep the knowledge graph in instead of the embedded one: its
+    /// query endpoint (a bare `http://host:port` means an Oxigraph server's `/query` and
+    /// `/update`).
+    pub store_url: Option<String>,
+    /// The remote store's update endpoint [default: `…/update` beside a `…/query` URL, else
+    /// `store_url` itself].
+    pub store_update_url: Option<String>,
 }
 
 impl Default for Config {
@@ -85,6 +92,8 @@ impl Default for Config {
             query_deadline_s: 30.0,
             max_construct_triples: 5_000_000,
             tokens: Vec::new(),
+            store_url: None,
+            store_update_url: None,
         }
     }
 }
@@ -98,6 +107,9 @@ pub struct Overrides {
     /// `--data-dir`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub data_dir: Option<PathBuf>,
+    /// `--store-url`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub store_url: Option<String>,
 }
 
 /// A configuration that could not be loaded or is invalid.
@@ -242,6 +254,38 @@ impl Config {
                 source_name: source("data_dir"),
             });
         }
+        for (key, url) in [
+            ("store_url", &self.store_url),
+            ("store_update_url", &self.store_update_url),
+        ] {
+            if let Some(url) = url {
+                let parsed = reqwest::Url::parse(url).map_err(|e| e.to_string());
+                let problem = match parsed {
+                    Ok(u) if matches!(u.scheme(), "http" | "https") && u.has_host() => None,
+                    Ok(u) => Some(format!(
+                        "must be an http:// or https:// URL with a host, got {url:?} (scheme {})",
+                        u.scheme()
+                    )),
+                    Err(e) => Some(format!(
+                        "must be an http:// or https:// URL, got {url:?}: {e}"
+                    )),
+                };
+                if let Some(problem) = problem {
+                    return Err(ConfigError::Invalid {
+                        key,
+                        problem,
+                        source_name: source(key),
+                    });
+                }
+            }
+        }
+        if self.store_update_url.is_some() && self.store_url.is_none() {
+            return Err(ConfigError::Invalid {
+                key: "store_update_url",
+                problem: "is set but store_url is not; set both or neither".to_owned(),
+                source_name: source("store_update_url"),
+            });
+        }
         if let Some(url) = &self.database_url
             && !url.starts_with("sqlite:")
         {
@@ -259,6 +303,16 @@ impl Config {
         self.database_url
             .clone()
             .unwrap_or_else(|| format!("sqlite://{}", self.data_dir.join("jobs.sqlite").display()))
+    }
+
+    /// The remote graph store, when `store_url` is set; requests to it get the query deadline
+    /// as their timeout.
+    pub fn remote_store(&self) -> Option<knowledge::RemoteConfig> {
+        self.store_url.as_ref().map(|url| knowledge::RemoteConfig {
+            url: url.clone(),
+            update_url: self.store_update_url.clone(),
+            timeout: Duration::from_secs_f64(self.query_deadline_s),
+        })
     }
 
     /// Where the embedded graph store lives.
@@ -330,6 +384,7 @@ mod tests {
             let flags = Overrides {
                 bind: Some("127.0.0.1:9100".to_owned()),
                 data_dir: Some(PathBuf::from("/srv/c")),
+                store_url: None,
             };
             let config = load(Some("m.toml"), flags).unwrap();
             assert_eq!(config.bind.port(), 9100);
@@ -381,6 +436,41 @@ mod tests {
             jail.create_file("typo.toml", "bnid = '127.0.0.1:1'")?;
             let err = load(Some("typo.toml"), Overrides::default()).unwrap_err();
             assert!(err.contains("bnid"), "{err}");
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn store_url_comes_from_every_layer_and_bad_ones_name_key_and_source() {
+        Jail::expect_with(|jail| {
+            jail.clear_env();
+            jail.create_file("r.toml", "store_url = 'http://db:7878'")?;
+            let config = load(Some("r.toml"), Overrides::default()).unwrap();
+            let remote = config.remote_store().unwrap();
+            assert_eq!(remote.endpoints().0, "http://db:7878/query");
+            jail.set_env("MENTALSIM_STORE_URL", "http://other:7878/query");
+            let config = load(Some("r.toml"), Overrides::default()).unwrap();
+            assert_eq!(config.store_url.as_deref(), Some("http://other:7878/query"));
+            let flags = Overrides {
+                store_url: Some("https://flag/sparql".to_owned()),
+                ..Overrides::default()
+            };
+            let config = load(Some("r.toml"), flags).unwrap();
+            assert_eq!(config.store_url.as_deref(), Some("https://flag/sparql"));
+            jail.set_env("MENTALSIM_STORE_URL", "ftp://db/q");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("store_url"), "{err}");
+            assert!(err.contains("MENTALSIM_STORE_URL"), "{err}");
+            jail.set_env("MENTALSIM_STORE_URL", "not a url");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("MENTALSIM_STORE_URL"), "{err}");
+            jail.clear_env();
+            jail.create_file("bad.toml", "store_url = 'db:7878'")?;
+            let err = load(Some("bad.toml"), Overrides::default()).unwrap_err();
+            assert!(
+                err.contains("store_url") && err.contains("bad.toml"),
+                "{err}"
+            );
             Ok(())
         });
     }

@@ -46,10 +46,10 @@ async fn readyz(State(components): State<Arc<Components>>) -> Response {
     };
     let store = match components.store().await {
         Ok(store) => {
-            let path = store.path().to_owned();
+            let location = store.location().to_owned();
             match tokio::task::spawn_blocking(move || store.check()).await {
-                Ok(Ok(())) => json!({ "ok": true, "path": path }),
-                Ok(Err(e)) => json!({ "ok": false, "reason": e.to_string() }),
+                Ok(Ok(())) => json!({ "ok": true, "location": location }),
+                Ok(Err(e)) => json!({ "ok": false, "location": location, "reason": e.to_string() }),
                 Err(e) => json!({ "ok": false, "reason": format!("check task failed: {e}") }),
             }
         }

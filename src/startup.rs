@@ -30,10 +30,10 @@ pub struct Components {
 impl Components {
     fn new(config: &Config) -> Self {
         let store_dir = config.store_dir();
-        let opener = move || -> Result<KnowledgeStore, StoreError> {
+        let embedded = move || -> Result<KnowledgeStore, StoreError> {
             if let Some(parent) = store_dir.parent() {
                 std::fs::create_dir_all(parent).map_err(|e| StoreError::Query {
-                    path: store_dir.clone(),
+                    location: store_dir.display().to_string(),
                     message: format!("cannot create data directory {}: {e}", parent.display()),
                 })?;
             }
@@ -42,6 +42,22 @@ impl Components {
                 tracing::info!(path = %store_dir.display(), "loaded the bundled ontology, robot and sample building");
             }
             Ok(store)
+        };
+        // A remote store is "open" once it answers; until then every use tries again.
+        let remote = config.remote_store().map(|remote| {
+            move || -> Result<KnowledgeStore, StoreError> {
+                let store = KnowledgeStore::remote(remote.clone())?;
+                store.check()?;
+                if knowledge::bundled::load_if_empty(&store)? {
+                    tracing::info!(url = %store.location(), "loaded the bundled ontology, robot and sample building into the remote store");
+                }
+                Ok(store)
+            }
+        });
+        let opener: Box<dyn Fn() -> Result<KnowledgeStore, StoreError> + Send + Sync> = match remote
+        {
+            Some(remote) => Box::new(remote),
+            None => Box::new(embedded),
         };
         Self {
             data_dir: config.data_dir.clone(),

@@ -8,3 +8,4 @@
 mod health;
 mod helpers;
 mod knowledge;
+mod remote_store;

@@ -1,5 +1,6 @@
 //! Benchmark harnesses behind `mentalsim bench ...`.
 
+pub mod knowledge;
 pub mod learner;
 pub mod movingai;
 pub mod prm;

@@ -40,6 +40,8 @@ pub enum ErrorCode {
     Unprocessable,
     /// The service is starting or a backing store is unavailable; retry later.
     NotReady,
+    /// A backing service (e.g. a remote SPARQL store) answered with an error of its own.
+    BadGateway,
     /// A fault inside the service. Details are logged, never sent.
     Internal,
 }
@@ -61,6 +63,7 @@ impl ErrorCode {
             ErrorCode::Conflict => StatusCode::CONFLICT,
             ErrorCode::Unprocessable => StatusCode::UNPROCESSABLE_ENTITY,
             ErrorCode::NotReady => StatusCode::SERVICE_UNAVAILABLE,
+            ErrorCode::BadGateway => StatusCode::BAD_GATEWAY,
             ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -82,6 +85,7 @@ impl ErrorCode {
             ErrorCode::Conflict => "conflict",
             ErrorCode::Unprocessable => "unprocessable",
             ErrorCode::NotReady => "not_ready",
+            ErrorCode::BadGateway => "bad_gateway",
             ErrorCode::Internal => "internal",
         }
     }
@@ -194,6 +198,7 @@ mod tests {
             ErrorCode::Conflict,
             ErrorCode::Unprocessable,
             ErrorCode::NotReady,
+            ErrorCode::BadGateway,
             ErrorCode::Internal,
         ] {
             let json = serde_json::to_value(code).unwrap();

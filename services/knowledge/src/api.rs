@@ -13,7 +13,7 @@ use axum::routing::{get, post};
 use axum::{Json, Router};
 use edge::{ApiError, ErrorCode};
 use oxigraph::io::{RdfFormat, RdfSerializer};
-use oxigraph::model::{Graph, NamedNode, NamedNodeRef, Quad};
+use oxigraph::model::{Graph, NamedNode, Quad};
 use serde::{Deserialize, Serialize};
 use tosm::{Place, PlaceKind};
 use utoipa::{OpenApi, ToSchema};
@@ -168,7 +168,7 @@ async fn list_places(
     k.tokens.authenticate(&headers)?;
     blocking(move || {
         let store = k.store()?;
-        let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
+        let places = on_demand::all_places(&store)?;
         Ok(Json(places.iter().map(PlaceView::from).collect()))
     })
     .await
@@ -184,7 +184,7 @@ async fn get_place(
     k.tokens.authenticate(&headers)?;
     blocking(move || {
         let store = k.store()?;
-        let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
+        let places = on_demand::all_places(&store)?;
         let i = find_place(&places, &id)?;
         Ok(Json(PlaceView::from(&places[i])))
     })
@@ -201,7 +201,7 @@ async fn place_map(
     k.tokens.authenticate(&headers)?;
     let png = blocking(move || {
         let store = k.store()?;
-        let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
+        let places = on_demand::all_places(&store)?;
         let place = &places[find_place(&places, &id)?];
         place.map.as_ref().map(|m| m.png.clone()).ok_or_else(|| {
             ApiError::not_found(format!(
@@ -234,7 +234,7 @@ async fn world_sdf(
     k.tokens.authenticate(&headers)?;
     let sdf = blocking(move || {
         let store = k.store()?;
-        let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
+        let places = on_demand::all_places(&store)?;
         let place = &places[find_place(&places, &id)?];
         let mut floor = Some(place);
         while let Some(p) = floor {
@@ -335,7 +335,7 @@ fn read_robots(store: &crate::KnowledgeStore) -> Result<Vec<tosm::Robot>, ApiErr
 /// Every asserted triple (not the entailments), as one graph.
 fn union_graph(store: &crate::KnowledgeStore) -> Result<Graph, ApiError> {
     let mut graph = Graph::new();
-    for quad in store.inner().iter() {
+    for quad in store.snapshot()?.iter() {
         let quad = quad.map_err(ApiError::internal)?;
         if quad.graph_name.as_ref()
             != oxigraph::model::GraphNameRef::NamedNode(crate::inference::INFERRED_GRAPH)
@@ -412,10 +412,10 @@ pub struct ImportedMap {
 
 impl From<ImportError> for ApiError {
     fn from(e: ImportError) -> Self {
-        if e.is_client_error() {
-            ApiError::new(ErrorCode::Unprocessable, e.to_string())
-        } else {
-            ApiError::internal(e)
+        match e {
+            ImportError::Store(e) => ApiError::from(e),
+            e if e.is_client_error() => ApiError::new(ErrorCode::Unprocessable, e.to_string()),
+            e => ApiError::internal(e),
         }
     }
 }
@@ -594,7 +594,7 @@ async fn report_object(
     let principal = k.tokens.require(&headers, Role::Robot)?;
     blocking(move || {
         let store = k.store()?;
-        let places = on_demand::all_places(&store).map_err(ApiError::internal)?;
+        let places = on_demand::all_places(&store)?;
         let place = places[find_place(&places, &id)?].clone();
         if matches!(place.kind, PlaceKind::Building) {
             return Err(ApiError::new(
@@ -628,36 +628,17 @@ async fn report_object(
                 .with_details(serde_json::json!({ "problems": p.to_string() }))
         })?;
         let graph = NamedNode::new_unchecked(PERCEIVED_GRAPH);
-        let storage = |e| ApiError::internal(e);
         let owned = [
-            object.iri.clone(),
-            format!("{}/pose", object.iri),
-            format!("{}/shape", object.iri),
+            NamedNode::new_unchecked(object.iri.clone()),
+            NamedNode::new_unchecked(format!("{}/pose", object.iri)),
+            NamedNode::new_unchecked(format!("{}/shape", object.iri)),
         ];
-        let mut updated = false;
-        let mut transaction = store.inner().start_transaction().map_err(storage)?;
-        let mut stale = Vec::new();
-        for subject in &owned {
-            for quad in transaction.quads_for_pattern(
-                Some(NamedNodeRef::new_unchecked(subject).into()),
-                None,
-                None,
-                Some(graph.as_ref().into()),
-            ) {
-                stale.push(quad.map_err(storage)?);
-            }
-        }
-        updated |= !stale.is_empty();
-        for quad in &stale {
-            transaction.remove(quad);
-        }
         let quads: Vec<Quad> = triples
             .into_iter()
             .map(|t| t.in_graph(graph.clone()))
             .collect();
-        transaction.extend(quads.iter());
-        transaction.commit().map_err(storage)?;
-        k.after_write().map_err(ApiError::internal)?;
+        let updated = store.replace_subjects(graph.as_ref(), &owned, &quads)?;
+        k.after_write()?;
         let status = if updated {
             StatusCode::OK
         } else {
@@ -823,6 +804,9 @@ fn waypoint(which: &str, w: WaypointInput) -> Result<Waypoint, ApiError> {
 
 impl From<OnDemandError> for ApiError {
     fn from(e: OnDemandError) -> Self {
+        if let OnDemandError::Store(e) = e {
+            return ApiError::from(e);
+        }
         match &e {
             OnDemandError::NoGoals | OnDemandError::NotFinite { .. } => {
                 ApiError::bad_request(e.to_string())

@@ -2,7 +2,6 @@
 //! robot and a sample building made from real maps, each in its own named graph so an engineer
 //! can replace one with a Graph Store PUT.
 
-use oxigraph::io::{RdfFormat, RdfParser};
 use oxigraph::model::NamedNodeRef;
 
 use crate::store::{KnowledgeStore, StoreError};
@@ -41,24 +40,22 @@ pub const BUNDLED: &[BundledGraph] = &[
 /// already holds data is left alone: engineers' edits survive restarts. Blocking.
 /// Returns whether anything was loaded.
 pub fn load_if_empty(store: &KnowledgeStore) -> Result<bool, StoreError> {
-    let storage = |source| StoreError::Storage {
-        path: store.path().to_owned(),
-        source,
-    };
-    if !store.inner().is_empty().map_err(storage)? {
+    if !store.is_empty()? {
         return Ok(false);
     }
+    let mut quads = Vec::new();
     for bundled in BUNDLED {
-        let parser = RdfParser::from_format(RdfFormat::Turtle)
-            .with_default_graph(NamedNodeRef::new_unchecked(bundled.graph));
-        store
-            .inner()
-            .load_from_slice(parser, bundled.turtle.as_bytes())
-            .map_err(|e| StoreError::Query {
-                path: store.path().to_owned(),
-                message: format!("bundled {} does not load: {e}", bundled.file),
-            })?;
+        let parsed = KnowledgeStore::parse_turtle(
+            bundled.turtle,
+            NamedNodeRef::new_unchecked(bundled.graph),
+        )
+        .map_err(|e| StoreError::Query {
+            location: store.location().to_owned(),
+            message: format!("bundled {} does not load: {e}", bundled.file),
+        })?;
+        quads.extend(parsed);
     }
+    store.insert(&quads)?;
     crate::inference::refresh(store)?;
     Ok(true)
 }
@@ -78,7 +75,6 @@ mod tests {
         for bundled in BUNDLED {
             assert!(
                 store
-                    .inner()
                     .contains_named_graph(NamedNodeRef::new_unchecked(bundled.graph))
                     .unwrap()
             );
@@ -89,7 +85,7 @@ mod tests {
         let answer = oxigraph::sparql::SparqlEvaluator::new()
             .parse_query(q)
             .unwrap()
-            .on_store(store.inner())
+            .on_store(store.embedded().unwrap())
             .execute()
             .unwrap();
         assert!(matches!(

@@ -36,13 +36,26 @@ pub struct Refreshed {
     pub inferred: usize,
 }
 
-/// Rebuilds [`INFERRED_GRAPH`] from everything else in the store, in one transaction. Blocking.
+/// Rebuilds [`INFERRED_GRAPH`] from everything else in the store, in one transaction (one
+/// update request for a remote store, which also gets a new version marker). Blocking.
 pub fn refresh(store: &KnowledgeStore) -> Result<Refreshed, StoreError> {
-    let storage = |source| StoreError::Storage {
-        path: store.path().to_owned(),
-        source,
-    };
-    let inner = store.inner();
+    if let Some(remote) = store.remote_store() {
+        let quads: Vec<Quad> = remote
+            .quads(None, None)?
+            .into_iter()
+            .filter(|q| q.graph_name.as_ref() != GraphNameRef::NamedNode(INFERRED_GRAPH))
+            .collect();
+        let asserted: HashSet<Triple> = quads.iter().cloned().map(Triple::from).collect();
+        let inferred = entailed_only(&asserted);
+        let count = remote.write_inferred(quads, &inferred)?;
+        store.bump_generation();
+        return Ok(Refreshed {
+            asserted: asserted.len(),
+            inferred: count,
+        });
+    }
+    let storage = |source| store.storage(source);
+    let inner = store.snapshot()?;
     let mut asserted: HashSet<Triple> = HashSet::new();
     for quad in inner.iter() {
         let quad = quad.map_err(storage)?;
@@ -51,10 +64,8 @@ pub fn refresh(store: &KnowledgeStore) -> Result<Refreshed, StoreError> {
         }
         asserted.insert(Triple::from(quad));
     }
-    let entailed = closure(&asserted);
-    let inferred: Vec<Quad> = entailed
+    let inferred: Vec<Quad> = entailed_only(&asserted)
         .into_iter()
-        .filter(|t| !asserted.contains(t))
         .map(|t| t.in_graph(INFERRED_GRAPH))
         .collect();
     let count = inferred.len();
@@ -62,10 +73,19 @@ pub fn refresh(store: &KnowledgeStore) -> Result<Refreshed, StoreError> {
     transaction.clear_graph(INFERRED_GRAPH).map_err(storage)?;
     transaction.extend(inferred.iter());
     transaction.commit().map_err(storage)?;
+    store.bump_generation();
     Ok(Refreshed {
         asserted: asserted.len(),
         inferred: count,
     })
+}
+
+/// The triples entailed by `asserted` that are not asserted.
+fn entailed_only(asserted: &HashSet<Triple>) -> Vec<Triple> {
+    closure(asserted)
+        .into_iter()
+        .filter(|t| !asserted.contains(t))
+        .collect()
 }
 
 /// The schema the rules use, read from the triples.
@@ -256,7 +276,7 @@ mod tests {
         match oxigraph::sparql::SparqlEvaluator::new()
             .parse_query(&q)
             .unwrap()
-            .on_store(store.inner())
+            .on_store(store.embedded().unwrap())
             .execute()
             .unwrap()
         {
@@ -269,7 +289,8 @@ mod tests {
     fn entailments_are_materialised_and_rebuilt() {
         let store = KnowledgeStore::in_memory().unwrap();
         store
-            .inner()
+            .embedded()
+            .unwrap()
             .load_from_slice(
                 oxigraph::io::RdfParser::from_format(RdfFormat::Turtle)
                     .with_default_graph(NamedNodeRef::new_unchecked("http://example.org/g")),
@@ -286,7 +307,8 @@ mod tests {
         assert_eq!(refresh(&store).unwrap(), r);
         // Removing the assertion removes its consequences.
         store
-            .inner()
+            .embedded()
+            .unwrap()
             .update("PREFIX : <http://example.org/> DELETE WHERE { GRAPH ?g { :floor1 :isDirectlyInsideOf :building } }")
             .unwrap();
         refresh(&store).unwrap();

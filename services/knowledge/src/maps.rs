@@ -1,7 +1,7 @@
 //! Map import: a ROS map_server map (YAML + PGM/PNG) becomes a TOSM floor with its metric map,
 //! in a named graph of its own.
 
-use oxigraph::model::{NamedNode, NamedNodeRef, Quad};
+use oxigraph::model::{NamedNode, Quad};
 use tosm::{MapError, MetricMap, OccupancyGrid, Place, PlaceKind, RosMapMeta, Symbol};
 
 use crate::service::Knowledge;
@@ -130,20 +130,11 @@ pub fn import(
     let graph_iri = format!("{GRAPH_NS}{name}");
     let graph = NamedNode::new_unchecked(graph_iri.clone());
     let store = knowledge.try_store()?;
-    let storage = |source| StoreError::Storage {
-        path: store.path().to_owned(),
-        source,
-    };
-    let mut transaction = store.inner().start_transaction().map_err(storage)?;
-    transaction
-        .clear_graph(NamedNodeRef::from(&graph))
-        .map_err(storage)?;
     let quads: Vec<Quad> = triples
         .iter()
         .map(|t| t.clone().in_graph(graph.clone()))
         .collect();
-    transaction.extend(quads.iter());
-    transaction.commit().map_err(storage)?;
+    store.replace_graph(&graph.clone().into(), &quads)?;
     knowledge.after_write()?;
     Ok(ImportedFloor {
         floor_iri: floor.iri,
@@ -198,12 +189,13 @@ mod tests {
         assert_eq!(imported.size, (20, 10));
         let store = k.try_store().unwrap();
         let graph: oxigraph::model::Graph = store
-            .inner()
+            .embedded()
+            .unwrap()
             .quads_for_pattern(
                 None,
                 None,
                 None,
-                Some(NamedNodeRef::new_unchecked(&imported.graph_iri).into()),
+                Some(oxigraph::model::NamedNodeRef::new_unchecked(&imported.graph_iri).into()),
             )
             .map(|q| oxigraph::model::Triple::from(q.unwrap()))
             .collect();

@@ -7,6 +7,7 @@
 //! stable IRIs of the graph, so two downloads of overlapping missions merge cleanly.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
+use std::sync::Arc;
 
 use oxigraph::model::vocab::rdf;
 use oxigraph::model::{Graph, GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
@@ -123,15 +124,29 @@ impl OnDemandError {
     }
 }
 
-/// Reads asserted triples out of the store (every graph but the inferred one).
-struct Reader<'a> {
-    store: &'a KnowledgeStore,
+/// Reads asserted triples out of the store (every graph but the inferred one): the embedded
+/// store itself, or the in-memory snapshot of a remote one.
+struct Reader {
+    store: oxigraph::store::Store,
+    location: String,
+    owner: KnowledgeStore,
+    key: crate::store::CacheKey,
 }
 
-impl Reader<'_> {
+impl Reader {
+    fn new(store: &KnowledgeStore) -> Result<Self, StoreError> {
+        let snapshot = store.snapshot()?;
+        Ok(Self {
+            store: snapshot,
+            location: store.location().to_owned(),
+            owner: store.clone(),
+            key: store.cache_key(),
+        })
+    }
+
     fn err(&self, source: oxigraph::store::StorageError) -> StoreError {
         StoreError::Storage {
-            path: self.store.path().to_owned(),
+            location: self.location.clone(),
             source,
         }
     }
@@ -141,7 +156,6 @@ impl Reader<'_> {
         let mut out = Vec::new();
         for quad in self
             .store
-            .inner()
             .quads_for_pattern(Some(subject.into()), None, None, None)
         {
             let quad = quad.map_err(|e| self.err(e))?;
@@ -154,7 +168,7 @@ impl Reader<'_> {
 
     /// Whether `node` has type `class`, asserted or entailed.
     fn is_a(&self, node: NamedNodeRef<'_>, class: NamedNodeRef<'_>) -> Result<bool, StoreError> {
-        let mut it = self.store.inner().quads_for_pattern(
+        let mut it = self.store.quads_for_pattern(
             Some(node.into()),
             Some(rdf::TYPE),
             Some(class.into()),
@@ -170,10 +184,9 @@ impl Reader<'_> {
     /// Every individual of `class` (asserted or entailed), sorted.
     fn instances(&self, class: NamedNodeRef<'_>) -> Result<BTreeSet<NamedNode>, StoreError> {
         let mut out = BTreeSet::new();
-        for quad in
-            self.store
-                .inner()
-                .quads_for_pattern(None, Some(rdf::TYPE), Some(class.into()), None)
+        for quad in self
+            .store
+            .quads_for_pattern(None, Some(rdf::TYPE), Some(class.into()), None)
         {
             let quad = quad.map_err(|e| self.err(e))?;
             if let oxigraph::model::NamedOrBlankNode::NamedNode(n) = quad.subject {
@@ -214,7 +227,7 @@ impl Reader<'_> {
             return Ok(NamedNode::new(name).ok());
         }
         let literal = oxigraph::model::Literal::new_simple_literal(name);
-        let mut it = self.store.inner().quads_for_pattern(
+        let mut it = self.store.quads_for_pattern(
             None,
             Some(vocab::IDENTIFIER),
             Some(TermRef::Literal(literal.as_ref())),
@@ -232,9 +245,22 @@ impl Reader<'_> {
 }
 
 /// Every place in the store as typed values, read leniently: a broken place is logged and
-/// left out rather than failing every mission.
-pub fn all_places(store: &KnowledgeStore) -> Result<Vec<Place>, StoreError> {
-    let reader = Reader { store };
+/// left out rather than failing every mission. Read once per state of the graph and shared
+/// until the next write.
+pub fn all_places(store: &KnowledgeStore) -> Result<Arc<Vec<Place>>, StoreError> {
+    places_of(&Reader::new(store)?)
+}
+
+fn places_of(reader: &Reader) -> Result<Arc<Vec<Place>>, StoreError> {
+    if let Some(places) = reader.owner.cached_places(reader.key) {
+        return Ok(places);
+    }
+    let places = Arc::new(read_places(reader)?);
+    reader.owner.cache_places(reader.key, places.clone());
+    Ok(places)
+}
+
+fn read_places(reader: &Reader) -> Result<Vec<Place>, StoreError> {
     let mut triples = HashSet::new();
     let mut seen = BTreeSet::new();
     for place in reader.instances(vocab::PLACE)? {
@@ -253,13 +279,13 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
     if mission.goals.is_empty() {
         return Err(OnDemandError::NoGoals);
     }
-    let reader = Reader { store };
+    let reader = Reader::new(store)?;
     let robot = reader
         .resolve(&mission.robot)?
         .filter(|r| reader.is_a(r.as_ref(), vocab::ROBOT).unwrap_or(false))
         .ok_or_else(|| OnDemandError::UnknownRobot(mission.robot.clone()))?;
 
-    let places = all_places(store)?;
+    let places = places_of(&reader)?;
     let index: HashMap<&str, &Place> = places.iter().map(|p| (p.iri.as_str(), p)).collect();
 
     let mut stops = Vec::new();
@@ -316,11 +342,11 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
 /// The triples of the `included` places, the objects inside them (recursively), and the
 /// robot, sorted by their N-Triples form so the same input gives byte-identical output.
 fn assemble(
-    reader: &Reader<'_>,
+    reader: &Reader,
     included: &BTreeSet<String>,
     robot: &NamedNode,
 ) -> Result<Vec<Triple>, OnDemandError> {
-    let store = reader.store;
+    let store = &reader.store;
     let mut triples = HashSet::new();
     let mut seen = BTreeSet::new();
     for iri in included {
@@ -335,7 +361,7 @@ fn assemble(
     let mut containers: VecDeque<String> = included.iter().cloned().collect();
     while let Some(container) = containers.pop_front() {
         let node = NamedNode::new_unchecked(container);
-        for quad in store.inner().quads_for_pattern(
+        for quad in store.quads_for_pattern(
             None,
             Some(vocab::IS_DIRECTLY_INSIDE_OF),
             Some(node.as_ref().into()),
@@ -368,7 +394,7 @@ pub fn floor_database(
     floor: &str,
     robot: Option<&str>,
 ) -> Result<OnDemandDatabase, OnDemandError> {
-    let reader = Reader { store };
+    let reader = Reader::new(store)?;
     let robot = match robot {
         Some(name) => reader
             .resolve(name)?
@@ -380,7 +406,7 @@ pub fn floor_database(
             .next()
             .ok_or_else(|| OnDemandError::UnknownRobot("(any)".to_owned()))?,
     };
-    let places = all_places(store)?;
+    let places = places_of(&reader)?;
     let index: HashMap<&str, &Place> = places.iter().map(|p| (p.iri.as_str(), p)).collect();
     let floor_place = index
         .get(floor)
@@ -413,7 +439,7 @@ pub fn floor_database(
 
 /// The place a waypoint is in: the smallest place whose boundary contains the point.
 fn locate(
-    reader: &Reader<'_>,
+    reader: &Reader,
     places: &[Place],
     index: &HashMap<&str, &Place>,
     which: &str,
@@ -605,7 +631,7 @@ mod tests {
     }
 
     fn places(store: &KnowledgeStore) -> Vec<Place> {
-        all_places(store).unwrap()
+        all_places(store).unwrap().to_vec()
     }
 
     #[test]

@@ -59,7 +59,7 @@ impl Knowledge {
         let mut service = Self::lazy(
             || {
                 Err(StoreError::Query {
-                    path: "(none)".into(),
+                    location: "(none)".into(),
                     message: "no opener".to_owned(),
                 })
             },
@@ -105,6 +105,17 @@ impl Knowledge {
                 format!("the graph store is unavailable: {e}"),
             )
         })
+    }
+
+    /// The store for an async handler: the open store at once, or opened on a blocking thread.
+    pub async fn store_async(self: &std::sync::Arc<Self>) -> Result<KnowledgeStore, ApiError> {
+        if let Some(store) = self.opened_store() {
+            return Ok(store);
+        }
+        let knowledge = self.clone();
+        tokio::task::spawn_blocking(move || knowledge.store())
+            .await
+            .map_err(|e| ApiError::internal(format!("store open task failed: {e}")))?
     }
 
     /// The store if it is already open, without trying to open it.

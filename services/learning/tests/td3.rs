@@ -390,7 +390,10 @@ fn the_actor_climbs_the_critic_to_the_best_action() {
 fn debug_policy_behaviour() {
     let policy = Policy::load(std::path::Path::new(&std::env::var("POLICY").unwrap())).unwrap();
     let world = room();
-    let env = sim::EnvConfig { goal_distance: (1.0, 5.0), ..sim::EnvConfig::default() };
+    let env = sim::EnvConfig {
+        goal_distance: (1.0, 5.0),
+        ..sim::EnvConfig::default()
+    };
     let missions = learning::mission_set(&world, &env, 5, 3).unwrap();
     for m in &missions {
         let mut e = sim::NavEnv::new(world.clone(), env.clone(), 1).unwrap();
@@ -400,9 +403,17 @@ fn debug_policy_behaviour() {
             let input = policy.scaling().encode(&obs).unwrap();
             let y = policy.forward(&input).unwrap();
             let r = e.step(policy.scaling().command(y));
-            if k % 10 == 0 { line += &format!("[d{:.1} a{:.2} v{:.2} w{:.2}] ", obs.goal_distance, obs.goal_angle, y[0], y[1]); }
+            if k % 10 == 0 {
+                line += &format!(
+                    "[d{:.1} a{:.2} v{:.2} w{:.2}] ",
+                    obs.goal_distance, obs.goal_angle, y[0], y[1]
+                );
+            }
             obs = r.observation;
-            if r.done { line += &format!("{:?} at {k}", r.info.outcome); break; }
+            if r.done {
+                line += &format!("{:?} at {k}", r.info.outcome);
+                break;
+            }
         }
         println!("{line}\n");
     }

@@ -560,20 +560,21 @@ impl NavEnv {
         };
         let r = &cfg.reward;
         let step_cost = if r.time_per_step { r.time * dt } else { 0.0 };
-        let reward = -step_cost + match self.outcome {
-            Outcome::ReachedGoal if r.time_per_step => r.completion,
-            Outcome::ReachedGoal => r.completion - time_s * r.time,
-            Outcome::Collision => -r.collision,
-            Outcome::Running | Outcome::TimeLimit if r.progress => {
-                let most = (cfg.limits.linear_max.abs() * dt).max(1e-9);
-                let turn = (cfg.limits.angular_max.abs() * dt).max(1e-9);
-                let turned = bearing_before - self.bearing_error();
-                r.closer * ((self.distance - distance) / most).clamp(-1.0, 1.0)
-                    + r.closer * r.heading * (turned / turn).clamp(-1.0, 1.0)
-            }
-            Outcome::Running | Outcome::TimeLimit if distance < self.distance => r.closer,
-            Outcome::Running | Outcome::TimeLimit => 0.0,
-        };
+        let reward = -step_cost
+            + match self.outcome {
+                Outcome::ReachedGoal if r.time_per_step => r.completion,
+                Outcome::ReachedGoal => r.completion - time_s * r.time,
+                Outcome::Collision => -r.collision,
+                Outcome::Running | Outcome::TimeLimit if r.progress => {
+                    let most = (cfg.limits.linear_max.abs() * dt).max(1e-9);
+                    let turn = (cfg.limits.angular_max.abs() * dt).max(1e-9);
+                    let turned = bearing_before - self.bearing_error();
+                    r.closer * ((self.distance - distance) / most).clamp(-1.0, 1.0)
+                        + r.closer * r.heading * (turned / turn).clamp(-1.0, 1.0)
+                }
+                Outcome::Running | Outcome::TimeLimit if distance < self.distance => r.closer,
+                Outcome::Running | Outcome::TimeLimit => 0.0,
+            };
         self.distance = distance;
         let observation = self.observe();
         self.remember(&observation);

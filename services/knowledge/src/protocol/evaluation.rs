@@ -1,9 +1,11 @@
 //! Evaluation of parsed SPARQL queries and updates on the store, into fully serialized
 //! answers, under a cancellation token and the CONSTRUCT cap. Knows nothing of HTTP.
 
-use oxigraph::io::RdfSerializer;
-use oxigraph::model::{GraphName, NamedNode, NamedOrBlankNode};
-use oxigraph::sparql::results::QueryResultsSerializer;
+use oxigraph::io::{RdfFormat, RdfParser, RdfSerializer};
+use oxigraph::model::{GraphName, NamedNode, NamedOrBlankNode, TripleRef};
+use oxigraph::sparql::results::{
+    QueryResultsFormat, QueryResultsParser, QueryResultsSerializer, SliceQueryResultsParserOutput,
+};
 use oxigraph::sparql::{
     CancellationToken, QueryDataset, QueryEvaluationError, QueryResults, SparqlEvaluator,
     UpdateEvaluationError,
@@ -11,6 +13,7 @@ use oxigraph::sparql::{
 use oxigraph::store::Store;
 
 use super::negotiation::Format;
+use crate::remote::RemoteStore;
 
 /// rdflib's name for "the default graph" of a `Dataset`. rdflib sends it as
 /// `default-graph-uri`, and writes either into the real default graph (`Dataset.add`) or into a
@@ -50,6 +53,9 @@ pub(crate) enum EvaluationError {
     /// The store failed.
     #[error("storage: {0}")]
     Storage(String),
+    /// The remote store failed or refused.
+    #[error(transparent)]
+    Remote(#[from] crate::StoreError),
 }
 
 /// The dataset a request names with `default-graph-uri`/`named-graph-uri` (queries) or
@@ -60,11 +66,14 @@ pub(crate) struct ProtocolDataset {
     default: Vec<GraphName>,
     /// `None`: every named graph of the store stays available.
     named: Option<Vec<NamedOrBlankNode>>,
+    /// The IRIs as the request gave them, forwarded as they are to a remote store.
+    given: (Vec<NamedNode>, Vec<NamedNode>),
 }
 
 impl ProtocolDataset {
     /// The dataset from the two lists of IRIs, `None` when both are empty.
     pub(crate) fn from_iris(default: &[NamedNode], named: &[NamedNode]) -> Option<Self> {
+        let named_given = named;
         if default.is_empty() && named.is_empty() {
             return None;
         }
@@ -89,7 +98,20 @@ impl ProtocolDataset {
         Some(Self {
             default: default_graphs,
             named,
+            given: (default.to_vec(), named_given.to_vec()),
         })
+    }
+
+    /// The protocol parameters that name this dataset to a remote store, under `default_name`
+    /// and `named_name`.
+    pub(crate) fn params<'a>(
+        &'a self,
+        default_name: &'a str,
+        named_name: &'a str,
+    ) -> Vec<(&'a str, &'a str)> {
+        let default = self.given.0.iter().map(|g| (default_name, g.as_str()));
+        let named = self.given.1.iter().map(|g| (named_name, g.as_str()));
+        default.chain(named).collect()
     }
 
     fn apply(&self, spec: &mut QueryDataset) {
@@ -197,6 +219,119 @@ pub(crate) fn run_update(
             other => EvaluationError::Invalid(other.to_string()),
         }
     })
+}
+
+/// Sends `query` to the remote store and answers its result in `format`: a results body in the
+/// negotiated format is passed through untouched; anything else (another results format, or
+/// any graph, which must be counted against the cap) is parsed and written again.
+pub(crate) async fn run_query_remote(
+    remote: &RemoteStore,
+    query: &spargebra::Query,
+    dataset: Option<&ProtocolDataset>,
+    format: Format,
+    max_triples: usize,
+) -> Result<Vec<u8>, EvaluationError> {
+    let params = dataset
+        .map(|d| d.params("default-graph-uri", "named-graph-uri"))
+        .unwrap_or_default();
+    let text = query.to_string();
+    match format {
+        Format::Results(wanted) => {
+            let accept = format!(
+                "{}, application/sparql-results+json;q=0.5, application/sparql-results+xml;q=0.4",
+                wanted.media_type()
+            );
+            let (content_type, body) = remote.query(&text, &params, &accept).await?;
+            let got = content_type
+                .as_deref()
+                .and_then(QueryResultsFormat::from_media_type);
+            if got == Some(wanted) {
+                return Ok(body.to_vec());
+            }
+            let got = got.ok_or_else(|| unexpected(remote, content_type.as_deref()))?;
+            transcode_results(&body, got, wanted)
+        }
+        Format::Rdf(wanted) => {
+            let accept = "application/n-triples, text/turtle;q=0.9, application/rdf+xml;q=0.5, \
+                          application/ld+json;q=0.4";
+            let (content_type, body) = remote.query(&text, &params, accept).await?;
+            let got = content_type
+                .as_deref()
+                .and_then(RdfFormat::from_media_type)
+                .ok_or_else(|| unexpected(remote, content_type.as_deref()))?;
+            let mut serializer = RdfSerializer::from_format(wanted).for_writer(Vec::new());
+            for (count, triple) in RdfParser::from_format(got).for_slice(&body).enumerate() {
+                if count >= max_triples {
+                    return Err(EvaluationError::TooLarge { limit: max_triples });
+                }
+                let quad = triple.map_err(|e| {
+                    EvaluationError::Storage(format!(
+                        "the remote store's {} answer does not parse: {e}",
+                        got.name()
+                    ))
+                })?;
+                serializer
+                    .serialize_triple(TripleRef::from(quad.as_ref()))
+                    .map_err(|e| unserializable(wanted.name(), e))?;
+            }
+            serializer
+                .finish()
+                .map_err(|e| unserializable(wanted.name(), e))
+        }
+    }
+}
+
+fn unexpected(remote: &RemoteStore, content_type: Option<&str>) -> EvaluationError {
+    EvaluationError::Storage(format!(
+        "the remote store at {} answered the media type {content_type:?}, which the service \
+         cannot read",
+        remote.query_url()
+    ))
+}
+
+fn transcode_results(
+    body: &[u8],
+    from: QueryResultsFormat,
+    to: QueryResultsFormat,
+) -> Result<Vec<u8>, EvaluationError> {
+    let unreadable = |e: &dyn std::fmt::Display| {
+        EvaluationError::Storage(format!("the remote store's results do not parse: {e}"))
+    };
+    let unserializable = |e| unserializable(to.name(), e);
+    match QueryResultsParser::from_format(from)
+        .for_slice(body)
+        .map_err(|e| unreadable(&e))?
+    {
+        SliceQueryResultsParserOutput::Boolean(value) => QueryResultsSerializer::from_format(to)
+            .serialize_boolean_to_writer(Vec::new(), value)
+            .map_err(unserializable),
+        SliceQueryResultsParserOutput::Solutions(solutions) => {
+            let mut serializer = QueryResultsSerializer::from_format(to)
+                .serialize_solutions_to_writer(Vec::new(), solutions.variables().to_vec())
+                .map_err(unserializable)?;
+            for solution in solutions {
+                serializer
+                    .serialize(&solution.map_err(|e| unreadable(&e))?)
+                    .map_err(unserializable)?;
+            }
+            serializer.finish().map_err(unserializable)
+        }
+    }
+}
+
+/// Sends `update` to the remote store.
+pub(crate) async fn run_update_remote(
+    remote: &RemoteStore,
+    update: &spargebra::Update,
+    dataset: Option<&ProtocolDataset>,
+) -> Result<(), EvaluationError> {
+    let params = dataset
+        .map(|d| d.params("using-graph-uri", "using-named-graph-uri"))
+        .unwrap_or_default();
+    remote
+        .update_async(&update.to_string(), &params)
+        .await
+        .map_err(EvaluationError::from)
 }
 
 fn query_error(e: QueryEvaluationError) -> EvaluationError {

@@ -12,9 +12,8 @@ use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
 use edge::{ApiError, ErrorCode};
 use oxigraph::io::{RdfFormat, RdfParser, RdfSerializer};
-use oxigraph::model::{GraphName, GraphNameRef, NamedNode, Quad, TripleRef};
+use oxigraph::model::{GraphName, NamedNode, Quad, TripleRef};
 use oxigraph::sparql::CancellationToken;
-use oxigraph::store::Store;
 
 use super::negotiation::{self, DATASET_FORMATS, Format, GRAPH_FORMATS};
 use super::{
@@ -23,6 +22,7 @@ use super::{
 use crate::auth::Role;
 use crate::inference::INFERRED_GRAPH;
 use crate::service::Knowledge;
+use crate::store::KnowledgeStore;
 
 /// What a request addresses.
 #[derive(Debug, Clone)]
@@ -165,11 +165,8 @@ async fn read(
     let body = deadline
         .read(move || {
             let store = knowledge.store()?;
-            let store = store.inner();
             if let Target::Named(graph) = &target
-                && !store
-                    .contains_named_graph(graph)
-                    .map_err(ApiError::internal)?
+                && !store.contains_named_graph(graph.as_ref())?
             {
                 return Err(ApiError::not_found(format!(
                     "graph <{graph}> does not exist"
@@ -178,18 +175,24 @@ async fn read(
             if head {
                 return Ok(Vec::new());
             }
-            serialize(store, &target, format, limits.max_construct_triples, &token).map_err(|e| {
-                match e {
-                    Dump::Cancelled => exceeded,
-                    Dump::TooLarge(limit) => ApiError::new(
-                        ErrorCode::ResultTooLarge,
-                        format!(
-                            "the graph has more than {limit} triples, the configured cap; read \
+            serialize(
+                &store,
+                &target,
+                format,
+                limits.max_construct_triples,
+                &token,
+            )
+            .map_err(|e| match e {
+                Dump::Cancelled => exceeded,
+                Dump::TooLarge(limit) => ApiError::new(
+                    ErrorCode::ResultTooLarge,
+                    format!(
+                        "the graph has more than {limit} triples, the configured cap; read \
                              it in parts with SPARQL (LIMIT/OFFSET)"
-                        ),
                     ),
-                    Dump::Failed(message) => ApiError::internal(message),
-                }
+                ),
+                Dump::Store(e) => ApiError::from(e),
+                Dump::Failed(message) => ApiError::internal(message),
             })
         })
         .await?;
@@ -209,12 +212,48 @@ async fn read(
 enum Dump {
     Cancelled,
     TooLarge(usize),
+    Store(crate::StoreError),
     Failed(String),
 }
 
 /// The target's triples (or the whole dataset's quads) in `format`. Blocking.
 fn serialize(
-    store: &Store,
+    store: &KnowledgeStore,
+    target: &Target,
+    format: RdfFormat,
+    max_triples: usize,
+    token: &CancellationToken,
+) -> Result<Vec<u8>, Dump> {
+    match (store.embedded(), store.remote_store()) {
+        (Some(embedded), _) => {
+            let quads = match target.graph_name() {
+                Some(graph) => embedded.quads_for_pattern(None, None, None, Some(graph.as_ref())),
+                None => embedded.iter(),
+            };
+            write_quads(quads, target, format, max_triples, token)
+        }
+        (None, Some(remote)) => {
+            // One more than the cap tells whether the cap is exceeded.
+            let quads = remote
+                .quads(
+                    target.graph_name().as_ref(),
+                    Some(max_triples.saturating_add(1)),
+                )
+                .map_err(Dump::Store)?;
+            write_quads(
+                quads.into_iter().map(Ok::<Quad, std::convert::Infallible>),
+                target,
+                format,
+                max_triples,
+                token,
+            )
+        }
+        (None, None) => Err(Dump::Failed("the store has no backend".to_owned())),
+    }
+}
+
+fn write_quads<E: std::fmt::Display>(
+    quads: impl Iterator<Item = Result<Quad, E>>,
     target: &Target,
     format: RdfFormat,
     max_triples: usize,
@@ -222,10 +261,6 @@ fn serialize(
 ) -> Result<Vec<u8>, Dump> {
     let failed = |e: &dyn std::fmt::Display| Dump::Failed(e.to_string());
     let mut serializer = RdfSerializer::from_format(format).for_writer(Vec::new());
-    let quads = match target.graph_name() {
-        Some(graph) => store.quads_for_pattern(None, None, None, Some(graph.as_ref())),
-        None => store.iter(),
-    };
     for (count, quad) in quads.enumerate() {
         // Checking an atomic per quad is cheap next to serializing it.
         if token.is_cancelled() {
@@ -358,26 +393,8 @@ async fn replace(
     let created = blocking(move || {
         let quads = parse(&documents, &graph, &base)?;
         let store = knowledge.store()?;
-        let internal = ApiError::internal;
-        let mut transaction = store.inner().start_transaction().map_err(internal)?;
-        let created = match &graph {
-            GraphName::NamedNode(g) => {
-                let existed = transaction.contains_named_graph(g).map_err(internal)?;
-                if existed {
-                    transaction.clear_graph(g).map_err(internal)?;
-                } else {
-                    transaction.insert_named_graph(g);
-                }
-                !existed
-            }
-            GraphName::DefaultGraph | GraphName::BlankNode(_) => {
-                transaction.clear_graph(graph.as_ref()).map_err(internal)?;
-                false
-            }
-        };
-        transaction.extend(&quads);
-        transaction.commit().map_err(internal)?;
-        knowledge.after_write().map_err(ApiError::internal)?;
+        let created = store.replace_graph(&graph, &quads)?;
+        knowledge.after_write()?;
         Ok(created)
     })
     .await?;
@@ -413,19 +430,8 @@ async fn merge(
     let created = blocking(move || {
         let quads = parse(&documents, &graph, &base)?;
         let store = knowledge.store()?;
-        let internal = ApiError::internal;
-        let mut transaction = store.inner().start_transaction().map_err(internal)?;
-        let created = match &graph {
-            GraphName::NamedNode(g) => {
-                let existed = transaction.contains_named_graph(g).map_err(internal)?;
-                transaction.insert_named_graph(g);
-                !existed
-            }
-            GraphName::DefaultGraph | GraphName::BlankNode(_) => false,
-        };
-        transaction.extend(&quads);
-        transaction.commit().map_err(internal)?;
-        knowledge.after_write().map_err(ApiError::internal)?;
+        let created = store.merge_into_graph(&graph, &quads)?;
+        knowledge.after_write()?;
         Ok(created)
     })
     .await?;
@@ -441,24 +447,10 @@ async fn delete(knowledge: Arc<Knowledge>, target: Target) -> Result<Response, A
     };
     blocking(move || {
         let store = knowledge.store()?;
-        let store = store.inner();
-        let internal = ApiError::internal;
-        match &graph {
-            GraphName::NamedNode(g) => {
-                // The check and the drop are not one transaction; a concurrent DELETE of the
-                // same graph makes one of them a harmless no-op.
-                if !store.contains_named_graph(g).map_err(internal)? {
-                    return Err(ApiError::not_found(format!("graph <{g}> does not exist")));
-                }
-                store.remove_named_graph(g).map_err(internal)?;
-            }
-            GraphName::DefaultGraph | GraphName::BlankNode(_) => {
-                store
-                    .clear_graph(GraphNameRef::DefaultGraph)
-                    .map_err(internal)?;
-            }
+        if !store.drop_graph(&graph)? {
+            return Err(ApiError::not_found(format!("graph {graph} does not exist")));
         }
-        knowledge.after_write().map_err(ApiError::internal)
+        knowledge.after_write().map_err(ApiError::from)
     })
     .await?;
     Ok(StatusCode::NO_CONTENT.into_response())

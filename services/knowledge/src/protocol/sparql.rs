@@ -148,20 +148,38 @@ async fn answer_query(
     let limits = knowledge.limits;
     let deadline = Deadline::start(limits.deadline);
     let (token, exceeded) = (deadline.token(), deadline.exceeded());
-    let body = deadline
-        .read(move || {
-            let store = knowledge.store()?;
-            evaluation::run_query(
-                store.inner(),
-                query,
-                dataset.as_ref(),
-                format,
-                limits.max_construct_triples,
-                token,
-            )
-            .map_err(|e| evaluation_error(e, &exceeded))
-        })
-        .await?;
+    let store = knowledge.store_async().await?;
+    let body = if let Some(remote) = store.remote_store().cloned() {
+        // The deadline is the HTTP client's timeout too; this one also bounds re-serializing.
+        let forwarded = evaluation::run_query_remote(
+            &remote,
+            &query,
+            dataset.as_ref(),
+            format,
+            limits.max_construct_triples,
+        );
+        match tokio::time::timeout(limits.deadline, forwarded).await {
+            Err(_elapsed) => return Err(exceeded),
+            Ok(result) => result.map_err(|e| evaluation_error(e, &exceeded))?,
+        }
+    } else {
+        deadline
+            .read(move || {
+                let Some(embedded) = store.embedded() else {
+                    return Err(ApiError::internal("the store has no backend"));
+                };
+                evaluation::run_query(
+                    embedded,
+                    query,
+                    dataset.as_ref(),
+                    format,
+                    limits.max_construct_triples,
+                    token,
+                )
+                .map_err(|e| evaluation_error(e, &exceeded))
+            })
+            .await?
+    };
     Ok((
         [
             (CONTENT_TYPE, HeaderValue::from_static(content_type)),
@@ -201,12 +219,35 @@ async fn apply_update(
     }
     let deadline = Deadline::start(knowledge.limits.deadline);
     let (token, exceeded) = (deadline.token(), deadline.exceeded());
+    let store = knowledge.store_async().await?;
+    if let Some(remote) = store.remote_store().cloned() {
+        // A task of its own: once sent, the update and the inference rebuild after it run to
+        // the end even if the client goes away.
+        let limit = knowledge.limits.deadline;
+        let task = tokio::spawn(async move {
+            let forwarded = evaluation::run_update_remote(&remote, &update, dataset.as_ref());
+            let outcome = match tokio::time::timeout(limit, forwarded).await {
+                Err(_elapsed) => Err(exceeded.clone()),
+                Ok(result) => result.map_err(|e| evaluation_error(e, &exceeded)),
+            };
+            // Also after a failure: the remote may have applied part of it, or all of it
+            // just as the deadline passed.
+            let rebuilt =
+                super::blocking(move || knowledge.after_write().map_err(ApiError::from)).await;
+            outcome.and(rebuilt)
+        });
+        task.await
+            .map_err(|e| ApiError::internal(format!("update task failed: {e}")))??;
+        return Ok(StatusCode::NO_CONTENT.into_response());
+    }
     deadline
         .write(move || {
-            let store = knowledge.store()?;
-            evaluation::run_update(store.inner(), update, dataset.as_ref(), token)
+            let Some(embedded) = store.embedded() else {
+                return Err(ApiError::internal("the store has no backend"));
+            };
+            evaluation::run_update(embedded, update, dataset.as_ref(), token)
                 .map_err(|e| evaluation_error(e, &exceeded))?;
-            knowledge.after_write().map_err(ApiError::internal)
+            knowledge.after_write().map_err(ApiError::from)
         })
         .await?;
     Ok(StatusCode::NO_CONTENT.into_response())
@@ -264,5 +305,15 @@ pub(super) fn evaluation_error(e: EvaluationError, exceeded: &ApiError) -> ApiEr
             ApiError::new(ErrorCode::NotAcceptable, e.to_string())
         }
         EvaluationError::Storage(message) => ApiError::internal(message),
+        EvaluationError::Remote(crate::StoreError::TimedOut { .. }) => exceeded.clone(),
+        EvaluationError::Remote(crate::StoreError::Remote {
+            url,
+            status,
+            message,
+        }) if (400..500).contains(&status) => ApiError::new(
+            ErrorCode::InvalidQuery,
+            format!("the graph store at {url} refused the operation ({status}): {message}"),
+        ),
+        EvaluationError::Remote(e) => ApiError::from(e),
     }
 }

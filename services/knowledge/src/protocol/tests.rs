@@ -74,7 +74,8 @@ async fn a_client_that_hangs_up_stops_its_query() {
         .map(|i| format!("<http://example.org/s{i}> <http://example.org/p> {i} .\n"))
         .collect();
     store
-        .inner()
+        .embedded()
+        .unwrap()
         .load_from_slice(oxigraph::io::RdfFormat::Turtle, turtle.as_bytes())
         .unwrap();
     let limits = QueryLimits {

@@ -40,7 +40,8 @@ impl TestApp {
         self.knowledge
             .store()
             .unwrap()
-            .inner()
+            .embedded()
+            .unwrap()
             .load_from_slice(parser, turtle.as_bytes())
             .unwrap();
     }
