@@ -274,17 +274,32 @@ fn learns_an_open_room() {
     };
     let mut trainer = Trainer::new(world, options).unwrap();
     let before = trainer.evaluate_and_record(0.0).unwrap().success_rate;
-    let steps: u64 = std::env::var("LEARN_STEPS").ok().and_then(|v| v.parse().ok()).unwrap_or(60_000);
+    let steps: u64 = std::env::var("LEARN_STEPS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(60_000);
     trainer
-        .run(Budget { wall_s: None, env_steps: Some(steps) }, &mut |p| {
-            if p.counters.episodes % 50 == 0 {
-                eprintln!("{} steps, {} episodes, success {:.2}", p.counters.env_steps, p.counters.episodes, p.success_rate_100);
-            }
-            true
-        })
+        .run(
+            Budget {
+                wall_s: None,
+                env_steps: Some(steps),
+            },
+            &mut |p| {
+                if p.counters.episodes % 50 == 0 {
+                    eprintln!(
+                        "{} steps, {} episodes, success {:.2}",
+                        p.counters.env_steps, p.counters.episodes, p.success_rate_100
+                    );
+                }
+                true
+            },
+        )
         .unwrap();
     for e in trainer.evals() {
-        println!("{} steps: success {:.2} collision {:.2} timeout {:.2}", e.env_steps, e.report.success_rate, e.report.collision_rate, e.report.timeout_rate);
+        println!(
+            "{} steps: success {:.2} collision {:.2} timeout {:.2}",
+            e.env_steps, e.report.success_rate, e.report.collision_rate, e.report.timeout_rate
+        );
     }
     let after = trainer.evals().last().unwrap().report.success_rate;
     assert!(after >= before + 0.3, "success {before} -> {after}");

@@ -344,7 +344,10 @@ async fn cancel_job(
     if before.state.is_finished() {
         return Err(ApiError::new(
             ErrorCode::Conflict,
-            format!("job {id} already finished ({}): nothing to cancel", before.state),
+            format!(
+                "job {id} already finished ({}): nothing to cancel",
+                before.state
+            ),
         ));
     }
     queue.request_cancel(id).await.map_err(queue_error)?;
@@ -528,7 +531,12 @@ async fn get_policy(
     Ok(Json(view))
 }
 
-async fn download(api: &JobsApi, id: &str, file: &str, media: &'static str) -> Result<Response, ApiError> {
+async fn download(
+    api: &JobsApi,
+    id: &str,
+    file: &str,
+    media: &'static str,
+) -> Result<Response, ApiError> {
     let path = policy_path(api, id)?.join(file);
     let bytes = tokio::fs::read(&path)
         .await

@@ -36,7 +36,10 @@ impl LazyQueue {
                 if let Some(dir) = &self.create_dir
                     && let Err(e) = tokio::fs::create_dir_all(dir).await
                 {
-                    return Err(format!("cannot create data directory {}: {e}", dir.display()));
+                    return Err(format!(
+                        "cannot create data directory {}: {e}",
+                        dir.display()
+                    ));
                 }
                 let db = JobDatabase::connect(&self.url)
                     .await

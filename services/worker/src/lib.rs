@@ -26,8 +26,8 @@ pub mod service;
 pub mod temp_postgres;
 
 pub use clock::{Clock, ManualClock, SystemClock};
-pub use lazy::LazyQueue;
 pub use database::{Backend, DatabaseError, DatabaseStatus, JobDatabase, PoolSize};
+pub use lazy::LazyQueue;
 pub use queue::{
     Backoff, Checkpoint, Claimed, FailOutcome, Job, JobEvent, JobState, Lease, NewJob, Queue,
     QueueError, QueueStats, WriteAck,

@@ -85,7 +85,9 @@ pub async fn sweep_checkpoints(queue: &crate::Queue, env: &JobEnv) {
         if stale {
             match tokio::fs::remove_dir_all(entry.path()).await {
                 Ok(()) => tracing::info!(job = %id, "removed the checkpoint of a finished job"),
-                Err(e) => tracing::warn!(job = %id, error = %e, "removing a stale checkpoint failed"),
+                Err(e) => {
+                    tracing::warn!(job = %id, error = %e, "removing a stale checkpoint failed")
+                }
             }
         }
     }

@@ -41,9 +41,10 @@ impl EvaluatePayload {
             Some(n) if n == 0 || n > MAX_EPISODES => Err(PayloadError::Invalid(format!(
                 "payload.episodes: must be in 1..={MAX_EPISODES}, got {n}"
             ))),
-            _ if !super::policies::valid_id(&self.policy) => Err(PayloadError::NotFound(
-                format!("payload.policy: no policy has id {:?}", self.policy),
-            )),
+            _ if !super::policies::valid_id(&self.policy) => Err(PayloadError::NotFound(format!(
+                "payload.policy: no policy has id {:?}",
+                self.policy
+            ))),
             _ => Ok(()),
         }
     }
@@ -82,11 +83,10 @@ impl JobHandler for EvaluateHandler {
         let payload: EvaluatePayload = ctx.payload_as()?;
         payload.check()?;
         let robot = policy_robot(&self.env.policies, &payload)?;
-        let dir = self
-            .env
-            .policies
-            .path(&payload.policy)
-            .ok_or_else(|| JobError::Fatal(format!("invalid policy id {:?}", payload.policy)))?;
+        let dir =
+            self.env.policies.path(&payload.policy).ok_or_else(|| {
+                JobError::Fatal(format!("invalid policy id {:?}", payload.policy))
+            })?;
         let db = self
             .env
             .knowledge

@@ -158,7 +158,8 @@ pub fn parse<T: for<'de> Deserialize<'de>>(payload: &Value) -> Result<T, Payload
             "payload: must be a JSON object".to_owned(),
         ));
     }
-    serde_json::from_value(payload.clone()).map_err(|e| PayloadError::Invalid(format!("payload: {e}")))
+    serde_json::from_value(payload.clone())
+        .map_err(|e| PayloadError::Invalid(format!("payload: {e}")))
 }
 
 /// A handler's result or progress as JSON (serialising our own types cannot fail).

@@ -54,10 +54,14 @@ impl TrainPayload {
             )));
         }
         if self.robot.trim().is_empty() {
-            return Err(PayloadError::Invalid("payload.robot: must not be empty".into()));
+            return Err(PayloadError::Invalid(
+                "payload.robot: must not be empty".into(),
+            ));
         }
         if self.place.trim().is_empty() {
-            return Err(PayloadError::Invalid("payload.place: must not be empty".into()));
+            return Err(PayloadError::Invalid(
+                "payload.place: must not be empty".into(),
+            ));
         }
         self.train_config().map(|_| ())
     }
@@ -203,9 +207,9 @@ impl JobHandler for TrainHandler {
                 tracing::warn!(job = %ctx.id(), error = %e, "recording training progress failed");
             }
         }
-        let finished = task.await.map_err(|e| {
-            JobError::Retryable(format!("the training thread failed: {e}"))
-        })?;
+        let finished = task
+            .await
+            .map_err(|e| JobError::Retryable(format!("the training thread failed: {e}")))?;
         match finished {
             Ok(Finished::Done(result)) => {
                 // The job will not resume: its checkpoint is no longer needed.
@@ -300,7 +304,8 @@ fn train_blocking(
     trainer
         .export(&staged, summary.clone())
         .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
-    let policy = Policy::load(&staged).map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
+    let policy = Policy::load(&staged)
+        .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
     let config = &trainer.options().config;
     let held_out_seed = config.eval_seed.wrapping_add(1);
     let report = evaluate_policy(&policy, &world, config.eval_episodes, held_out_seed)

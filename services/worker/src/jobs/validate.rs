@@ -69,8 +69,7 @@ impl JobHandler for ValidateHandler {
     async fn run(&self, ctx: JobContext) -> Result<Value, JobError> {
         let Some(validator) = self.env.validator.clone() else {
             return Err(JobError::Fatal(
-                "validate jobs are not available yet: this worker has no plan validator"
-                    .to_owned(),
+                "validate jobs are not available yet: this worker has no plan validator".to_owned(),
             ));
         };
         let payload: ValidatePayload = ctx.payload_as()?;
