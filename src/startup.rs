@@ -212,6 +212,9 @@ impl Application {
             }
         }
         purge.abort();
+        // The purge task holds the knowledge state (and so the graph store): let it go before
+        // the stores close, so a process started next on this data directory can open them.
+        let _ = purge.await;
         self.components.close().await;
         tracing::info!("stopped");
         served

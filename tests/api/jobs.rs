@@ -573,3 +573,48 @@ async fn robots_read_jobs_but_only_engineers_create_and_cancel_them() {
     assert_eq!(job["state"], "cancelled");
     app.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_training_stopped_by_shutdown_checkpoints_and_resumes_in_the_next_process() {
+    let temp = tempfile::tempdir().unwrap();
+    let data_dir = temp.path().join("data");
+    let dir = data_dir.clone();
+    let app = spawn_app_with(move |c| c.data_dir = dir, None).await;
+    let response = post_job(&app, &tiny_train(0.25)).await;
+    assert_eq!(response.status(), 201);
+    let id = response.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    wait_for(&app, &id, Duration::from_secs(120), |j| {
+        j["state"] == "running" && j["progress"]["env_steps"].as_u64().unwrap_or(0) > 0
+    })
+    .await;
+    // SIGTERM, in effect: the worker stops claiming, the trainer checkpoints, the job goes back.
+    app.stop().await;
+    let dir = data_dir.clone();
+    let app = spawn_app_with(move |c| c.data_dir = dir, None).await;
+    let job = wait_for(&app, &id, Duration::from_secs(240), |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(job["state"], "succeeded", "{job:#}");
+    // The same attempt, resumed from its checkpoint in a second session.
+    assert_eq!(job["attempts"], 1, "{job:#}");
+    assert_eq!(job["result"]["sessions"], 2, "{job:#}");
+    let events: Vec<Sse> = read_events(
+        app.request(Method::GET, &format!("/v1/jobs/{id}/events"))
+            .send()
+            .await
+            .unwrap(),
+        Duration::from_secs(30),
+    )
+    .await;
+    assert!(
+        events
+            .iter()
+            .any(|e| e.event == "state" && e.data["data"]["released"] == true),
+        "{events:?}"
+    );
+    app.stop().await;
+}
