@@ -36,6 +36,25 @@ pub enum Command {
         #[arg(long, value_name = "URL")]
         store_url: Option<String>,
     },
+    /// Run job workers alone against a shared job database (SQLite file or PostgreSQL), taking
+    /// worlds from a knowledge service over HTTP; serves /healthz and /readyz on --bind.
+    Worker {
+        /// The knowledge service's URL [env: MENTALSIM_KNOWLEDGE_URL].
+        #[arg(long, value_name = "URL")]
+        knowledge_url: Option<String>,
+        /// The job database [default: sqlite://<data_dir>/jobs.sqlite; env: MENTALSIM_DATABASE_URL].
+        #[arg(long, value_name = "URL")]
+        database_url: Option<String>,
+        /// Jobs run at once [default: 1; env: MENTALSIM_WORKER_CONCURRENCY].
+        #[arg(long, value_name = "N")]
+        concurrency: Option<usize>,
+        /// Address of the health endpoints [default: 127.0.0.1:8080; env: MENTALSIM_BIND].
+        #[arg(long, value_name = "ADDR")]
+        bind: Option<String>,
+        /// Data directory (SQLite default, checkpoints, policies) [default: ./data].
+        #[arg(long, value_name = "DIR")]
+        data_dir: Option<PathBuf>,
+    },
     /// Import a ROS map_server map (YAML + PGM/PNG) into a running service as a TOSM floor.
     ImportMap {
         /// The map's YAML file; its `image` is read from beside it.
@@ -165,6 +184,21 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 200)]
         eval_episodes: usize,
     },
+    /// Job queue throughput (enqueue, claim + complete) on SQLite and a temporary PostgreSQL.
+    Queue {
+        /// Write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Jobs per backend.
+        #[arg(long, default_value_t = 2000)]
+        jobs: usize,
+        /// Concurrent enqueuers, then concurrent workers.
+        #[arg(long, default_value_t = 4)]
+        concurrency: usize,
+        /// A PostgreSQL database to use instead of a temporary cluster.
+        #[arg(long, env = "QUEUE_BENCH_POSTGRES_URL", hide_env_values = true)]
+        postgres_url: Option<String>,
+    },
     /// TD3 gradient steps per second, ours beside Stable-Baselines3's, same sizes, one run.
     Learner {
         /// Write the figures as JSON to this file.
@@ -220,8 +254,26 @@ pub fn main() -> ExitCode {
                 bind,
                 data_dir,
                 store_url,
+                ..Overrides::default()
             };
-            return serve_command(cli.config, overrides);
+            return serve_command(cli.config, overrides, false);
+        }
+        Command::Worker {
+            knowledge_url,
+            database_url,
+            concurrency,
+            bind,
+            data_dir,
+        } => {
+            let overrides = Overrides {
+                bind,
+                data_dir,
+                database_url,
+                knowledge_url,
+                worker_concurrency: concurrency,
+                ..Overrides::default()
+            };
+            return serve_command(cli.config, overrides, true);
         }
         Command::ImportMap {
             yaml,
@@ -255,7 +307,7 @@ pub fn main() -> ExitCode {
     }
 }
 
-fn serve_command(config_file: Option<PathBuf>, overrides: Overrides) -> ExitCode {
+fn serve_command(config_file: Option<PathBuf>, overrides: Overrides, worker: bool) -> ExitCode {
     let config = match Config::load(config_file.as_deref(), &overrides) {
         Ok(config) => config,
         Err(e) => {
@@ -274,7 +326,14 @@ fn serve_command(config_file: Option<PathBuf>, overrides: Overrides) -> ExitCode
             return ExitCode::FAILURE;
         }
     };
-    match runtime.block_on(serve(config)) {
+    let run = async move {
+        if worker {
+            run_worker(config).await
+        } else {
+            serve(config).await
+        }
+    };
+    match runtime.block_on(run) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!(error = %e, "mentalsim serve failed");
@@ -503,6 +562,37 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             eprintln!("wrote beta.md and beta.png to {}", out.display());
             Ok(())
         }
+        BenchCommand::Queue {
+            json,
+            jobs,
+            concurrency,
+            postgres_url,
+        } => {
+            let options = worker::bench::BenchOptions {
+                jobs,
+                concurrency,
+                postgres_url,
+            };
+            let runtime = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()?;
+            let reports = runtime.block_on(worker::bench::run(&options))?;
+            println!(
+                "queue throughput (durable commits: SQLite synchronous=FULL, PostgreSQL fsync=on)"
+            );
+            for report in &reports {
+                println!("{report}");
+            }
+            if reports.len() < 2 {
+                println!("PostgreSQL skipped: binaries not found and --postgres-url not given");
+            }
+            if let Some(path) = json {
+                let text = serde_json::to_string_pretty(&reports)?;
+                std::fs::write(&path, format!("{text}\n"))?;
+                eprintln!("wrote {}", path.display());
+            }
+            Ok(())
+        }
         BenchCommand::Learner {
             json,
             steps,
@@ -605,4 +695,12 @@ async fn serve(config: Config) -> anyhow::Result<()> {
         data_dir.display()
     );
     app.run_until(shutdown_signal()).await
+}
+
+async fn run_worker(config: Config) -> anyhow::Result<()> {
+    let process = crate::worker_process::WorkerProcess::build(config).await?;
+    let addr = process.local_addr();
+    tracing::info!(%addr, "mentalsim worker health endpoints listening");
+    println!("Mentalsim worker is running; health on http://{addr}");
+    process.run_until(shutdown_signal()).await
 }

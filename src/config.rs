@@ -76,6 +76,30 @@ pub struct Config {
     /// The remote store's update endpoint [default: `…/update` beside a `…/query` URL, else
     /// `store_url` itself].
     pub store_update_url: Option<String>,
+    /// The knowledge service a `mentalsim worker` fetches worlds from (`http://host:port`).
+    pub knowledge_url: Option<String>,
+    /// The bearer token a `mentalsim worker` sends to the knowledge service; when unset, the
+    /// contents of `knowledge_token_file`.
+    pub knowledge_token: Option<String>,
+    /// File holding that token [default: `<data_dir>/admin.token`].
+    pub knowledge_token_file: Option<PathBuf>,
+    /// Jobs run at once by one process (`serve`: 0 runs none in process).
+    pub worker_concurrency: usize,
+    /// A worker's lease on a job, in seconds; a worker that dies loses its jobs after it.
+    pub job_lease_s: f64,
+    /// Heartbeat period renewing the lease, in seconds (below `job_lease_s`).
+    pub job_heartbeat_s: f64,
+    /// Delay before the first retry of a failed attempt, in seconds (doubling per attempt).
+    pub job_retry_base_s: f64,
+    /// Longest delay between retries, in seconds.
+    pub job_retry_cap_s: f64,
+    /// Finished jobs are deleted this many days after they finished.
+    pub job_retention_days: f64,
+    /// Where exported policies go [default: `<data_dir>/policies`].
+    pub policies_dir: Option<PathBuf>,
+    /// Where training checkpoints go [default: `<data_dir>/checkpoints`]; shared by all
+    /// workers, so whichever takes a job over can resume it.
+    pub checkpoints_dir: Option<PathBuf>,
 }
 
 impl Default for Config {
@@ -94,6 +118,17 @@ impl Default for Config {
             tokens: Vec::new(),
             store_url: None,
             store_update_url: None,
+            knowledge_url: None,
+            knowledge_token: None,
+            knowledge_token_file: None,
+            worker_concurrency: 1,
+            job_lease_s: 30.0,
+            job_heartbeat_s: 10.0,
+            job_retry_base_s: 5.0,
+            job_retry_cap_s: 600.0,
+            job_retention_days: 30.0,
+            policies_dir: None,
+            checkpoints_dir: None,
         }
     }
 }
@@ -110,6 +145,15 @@ pub struct Overrides {
     /// `--store-url`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub store_url: Option<String>,
+    /// `--database-url`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub database_url: Option<String>,
+    /// `--knowledge-url`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub knowledge_url: Option<String>,
+    /// `--concurrency`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worker_concurrency: Option<usize>,
 }
 
 /// A configuration that could not be loaded or is invalid.
@@ -287,12 +331,65 @@ impl Config {
             });
         }
         if let Some(url) = &self.database_url
-            && !url.starts_with("sqlite:")
+            && worker::Backend::of_url(url).is_none()
         {
             return Err(ConfigError::Invalid {
                 key: "database_url",
-                problem: format!("must be a sqlite: URL, got {url:?}"),
+                problem: format!(
+                    "must be a sqlite:, postgres:// or postgresql:// URL, got {:?}",
+                    worker::database::redact_url(url)
+                ),
                 source_name: source("database_url"),
+            });
+        }
+        if let Some(url) = &self.knowledge_url
+            && !(url.starts_with("http://") || url.starts_with("https://"))
+        {
+            return Err(ConfigError::Invalid {
+                key: "knowledge_url",
+                problem: format!("must be an http:// or https:// URL, got {url:?}"),
+                source_name: source("knowledge_url"),
+            });
+        }
+        positive("job_lease_s", self.job_lease_s)?;
+        positive("job_heartbeat_s", self.job_heartbeat_s)?;
+        positive("job_retry_base_s", self.job_retry_base_s)?;
+        positive("job_retry_cap_s", self.job_retry_cap_s)?;
+        if self.job_heartbeat_s >= self.job_lease_s {
+            return Err(ConfigError::Invalid {
+                key: "job_heartbeat_s",
+                problem: format!(
+                    "({}) must be below job_lease_s ({}), or leases run out between heartbeats",
+                    self.job_heartbeat_s, self.job_lease_s
+                ),
+                source_name: source("job_heartbeat_s"),
+            });
+        }
+        if self.job_retry_cap_s < self.job_retry_base_s {
+            return Err(ConfigError::Invalid {
+                key: "job_retry_cap_s",
+                problem: format!(
+                    "({}) must be at least job_retry_base_s ({})",
+                    self.job_retry_cap_s, self.job_retry_base_s
+                ),
+                source_name: source("job_retry_cap_s"),
+            });
+        }
+        if !(self.job_retention_days.is_finite() && self.job_retention_days > 0.0) {
+            return Err(ConfigError::Invalid {
+                key: "job_retention_days",
+                problem: format!(
+                    "must be a positive number of days, got {}",
+                    self.job_retention_days
+                ),
+                source_name: source("job_retention_days"),
+            });
+        }
+        if self.worker_concurrency > 256 {
+            return Err(ConfigError::Invalid {
+                key: "worker_concurrency",
+                problem: format!("must be at most 256, got {}", self.worker_concurrency),
+                source_name: source("worker_concurrency"),
             });
         }
         Ok(())
@@ -313,6 +410,60 @@ impl Config {
             update_url: self.store_update_url.clone(),
             timeout: Duration::from_secs_f64(self.query_deadline_s),
         })
+    }
+
+    /// Where exported policies go.
+    pub fn policies_dir(&self) -> PathBuf {
+        self.policies_dir
+            .clone()
+            .unwrap_or_else(|| self.data_dir.join("policies"))
+    }
+
+    /// Where training checkpoints go.
+    pub fn checkpoints_dir(&self) -> PathBuf {
+        self.checkpoints_dir
+            .clone()
+            .unwrap_or_else(|| self.data_dir.join("checkpoints"))
+    }
+
+    /// The token a worker sends to the knowledge service: `knowledge_token`, else the contents
+    /// of `knowledge_token_file` (default `<data_dir>/admin.token`) when readable.
+    pub fn knowledge_token(&self) -> Option<String> {
+        if let Some(t) = &self.knowledge_token {
+            return Some(t.clone());
+        }
+        let file = self
+            .knowledge_token_file
+            .clone()
+            .unwrap_or_else(|| self.admin_token_path());
+        std::fs::read_to_string(file)
+            .ok()
+            .map(|t| t.trim().to_owned())
+            .filter(|t| !t.is_empty())
+    }
+
+    /// The runners' settings (lease, heartbeat, concurrency, shutdown grace).
+    pub fn worker_config(&self) -> worker::WorkerConfig {
+        worker::WorkerConfig {
+            concurrency: self.worker_concurrency.max(1),
+            lease: Duration::from_secs_f64(self.job_lease_s),
+            heartbeat: Duration::from_secs_f64(self.job_heartbeat_s),
+            shutdown_grace: self.shutdown_grace(),
+            ..worker::WorkerConfig::default()
+        }
+    }
+
+    /// The retry backoff.
+    pub fn job_backoff(&self) -> worker::Backoff {
+        worker::Backoff {
+            base: Duration::from_secs_f64(self.job_retry_base_s),
+            cap: Duration::from_secs_f64(self.job_retry_cap_s),
+        }
+    }
+
+    /// How long finished jobs are kept.
+    pub fn job_retention(&self) -> Duration {
+        Duration::from_secs_f64(self.job_retention_days * 86_400.0)
     }
 
     /// Where the embedded graph store lives.
@@ -385,6 +536,7 @@ mod tests {
                 bind: Some("127.0.0.1:9100".to_owned()),
                 data_dir: Some(PathBuf::from("/srv/c")),
                 store_url: None,
+                ..Overrides::default()
             };
             let config = load(Some("m.toml"), flags).unwrap();
             assert_eq!(config.bind.port(), 9100);
@@ -481,6 +633,75 @@ mod tests {
             jail.clear_env();
             let err = load(Some("nowhere.toml"), Overrides::default()).unwrap_err();
             assert!(err.contains("nowhere.toml"), "{err}");
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn job_database_urls_of_both_backends_are_accepted_and_others_named() {
+        Jail::expect_with(|jail| {
+            jail.clear_env();
+            jail.set_env("MENTALSIM_DATABASE_URL", "postgres://ms:pw@db:5432/jobs");
+            let config = load(None, Overrides::default()).unwrap();
+            assert_eq!(config.database_url(), "postgres://ms:pw@db:5432/jobs");
+            jail.set_env("MENTALSIM_DATABASE_URL", "postgresql://db/jobs");
+            assert!(load(None, Overrides::default()).is_ok());
+            jail.set_env("MENTALSIM_DATABASE_URL", "mysql://ms:secret@db/jobs");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("database_url"), "{err}");
+            assert!(err.contains("MENTALSIM_DATABASE_URL"), "{err}");
+            assert!(!err.contains("secret"), "{err}");
+            Ok(())
+        });
+    }
+
+    #[test]
+    fn job_keys_have_defaults_and_are_checked_by_name() {
+        Jail::expect_with(|jail| {
+            jail.clear_env();
+            let config = load(None, Overrides::default()).unwrap();
+            assert_eq!(config.worker_concurrency, 1);
+            assert_eq!(config.policies_dir(), PathBuf::from("./data/policies"));
+            assert_eq!(
+                config.checkpoints_dir(),
+                PathBuf::from("./data/checkpoints")
+            );
+            assert_eq!(config.worker_config().lease, Duration::from_secs(30));
+            jail.set_env("MENTALSIM_WORKER_CONCURRENCY", "3");
+            jail.set_env("MENTALSIM_POLICIES_DIR", "/srv/p");
+            jail.set_env("MENTALSIM_KNOWLEDGE_URL", "http://knowledge:8080");
+            let config = load(None, Overrides::default()).unwrap();
+            assert_eq!(config.worker_concurrency, 3);
+            assert_eq!(config.policies_dir(), PathBuf::from("/srv/p"));
+            assert_eq!(
+                config.knowledge_url.as_deref(),
+                Some("http://knowledge:8080")
+            );
+            let flags = Overrides {
+                worker_concurrency: Some(5),
+                knowledge_url: Some("https://k.example".to_owned()),
+                ..Overrides::default()
+            };
+            let config = load(None, flags).unwrap();
+            assert_eq!(config.worker_concurrency, 5);
+            assert_eq!(config.knowledge_url.as_deref(), Some("https://k.example"));
+
+            jail.set_env("MENTALSIM_KNOWLEDGE_URL", "knowledge:8080");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("knowledge_url"), "{err}");
+            assert!(err.contains("MENTALSIM_KNOWLEDGE_URL"), "{err}");
+            jail.set_env("MENTALSIM_KNOWLEDGE_URL", "http://k");
+            jail.set_env("MENTALSIM_JOB_HEARTBEAT_S", "60");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("job_heartbeat_s"), "{err}");
+            jail.set_env("MENTALSIM_JOB_HEARTBEAT_S", "5");
+            jail.create_file("j.toml", "job_retention_days = 0")?;
+            let err = load(Some("j.toml"), Overrides::default()).unwrap_err();
+            assert!(err.contains("job_retention_days"), "{err}");
+            assert!(err.contains("j.toml"), "{err}");
+            jail.set_env("MENTALSIM_WORKER_CONCURRENCY", "many");
+            let err = load(None, Overrides::default()).unwrap_err();
+            assert!(err.contains("worker_concurrency"), "{err}");
             Ok(())
         });
     }

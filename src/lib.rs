@@ -8,3 +8,4 @@ pub mod startup;
 pub mod telemetry;
 mod tokens;
 pub mod train;
+pub mod worker_process;

@@ -10,8 +10,9 @@ use std::sync::Arc;
 use axum::Router;
 use knowledge::{Knowledge, KnowledgeStore, StoreError};
 use tokio::net::TcpListener;
-use tokio::sync::OnceCell;
-use worker::JobDatabase;
+use tokio_util::sync::CancellationToken;
+use worker::jobs::{InProcessKnowledge, JobEnv, PolicyStore};
+use worker::{JobDatabase, LazyQueue};
 
 use crate::config::Config;
 
@@ -22,9 +23,9 @@ use crate::config::Config;
 /// the cause is fixed.
 pub struct Components {
     data_dir: PathBuf,
-    database_url: String,
     knowledge: Arc<Knowledge>,
-    jobs: OnceCell<JobDatabase>,
+    queue: Arc<LazyQueue>,
+    job_env: Arc<JobEnv>,
 }
 
 impl Components {
@@ -59,16 +60,38 @@ impl Components {
             Some(remote) => Box::new(remote),
             None => Box::new(embedded),
         };
+        let knowledge = Arc::new(Knowledge::lazy(
+            opener,
+            crate::tokens::load(config),
+            config.query_limits(),
+        ));
+        let job_env = Arc::new(JobEnv {
+            knowledge: Arc::new(InProcessKnowledge::new(knowledge.clone())),
+            checkpoints_dir: config.checkpoints_dir(),
+            policies: PolicyStore::new(config.policies_dir()),
+            validator: None,
+        });
         Self {
             data_dir: config.data_dir.clone(),
-            database_url: config.database_url(),
-            knowledge: Arc::new(Knowledge::lazy(
-                opener,
-                crate::tokens::load(config),
-                config.query_limits(),
+            knowledge,
+            queue: Arc::new(LazyQueue::new(
+                config.database_url(),
+                config.job_backoff(),
+                Some(config.data_dir.clone()),
             )),
-            jobs: OnceCell::new(),
+            job_env,
         }
+    }
+
+    /// The job queue (opened lazily).
+    pub fn queue(&self) -> &Arc<LazyQueue> {
+        &self.queue
+    }
+
+    /// What job handlers share: the in-process knowledge source, checkpoint and policy
+    /// directories, the plan validator.
+    pub fn job_env(&self) -> &Arc<JobEnv> {
+        &self.job_env
     }
 
     /// The data directory.
@@ -91,24 +114,12 @@ impl Components {
 
     /// The job database, opening and migrating it if it is not open yet.
     pub async fn jobs(&self) -> Result<&JobDatabase, String> {
-        self.jobs
-            .get_or_try_init(|| async {
-                if let Err(e) = tokio::fs::create_dir_all(&self.data_dir).await {
-                    return Err(format!(
-                        "cannot create data directory {}: {e}",
-                        self.data_dir.display()
-                    ));
-                }
-                JobDatabase::connect(&self.database_url)
-                    .await
-                    .map_err(|e| e.to_string())
-            })
-            .await
+        self.queue.get().await.map(worker::Queue::database)
     }
 
     async fn close(&self) {
-        if let Some(jobs) = self.jobs.get() {
-            jobs.close().await;
+        if let Some(queue) = self.queue.opened() {
+            queue.database().close().await;
         }
         if let Some(store) = self.knowledge.opened_store() {
             match tokio::task::spawn_blocking(move || store.flush()).await {
@@ -126,6 +137,7 @@ pub struct Application {
     router: Router,
     components: Arc<Components>,
     config: Config,
+    stopping: CancellationToken,
 }
 
 impl Application {
@@ -139,7 +151,8 @@ impl Application {
         if let Err(reason) = components.jobs().await {
             tracing::error!(%reason, "job database unavailable; /readyz will report it");
         }
-        let router = router(&config, components.clone());
+        let stopping = CancellationToken::new();
+        let router = router(&config, components.clone(), stopping.clone());
         let listener = TcpListener::bind(config.bind)
             .await
             .map_err(|e| anyhow::anyhow!("cannot bind {}: {e}", config.bind))?;
@@ -148,6 +161,7 @@ impl Application {
             router,
             components,
             config,
+            stopping,
         })
     }
 
@@ -158,39 +172,84 @@ impl Application {
 
     /// Serves until `shutdown` resolves, then stops accepting, lets requests in flight finish
     /// within the grace period, and closes the stores cleanly.
+    ///
+    /// Meanwhile `worker_concurrency` in-process workers run jobs (none when it is 0) and
+    /// finished jobs past `job_retention_days` are purged hourly. On shutdown the workers stop
+    /// claiming, running trainings checkpoint and their jobs go back to the queue.
     pub async fn run_until(
         self,
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> anyhow::Result<()> {
         let grace = self.config.shutdown_grace();
+        let stopping = self.stopping.clone();
+        let workers = (self.config.worker_concurrency > 0).then(|| {
+            tokio::spawn(worker::service::run_workers(
+                self.components.queue().clone(),
+                self.components.job_env().clone(),
+                self.config.worker_config(),
+                stopping.clone(),
+            ))
+        });
+        let purge = tokio::spawn(worker::service::purge_loop(
+            self.components.queue().clone(),
+            self.components.job_env().clone(),
+            self.config.job_retention(),
+            std::time::Duration::from_secs(3600),
+            stopping.clone(),
+        ));
         let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
+        let on_shutdown = stopping.clone();
         let serve = axum::serve(self.listener, self.router).with_graceful_shutdown(async move {
             shutdown.await;
             tracing::info!("shutting down: no new connections; finishing requests in flight");
+            // Workers stop claiming and checkpoint; event streams end.
+            on_shutdown.cancel();
             let _ = stopping_tx.send(());
         });
         let serve = async move { serve.await };
         tokio::pin!(serve);
-        tokio::select! {
-            result = &mut serve => result?,
+        let served = tokio::select! {
+            result = &mut serve => result.map_err(anyhow::Error::from),
             () = async {
                 let _ = stopping_rx.await;
                 tokio::time::sleep(grace).await;
             } => {
                 tracing::warn!(?grace, "grace period over; dropping remaining connections");
+                Ok(())
+            }
+        };
+        stopping.cancel();
+        if let Some(workers) = workers {
+            // The runner bounds its own wait by the grace period, then releases what is left.
+            match tokio::time::timeout(grace + std::time::Duration::from_secs(10), workers).await {
+                Ok(Ok(report)) => tracing::info!(?report, "workers stopped"),
+                Ok(Err(e)) => tracing::error!(error = %e, "worker task failed"),
+                Err(_) => tracing::warn!("workers did not stop in time"),
             }
         }
+        purge.abort();
+        // The purge task holds the knowledge state (and so the graph store): let it go before
+        // the stores close, so a process started next on this data directory can open them.
+        let _ = purge.await;
         self.components.close().await;
         tracing::info!("stopped");
-        Ok(())
+        served
     }
 }
 
 /// Both services and the health routes on one router, wrapped in the shared middleware stack.
-fn router(config: &Config, components: Arc<Components>) -> Router {
+fn router(config: &Config, components: Arc<Components>, stopping: CancellationToken) -> Router {
     let knowledge = components.knowledge().clone();
+    let jobs = Arc::new(worker::api::JobsApi {
+        queue: components.queue().clone(),
+        tokens: knowledge.tokens.clone(),
+        env: components.job_env().clone(),
+        shutdown: stopping,
+        event_poll: std::time::Duration::from_millis(250),
+    });
     let app = Router::new()
         .merge(crate::health::router(components))
+        .merge(worker::api::router(jobs))
         .merge(knowledge::api::router(knowledge.clone()))
         .merge(knowledge::protocol::router(knowledge))
         .fallback(edge::middleware::not_found);

@@ -7,5 +7,6 @@
 
 mod health;
 mod helpers;
+mod jobs;
 mod knowledge;
 mod remote_store;

@@ -14,6 +14,7 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
 mod train;
+mod worker;
 
 fn mentalsim() -> Command {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_mentalsim"));

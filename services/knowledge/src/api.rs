@@ -27,7 +27,7 @@ use crate::service::Knowledge;
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
-    paths(list_places, get_place, place_map, world_sdf, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database),
+    paths(list_places, get_place, place_map, world_sdf, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database, floor_on_demand_database),
     components(schemas(PlaceView, RobotView, ImportedMap, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointInput, ErrorBody, ErrorDetail)),
     modifiers(&BearerAuth),
     security(("bearer" = []))
@@ -75,6 +75,7 @@ pub fn router(knowledge: Arc<Knowledge>) -> Router {
         .route("/v1/robots/{id}", get(get_robot))
         .route("/v1/maps", post(import_map))
         .route("/v1/on-demand", post(on_demand_database))
+        .route("/v1/places/{id}/on-demand", get(floor_on_demand_database))
         .with_state(knowledge)
 }
 
@@ -815,6 +816,7 @@ impl From<OnDemandError> for ApiError {
                 ApiError::not_found(e.to_string())
             }
             OnDemandError::OutsideEveryPlace { .. }
+            | OnDemandError::NoFloor(_)
             | OnDemandError::AmbiguousFloor { .. }
             | OnDemandError::NotConnected { .. } => {
                 ApiError::new(ErrorCode::Unprocessable, e.to_string())
@@ -856,6 +858,40 @@ async fn on_demand_database(
             .insert("x-triple-count", HeaderValue::from(db.triples.len()));
         if let Ok(v) = HeaderValue::from_str(&db.route.join(" ")) {
             response.headers_mut().insert("x-route", v);
+        }
+        Ok(response)
+    })
+    .await
+}
+
+/// The on-demand database of the whole floor a place is on (the place itself when it is a
+/// floor), for one robot: everything a mental simulation of that floor needs — the floor, its
+/// ancestors, the places on it with their maps and boundaries, the objects in them, and the
+/// robot. Training and evaluation workers fetch their worlds here. Turtle (default),
+/// N-Triples or JSON-LD by `Accept`; `X-Floor` and `X-Robot` give the IRIs of the floor and
+/// the robot, `X-Triple-Count` its size.
+#[utoipa::path(get, path = "/v1/places/{id}/on-demand", params(("id" = String, Path, description = "a floor or a place on one: IRI or tosm:identifier"), WorldQuery), responses(
+    (status = 200, description = "the subset", content_type = "text/turtle", body = String),
+    (status = 404, body = ErrorBody), (status = 406, body = ErrorBody), (status = 422, body = ErrorBody)))]
+async fn floor_on_demand_database(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    axum::extract::Query(query): axum::extract::Query<WorldQuery>,
+) -> Result<Response, ApiError> {
+    k.tokens.require(&headers, Role::Robot)?;
+    let format = graph_format(headers.get(header::ACCEPT).and_then(|v| v.to_str().ok()))?;
+    blocking(move || {
+        let store = k.store()?;
+        let db = on_demand::floor_database_of_place(&store, &id, query.robot.as_deref())?;
+        let body = serialize(&db.triples, format)?;
+        let mut response = ([(header::CONTENT_TYPE, format.media_type())], body).into_response();
+        let h = response.headers_mut();
+        h.insert("x-triple-count", HeaderValue::from(db.triples.len()));
+        for (name, value) in [("x-floor", db.floors.first()), ("x-robot", Some(&db.robot))] {
+            if let Some(v) = value.and_then(|v| HeaderValue::from_str(v).ok()) {
+                h.insert(name, v);
+            }
         }
         Ok(response)
     })

@@ -112,6 +112,9 @@ pub enum OnDemandError {
         /// The second place.
         to: String,
     },
+    /// The place is on no floor (a building, or a place outside every floor).
+    #[error("{0} is on no floor: only floors and the places on them have a world")]
+    NoFloor(String),
     /// Reading the store failed.
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -435,6 +438,46 @@ pub fn floor_database(
         route,
         floors: vec![floor.to_owned()],
     })
+}
+
+/// The floor a place is on (the place itself when it is a floor), by IRI or identifier.
+pub fn floor_of(places: &[Place], place: &str) -> Result<String, OnDemandError> {
+    let start = places
+        .iter()
+        .find(|p| p.iri == place || p.symbol.identifier.as_deref() == Some(place))
+        .ok_or_else(|| OnDemandError::UnknownPlace {
+            which: "place".to_owned(),
+            name: place.to_owned(),
+        })?;
+    let mut cursor = Some(start);
+    let mut steps = 0;
+    while let Some(p) = cursor {
+        if p.kind == PlaceKind::Floor {
+            return Ok(p.iri.clone());
+        }
+        steps += 1;
+        if steps > places.len() {
+            break;
+        }
+        cursor = p
+            .parent
+            .as_deref()
+            .and_then(|parent| places.iter().find(|q| q.iri == parent));
+    }
+    Err(OnDemandError::NoFloor(start.iri.clone()))
+}
+
+/// [`floor_database`] of the floor `place` (IRI or identifier) is on: what a mental
+/// simulation of that whole floor needs, for `robot` (IRI or identifier; the first robot when
+/// `None`). `floors[0]` of the answer is the floor's IRI.
+pub fn floor_database_of_place(
+    store: &KnowledgeStore,
+    place: &str,
+    robot: Option<&str>,
+) -> Result<OnDemandDatabase, OnDemandError> {
+    let places = all_places(store)?;
+    let floor = floor_of(&places, place)?;
+    floor_database(store, &floor, robot)
 }
 
 /// The place a waypoint is in: the smallest place whose boundary contains the point.

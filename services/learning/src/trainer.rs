@@ -168,6 +168,9 @@ pub struct Progress {
     pub last_eval: Option<EvalRecord>,
     /// Share of the budget used, in [0, 1], when the budget is bounded.
     pub fraction_done: Option<f64>,
+    /// Checkpoints this trainer has written since it was created or resumed (a job notices a
+    /// new checkpoint by this count changing).
+    pub checkpoints_written: u64,
 }
 
 /// The random generator's position, to continue the same stream after a resume.
@@ -221,6 +224,7 @@ pub struct Trainer {
     episodes: Vec<EpisodeRecord>,
     evals: Vec<EvalRecord>,
     missions: Vec<Mission>,
+    checkpoints_written: u64,
 }
 
 impl std::fmt::Debug for Trainer {
@@ -277,6 +281,7 @@ impl Trainer {
             episodes: Vec::new(),
             evals: Vec::new(),
             missions,
+            checkpoints_written: 0,
             learner,
             env_config,
             world,
@@ -433,6 +438,7 @@ impl Trainer {
             mean_reward_100: last.iter().map(|e| e.reward).sum::<f64>() / n,
             last_eval: self.evals.last().cloned(),
             fraction_done: fraction,
+            checkpoints_written: self.checkpoints_written,
         }
     }
 
@@ -626,6 +632,7 @@ impl Trainer {
         if old_dir.exists() {
             std::fs::remove_dir_all(&old_dir).map_err(io(&old_dir))?;
         }
+        self.checkpoints_written += 1;
         Ok(())
     }
 

@@ -7,18 +7,27 @@
 //!   checkpoints, outcomes with capped exponential backoff, cancellation, retention.
 //! - [`Worker`]: claims jobs for the [`JobHandler`]s registered by kind and runs them with
 //!   heartbeats, cooperative cancellation and graceful shutdown.
+//! - [`jobs`]: the job kinds (`train`, `evaluate`, `validate`), their payloads and handlers,
+//!   the knowledge source they take worlds from, and the exported policies on disk.
+//! - [`api`]: the jobs and policies REST API (with server-sent events) and its OpenAPI document.
+//! - [`service`]: runners over a lazily opened queue ([`LazyQueue`]) and the retention purge.
 //! - [`temp_postgres`]: a throw-away PostgreSQL cluster for tests and benchmarks.
 //! - [`bench`]: the queue throughput benchmark.
 
+pub mod api;
 pub mod bench;
 pub mod clock;
 pub mod database;
+pub mod jobs;
+pub mod lazy;
 pub mod queue;
 pub mod runner;
+pub mod service;
 pub mod temp_postgres;
 
 pub use clock::{Clock, ManualClock, SystemClock};
 pub use database::{Backend, DatabaseError, DatabaseStatus, JobDatabase, PoolSize};
+pub use lazy::LazyQueue;
 pub use queue::{
     Backoff, Checkpoint, Claimed, FailOutcome, Job, JobEvent, JobState, Lease, NewJob, Queue,
     QueueError, QueueStats, WriteAck,

@@ -1048,14 +1048,28 @@ impl Queue {
     /// Jobs, newest first, optionally of one state; at most `limit`. Checkpoint bytes are not
     /// loaded (use [`Queue::get`]).
     pub async fn list(&self, state: Option<JobState>, limit: u32) -> Result<Vec<Job>, QueueError> {
+        self.list_by(state, None, limit).await
+    }
+
+    /// Jobs, newest first, optionally of one state and one kind; at most `limit`. Checkpoint
+    /// bytes are not loaded.
+    pub async fn list_by(
+        &self,
+        state: Option<JobState>,
+        kind: Option<&str>,
+        limit: u32,
+    ) -> Result<Vec<Job>, QueueError> {
         let columns = COLUMNS.replace("checkpoint_blob", "NULL AS checkpoint_blob");
         let sql = format!(
-            "SELECT {columns} FROM jobs WHERE ($1 IS NULL OR state = $1) ORDER BY id DESC LIMIT $2"
+            "SELECT {columns} FROM jobs WHERE ($1 IS NULL OR state = $1) \
+             AND ($2 IS NULL OR kind = $2) ORDER BY id DESC LIMIT $3"
         );
         let state = state.map(|s| s.as_str().to_owned());
+        let kind = kind.map(str::to_owned);
         let rows: Vec<JobRow> = on_pool!(self, |pool, pg| {
             sqlx::query_as(&sql)
                 .bind(state.clone())
+                .bind(kind.clone())
                 .bind(i64::from(limit))
                 .fetch_all(pool)
                 .await

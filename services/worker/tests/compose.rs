@@ -37,6 +37,10 @@ fn compose_file_validates() {
         "replicas: 3",
         "/readyz",
         "condition: service_healthy",
+        "- --knowledge-url",
+        "MENTALSIM_WORKER_CONCURRENCY: '0'",
+        "MENTALSIM_KNOWLEDGE_TOKEN_FILE: /knowledge/admin.token",
+        "policies:/data/policies",
     ] {
         assert!(
             stdout.contains(needle),

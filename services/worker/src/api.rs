@@ -1,0 +1,578 @@
+//! The jobs and policies REST API: create, list, read and cancel jobs, stream a job's events
+//! (server-sent events, resumable with `Last-Event-ID`), list and download exported policies.
+//!
+//! Engineers create and cancel jobs; any valid token (robot or engineer) reads. Wire types live
+//! here and are converted from the queue's types.
+
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::body::Body;
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use edge::{ApiError, ErrorCode};
+use knowledge::Tokens;
+use knowledge::api::{ErrorBody, ErrorDetail};
+use knowledge::auth::Role;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use tokio_util::sync::CancellationToken;
+use utoipa::{OpenApi, ToSchema};
+use uuid::Uuid;
+
+use crate::jobs::policies::{METADATA, WEIGHTS, summary};
+use crate::jobs::{
+    EvaluatePayload, JobEnv, PayloadError, PolicySummary, TrainPayload, ValidatePayload,
+};
+use crate::lazy::LazyQueue;
+use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
+
+/// The OpenAPI document of the jobs and policies API, generated from the handlers below.
+#[derive(OpenApi)]
+#[openapi(
+    info(title = "Mentalsim worker service", description = "Jobs (train, evaluate, validate) in a durable queue, their progress as server-sent events, and the policies training exports."),
+    paths(create_job, list_jobs, get_job, cancel_job, job_events, list_policies, get_policy, policy_weights, policy_metadata),
+    components(schemas(NewJobRequest, JobView, TrainPayload, EvaluatePayload, ValidatePayload, PolicySummary, ErrorBody, ErrorDetail)),
+    modifiers(&BearerAuth),
+    security(("bearer" = []))
+)]
+pub struct WorkerApi;
+
+struct BearerAuth;
+
+impl utoipa::Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
+        );
+    }
+}
+
+/// What the API handlers share.
+pub struct JobsApi {
+    /// The queue (opened lazily).
+    pub queue: Arc<LazyQueue>,
+    /// Who may do what.
+    pub tokens: Tokens,
+    /// The job environment: knowledge source (payload checks), policies.
+    pub env: Arc<JobEnv>,
+    /// Fires when the process shuts down: event streams end.
+    pub shutdown: CancellationToken,
+    /// How often an event stream polls for new events.
+    pub event_poll: Duration,
+}
+
+impl std::fmt::Debug for JobsApi {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("JobsApi")
+            .field("env", &self.env)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The routes.
+pub fn router(state: Arc<JobsApi>) -> Router {
+    Router::new()
+        .route("/v1/jobs", post(create_job).get(list_jobs))
+        .route("/v1/jobs/{id}", get(get_job))
+        .route("/v1/jobs/{id}/cancel", post(cancel_job))
+        .route("/v1/jobs/{id}/events", get(job_events))
+        .route("/v1/policies", get(list_policies))
+        .route("/v1/policies/{id}", get(get_policy))
+        .route("/v1/policies/{id}/policy.safetensors", get(policy_weights))
+        .route("/v1/policies/{id}/policy.json", get(policy_metadata))
+        .with_state(state)
+}
+
+impl JobsApi {
+    async fn queue(&self) -> Result<&crate::Queue, ApiError> {
+        self.queue.get().await.map_err(|reason| {
+            ApiError::new(
+                ErrorCode::NotReady,
+                format!("the job database is unavailable: {reason}"),
+            )
+        })
+    }
+}
+
+fn queue_error(e: QueueError) -> ApiError {
+    match e {
+        QueueError::NotFound(id) => ApiError::not_found(format!("no job has id {id}")),
+        QueueError::Invalid(m) => ApiError::new(ErrorCode::Unprocessable, m),
+        other => ApiError::internal(other),
+    }
+}
+
+impl From<PayloadError> for ApiError {
+    fn from(e: PayloadError) -> Self {
+        match e {
+            PayloadError::UnknownKind(m) => ApiError::bad_request(m),
+            PayloadError::Invalid(m) | PayloadError::Unprocessable(m) => {
+                ApiError::new(ErrorCode::Unprocessable, m)
+            }
+            PayloadError::NotFound(m) => ApiError::not_found(m),
+            PayloadError::Unavailable(m) => ApiError::new(
+                ErrorCode::NotReady,
+                format!("cannot check the job against the knowledge service: {m}"),
+            ),
+        }
+    }
+}
+
+fn job_id(id: &str) -> Result<Uuid, ApiError> {
+    Uuid::parse_str(id).map_err(|_| ApiError::not_found(format!("no job has id {id:?}")))
+}
+
+/// A job to create.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NewJobRequest {
+    /// `train`, `evaluate` or `validate`.
+    kind: String,
+    /// The kind's parameters: see `TrainPayload`, `EvaluatePayload`, `ValidatePayload`.
+    #[schema(value_type = Object)]
+    payload: Value,
+    /// Higher runs first [default: 0].
+    #[serde(default)]
+    priority: Option<i32>,
+    /// Attempts before the job fails for good [default: 3].
+    #[serde(default)]
+    max_attempts: Option<u32>,
+}
+
+/// A job as the API shows it.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct JobView {
+    /// The job's id (UUIDv7).
+    id: String,
+    /// `train`, `evaluate` or `validate`.
+    kind: String,
+    /// `queued`, `running`, `succeeded`, `failed` or `cancelled`.
+    state: String,
+    /// The parameters it was created with.
+    #[schema(value_type = Object)]
+    payload: Value,
+    /// Higher runs first.
+    priority: i64,
+    /// Attempts counted so far (the running one included).
+    attempts: u32,
+    /// Attempts allowed.
+    max_attempts: u32,
+    /// A cancel was requested.
+    cancel_requested: bool,
+    /// The worker running it.
+    worker: Option<String>,
+    /// The latest progress report.
+    #[schema(value_type = Option<Object>)]
+    progress: Option<Value>,
+    /// The latest checkpoint's reference.
+    #[schema(value_type = Option<Object>)]
+    checkpoint: Option<Value>,
+    /// The result, once succeeded.
+    #[schema(value_type = Option<Object>)]
+    result: Option<Value>,
+    /// The latest error.
+    error: Option<String>,
+    /// Created (RFC 3339, UTC).
+    created: String,
+    /// Last changed.
+    updated: String,
+    /// First started.
+    started: Option<String>,
+    /// Finished.
+    finished: Option<String>,
+    /// Not claimable before (after a failed attempt).
+    run_after: String,
+    /// The job's event stream.
+    events: String,
+}
+
+impl From<&Job> for JobView {
+    fn from(j: &Job) -> Self {
+        let t = crate::jobs::rfc3339;
+        Self {
+            id: j.id.to_string(),
+            kind: j.kind.clone(),
+            state: j.state.as_str().to_owned(),
+            payload: j.payload.clone(),
+            priority: j.priority,
+            attempts: j.attempt,
+            max_attempts: j.max_attempts,
+            cancel_requested: j.cancel_requested,
+            worker: j.lease_owner.clone(),
+            progress: j.progress.clone(),
+            checkpoint: j.checkpoint.as_ref().map(|c| c.data.clone()),
+            result: j.result.clone(),
+            error: j.last_error.clone(),
+            created: t(j.created_ms),
+            updated: t(j.updated_ms),
+            started: j.started_ms.map(t),
+            finished: j.finished_ms.map(t),
+            run_after: t(j.run_after_ms),
+            events: format!("/v1/jobs/{}/events", j.id),
+        }
+    }
+}
+
+/// Creates a job. The payload is checked now: an unknown kind is 400; a malformed payload or a
+/// value out of range is 422 naming the field; an unknown robot, place or policy is 404.
+#[utoipa::path(post, path = "/v1/jobs", request_body = NewJobRequest, responses(
+    (status = 201, body = JobView, headers(("location" = String, description = "the job's URL"))),
+    (status = 400, body = ErrorBody), (status = 403, body = ErrorBody), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody), (status = 503, body = ErrorBody)))]
+async fn create_job(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Json(request): Json<NewJobRequest>,
+) -> Result<Response, ApiError> {
+    let principal = api.tokens.require(&headers, Role::Engineer)?;
+    let payload = api.env.check_new(&request.kind, &request.payload).await?;
+    let mut job = NewJob::new(request.kind.clone(), payload);
+    if let Some(p) = request.priority {
+        job = job.priority(p);
+    }
+    if let Some(n) = request.max_attempts {
+        if n == 0 || n > 100 {
+            return Err(ApiError::new(
+                ErrorCode::Unprocessable,
+                format!("max_attempts: must be in 1..=100, got {n}"),
+            ));
+        }
+        job = job.max_attempts(n);
+    }
+    let queue = api.queue().await?;
+    let id = queue.enqueue(job).await.map_err(queue_error)?;
+    tracing::info!(job = %id, kind = %request.kind, by = %principal.name, "job created");
+    let job = queue
+        .get(id)
+        .await
+        .map_err(queue_error)?
+        .ok_or_else(|| ApiError::internal(format!("job {id} vanished after enqueue")))?;
+    let mut response = (StatusCode::CREATED, Json(JobView::from(&job))).into_response();
+    if let Ok(v) = HeaderValue::from_str(&format!("/v1/jobs/{id}")) {
+        response.headers_mut().insert(header::LOCATION, v);
+    }
+    Ok(response)
+}
+
+/// Filters of the job list.
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
+pub struct ListQuery {
+    /// Only jobs in this state.
+    state: Option<String>,
+    /// Only jobs of this kind.
+    kind: Option<String>,
+    /// At most this many [default: 50, at most 1000].
+    limit: Option<u32>,
+}
+
+/// Jobs, newest first.
+#[utoipa::path(get, path = "/v1/jobs", params(ListQuery), responses((status = 200, body = [JobView]), (status = 400, body = ErrorBody)))]
+async fn list_jobs(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Query(query): Query<ListQuery>,
+) -> Result<Json<Vec<JobView>>, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    let state = match query.state.as_deref() {
+        None | Some("") => None,
+        Some(s) => Some(s.parse::<JobState>().map_err(|_| {
+            ApiError::bad_request(format!(
+                "state: unknown job state {s:?}: expected queued, running, succeeded, failed or cancelled"
+            ))
+        })?),
+    };
+    let limit = query.limit.unwrap_or(50);
+    if limit == 0 || limit > 1000 {
+        return Err(ApiError::bad_request(format!(
+            "limit: must be in 1..=1000, got {limit}"
+        )));
+    }
+    let kind = query.kind.as_deref().filter(|k| !k.is_empty());
+    let jobs = api
+        .queue()
+        .await?
+        .list_by(state, kind, limit)
+        .await
+        .map_err(queue_error)?;
+    Ok(Json(jobs.iter().map(JobView::from).collect()))
+}
+
+/// One job: state, kind, payload, attempts, progress, result, error, timestamps.
+#[utoipa::path(get, path = "/v1/jobs/{id}", params(("id" = String, Path)), responses((status = 200, body = JobView), (status = 404, body = ErrorBody)))]
+async fn get_job(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<JobView>, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    let id = job_id(&id)?;
+    let job = api
+        .queue()
+        .await?
+        .get(id)
+        .await
+        .map_err(queue_error)?
+        .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
+    Ok(Json(JobView::from(&job)))
+}
+
+/// Asks a job to stop: a queued job is cancelled at once; a running one stops at its next
+/// progress report or heartbeat (a training checkpoints first) and ends `cancelled`.
+#[utoipa::path(post, path = "/v1/jobs/{id}/cancel", params(("id" = String, Path)), responses(
+    (status = 202, body = JobView), (status = 403, body = ErrorBody), (status = 404, body = ErrorBody), (status = 409, body = ErrorBody)))]
+async fn cancel_job(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let principal = api.tokens.require(&headers, Role::Engineer)?;
+    let id = job_id(&id)?;
+    let queue = api.queue().await?;
+    let before = queue
+        .get(id)
+        .await
+        .map_err(queue_error)?
+        .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
+    if before.state.is_finished() {
+        return Err(ApiError::new(
+            ErrorCode::Conflict,
+            format!(
+                "job {id} already finished ({}): nothing to cancel",
+                before.state
+            ),
+        ));
+    }
+    queue.request_cancel(id).await.map_err(queue_error)?;
+    tracing::info!(job = %id, by = %principal.name, "job cancel requested");
+    let job = queue
+        .get(id)
+        .await
+        .map_err(queue_error)?
+        .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
+    Ok((StatusCode::ACCEPTED, Json(JobView::from(&job))).into_response())
+}
+
+/// Where an event stream starts.
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
+pub struct EventsQuery {
+    /// Replay events with ids greater than this (the `Last-Event-ID` header wins).
+    after: Option<i64>,
+}
+
+/// The job's events as server-sent events: stored events after `Last-Event-ID` (or `?after=`)
+/// first, then new ones as they happen. Each event's `id` is its id in the job's event log,
+/// its `event` the kind (`state`, `progress`, `checkpoint`, `cancel_requested`) and its `data`
+/// JSON (`{"kind", "data", "created"}`). The stream ends once the job has finished and its
+/// last event was sent.
+#[utoipa::path(get, path = "/v1/jobs/{id}/events", params(("id" = String, Path), EventsQuery), responses(
+    (status = 200, content_type = "text/event-stream", body = String), (status = 404, body = ErrorBody)))]
+async fn job_events(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    Query(query): Query<EventsQuery>,
+) -> Result<Response, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    let id = job_id(&id)?;
+    let last_event_id = match headers.get("last-event-id") {
+        Some(v) => Some(
+            v.to_str()
+                .ok()
+                .and_then(|s| s.trim().parse::<i64>().ok())
+                .ok_or_else(|| {
+                    ApiError::bad_request("Last-Event-ID: must be an event id (an integer)")
+                })?,
+        ),
+        None => None,
+    };
+    let after = last_event_id.or(query.after).unwrap_or(0);
+    // 404 now, not an empty stream, for a job that does not exist.
+    api.queue()
+        .await?
+        .get(id)
+        .await
+        .map_err(queue_error)?
+        .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
+    let stream = event_stream(api, id, after);
+    Ok(Sse::new(stream)
+        .keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+        .into_response())
+}
+
+struct Cursor {
+    api: Arc<JobsApi>,
+    job: Uuid,
+    after: i64,
+    pending: std::collections::VecDeque<JobEvent>,
+    finished_seen: bool,
+    done: bool,
+}
+
+fn sse_event(e: &JobEvent) -> Event {
+    let data = serde_json::json!({
+        "kind": e.kind,
+        "data": e.data,
+        "created": crate::jobs::rfc3339(e.created_ms),
+    });
+    Event::default()
+        .id(e.id.to_string())
+        .event(e.kind.clone())
+        .data(data.to_string())
+}
+
+fn event_stream(
+    api: Arc<JobsApi>,
+    job: Uuid,
+    after: i64,
+) -> impl futures_util::Stream<Item = Result<Event, Infallible>> + Send {
+    let cursor = Cursor {
+        api,
+        job,
+        after,
+        pending: std::collections::VecDeque::new(),
+        finished_seen: false,
+        done: false,
+    };
+    futures_util::stream::unfold(cursor, |mut c| async move {
+        loop {
+            if let Some(e) = c.pending.pop_front() {
+                c.after = e.id;
+                let event = sse_event(&e);
+                return Some((Ok(event), c));
+            }
+            if c.done || c.api.shutdown.is_cancelled() {
+                return None;
+            }
+            let Ok(queue) = c.api.queue.get().await else {
+                return None;
+            };
+            match queue.events(c.job, c.after, 500).await {
+                Ok(events) if !events.is_empty() => {
+                    c.pending.extend(events);
+                    continue;
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    tracing::warn!(job = %c.job, error = %e, "reading job events failed");
+                }
+            }
+            if c.finished_seen {
+                // The job had finished before the last read, which found nothing new: its
+                // final event is sent.
+                return None;
+            }
+            match queue.get(c.job).await {
+                Ok(Some(j)) if j.state.is_finished() => {
+                    c.finished_seen = true;
+                    continue;
+                }
+                Ok(None) => return None,
+                _ => {}
+            }
+            tokio::select! {
+                () = tokio::time::sleep(c.api.event_poll) => {}
+                () = c.api.shutdown.cancelled() => { c.done = true; }
+            }
+        }
+    })
+}
+
+fn policy_path(api: &JobsApi, id: &str) -> Result<std::path::PathBuf, ApiError> {
+    api.env
+        .policies
+        .path(id)
+        .filter(|p| p.join(WEIGHTS).is_file())
+        .ok_or_else(|| ApiError::not_found(format!("no policy has id {id:?}")))
+}
+
+/// Exported policies, newest first: id, robot, place, creation time and evaluation summary.
+#[utoipa::path(get, path = "/v1/policies", responses((status = 200, body = [PolicySummary])))]
+async fn list_policies(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+) -> Result<Json<Vec<PolicySummary>>, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    let store = api.env.policies.clone();
+    let list = tokio::task::spawn_blocking(move || store.list())
+        .await
+        .map_err(ApiError::internal)?;
+    Ok(Json(list))
+}
+
+/// One policy: its summary and its full metadata (`policy.json`: scaling, network, training).
+#[utoipa::path(get, path = "/v1/policies/{id}", params(("id" = String, Path)), responses((status = 200, body = Object), (status = 404, body = ErrorBody)))]
+async fn get_policy(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    policy_path(&api, &id)?;
+    let meta = api
+        .env
+        .policies
+        .metadata(&id)
+        .ok_or_else(|| ApiError::not_found(format!("no policy has id {id:?}")))?;
+    let (_, s) = summary(&id, &meta);
+    let mut view = serde_json::to_value(&s).map_err(ApiError::internal)?;
+    view["metadata"] = meta;
+    view["files"] = serde_json::json!({
+        "policy.safetensors": format!("/v1/policies/{id}/policy.safetensors"),
+        "policy.json": format!("/v1/policies/{id}/policy.json"),
+    });
+    Ok(Json(view))
+}
+
+async fn download(
+    api: &JobsApi,
+    id: &str,
+    file: &str,
+    media: &'static str,
+) -> Result<Response, ApiError> {
+    let path = policy_path(api, id)?.join(file);
+    let bytes = tokio::fs::read(&path)
+        .await
+        .map_err(|_| ApiError::not_found(format!("policy {id:?} has no {file}")))?;
+    let disposition = format!("attachment; filename=\"{file}\"");
+    Ok((
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static(media)),
+            (
+                header::CONTENT_DISPOSITION,
+                HeaderValue::from_str(&disposition).map_err(ApiError::internal)?,
+            ),
+        ],
+        Body::from(bytes),
+    )
+        .into_response())
+}
+
+/// The policy's weights (safetensors).
+#[utoipa::path(get, path = "/v1/policies/{id}/policy.safetensors", params(("id" = String, Path)), responses((status = 200, content_type = "application/octet-stream", body = Vec<u8>), (status = 404, body = ErrorBody)))]
+async fn policy_weights(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    download(&api, &id, WEIGHTS, "application/octet-stream").await
+}
+
+/// The policy's metadata file (`learning::Policy::from_bytes` takes it with the weights).
+#[utoipa::path(get, path = "/v1/policies/{id}/policy.json", params(("id" = String, Path)), responses((status = 200, content_type = "application/json", body = Object), (status = 404, body = ErrorBody)))]
+async fn policy_metadata(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    download(&api, &id, METADATA, "application/json").await
+}

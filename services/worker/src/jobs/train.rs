@@ -1,0 +1,364 @@
+//! `train`: TD3 in the mental simulation of a floor, checkpointed so any worker can resume it,
+//! exported as a policy at the end.
+//!
+//! The trainer runs on a blocking thread; its progress callback (a few times a second) sends
+//! notes to the job's task, which writes progress (at most every [`PROGRESS_EVERY`]) and, after
+//! every trainer checkpoint, a checkpoint reference to the queue. The callback returns false
+//! once the job's context is stopping (cancel, shutdown, lost lease): the trainer then
+//! checkpoints and returns, and the handler answers `Err(ctx.stopped())`.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use learning::trainer::{Budget, Progress, TrainOptions, Trainer};
+use learning::{Policy, Scaling, TrainConfig};
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+use sim::{EnvConfig, World};
+
+use super::{JobEnv, PayloadError, to_json};
+use crate::queue::Checkpoint;
+use crate::runner::{JobContext, JobError, JobHandler, StopReason};
+
+/// Progress is written at most this often.
+pub const PROGRESS_EVERY: Duration = Duration::from_secs(2);
+
+/// What a `train` job is asked.
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrainPayload {
+    /// The robot: IRI or `tosm:identifier`.
+    pub robot: String,
+    /// A floor, or a place on one (IRI or identifier): training runs on the whole floor.
+    pub place: String,
+    /// Wall-clock budget in minutes (a resumed run counts its earlier sessions).
+    pub minutes: f64,
+    /// Training configuration: any subset of `learning::TrainConfig`'s keys (unknown keys are
+    /// refused by name); defaults for the rest.
+    #[serde(default)]
+    #[schema(value_type = Option<Object>)]
+    pub config: Option<Value>,
+    /// Seed of the run (overrides `config.seed`).
+    #[serde(default)]
+    pub seed: Option<u64>,
+}
+
+impl TrainPayload {
+    /// Values in range, the configuration valid.
+    pub fn check(&self) -> Result<(), PayloadError> {
+        if !(self.minutes.is_finite() && self.minutes > 0.0) {
+            return Err(PayloadError::Invalid(format!(
+                "payload.minutes: must be a positive number, got {}",
+                self.minutes
+            )));
+        }
+        if self.robot.trim().is_empty() {
+            return Err(PayloadError::Invalid(
+                "payload.robot: must not be empty".into(),
+            ));
+        }
+        if self.place.trim().is_empty() {
+            return Err(PayloadError::Invalid(
+                "payload.place: must not be empty".into(),
+            ));
+        }
+        self.train_config().map(|_| ())
+    }
+
+    /// The training configuration: defaults, the payload's keys, the seed.
+    pub fn train_config(&self) -> Result<TrainConfig, PayloadError> {
+        let mut config: TrainConfig = match &self.config {
+            Some(v) => serde_json::from_value(v.clone())
+                .map_err(|e| PayloadError::Invalid(format!("payload.config: {e}")))?,
+            None => TrainConfig::default(),
+        };
+        if let Some(seed) = self.seed {
+            config.seed = seed;
+        }
+        config
+            .validate()
+            .map_err(|e| PayloadError::Invalid(format!("payload.config: {e}")))?;
+        Ok(config)
+    }
+}
+
+/// Runs `train` jobs.
+#[derive(Debug, Clone)]
+pub struct TrainHandler {
+    env: Arc<JobEnv>,
+}
+
+impl TrainHandler {
+    /// A handler using `env`.
+    pub fn new(env: Arc<JobEnv>) -> Self {
+        Self { env }
+    }
+}
+
+enum Note {
+    Progress(Value),
+    Checkpoint(Value),
+}
+
+/// The job's progress, as stored and streamed.
+pub fn progress_json(p: &Progress, budget_s: f64) -> Value {
+    let c = &p.counters;
+    let eta_s = match p.fraction_done {
+        Some(f) if f >= 1.0 => Some(0.0),
+        Some(f) if f > 0.0 => Some((budget_s - c.wall_s).max(0.0)),
+        _ => None,
+    };
+    json!({
+        "env_steps": c.env_steps,
+        "episodes": c.episodes,
+        "grad_steps": c.grad_steps,
+        "wall_s": c.wall_s,
+        "sessions": c.sessions,
+        "success_rate_100": p.success_rate_100,
+        "mean_reward_100": p.mean_reward_100,
+        "last_eval": p.last_eval.as_ref().map(|e| json!({
+            "env_steps": e.env_steps,
+            "wall_s": e.wall_s,
+            "success_rate": e.report.success_rate,
+            "collision_rate": e.report.collision_rate,
+            "timeout_rate": e.report.timeout_rate,
+            "episodes": e.report.episodes,
+        })),
+        "fraction_done": p.fraction_done,
+        "budget_s": budget_s,
+        "eta_s": eta_s,
+    })
+}
+
+enum Finished {
+    Stopped,
+    Done(Value),
+}
+
+struct Run {
+    world: Arc<World>,
+    options: TrainOptions,
+    budget: Budget,
+    policy_id: String,
+    summary: Value,
+    env: Arc<JobEnv>,
+}
+
+impl JobHandler for TrainHandler {
+    async fn run(&self, ctx: JobContext) -> Result<Value, JobError> {
+        let payload: TrainPayload = ctx.payload_as()?;
+        payload.check()?;
+        let config = payload.train_config()?;
+        let db = self
+            .env
+            .knowledge
+            .floor_database(&payload.place, &payload.robot)
+            .await?;
+        let floor_iri = db.floor.clone();
+        let robot_iri = db.robot.clone();
+        let world = tokio::task::spawn_blocking(move || db.world())
+            .await
+            .map_err(JobError::retryable)?
+            .map_err(JobError::Fatal)?;
+        if ctx.is_stopping() {
+            return Err(ctx.stopped());
+        }
+        let out_dir = checkpoint_dir(&ctx, &self.env.checkpoints_dir);
+        std::fs::create_dir_all(&out_dir).map_err(|e| {
+            JobError::Retryable(format!("cannot create {}: {e}", out_dir.display()))
+        })?;
+        let budget_s = payload.minutes * 60.0;
+        let policy_id = ctx.id().to_string();
+        let run = Run {
+            world,
+            options: TrainOptions {
+                config,
+                env: EnvConfig::default(),
+                scaling: Scaling::default(),
+                out_dir: out_dir.clone(),
+            },
+            budget: Budget {
+                wall_s: Some(budget_s),
+                env_steps: None,
+            },
+            summary: json!({
+                "policy_id": policy_id,
+                "robot": robot_iri,
+                "place": payload.place,
+                "floor": floor_iri,
+                "job_id": ctx.id().to_string(),
+            }),
+            policy_id,
+            env: self.env.clone(),
+        };
+
+        let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Note>();
+        let blocking_ctx = ctx.clone();
+        let task = tokio::task::spawn_blocking(move || train_blocking(run, &blocking_ctx, &tx));
+        while let Some(note) = rx.recv().await {
+            let written = match &note {
+                Note::Progress(p) => ctx.report_progress(p).await.map(|_| ()),
+                Note::Checkpoint(c) => ctx.save_checkpoint(&Checkpoint::new(c.clone())).await,
+            };
+            // A lost lease stops the context (and so the trainer); other write failures are
+            // logged: the trainer's files are the truth, the queue only points at them.
+            if let Err(e) = written {
+                tracing::warn!(job = %ctx.id(), error = %e, "recording training progress failed");
+            }
+        }
+        let finished = task
+            .await
+            .map_err(|e| JobError::Retryable(format!("the training thread failed: {e}")))?;
+        match finished {
+            Ok(Finished::Done(result)) => {
+                // The job will not resume: its checkpoint is no longer needed.
+                let _ = std::fs::remove_dir_all(&out_dir);
+                Ok(result)
+            }
+            Ok(Finished::Stopped) => {
+                if ctx.stop_reason() == Some(StopReason::CancelRequested) {
+                    let _ = std::fs::remove_dir_all(&out_dir);
+                }
+                Err(ctx.stopped())
+            }
+            Err(e) => Err(e),
+        }
+    }
+}
+
+/// Where this job checkpoints: the directory the queue's checkpoint names when it holds a
+/// checkpoint here, else `<checkpoints_dir>/<job id>`.
+fn checkpoint_dir(ctx: &JobContext, checkpoints_dir: &Path) -> PathBuf {
+    let recorded = ctx
+        .checkpoint()
+        .and_then(|c| c.data["dir"].as_str())
+        .map(PathBuf::from)
+        .filter(|d| Trainer::has_checkpoint(d));
+    recorded.unwrap_or_else(|| checkpoints_dir.join(ctx.id().to_string()))
+}
+
+fn train_blocking(
+    run: Run,
+    ctx: &JobContext,
+    tx: &tokio::sync::mpsc::UnboundedSender<Note>,
+) -> Result<Finished, JobError> {
+    let Run {
+        world,
+        options,
+        budget,
+        policy_id,
+        mut summary,
+        env,
+    } = run;
+    let out_dir = options.out_dir.clone();
+    let budget_s = budget.wall_s.unwrap_or(0.0);
+    let fatal = |e: learning::trainer::TrainError| JobError::Fatal(format!("training: {e}"));
+    let mut trainer = if Trainer::has_checkpoint(&out_dir) {
+        match Trainer::resume(Arc::clone(&world), options.clone()) {
+            Ok(t) => {
+                tracing::info!(job = %ctx.id(), dir = %out_dir.display(), env_steps = t.counters().env_steps, "resuming training from its checkpoint");
+                t
+            }
+            Err(e) => {
+                tracing::warn!(job = %ctx.id(), error = %e, "the checkpoint cannot be resumed; starting over");
+                Trainer::new(Arc::clone(&world), options).map_err(fatal)?
+            }
+        }
+    } else {
+        Trainer::new(Arc::clone(&world), options).map_err(fatal)?
+    };
+    let mut last_sent: Option<Instant> = None;
+    let mut checkpoints = 0u64;
+    let mut on_progress = |p: &Progress| {
+        if p.checkpoints_written != checkpoints {
+            checkpoints = p.checkpoints_written;
+            let _ = tx.send(Note::Checkpoint(json!({
+                "dir": out_dir.display().to_string(),
+                "env_steps": p.counters.env_steps,
+                "episodes": p.counters.episodes,
+                "wall_s": p.counters.wall_s,
+            })));
+        }
+        if last_sent.is_none_or(|t| t.elapsed() >= PROGRESS_EVERY) {
+            last_sent = Some(Instant::now());
+            let _ = tx.send(Note::Progress(progress_json(p, budget_s)));
+        }
+        !ctx.is_stopping()
+    };
+    trainer.run(budget, &mut on_progress).map_err(fatal)?;
+    let progress = trainer.progress(&budget);
+    let _ = tx.send(Note::Progress(progress_json(&progress, budget_s)));
+    if ctx.is_stopping() {
+        return Ok(Finished::Stopped);
+    }
+
+    // Export, then evaluate the exported policy with the pure-Rust runtime robots embed, on
+    // held-out missions drawn from a seed training never used.
+    let staged = env.policies.staging(&policy_id);
+    let io = |what: &str, e: std::io::Error| JobError::Retryable(format!("{what}: {e}"));
+    if staged.exists() {
+        std::fs::remove_dir_all(&staged).map_err(|e| io("clearing the staging directory", e))?;
+    }
+    std::fs::create_dir_all(&staged).map_err(|e| io("creating the staging directory", e))?;
+    trainer
+        .export(&staged, summary.clone())
+        .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
+    let policy = Policy::load(&staged)
+        .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
+    let config = &trainer.options().config;
+    let held_out_seed = config.eval_seed.wrapping_add(1);
+    let report = evaluate_policy(&policy, &world, config.eval_episodes, held_out_seed)
+        .map_err(|e| JobError::Fatal(format!("evaluating the exported policy: {e}")))?;
+    let created_ms = crate::clock::Clock::now_ms(&crate::clock::SystemClock);
+    summary["created_ms"] = json!(created_ms);
+    summary["eval"] = json!({
+        "success_rate": report.success_rate,
+        "collision_rate": report.collision_rate,
+        "timeout_rate": report.timeout_rate,
+        "mean_time_to_goal_s": report.mean_time_to_goal_s,
+        "episodes": report.episodes,
+        "seed": held_out_seed,
+    });
+    trainer
+        .export(&staged, summary.clone())
+        .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
+    env.policies
+        .install(&policy_id, &staged)
+        .map_err(|e| io("installing the policy", e))?;
+    let counters = trainer.counters();
+    Ok(Finished::Done(json!({
+        "policy_id": policy_id,
+        "policy": format!("/v1/policies/{policy_id}"),
+        "success_rate": report.success_rate,
+        "collision_rate": report.collision_rate,
+        "timeout_rate": report.timeout_rate,
+        "mean_time_to_goal_s": report.mean_time_to_goal_s,
+        "eval_episodes": report.episodes,
+        "episodes": counters.episodes,
+        "env_steps": counters.env_steps,
+        "grad_steps": counters.grad_steps,
+        "wall_s": counters.wall_s,
+        "sessions": counters.sessions,
+        "robot": summary["robot"],
+        "place": summary["place"],
+        "floor": summary["floor"],
+        "last_training_eval": to_json(&trainer.evals().last()),
+    })))
+}
+
+/// `policy` on `episodes` random missions (goals 2–10 m away) in `world` drawn from `seed`.
+pub fn evaluate_policy(
+    policy: &Policy,
+    world: &Arc<World>,
+    episodes: usize,
+    seed: u64,
+) -> Result<learning::EvalReport, sim::EnvError> {
+    let env = EnvConfig {
+        beams: policy.scaling().beams,
+        goal_distance: (2.0, 10.0),
+        ..EnvConfig::default()
+    };
+    let missions = learning::mission_set(world, &env, episodes, seed)?;
+    learning::evaluate(policy, world, &env, policy.scaling(), &missions, seed)
+}

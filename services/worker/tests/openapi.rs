@@ -1,0 +1,22 @@
+//! The committed OpenAPI document (`openapi/worker.json`) must match the code. Refresh it with
+//! `UPDATE_OPENAPI=1 cargo test -p worker --test openapi` (after a workspace build).
+
+use utoipa::OpenApi;
+
+#[test]
+fn committed_openapi_document_matches_the_code() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../openapi/worker.json");
+    let generated = worker::api::WorkerApi::openapi()
+        .to_pretty_json()
+        .expect("the document serialises");
+    if std::env::var_os("UPDATE_OPENAPI").is_some() {
+        std::fs::write(&path, format!("{generated}\n")).expect("write openapi/worker.json");
+        return;
+    }
+    let committed = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        committed.trim_end() == generated.trim_end(),
+        "openapi/worker.json is out of date with the code: run \
+         `UPDATE_OPENAPI=1 cargo test -p worker --test openapi` and commit the result"
+    );
+}

@@ -1,0 +1,219 @@
+//! `mentalsim worker`: job runners alone, against a shared job database, taking worlds from a
+//! knowledge service over HTTP. Serves `/healthz`, `/readyz` and `/metrics` for orchestrators.
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::extract::State;
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use axum::{Json, Router};
+use serde_json::json;
+use tokio::net::TcpListener;
+use tokio_util::sync::CancellationToken;
+use worker::LazyQueue;
+use worker::jobs::{HttpKnowledge, JobEnv, PolicyStore};
+
+use crate::config::Config;
+
+struct Shared {
+    queue: Arc<LazyQueue>,
+    knowledge: HttpKnowledge,
+    checkpoints_dir: PathBuf,
+}
+
+/// A bound worker process, ready to run.
+pub struct WorkerProcess {
+    listener: TcpListener,
+    router: Router,
+    shared: Arc<Shared>,
+    env: Arc<JobEnv>,
+    config: Config,
+}
+
+impl WorkerProcess {
+    /// Checks the configuration (a knowledge URL is required), binds the health listener.
+    pub async fn build(config: Config) -> anyhow::Result<Self> {
+        let Some(url) = config.knowledge_url.clone() else {
+            anyhow::bail!(
+                "mentalsim worker needs the knowledge service's URL: set `knowledge_url` \
+                 (--knowledge-url or MENTALSIM_KNOWLEDGE_URL)"
+            );
+        };
+        if config.worker_concurrency == 0 {
+            anyhow::bail!("`worker_concurrency` must be at least 1 for mentalsim worker");
+        }
+        let knowledge =
+            HttpKnowledge::new(&url, config.knowledge_token()).map_err(anyhow::Error::msg)?;
+        let queue = Arc::new(LazyQueue::new(
+            config.database_url(),
+            config.job_backoff(),
+            Some(config.data_dir.clone()),
+        ));
+        if let Err(reason) = queue.get().await {
+            tracing::error!(%reason, "job database unavailable; /readyz will report it");
+        }
+        let env = Arc::new(JobEnv {
+            knowledge: Arc::new(knowledge.clone()),
+            checkpoints_dir: config.checkpoints_dir(),
+            policies: PolicyStore::new(config.policies_dir()),
+            validator: None,
+        });
+        let shared = Arc::new(Shared {
+            queue,
+            knowledge,
+            checkpoints_dir: config.checkpoints_dir(),
+        });
+        let router = Router::new()
+            .route("/healthz", get(healthz))
+            .route("/readyz", get(readyz))
+            .route("/metrics", get(metrics))
+            .with_state(shared.clone())
+            .fallback(edge::middleware::not_found);
+        let router = edge::middleware::stack(
+            router,
+            edge::middleware::Limits {
+                request_timeout: config.request_timeout(),
+                body_limit: config.body_limit_bytes,
+            },
+        );
+        let listener = TcpListener::bind(config.bind)
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot bind {}: {e}", config.bind))?;
+        Ok(Self {
+            listener,
+            router,
+            shared,
+            env,
+            config,
+        })
+    }
+
+    /// The health listener's address.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.listener.local_addr().unwrap_or(self.config.bind)
+    }
+
+    /// Runs jobs until `shutdown` resolves; then stops claiming, lets running jobs checkpoint
+    /// within the grace period and hands them back to the queue.
+    pub async fn run_until(
+        self,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> anyhow::Result<()> {
+        let stopping = CancellationToken::new();
+        let config = self.config.worker_config();
+        tracing::info!(worker = %config.id, knowledge = %self.shared.knowledge.base(), concurrency = config.concurrency, "mentalsim worker starting");
+        let workers = tokio::spawn(worker::service::run_workers(
+            self.shared.queue.clone(),
+            self.env.clone(),
+            config,
+            stopping.clone(),
+        ));
+        let on_shutdown = stopping.clone();
+        let server = tokio::spawn(
+            axum::serve(self.listener, self.router)
+                .with_graceful_shutdown(async move { on_shutdown.cancelled().await })
+                .into_future(),
+        );
+        shutdown.await;
+        tracing::info!(
+            "shutting down: no new jobs; running jobs checkpoint and go back to the queue"
+        );
+        stopping.cancel();
+        let grace = self.config.shutdown_grace();
+        match tokio::time::timeout(grace + Duration::from_secs(10), workers).await {
+            Ok(Ok(report)) => tracing::info!(?report, "workers stopped"),
+            Ok(Err(e)) => tracing::error!(error = %e, "worker task failed"),
+            Err(_) => tracing::warn!("workers did not stop in time"),
+        }
+        let _ = tokio::time::timeout(Duration::from_secs(5), server).await;
+        if let Some(queue) = self.shared.queue.opened() {
+            queue.database().close().await;
+        }
+        tracing::info!("stopped");
+        Ok(())
+    }
+}
+
+async fn healthz() -> Json<serde_json::Value> {
+    Json(json!({ "status": "ok", "version": env!("CARGO_PKG_VERSION"), "role": "worker" }))
+}
+
+async fn metrics() -> impl IntoResponse {
+    (
+        [(
+            axum::http::header::CONTENT_TYPE,
+            "text/plain; version=0.0.4",
+        )],
+        edge::metrics::handle().render(),
+    )
+}
+
+/// Ready when the job database answers with every migration applied, the knowledge service
+/// is ready, and the checkpoint directory takes writes.
+async fn readyz(State(shared): State<Arc<Shared>>) -> Response {
+    let jobs = match shared.queue.get().await {
+        Ok(q) => match q.database().status().await {
+            Ok(s) if s.applied_migrations == s.expected_migrations => {
+                json!({ "ok": true, "migrations": s.applied_migrations })
+            }
+            Ok(s) => json!({ "ok": false, "reason": format!(
+                "{} of {} migrations applied", s.applied_migrations, s.expected_migrations) }),
+            Err(e) => json!({ "ok": false, "reason": e.to_string() }),
+        },
+        Err(reason) => json!({ "ok": false, "reason": reason }),
+    };
+    let knowledge = match shared.knowledge.ready().await {
+        Ok(()) => json!({ "ok": true, "url": shared.knowledge.base() }),
+        Err(reason) => json!({ "ok": false, "url": shared.knowledge.base(), "reason": reason }),
+    };
+    let checkpoints = match probe_writable(&shared.checkpoints_dir).await {
+        Ok(()) => json!({ "ok": true, "path": shared.checkpoints_dir }),
+        Err(reason) => json!({ "ok": false, "path": shared.checkpoints_dir, "reason": reason }),
+    };
+    let checks =
+        json!({ "job_database": jobs, "knowledge": knowledge, "checkpoints_dir": checkpoints });
+    let failing: Vec<String> = ["job_database", "knowledge", "checkpoints_dir"]
+        .into_iter()
+        .filter(|k| checks[*k]["ok"] != true)
+        .map(|k| format!("{k}: {}", checks[k]["reason"].as_str().unwrap_or("failed")))
+        .collect();
+    if failing.is_empty() {
+        (
+            StatusCode::OK,
+            Json(json!({ "status": "ready", "checks": checks })),
+        )
+            .into_response()
+    } else {
+        (
+            StatusCode::SERVICE_UNAVAILABLE,
+            Json(json!({ "status": "not_ready", "reason": failing.join("; "), "checks": checks })),
+        )
+            .into_response()
+    }
+}
+
+/// Writes, syncs and removes a probe file named after this process (several workers share the
+/// directory).
+async fn probe_writable(dir: &Path) -> Result<(), String> {
+    let dir = dir.to_owned();
+    let result = tokio::task::spawn_blocking(move || -> std::io::Result<()> {
+        use std::io::Write;
+        std::fs::create_dir_all(&dir)?;
+        let probe = dir.join(format!(".readyz-probe-{}", std::process::id()));
+        let mut file = std::fs::File::create(&probe)?;
+        file.write_all(b"ok")?;
+        file.sync_all()?;
+        std::fs::remove_file(&probe)
+    })
+    .await;
+    match result {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(format!("not writable: {e}")),
+        Err(e) => Err(format!("write probe failed: {e}")),
+    }
+}

@@ -1,0 +1,620 @@
+//! The jobs and policies API through the real app (real Oxigraph, real SQLite, the in-process
+//! worker): a training on the bundled sample building to an exported policy that downloads and
+//! loads, its event stream, cancellation of a running training, and bad input.
+
+use std::time::{Duration, Instant};
+
+use reqwest::Method;
+use serde_json::{Value, json};
+
+use crate::helpers::{TestApp, spawn_app, spawn_app_with};
+
+/// A training that finishes in seconds.
+fn tiny_train(minutes: f64) -> Value {
+    json!({
+        "kind": "train",
+        "payload": {
+            "robot": "R-001",
+            "place": "F0",
+            "minutes": minutes,
+            "seed": 3,
+            "config": {
+                "td3": {"hidden": [16, 16], "batch_size": 32},
+                "envs": 2,
+                "buffer_capacity": 20000,
+                "random_steps": 100,
+                "eval_every": 1000000,
+                "eval_episodes": 3,
+                "checkpoint_every_s": 1.0
+            }
+        }
+    })
+}
+
+async fn post_job(app: &TestApp, body: &Value) -> reqwest::Response {
+    app.request(Method::POST, "/v1/jobs")
+        .json(body)
+        .send()
+        .await
+        .unwrap()
+}
+
+async fn get_job(app: &TestApp, id: &str) -> Value {
+    let r = app
+        .request(Method::GET, &format!("/v1/jobs/{id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    r.json().await.unwrap()
+}
+
+async fn wait_for(
+    app: &TestApp,
+    id: &str,
+    timeout: Duration,
+    done: impl Fn(&Value) -> bool,
+) -> Value {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let job = get_job(app, id).await;
+        if done(&job) {
+            return job;
+        }
+        assert!(Instant::now() < deadline, "timed out; job is {job:#}");
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+/// One server-sent event.
+#[derive(Debug)]
+struct Sse {
+    id: i64,
+    event: String,
+    data: Value,
+}
+
+/// Reads an event stream until the server closes it (or `timeout`).
+async fn read_events(response: reqwest::Response, timeout: Duration) -> Vec<Sse> {
+    assert_eq!(response.status(), 200);
+    assert!(
+        response.headers()[reqwest::header::CONTENT_TYPE]
+            .to_str()
+            .unwrap()
+            .starts_with("text/event-stream")
+    );
+    let mut response = response;
+    let mut text = String::new();
+    let deadline = tokio::time::Instant::now() + timeout;
+    loop {
+        match tokio::time::timeout_at(deadline, response.chunk()).await {
+            Ok(Ok(Some(chunk))) => text.push_str(&String::from_utf8_lossy(&chunk)),
+            Ok(Ok(None)) => break,
+            Ok(Err(e)) => panic!("stream failed: {e}"),
+            Err(_) => panic!("the stream did not end within {timeout:?}; got:\n{text}"),
+        }
+    }
+    let mut events = Vec::new();
+    for block in text.split("\n\n") {
+        let (mut id, mut event, mut data) = (None, String::new(), String::new());
+        for line in block.lines() {
+            if let Some(v) = line.strip_prefix("id:") {
+                id = Some(v.trim().parse::<i64>().unwrap());
+            } else if let Some(v) = line.strip_prefix("event:") {
+                event = v.trim().to_owned();
+            } else if let Some(v) = line.strip_prefix("data:") {
+                data.push_str(v.trim());
+            }
+        }
+        if let Some(id) = id {
+            events.push(Sse {
+                id,
+                event,
+                data: serde_json::from_str(&data).unwrap(),
+            });
+        }
+    }
+    events
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_training_job_streams_its_events_and_exports_a_policy_that_downloads_and_loads() {
+    let app = spawn_app().await;
+    let response = post_job(&app, &tiny_train(0.05)).await;
+    assert_eq!(response.status(), 201);
+    let location = response.headers()[reqwest::header::LOCATION]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    let job: Value = response.json().await.unwrap();
+    let id = job["id"].as_str().unwrap().to_owned();
+    assert_eq!(location, format!("/v1/jobs/{id}"));
+    assert_eq!(job["kind"], "train");
+    assert_eq!(job["state"], "queued");
+    assert_eq!(job["payload"]["place"], "F0");
+
+    // The live stream: everything from the start, until the job has finished.
+    let stream = app
+        .request(Method::GET, &format!("/v1/jobs/{id}/events"))
+        .send()
+        .await
+        .unwrap();
+    let events = read_events(stream, Duration::from_secs(240)).await;
+    assert!(
+        events.windows(2).all(|w| w[0].id < w[1].id),
+        "ids increase: {events:?}"
+    );
+    assert_eq!(events[0].event, "state");
+    assert_eq!(events[0].data["data"]["state"], "queued");
+    let progress: Vec<&Sse> = events.iter().filter(|e| e.event == "progress").collect();
+    assert!(!progress.is_empty(), "{events:?}");
+    assert!(
+        progress.last().unwrap().data["data"]["env_steps"]
+            .as_u64()
+            .unwrap()
+            > 0
+    );
+    assert!(events.iter().any(|e| e.event == "checkpoint"), "{events:?}");
+    let last = events.last().unwrap();
+    assert_eq!(last.event, "state");
+    assert_eq!(last.data["data"]["state"], "succeeded", "{events:?}");
+
+    // Resuming after an event replays only what followed it.
+    let second = events[1].id;
+    let resumed = app
+        .request(Method::GET, &format!("/v1/jobs/{id}/events"))
+        .header("Last-Event-ID", second.to_string())
+        .send()
+        .await
+        .unwrap();
+    let rest = read_events(resumed, Duration::from_secs(30)).await;
+    assert_eq!(
+        rest.iter().map(|e| e.id).collect::<Vec<_>>(),
+        events[2..].iter().map(|e| e.id).collect::<Vec<_>>()
+    );
+    let after = app
+        .request(
+            Method::GET,
+            &format!("/v1/jobs/{id}/events?after={}", last.id),
+        )
+        .send()
+        .await
+        .unwrap();
+    assert!(read_events(after, Duration::from_secs(30)).await.is_empty());
+
+    let job = get_job(&app, &id).await;
+    assert_eq!(job["state"], "succeeded", "{job:#}");
+    assert_eq!(job["attempts"], 1);
+    assert!(job["finished"].as_str().unwrap().ends_with('Z'));
+    let result = &job["result"];
+    let policy_id = result["policy_id"].as_str().unwrap().to_owned();
+    assert!(result["success_rate"].as_f64().unwrap() >= 0.0);
+    assert_eq!(result["eval_episodes"], 3);
+    assert!(result["env_steps"].as_u64().unwrap() > 100);
+    // Its checkpoint is gone with it.
+    assert!(!app.data_dir.join("checkpoints").join(&id).exists());
+
+    // Listed, described and downloadable.
+    let list: Vec<Value> = app
+        .request(Method::GET, "/v1/policies")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let listed = list.iter().find(|p| p["id"] == policy_id).unwrap();
+    assert_eq!(
+        listed["robot"],
+        "https://mentalsim.dev/data/robots/differential-robot"
+    );
+    assert_eq!(listed["place"], "F0");
+    assert_eq!(listed["job_id"], id.as_str());
+    assert_eq!(listed["eval"]["episodes"], 3);
+    let one: Value = app
+        .request(Method::GET, &format!("/v1/policies/{policy_id}"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(one["metadata"]["format"], "mentalsim-td3-actor");
+    let weights = app
+        .request(
+            Method::GET,
+            &format!("/v1/policies/{policy_id}/policy.safetensors"),
+        )
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(weights.status(), 200);
+    let weights = weights.bytes().await.unwrap();
+    let meta = app
+        .request(
+            Method::GET,
+            &format!("/v1/policies/{policy_id}/policy.json"),
+        )
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let policy = learning::Policy::from_bytes(&meta, &weights).unwrap();
+    assert_eq!(policy.metadata().hidden, vec![16, 16]);
+    let missing = app
+        .request(Method::GET, "/v1/policies/nope/policy.json")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(missing.status(), 404);
+
+    // The policy evaluates on the floor through an `evaluate` job.
+    let response = post_job(
+        &app,
+        &json!({"kind": "evaluate", "payload": {"policy": policy_id, "place": "F0", "episodes": 4}}),
+    )
+    .await;
+    assert_eq!(response.status(), 201);
+    let eval_id = response.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let eval = wait_for(&app, &eval_id, Duration::from_secs(120), |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(eval["state"], "succeeded", "{eval:#}");
+    assert_eq!(eval["result"]["episodes"], 4);
+    for key in ["success_rate", "collision_rate", "env_steps", "wall_s"] {
+        assert!(eval["result"][key].is_number(), "{key}: {eval:#}");
+    }
+
+    // Filters.
+    let trains: Vec<Value> = app
+        .request(Method::GET, "/v1/jobs?kind=train&state=succeeded&limit=10")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(trains.len(), 1);
+    assert_eq!(trains[0]["id"], id.as_str());
+    app.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cancelling_a_running_training_stops_its_trainer() {
+    let app = spawn_app().await;
+    let response = post_job(&app, &tiny_train(30.0)).await;
+    assert_eq!(response.status(), 201);
+    let id = response.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let running = wait_for(&app, &id, Duration::from_secs(120), |j| {
+        j["state"] == "running" && j["progress"]["env_steps"].as_u64().unwrap_or(0) > 0
+    })
+    .await;
+    assert!(
+        running["progress"]["eta_s"].as_f64().unwrap() > 0.0,
+        "{running:#}"
+    );
+    let cancel = app
+        .request(Method::POST, &format!("/v1/jobs/{id}/cancel"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(cancel.status(), 202);
+    let asked: Value = cancel.json().await.unwrap();
+    assert_eq!(asked["cancel_requested"], true);
+    let started = Instant::now();
+    let job = wait_for(&app, &id, Duration::from_secs(60), |j| {
+        j["state"] != "running" && j["state"] != "queued"
+    })
+    .await;
+    assert_eq!(job["state"], "cancelled", "{job:#}");
+    assert!(
+        started.elapsed() < Duration::from_secs(30),
+        "stopped in {:?}",
+        started.elapsed()
+    );
+    // The trainer stopped: its progress no longer moves, its checkpoint is removed.
+    let steps = job["progress"]["env_steps"].clone();
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    assert_eq!(get_job(&app, &id).await["progress"]["env_steps"], steps);
+    assert!(!app.data_dir.join("checkpoints").join(&id).exists());
+    // A finished job cannot be cancelled again; an unknown one does not exist.
+    let again = app
+        .request(Method::POST, &format!("/v1/jobs/{id}/cancel"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(again.status(), 409);
+    let unknown = app
+        .request(
+            Method::POST,
+            "/v1/jobs/01900000-0000-7000-8000-000000000000/cancel",
+        )
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(unknown.status(), 404);
+    app.stop().await;
+}
+
+async fn refused(app: &TestApp, body: Value) -> (u16, String) {
+    let r = post_job(app, &body).await;
+    let status = r.status().as_u16();
+    let body: Value = r.json().await.unwrap();
+    (
+        status,
+        body["error"]["message"].as_str().unwrap().to_owned(),
+    )
+}
+
+#[tokio::test]
+async fn bad_jobs_are_refused_with_distinct_errors_naming_what_is_wrong() {
+    let app = spawn_app().await;
+    let train = |payload: Value| json!({"kind": "train", "payload": payload});
+
+    let (status, message) = refused(&app, json!({"kind": "dance", "payload": {}})).await;
+    assert_eq!(status, 400, "{message}");
+    assert!(
+        message.contains("dance") && message.contains("train"),
+        "{message}"
+    );
+
+    let (status, message) = refused(&app, train(json!({"robot": "R-001", "minutes": 1}))).await;
+    assert_eq!(status, 422, "{message}");
+    assert!(message.contains("place"), "{message}");
+
+    for minutes in [0.0, -1.0] {
+        let (status, message) = refused(
+            &app,
+            train(json!({"robot": "R-001", "place": "F0", "minutes": minutes})),
+        )
+        .await;
+        assert_eq!(status, 422, "{message}");
+        assert!(message.contains("minutes"), "{message}");
+    }
+
+    let (status, message) = refused(
+        &app,
+        train(
+            json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"td3": {"tau": 0}}}),
+        ),
+    )
+    .await;
+    assert_eq!(status, 422, "{message}");
+    assert!(
+        message.contains("config") && message.contains("tau"),
+        "{message}"
+    );
+
+    let (status, message) = refused(
+        &app,
+        train(json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"nope": 1}})),
+    )
+    .await;
+    assert_eq!(status, 422, "{message}");
+    assert!(message.contains("nope"), "{message}");
+
+    let (status, message) = refused(
+        &app,
+        train(json!({"robot": "R-404", "place": "F0", "minutes": 1})),
+    )
+    .await;
+    assert_eq!(status, 404, "{message}");
+    assert!(message.contains("R-404"), "{message}");
+
+    let (status, message) = refused(
+        &app,
+        train(json!({"robot": "R-001", "place": "F9", "minutes": 1})),
+    )
+    .await;
+    assert_eq!(status, 404, "{message}");
+    assert!(message.contains("F9"), "{message}");
+
+    let (status, message) = refused(
+        &app,
+        train(json!({"robot": "R-001", "place": "B-001", "minutes": 1})),
+    )
+    .await;
+    assert_eq!(status, 422, "{message}");
+    assert!(message.contains("no floor"), "{message}");
+
+    let (status, message) = refused(
+        &app,
+        json!({"kind": "evaluate", "payload": {"policy": "missing", "place": "F0"}}),
+    )
+    .await;
+    assert_eq!(status, 404, "{message}");
+    assert!(message.contains("policy"), "{message}");
+
+    let (status, message) = refused(
+        &app,
+        json!({"kind": "validate", "payload": {"robot": "R-001", "place": "F0"}}),
+    )
+    .await;
+    assert_eq!(status, 422, "{message}");
+    assert!(message.contains("validate"), "{message}");
+
+    // Nothing was queued.
+    let jobs: Vec<Value> = app
+        .request(Method::GET, "/v1/jobs")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert!(jobs.is_empty(), "{jobs:?}");
+
+    let bad_state = app
+        .request(Method::GET, "/v1/jobs?state=done")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(bad_state.status(), 400);
+    let body: Value = bad_state.json().await.unwrap();
+    assert!(body["error"]["message"].as_str().unwrap().contains("done"));
+    let unknown = app
+        .request(Method::GET, "/v1/jobs/not-a-job")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(unknown.status(), 404);
+    let events = app
+        .request(
+            Method::GET,
+            "/v1/jobs/01900000-0000-7000-8000-000000000000/events",
+        )
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(events.status(), 404);
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn robots_read_jobs_but_only_engineers_create_and_cancel_them() {
+    let temp = tempfile::tempdir().unwrap();
+    let data_dir = temp.path().join("data");
+    let engineer = "engineer-token-0123456789";
+    let robot = "robot-token-0123456789abc";
+    let app = spawn_app_with(
+        |c| {
+            c.data_dir = data_dir;
+            c.worker_concurrency = 0;
+            c.tokens = vec![
+                mentalsim::config::TokenConfig {
+                    token: engineer.to_owned(),
+                    name: "alice".to_owned(),
+                    role: knowledge::Role::Engineer,
+                },
+                mentalsim::config::TokenConfig {
+                    token: robot.to_owned(),
+                    name: "R-001".to_owned(),
+                    role: knowledge::Role::Robot,
+                },
+            ];
+        },
+        Some(temp),
+    )
+    .await;
+    let url = |p: &str| format!("{}{p}", app.address);
+    let as_robot = app
+        .client
+        .post(url("/v1/jobs"))
+        .bearer_auth(robot)
+        .json(&tiny_train(1.0))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(as_robot.status(), 403);
+    let anonymous = app
+        .client
+        .post(url("/v1/jobs"))
+        .json(&tiny_train(1.0))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(anonymous.status(), 401);
+    let created = app
+        .client
+        .post(url("/v1/jobs"))
+        .bearer_auth(engineer)
+        .json(&tiny_train(1.0))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(created.status(), 201);
+    let id = created.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let read = app
+        .client
+        .get(url(&format!("/v1/jobs/{id}")))
+        .bearer_auth(robot)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(read.status(), 200);
+    let listed = app
+        .client
+        .get(url("/v1/policies"))
+        .bearer_auth(robot)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(listed.status(), 200);
+    let cancel = app
+        .client
+        .post(url(&format!("/v1/jobs/{id}/cancel")))
+        .bearer_auth(robot)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(cancel.status(), 403);
+    // No worker runs in this app: the queued job is cancelled at once.
+    let cancel = app
+        .client
+        .post(url(&format!("/v1/jobs/{id}/cancel")))
+        .bearer_auth(engineer)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(cancel.status(), 202);
+    let job: Value = cancel.json().await.unwrap();
+    assert_eq!(job["state"], "cancelled");
+    app.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_training_stopped_by_shutdown_checkpoints_and_resumes_in_the_next_process() {
+    let temp = tempfile::tempdir().unwrap();
+    let data_dir = temp.path().join("data");
+    let dir = data_dir.clone();
+    let app = spawn_app_with(move |c| c.data_dir = dir, None).await;
+    let response = post_job(&app, &tiny_train(0.25)).await;
+    assert_eq!(response.status(), 201);
+    let id = response.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    wait_for(&app, &id, Duration::from_secs(120), |j| {
+        j["state"] == "running" && j["progress"]["env_steps"].as_u64().unwrap_or(0) > 0
+    })
+    .await;
+    // SIGTERM, in effect: the worker stops claiming, the trainer checkpoints, the job goes back.
+    app.stop().await;
+    let dir = data_dir.clone();
+    let app = spawn_app_with(move |c| c.data_dir = dir, None).await;
+    let job = wait_for(&app, &id, Duration::from_secs(240), |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(job["state"], "succeeded", "{job:#}");
+    // The same attempt, resumed from its checkpoint in a second session.
+    assert_eq!(job["attempts"], 1, "{job:#}");
+    assert_eq!(job["result"]["sessions"], 2, "{job:#}");
+    let events: Vec<Sse> = read_events(
+        app.request(Method::GET, &format!("/v1/jobs/{id}/events"))
+            .send()
+            .await
+            .unwrap(),
+        Duration::from_secs(30),
+    )
+    .await;
+    assert!(
+        events
+            .iter()
+            .any(|e| e.event == "state" && e.data["data"]["released"] == true),
+        "{events:?}"
+    );
+    app.stop().await;
+}
