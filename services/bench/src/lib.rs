@@ -2,5 +2,6 @@
 
 pub mod learner;
 pub mod movingai;
+pub mod navigation;
 pub mod prm;
 pub mod sim;

@@ -436,7 +436,7 @@ pub fn find_yamls(dir: &Path) -> Result<Vec<PathBuf>, BenchError> {
 }
 
 /// A short unique name per map: its folder, or folder/stem when a folder holds several maps.
-fn map_names(root: &Path, yamls: &[PathBuf]) -> Vec<String> {
+pub(crate) fn map_names(root: &Path, yamls: &[PathBuf]) -> Vec<String> {
     let folder = |p: &Path| {
         p.parent()
             .and_then(|d| d.strip_prefix(root).ok())

@@ -3,5 +3,6 @@
 //! Only this crate knows the job database.
 
 pub mod database;
+pub mod plan;
 
 pub use database::{DatabaseError, JobDatabase};
