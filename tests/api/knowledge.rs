@@ -9,7 +9,11 @@ use serde_json::{Value, json};
 use crate::helpers::spawn_app;
 
 fn shared_ros_maps() -> Option<Vec<PathBuf>> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/maps/ros");
+    let root = PathBuf::from(
+        std::env::var("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+    )
+    .join("../shared/maps/ros");
     if !root.is_dir() {
         eprintln!("skipping: {} is absent", root.display());
         return None;

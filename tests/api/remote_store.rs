@@ -24,7 +24,13 @@ fn oxigraph_binary() -> Option<PathBuf> {
     if let Some(venv) = std::env::var_os("VIRTUAL_ENV") {
         candidates.push(PathBuf::from(venv).join("bin/oxigraph"));
     }
-    candidates.push(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/oxigraph"));
+    candidates.push(
+        PathBuf::from(
+            std::env::var("CARGO_MANIFEST_DIR")
+                .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+        )
+        .join(".venv/bin/oxigraph"),
+    );
     if let Some(path) = std::env::var_os("PATH") {
         candidates.extend(std::env::split_paths(&path).map(|d| d.join("oxigraph")));
     }

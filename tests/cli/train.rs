@@ -5,10 +5,13 @@ use std::path::PathBuf;
 use super::mentalsim;
 
 fn shared_map(folder: &str, yaml: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/maps/ros")
-        .join(folder)
-        .join(yaml);
+    let p = PathBuf::from(
+        std::env::var("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+    )
+    .join("../shared/maps/ros")
+    .join(folder)
+    .join(yaml);
     if p.is_file() {
         Some(p)
     } else {

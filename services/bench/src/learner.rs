@@ -50,7 +50,7 @@ impl Default for LearnerBenchOptions {
             buffer: 100_000,
             threads: 1,
             python: None,
-            script: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scripts/sb3_td3_bench.py"),
+            script: crate::bench_dir().join("scripts/sb3_td3_bench.py"),
         }
     }
 }

@@ -436,7 +436,7 @@ pub fn find_yamls(dir: &Path) -> Result<Vec<PathBuf>, BenchError> {
 }
 
 /// A short unique name per map: its folder, or folder/stem when a folder holds several maps.
-fn map_names(root: &Path, yamls: &[PathBuf]) -> Vec<String> {
+pub(crate) fn map_names(root: &Path, yamls: &[PathBuf]) -> Vec<String> {
     let folder = |p: &Path| {
         p.parent()
             .and_then(|d| d.strip_prefix(root).ok())
@@ -1181,10 +1181,8 @@ fn register_font() {
 mod tests {
     use super::*;
 
-    const SHARED_ROS_MAPS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/maps/ros");
-
     fn shared_maps() -> Option<PathBuf> {
-        let p = PathBuf::from(SHARED_ROS_MAPS);
+        let p = crate::bench_dir().join("../../../shared/maps/ros");
         if p.is_dir() {
             Some(p)
         } else {

@@ -91,13 +91,12 @@ impl SimBenchOptions {
             seed: 1,
             irsim: None,
             irsim_x: None,
-            peer_script: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scripts/irsim_bench.py"),
+            peer_script: crate::bench_dir().join("scripts/irsim_bench.py"),
             peer_steps: 20_000,
             peer_step_seconds: 30.0,
             peer_timeout: Duration::from_secs(900),
             render_png: None,
-            robot_ttl: PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .join("../../ontologies/robots/differential-robot.ttl"),
+            robot_ttl: crate::bench_dir().join("../../ontologies/robots/differential-robot.ttl"),
             robot_iri: "https://mentalsim.dev/data/robots/differential-robot".to_owned(),
         }
     }
@@ -835,7 +834,7 @@ mod tests {
     use super::*;
 
     fn shared(rel: &str) -> PathBuf {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        crate::bench_dir()
             .join("../../../shared/maps/ros")
             .join(rel)
     }

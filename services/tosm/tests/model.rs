@@ -3,7 +3,7 @@
 //! the individual and property it concerns, and mangled graphs never panic.
 
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use oxrdf::vocab::rdf;
 use oxrdf::{Graph, Literal, NamedNode, NamedOrBlankNode, Term, Triple};
@@ -15,7 +15,11 @@ use tosm::{
 const ROBOT: &str = "https://mentalsim.dev/data/robots/differential-robot";
 
 fn ontologies() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ontologies")
+    PathBuf::from(
+        std::env::var("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+    )
+    .join("../../ontologies")
 }
 
 fn parse_turtle(text: &str) -> Graph {

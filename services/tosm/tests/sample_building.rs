@@ -9,7 +9,7 @@
 
 use std::collections::BTreeMap;
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use oxrdf::{Graph, Triple};
 use tosm::{
@@ -21,7 +21,11 @@ const BUILDING: &str = "https://mentalsim.dev/data/buildings/sample-building";
 const OUTPUT: &str = "ontologies/environments/sample-building.ttl";
 
 fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    PathBuf::from(
+        std::env::var("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+    )
+    .join("../..")
 }
 
 /// (slug, kind, name, polygon in image pixels (column, row from the top)).

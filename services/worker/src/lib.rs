@@ -20,6 +20,7 @@ pub mod clock;
 pub mod database;
 pub mod jobs;
 pub mod lazy;
+pub mod plan;
 pub mod queue;
 pub mod runner;
 pub mod service;

@@ -97,10 +97,13 @@ pub async fn spawn_app(options: Options) -> TestApp {
 
 /// The repository root (two levels above this crate).
 pub fn repository_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .unwrap()
+    PathBuf::from(
+        std::env::var("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+    )
+    .join("../..")
+    .canonicalize()
+    .unwrap()
 }
 
 /// `shared/` beside the repository, where the W3C suites live; `MENTALSIM_SHARED` overrides.

@@ -185,9 +185,12 @@ fn the_sample_building_and_robot_export_to_files_gazebo_and_ros_load() {
         "environments/sample-building.ttl",
         "robots/differential-robot.ttl",
     ] {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../../ontologies")
-            .join(rel);
+        let path = PathBuf::from(
+            std::env::var("CARGO_MANIFEST_DIR")
+                .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+        )
+        .join("../../ontologies")
+        .join(rel);
         let text = std::fs::read(&path).expect("bundled ontology file");
         for t in oxttl::TurtleParser::new().for_slice(&text) {
             g.insert(&t.expect("valid Turtle"));

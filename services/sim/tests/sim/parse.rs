@@ -13,9 +13,12 @@ const FLOOR0: &str = "https://mentalsim.dev/data/buildings/sample-building/floor
 const TOSM: &str = "https://mentalsim.dev/ontology/tosm#";
 
 fn ontology(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../ontologies")
-        .join(rel)
+    PathBuf::from(
+        std::env::var("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+    )
+    .join("../../ontologies")
+    .join(rel)
 }
 
 fn load(graph: &mut Graph, rel: &str) {

@@ -6,9 +6,12 @@ use std::sync::Arc;
 use sim::{Action, EnvConfig, GridMap, NavEnv, OccupancyGrid, RobotSpec, World, WorldSpec};
 
 fn shared_map(folder: &str, yaml: &str) -> Option<(String, OccupancyGrid)> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/maps/ros")
-        .join(folder);
+    let dir = PathBuf::from(
+        std::env::var("CARGO_MANIFEST_DIR")
+            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
+    )
+    .join("../../../shared/maps/ros")
+    .join(folder);
     let yaml_path = dir.join(yaml);
     let Ok(text) = std::fs::read_to_string(&yaml_path) else {
         println!("skipped: {} is missing", yaml_path.display());

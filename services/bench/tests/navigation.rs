@@ -1,0 +1,113 @@
+//! The navigation benchmark end to end on a small generated ROS map, with a hand-made policy.
+
+use std::path::Path;
+
+use bench::navigation::{NavigationBenchOptions, run_navigation_bench};
+use learning::Scaling;
+use learning::policy::{PolicyMetadata, write_policy};
+
+/// A 12 m x 6 m room at 0.05 m/px with an inner wall at x = 6 open at the top, as map_server
+/// files (PGM rows top first).
+fn write_map(dir: &Path) {
+    let (w, h) = (240usize, 120usize);
+    let mut pixels = vec![254u8; w * h];
+    for row in 0..h {
+        // Image row 0 is the top of the map: y = (h - 1 - row) * 0.05.
+        let y = (h - 1 - row) as f64 * 0.05;
+        for col in 0..w {
+            let x = col as f64 * 0.05;
+            let border = col < 2 || row < 2 || col >= w - 2 || row >= h - 2;
+            let inner = (5.9..6.1).contains(&x) && y < 4.2;
+            if border || inner {
+                pixels[row * w + col] = 0;
+            }
+        }
+    }
+    let mut pgm = format!("P5\n{w} {h}\n255\n").into_bytes();
+    pgm.extend_from_slice(&pixels);
+    std::fs::create_dir_all(dir.join("room")).expect("dir");
+    std::fs::write(dir.join("room/room.pgm"), pgm).expect("pgm");
+    std::fs::write(
+        dir.join("room/room.yaml"),
+        "image: room.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    )
+    .expect("yaml");
+}
+
+/// Steers towards the goal: linear sigmoid(3 - 60 |a|), angular tanh(20 a), a = angle / pi.
+fn write_steering_policy(dir: &Path) {
+    let scaling = Scaling::default();
+    let inputs = scaling.input_len();
+    let meta = PolicyMetadata::new(scaling, vec![3], serde_json::json!({"test": true}));
+    let mut w0 = vec![0.0f32; 3 * inputs];
+    w0[inputs - 1] = 1.0;
+    w0[2 * inputs - 1] = -1.0;
+    let layers = [
+        (w0, vec![0.0, 0.0, 1.0]),
+        (vec![-60.0, -60.0, 3.0, 20.0, -20.0, 0.0], vec![0.0, 0.0]),
+    ];
+    write_policy(dir, &meta, &layers).expect("policy");
+}
+
+#[test]
+fn the_benchmark_writes_table_3_for_every_method() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    write_map(&tmp.path().join("maps"));
+    write_steering_policy(&tmp.path().join("policy"));
+    let report = run_navigation_bench(NavigationBenchOptions {
+        maps_dir: tmp.path().join("maps"),
+        runs: 2,
+        policy: Some(tmp.path().join("policy")),
+        out_dir: tmp.path().join("out"),
+        candidates: 8,
+        ..NavigationBenchOptions::default()
+    })
+    .expect("runs");
+    assert_eq!(report.missions.len(), 1, "{:?}", report.skipped);
+    let m = &report.missions[0];
+    assert!(!m.full_length && m.prm_length_m > 5.0, "{m:?}");
+    // Four methods, two runs each.
+    assert_eq!(report.rows.len(), 8);
+    let csv = std::fs::read_to_string(&report.csv_path).expect("csv");
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("method,map,run,success,distance_m,time_s")
+    );
+    assert_eq!(lines.count(), 8);
+    // The classical follower on the roadmap path reaches the goal.
+    assert!(
+        report
+            .rows
+            .iter()
+            .filter(|r| r.method == "classical_prm")
+            .all(|r| r.success && r.distance_m >= m.straight_m),
+        "{:?}",
+        report.rows
+    );
+    let md = std::fs::read_to_string(&report.markdown_path).expect("md");
+    for needle in [
+        "hybrid_prm_rl",
+        "pure_rl",
+        "classical_prm",
+        "Plan latency",
+        "Table 3",
+    ] {
+        assert!(md.contains(needle), "{needle} missing from\n{md}");
+    }
+    assert_eq!(report.latency.len(), 2);
+    assert!(report.summary().contains("plan latency"));
+
+    // Without a policy only the classical follower runs, and the summary says so.
+    let report = run_navigation_bench(NavigationBenchOptions {
+        maps_dir: tmp.path().join("maps"),
+        runs: 1,
+        out_dir: tmp.path().join("out2"),
+        candidates: 6,
+        ..NavigationBenchOptions::default()
+    })
+    .expect("runs");
+    assert!(report.rows.iter().all(|r| r.method == "classical_prm"));
+    assert!(report.markdown.contains("No policy given"));
+    assert!(report.summary().contains("no policy given"));
+}

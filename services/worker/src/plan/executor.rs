@@ -1,0 +1,740 @@
+//! The hybrid PRM-RL executor of the paper's §4.2.2, run in the mental simulation to validate a
+//! plan before the robot moves.
+//!
+//! 1. The roadmap (cached per map version, robot and parameters) gives waypoints from the start
+//!    through every goal.
+//! 2. A [`Controller`] drives the simulated robot to the waypoints one at a time; each waypoint
+//!    starts a timer of `waypoint_timeout_s` simulated seconds, and when it runs out the planner
+//!    replans from the robot's current position to the goal of the current leg.
+//! 3. A collision, or a robot that keeps stalling, fails the attempt: the roadmap is re-sampled
+//!    with the next seed and the plan tried again (the paper's §5.3: "the roadmap can be
+//!    re-sampled and a new path generated"), at most `max_attempts` times.
+//!
+//! No IO, no async: the caller runs this on a blocking thread.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use learning::Policy;
+use planning::{ConfigSpace, Endpoint, Point2, PrmParams, QueryError, QueryOptions, Roadmap};
+use sim::{EnvConfig, NavEnv, NoiseConfig, Outcome, Pose2, World};
+
+use super::cache::{RoadmapCache, SpaceEntry};
+use super::controller::{ClassicalFollower, Controller, PolicyController};
+use super::error::{BlockedReason, PlanError, invalid};
+use super::types::{
+    AttemptOutcome, AttemptReport, PlanOptions, PlanReport, PlanRequest, Point, Pose, RoadmapInfo,
+};
+
+/// Most goals one request may carry.
+pub const MAX_GOALS: usize = 1000;
+/// Most attempts one request may ask for.
+pub const MAX_ATTEMPTS: u32 = 50;
+/// Longest waypoint timer, simulated seconds.
+pub const MAX_WAYPOINT_TIMEOUT_S: f64 = 600.0;
+/// Farthest the start may be from free configuration space and still be driven out of it
+/// straight (a robot parked closer to a wall than the safety margin), metres.
+const START_ESCAPE_M: f64 = 1.0;
+
+/// Validates the plan of `request` in `world`: with `policy` (hybrid PRM-RL) when given, with
+/// the [`ClassicalFollower`] otherwise (the report says which).
+///
+/// `map_version` identifies the world's map for the roadmap cache: equal strings must mean equal
+/// maps (and objects).
+pub fn validate(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+    policy: Option<Arc<Policy>>,
+) -> Result<PlanReport, PlanError> {
+    match policy {
+        Some(p) => validate_with(
+            world,
+            roadmaps,
+            map_version,
+            request,
+            &mut PolicyController::new(p),
+        ),
+        None => validate_with(
+            world,
+            roadmaps,
+            map_version,
+            request,
+            &mut ClassicalFollower::default(),
+        ),
+    }
+}
+
+/// [`validate`] with any controller.
+pub fn validate_with(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+    controller: &mut dyn Controller,
+) -> Result<PlanReport, PlanError> {
+    let opts = &request.options;
+    check_request(request)?;
+    let beams = controller_beams(world, controller)?;
+    let inflation = planning::Inflation {
+        robot_radius_m: world.spec().robot.footprint_radius,
+        safety_margin_m: opts.safety_margin_m,
+    };
+    let space = roadmaps.config_space(map_version, world, inflation)?;
+    let cs = &*space.cspace;
+    let env_config = env_config(beams, opts.noise);
+    let start = Pose2::from(request.start);
+    let entry = start_entry(world, cs, start, env_config.collision_clearance)?;
+    let goals: Vec<Point2> = request.goals.iter().map(|&g| g.into()).collect();
+    check_goals(cs, entry.unwrap_or(Point2::new(start.x, start.y)), &goals)?;
+
+    let samples = opts
+        .samples
+        .unwrap_or_else(|| planning::optimal_samples(space.free_area_m2));
+    let mut attempts = Vec::new();
+    for attempt in 1..=opts.max_attempts {
+        let seed = opts.seed.wrapping_add(u64::from(attempt - 1));
+        let params = PrmParams {
+            samples,
+            seed,
+            ..PrmParams::default()
+        };
+        let (roadmap, cached) = roadmaps.roadmap(map_version, &space, &params)?;
+        let legs = plan_legs(&roadmap, opts, start, entry, &goals)?;
+        controller.start_attempt(attempt);
+        let replanner: &mut Replanner<'_> =
+            &mut |from: Point2, goal: Point2| replan(&roadmap, opts, world, from, goal);
+        let run = drive(
+            world,
+            &env_config,
+            start,
+            &legs.legs,
+            controller,
+            DriveLimits {
+                waypoint_timeout_s: opts.waypoint_timeout_s,
+                max_replans: opts.max_replans,
+                sim_seed: mix(opts.seed, u64::from(attempt)),
+            },
+            Some(replanner),
+        )?;
+        let report = AttemptReport {
+            attempt,
+            roadmap_seed: seed,
+            outcome: run.outcome,
+            reason: run.reason.clone(),
+            simulated_time_s: run.time_s,
+            distance_m: run.distance_m,
+            min_clearance_m: run.min_clearance_m,
+            replans: run.replans,
+            waypoints_reached: run.reached.len(),
+            goals_reached: run.goal_indices.len(),
+            prm_path_length_m: legs.length_m,
+            end_pose: run.end_pose.into(),
+        };
+        let reached = run.outcome == AttemptOutcome::Reached;
+        attempts.push(report);
+        if reached {
+            let waypoint_path_length_m = polyline_length(start, &run.reached);
+            return Ok(PlanReport {
+                waypoints: run.reached.iter().map(|&p| p.into()).collect(),
+                goal_indices: run.goal_indices,
+                controller: controller.kind(),
+                controller_description: controller.description(),
+                simulated_time_s: run.time_s,
+                distance_m: run.distance_m,
+                min_clearance_m: run.min_clearance_m,
+                prm_path_length_m: legs.length_m,
+                waypoint_path_length_m,
+                replans: run.replans,
+                trajectory: stride(&run.trajectory, opts.trajectory_stride),
+                roadmap: RoadmapInfo {
+                    samples,
+                    nodes: roadmap.nodes().count(),
+                    seed,
+                    inflation_m: inflation.total_m(),
+                    cached,
+                },
+                attempts,
+            });
+        }
+    }
+    Err(PlanError::NotValidated { attempts })
+}
+
+/// The beam count the controller needs, checked against the robot's laser.
+fn controller_beams(world: &World, controller: &dyn Controller) -> Result<usize, PlanError> {
+    let beams = controller.beams().unwrap_or(EnvConfig::default().beams);
+    let laser = &world.spec().robot.laser;
+    if laser.beam_angles(beams).is_none() {
+        return Err(invalid(
+            "policy",
+            format!(
+                "the policy reads {beams} laser beams but the robot's laser ({} samples) cannot give them",
+                laser.samples
+            ),
+        ));
+    }
+    Ok(beams)
+}
+
+/// The simulation settings of a validation: the environment's defaults (control period, limits
+/// 0.8 m/s and 0.5 rad/s, goal tolerance, collision clearance), the trajectory recorded, no step
+/// limit (the executor's timers bound the run).
+pub fn env_config(beams: usize, noise: bool) -> EnvConfig {
+    EnvConfig {
+        beams,
+        noise: if noise {
+            NoiseConfig::default()
+        } else {
+            NoiseConfig::none()
+        },
+        max_steps: u32::MAX,
+        record_trajectory: true,
+        ..EnvConfig::default()
+    }
+}
+
+fn check_request(request: &PlanRequest) -> Result<(), PlanError> {
+    let s = request.start;
+    for (field, v) in [("start.x", s.x), ("start.y", s.y), ("start.yaw", s.yaw)] {
+        if !v.is_finite() {
+            return Err(invalid(field, format!("must be a finite number, got {v}")));
+        }
+    }
+    if request.goals.is_empty() {
+        return Err(invalid("goals", "must hold at least one goal"));
+    }
+    if request.goals.len() > MAX_GOALS {
+        return Err(invalid(
+            "goals",
+            format!(
+                "holds {} goals; at most {MAX_GOALS} are taken",
+                request.goals.len()
+            ),
+        ));
+    }
+    for (i, g) in request.goals.iter().enumerate() {
+        if !g.is_finite() {
+            let field = if g.x.is_finite() { "y" } else { "x" };
+            return Err(invalid(
+                format!("goals[{i}].{field}"),
+                format!("must be a finite number, got ({}, {})", g.x, g.y),
+            ));
+        }
+    }
+    check_options(&request.options)
+}
+
+fn check_options(o: &PlanOptions) -> Result<(), PlanError> {
+    if o.max_attempts == 0 || o.max_attempts > MAX_ATTEMPTS {
+        return Err(invalid(
+            "options.max_attempts",
+            format!("must lie in [1, {MAX_ATTEMPTS}], got {}", o.max_attempts),
+        ));
+    }
+    if !(o.waypoint_timeout_s.is_finite()
+        && o.waypoint_timeout_s > 0.0
+        && o.waypoint_timeout_s <= MAX_WAYPOINT_TIMEOUT_S)
+    {
+        return Err(invalid(
+            "options.waypoint_timeout_s",
+            format!(
+                "must lie in (0, {MAX_WAYPOINT_TIMEOUT_S}] simulated seconds, got {}",
+                o.waypoint_timeout_s
+            ),
+        ));
+    }
+    if !(o.safety_margin_m.is_finite() && (0.0..=5.0).contains(&o.safety_margin_m)) {
+        return Err(invalid(
+            "options.safety_margin_m",
+            format!("must lie in [0, 5] metres, got {}", o.safety_margin_m),
+        ));
+    }
+    if let Some(n) = o.samples
+        && !(1..=planning::MAX_SAMPLES).contains(&n)
+    {
+        return Err(invalid(
+            "options.samples",
+            format!("must lie in [1, {}], got {n}", planning::MAX_SAMPLES),
+        ));
+    }
+    if o.max_replans > 1000 {
+        return Err(invalid(
+            "options.max_replans",
+            format!("must be at most 1000, got {}", o.max_replans),
+        ));
+    }
+    Ok(())
+}
+
+/// Where the roadmap path starts: `None` when the start is free configuration space, or the
+/// nearest free point when the robot fits at the start but stands closer to an obstacle than the
+/// safety margin and can drive there straight.
+fn start_entry(
+    world: &World,
+    cs: &ConfigSpace,
+    start: Pose2,
+    collision_clearance: f64,
+) -> Result<Option<Point2>, PlanError> {
+    let p = Point2::new(start.x, start.y);
+    match cs.validate_endpoint(Endpoint::Start, p) {
+        Ok(()) => Ok(None),
+        Err(e @ QueryError::InObstacle { .. }) => {
+            let escape = cs.nearest_free(p).filter(|&q| {
+                q.distance(p) <= START_ESCAPE_M
+                    && segment_clear(world, p, q, collision_clearance + 0.02)
+            });
+            match escape {
+                Some(q) => Ok(Some(q)),
+                None => Err(blocked_error("start".into(), e)),
+            }
+        }
+        Err(e) => Err(blocked_error("start".into(), e)),
+    }
+}
+
+/// Every goal must be free and in the same free region as the point before it.
+fn check_goals(cs: &ConfigSpace, from: Point2, goals: &[Point2]) -> Result<(), PlanError> {
+    for (i, &g) in goals.iter().enumerate() {
+        cs.validate_endpoint(Endpoint::Goal, g)
+            .map_err(|e| blocked_error(format!("goals[{i}]"), e))?;
+    }
+    let mut prev = (from, "the start".to_owned());
+    for (i, &g) in goals.iter().enumerate() {
+        if cs.region_of(prev.0) != cs.region_of(g) {
+            return Err(PlanError::Unreachable {
+                goal_index: i,
+                goal: g.into(),
+                from: prev.1,
+            });
+        }
+        prev = (g, format!("goals[{i}]"));
+    }
+    Ok(())
+}
+
+/// A planner endpoint error as the request's own error, naming the point.
+fn blocked_error(which: String, e: QueryError) -> PlanError {
+    match e {
+        QueryError::NonFinite { x, y, .. } => {
+            invalid(which, format!("must be a finite point, got ({x}, {y})"))
+        }
+        QueryError::OutsideMap {
+            point,
+            nearest_free,
+            ..
+        } => PlanError::Blocked {
+            which,
+            point: point.into(),
+            reason: BlockedReason::OutsideMap,
+            clearance_m: None,
+            required_m: 0.0,
+            nearest_free: nearest_free.map(Into::into),
+        },
+        QueryError::InObstacle {
+            point,
+            clearance_m,
+            required_m,
+            nearest_free,
+            ..
+        } => PlanError::Blocked {
+            which,
+            point: point.into(),
+            reason: BlockedReason::InObstacle,
+            clearance_m: Some(clearance_m),
+            required_m,
+            nearest_free: nearest_free.map(Into::into),
+        },
+        other @ (QueryError::Unreachable { .. } | QueryError::NotConnected) => {
+            PlanError::Map(format!("{which}: {other}"))
+        }
+    }
+}
+
+/// Whether the robot's footprint keeps `min_clearance` along the straight segment `a`–`b`.
+fn segment_clear(world: &World, a: Point2, b: Point2, min_clearance: f64) -> bool {
+    let step = (world.resolution() / 2.0).max(1e-3);
+    let len = a.distance(b);
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a short segment: a small positive count"
+    )]
+    let n = ((len / step).ceil() as usize).max(1);
+    (0..=n).all(|k| {
+        #[allow(clippy::cast_precision_loss, reason = "small counts")]
+        let t = k as f64 / n as f64;
+        world.clearance(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)) >= min_clearance
+    })
+}
+
+/// Waypoints of a whole mission: one leg per goal, each leg's waypoints after its start point,
+/// its last one the goal.
+struct Legs {
+    legs: Vec<Vec<Point2>>,
+    length_m: f64,
+}
+
+fn plan_legs(
+    roadmap: &Roadmap,
+    opts: &PlanOptions,
+    start: Pose2,
+    entry: Option<Point2>,
+    goals: &[Point2],
+) -> Result<Legs, PlanError> {
+    let s = Point2::new(start.x, start.y);
+    let mut from = entry.unwrap_or(s);
+    let mut length_m = entry.map_or(0.0, |e| e.distance(s));
+    let mut legs = Vec::with_capacity(goals.len());
+    for (i, &g) in goals.iter().enumerate() {
+        let which = if i == 0 {
+            "start".to_owned()
+        } else {
+            format!("goals[{}]", i - 1)
+        };
+        let mut plan = roadmap
+            .query(from, g, QueryOptions::default())
+            .map_err(|e| match e {
+                QueryError::Unreachable { .. } | QueryError::NotConnected => {
+                    PlanError::Unreachable {
+                        goal_index: i,
+                        goal: g.into(),
+                        from: which.clone(),
+                    }
+                }
+                other => blocked_error(format!("goals[{i}]"), other),
+            })?;
+        if opts.shortcut {
+            plan = roadmap.shortcut(&plan);
+        }
+        length_m += plan.length_m;
+        let mut leg: Vec<Point2> = plan.waypoints.into_iter().skip(1).collect();
+        if i == 0
+            && let Some(e) = entry
+        {
+            leg.insert(0, e);
+        }
+        if leg.is_empty() {
+            // Start and goal coincide: the goal is still a waypoint to reach.
+            leg.push(g);
+        }
+        legs.push(leg);
+        from = g;
+    }
+    Ok(Legs { legs, length_m })
+}
+
+/// A fresh roadmap path from where the robot stands to `goal`, or why there is none.
+fn replan(
+    roadmap: &Roadmap,
+    opts: &PlanOptions,
+    world: &World,
+    from: Point2,
+    goal: Point2,
+) -> Result<Vec<Point2>, String> {
+    let cs = roadmap.cspace();
+    // A robot pushed closer to a wall than the margin first drives back into free space.
+    let entry = if cs.is_free(from) {
+        None
+    } else {
+        let q = cs
+            .nearest_free(from)
+            .filter(|&q| q.distance(from) <= START_ESCAPE_M && segment_clear(world, from, q, 0.0))
+            .ok_or_else(|| {
+                format!(
+                    "no free space within {START_ESCAPE_M} m of ({:.2}, {:.2}) to replan from",
+                    from.x, from.y
+                )
+            })?;
+        Some(q)
+    };
+    let mut plan = roadmap
+        .query(entry.unwrap_or(from), goal, QueryOptions::default())
+        .map_err(|e| format!("replanning failed: {e}"))?;
+    if opts.shortcut {
+        plan = roadmap.shortcut(&plan);
+    }
+    let mut out: Vec<Point2> = entry.into_iter().collect();
+    out.extend(plan.waypoints.into_iter().skip(1));
+    if out.is_empty() {
+        out.push(goal);
+    }
+    Ok(out)
+}
+
+/// Bounds of one simulated drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveLimits {
+    /// Simulated seconds per waypoint before replanning (or, without a replanner, failing).
+    pub waypoint_timeout_s: f64,
+    /// Replans allowed before the drive counts as stalled.
+    pub max_replans: u32,
+    /// Seed of the simulation's noise.
+    pub sim_seed: u64,
+}
+
+/// Replans from the robot's position to a goal: the remaining waypoints of the leg, or why not.
+pub type Replanner<'a> = dyn FnMut(Point2, Point2) -> Result<Vec<Point2>, String> + 'a;
+
+/// One simulated drive through waypoint legs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DriveRun {
+    /// How it ended.
+    pub outcome: AttemptOutcome,
+    /// Why, in words.
+    pub reason: String,
+    /// Simulated time, seconds.
+    pub time_s: f64,
+    /// Distance driven, metres.
+    pub distance_m: f64,
+    /// Smallest footprint clearance, metres.
+    pub min_clearance_m: f64,
+    /// Timer expiries that led to a replan.
+    pub replans: u32,
+    /// Waypoints reached, in order.
+    pub reached: Vec<Point2>,
+    /// Index into `reached` of each goal reached.
+    pub goal_indices: Vec<usize>,
+    /// Every pose of the drive.
+    pub trajectory: Vec<Pose2>,
+    /// Where the robot ended.
+    pub end_pose: Pose2,
+}
+
+/// Drives the simulated robot from `start` through `legs` (each leg ends at its goal) with
+/// `controller`, one waypoint at a time under the waypoint timer. When the timer runs out the
+/// `replanner` (if any) replaces the rest of the current leg by a path from where the robot is;
+/// without one, or past `max_replans`, the drive is stalled.
+///
+/// Pure RL is this with one leg holding only the final goal and no replanner.
+pub fn drive(
+    world: &Arc<World>,
+    env_config: &EnvConfig,
+    start: Pose2,
+    legs: &[Vec<Point2>],
+    controller: &mut dyn Controller,
+    limits: DriveLimits,
+    mut replanner: Option<&mut Replanner<'_>>,
+) -> Result<DriveRun, PlanError> {
+    // (waypoint, goal index when it ends a leg)
+    let mut queue: VecDeque<(Point2, Option<usize>)> = legs
+        .iter()
+        .enumerate()
+        .flat_map(|(i, leg)| {
+            let last = leg.len().saturating_sub(1);
+            leg.iter()
+                .enumerate()
+                .map(move |(k, &p)| (p, (k == last).then_some(i)))
+        })
+        .collect();
+    let Some(mut current) = queue.pop_front() else {
+        return Err(invalid("goals", "must hold at least one goal"));
+    };
+    let mut env = NavEnv::new(Arc::clone(world), env_config.clone(), limits.sim_seed)
+        .map_err(|e| invalid("policy", e.to_string()))?;
+    let mut obs = env
+        .reset(start, (current.0.x, current.0.y))
+        .map_err(|e| env_error("start", e))?;
+    let dt = env_config.control_period;
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "the timeout is checked to lie in (0, 600] s"
+    )]
+    let timer_steps = ((limits.waypoint_timeout_s / dt).ceil() as u64).max(1);
+    let mut steps_on_waypoint = 0u64;
+    let mut min_clearance = world.clearance(start.x, start.y);
+    let mut replans = 0u32;
+    let mut reached = Vec::new();
+    let mut goal_indices = Vec::new();
+    let mut time_s;
+    let (outcome, reason) = loop {
+        let action = controller.command(&obs, env.pose(), (current.0.x, current.0.y));
+        let step = env.step(action);
+        time_s = step.info.time_s;
+        if step.info.min_clearance.is_finite() {
+            min_clearance = min_clearance.min(step.info.min_clearance);
+        }
+        steps_on_waypoint += 1;
+        match step.info.outcome {
+            Outcome::Collision => {
+                let p = step.info.pose;
+                break (
+                    AttemptOutcome::Collision,
+                    format!(
+                        "collision at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2})",
+                        p.x,
+                        p.y,
+                        time_s,
+                        reached.len() + 1,
+                        current.0.x,
+                        current.0.y
+                    ),
+                );
+            }
+            Outcome::ReachedGoal => {
+                reached.push(current.0);
+                if current.1.is_some() {
+                    goal_indices.push(reached.len() - 1);
+                }
+                match queue.pop_front() {
+                    None => break (AttemptOutcome::Reached, "every goal reached".to_owned()),
+                    Some(next) => {
+                        current = next;
+                        obs = env
+                            .set_goal((current.0.x, current.0.y))
+                            .map_err(|e| env_error("waypoint", e))?;
+                        steps_on_waypoint = 0;
+                    }
+                }
+            }
+            Outcome::TimeLimit | Outcome::Running => {
+                obs = step.observation;
+                if steps_on_waypoint < timer_steps {
+                    continue;
+                }
+                let p = env.pose();
+                let late = format!(
+                    "waypoint {} ({:.2}, {:.2}) not reached within {} s from ({:.2}, {:.2})",
+                    reached.len() + 1,
+                    current.0.x,
+                    current.0.y,
+                    limits.waypoint_timeout_s,
+                    p.x,
+                    p.y
+                );
+                let Some(replan) = replanner.as_mut() else {
+                    break (AttemptOutcome::Stalled, late);
+                };
+                if replans >= limits.max_replans {
+                    break (
+                        AttemptOutcome::Stalled,
+                        format!("{late}; {replans} replans already spent"),
+                    );
+                }
+                replans += 1;
+                // The goal of the current leg: the current waypoint or a later one.
+                let (goal, goal_index) = match current.1 {
+                    Some(i) => (current.0, i),
+                    None => match queue.iter().find_map(|&(q, gi)| gi.map(|i| (q, i))) {
+                        Some(found) => found,
+                        None => break (AttemptOutcome::Stalled, late),
+                    },
+                };
+                let fresh = match replan(Point2::new(p.x, p.y), goal) {
+                    Ok(w) => w,
+                    Err(why) => break (AttemptOutcome::Stalled, format!("{late}; {why}")),
+                };
+                // Drop the rest of the leg, then put the new path in front.
+                if current.1.is_none() {
+                    while let Some((_, gi)) = queue.pop_front() {
+                        if gi.is_some() {
+                            break;
+                        }
+                    }
+                }
+                let last = fresh.len().saturating_sub(1);
+                for (k, &w) in fresh.iter().enumerate().rev() {
+                    queue.push_front((w, (k == last).then_some(goal_index)));
+                }
+                let Some(next) = queue.pop_front() else {
+                    break (AttemptOutcome::Stalled, late);
+                };
+                current = next;
+                obs = env
+                    .set_goal((current.0.x, current.0.y))
+                    .map_err(|e| env_error("waypoint", e))?;
+                steps_on_waypoint = 0;
+            }
+        }
+    };
+    let trajectory = env.trajectory().to_vec();
+    let distance_m = trajectory
+        .windows(2)
+        .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+        .sum();
+    Ok(DriveRun {
+        outcome,
+        reason,
+        time_s,
+        distance_m,
+        min_clearance_m: min_clearance,
+        replans,
+        reached,
+        goal_indices,
+        end_pose: env.pose(),
+        trajectory,
+    })
+}
+
+/// An environment refusal during a drive (the executor's checks make these unreachable in
+/// practice: starts and waypoints come from free configuration space).
+fn env_error(which: &str, e: sim::EnvError) -> PlanError {
+    match e {
+        sim::EnvError::StartBlocked {
+            x, y, nearest_free, ..
+        }
+        | sim::EnvError::GoalBlocked { x, y, nearest_free } => PlanError::Blocked {
+            which: which.to_owned(),
+            point: Point::new(x, y),
+            reason: BlockedReason::InObstacle,
+            clearance_m: None,
+            required_m: 0.0,
+            nearest_free: nearest_free.map(|(x, y)| Point::new(x, y)),
+        },
+        other => PlanError::Map(other.to_string()),
+    }
+}
+
+fn polyline_length(start: Pose2, points: &[Point2]) -> f64 {
+    let mut prev = Point2::new(start.x, start.y);
+    let mut total = 0.0;
+    for &p in points {
+        total += prev.distance(p);
+        prev = p;
+    }
+    total
+}
+
+/// Every `n`-th pose and the last; none for `n == 0`.
+fn stride(poses: &[Pose2], n: u32) -> Vec<Pose> {
+    if n == 0 {
+        return Vec::new();
+    }
+    let n = n as usize;
+    let mut out: Vec<Pose> = poses.iter().step_by(n).map(|&p| p.into()).collect();
+    if let Some(&last) = poses.last()
+        && !(poses.len() - 1).is_multiple_of(n)
+    {
+        out.push(last.into());
+    }
+    out
+}
+
+/// SplitMix64 of two values: decorrelated seeds for attempts.
+pub fn mix(a: u64, b: u64) -> u64 {
+    let mut z = a ^ b.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// The configuration space the executor plans on for `world`, `map_version` and a safety
+/// margin (for callers choosing missions, such as the navigation benchmark).
+pub fn config_space(
+    world: &World,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    safety_margin_m: f64,
+) -> Result<Arc<SpaceEntry>, PlanError> {
+    roadmaps.config_space(
+        map_version,
+        world,
+        planning::Inflation {
+            robot_radius_m: world.spec().robot.footprint_radius,
+            safety_margin_m,
+        },
+    )
+}
