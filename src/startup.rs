@@ -249,6 +249,9 @@ fn router(config: &Config, components: Arc<Components>, stopping: CancellationTo
     });
     let app = Router::new()
         .merge(crate::health::router(components))
+        .merge(worker::plan_api::router(Arc::new(
+            worker::plan_api::PlanApi::new(jobs.clone()),
+        )))
         .merge(worker::api::router(jobs))
         .merge(knowledge::api::router(knowledge.clone()))
         .merge(knowledge::protocol::router(knowledge))

@@ -9,4 +9,5 @@ mod health;
 mod helpers;
 mod jobs;
 mod knowledge;
+mod plan;
 mod remote_store;

@@ -35,9 +35,9 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
 /// The OpenAPI document of the jobs and policies API, generated from the handlers below.
 #[derive(OpenApi)]
 #[openapi(
-    info(title = "Mentalsim worker service", description = "Jobs (train, evaluate, validate) in a durable queue, their progress as server-sent events, and the policies training exports."),
-    paths(create_job, list_jobs, get_job, cancel_job, job_events, list_policies, get_policy, policy_weights, policy_metadata),
-    components(schemas(NewJobRequest, JobView, TrainPayload, EvaluatePayload, ValidatePayload, PolicySummary, ErrorBody, ErrorDetail)),
+    info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate) in a durable queue, their progress as server-sent events, and the policies training exports."),
+    paths(create_job, list_jobs, get_job, cancel_job, job_events, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan),
+    components(schemas(NewJobRequest, JobView, TrainPayload, EvaluatePayload, ValidatePayload, PolicySummary, ErrorBody, ErrorDetail, crate::plan_api::PlanApiRequest, crate::plan_api::PlanApiResponse)),
     modifiers(&BearerAuth),
     security(("bearer" = []))
 )]

@@ -21,6 +21,7 @@ pub mod database;
 pub mod jobs;
 pub mod lazy;
 pub mod plan;
+pub mod plan_api;
 pub mod queue;
 pub mod runner;
 pub mod service;

@@ -1,0 +1,255 @@
+//! `POST /v1/plan` — what robots call (the paper's Figure 4): the floor's on-demand database
+//! from the knowledge service, its mental simulation, the cached roadmap for that map version,
+//! and the plan driven in the simulation with the robot's latest trained policy through the
+//! hybrid executor ([`crate::plan`]) before the waypoints are answered.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use axum::extract::State;
+use axum::http::HeaderMap;
+use axum::routing::post;
+use axum::{Json, Router};
+use edge::{ApiError, ErrorCode};
+use knowledge::auth::Role;
+use serde::{Deserialize, Serialize};
+use sim::World;
+use utoipa::ToSchema;
+
+use crate::api::JobsApi;
+use crate::jobs::source::SourceError;
+use crate::plan::{PlanOptions, PlanReport, PlanRequest, Point, Pose, RoadmapCache};
+
+/// What a robot asks.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PlanApiRequest {
+    /// The robot: identifier or IRI.
+    pub robot: String,
+    /// Where the robot is: its floor, or a place on that floor (identifier or IRI).
+    pub place: String,
+    /// The robot's pose on that floor (map frame).
+    pub start: Pose,
+    /// One goal (give this or `goals`).
+    #[serde(default)]
+    pub goal: Option<Point>,
+    /// Goals visited in order (give this or `goal`).
+    #[serde(default)]
+    pub goals: Vec<Point>,
+    /// Validation settings.
+    #[serde(default)]
+    pub options: PlanOptions,
+    /// The policy to drive with [default: the robot's newest trained policy].
+    #[serde(default)]
+    pub policy: Option<String>,
+}
+
+/// The validated plan and how it was validated.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct PlanApiResponse {
+    /// The robot's IRI.
+    pub robot: String,
+    /// The floor's IRI.
+    pub floor: String,
+    /// The policy that drove the simulated robot, if any.
+    pub policy: Option<String>,
+    /// Why the classical follower was used, when it was.
+    pub note: Option<String>,
+    /// Wall-clock time of the whole request in this service, milliseconds.
+    pub service_ms: f64,
+    /// The validated waypoints and the report of the simulated runs.
+    #[serde(flatten)]
+    pub report: PlanReport,
+}
+
+/// State of the plan route: the jobs API's (tokens, knowledge source, policies) plus caches of
+/// worlds and roadmaps by map version.
+pub struct PlanApi {
+    jobs: Arc<JobsApi>,
+    roadmaps: RoadmapCache,
+    worlds: Mutex<HashMap<String, Arc<World>>>,
+}
+
+impl std::fmt::Debug for PlanApi {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PlanApi").finish_non_exhaustive()
+    }
+}
+
+/// Worlds kept at most (one per floor and robot in use).
+const WORLDS: usize = 16;
+
+impl PlanApi {
+    /// Over the jobs API's state.
+    pub fn new(jobs: Arc<JobsApi>) -> Self {
+        Self {
+            jobs,
+            roadmaps: RoadmapCache::default(),
+            worlds: Mutex::new(HashMap::new()),
+        }
+    }
+}
+
+/// The route.
+pub fn router(state: Arc<PlanApi>) -> Router {
+    Router::new()
+        .route("/v1/plan", post(plan))
+        .with_state(state)
+}
+
+/// A stable name of the database's content: equal strings mean equal maps, objects and robot.
+fn map_version(floor: &str, robot: &str, graph: &oxrdf::Graph) -> String {
+    struct HashWriter<'a>(&'a mut std::collections::hash_map::DefaultHasher);
+    impl std::fmt::Write for HashWriter<'_> {
+        fn write_str(&mut self, s: &str) -> std::fmt::Result {
+            s.hash(self.0);
+            Ok(())
+        }
+    }
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    let mut w = HashWriter(&mut h);
+    for t in graph {
+        let _ = write!(w, "{t}");
+    }
+    format!("{floor}|{robot}|{:016x}", h.finish())
+}
+
+/// Validate a plan in the mental simulation before the robot moves.
+#[utoipa::path(
+    post,
+    path = "/v1/plan",
+    request_body = PlanApiRequest,
+    responses(
+        (status = 200, description = "Waypoints validated in the mental simulation", body = PlanApiResponse),
+        (status = 400, description = "Malformed request (a coordinate that is not a number, no goals, an option out of range)"),
+        (status = 404, description = "Unknown robot, place or policy"),
+        (status = 409, description = "No attempt could validate the plan (the attempts are in the details)"),
+        (status = 422, description = "Start or goal inside an obstacle, outside the map, or unreachable from the start"),
+    ),
+    security(("bearer" = []))
+)]
+async fn plan(
+    State(api): State<Arc<PlanApi>>,
+    headers: HeaderMap,
+    Json(req): Json<PlanApiRequest>,
+) -> Result<Json<PlanApiResponse>, ApiError> {
+    let started = Instant::now();
+    api.jobs.tokens.require(&headers, Role::Robot)?;
+    let goals: Vec<Point> = match (req.goal, req.goals.is_empty()) {
+        (Some(_), false) => {
+            return Err(ApiError::new(
+                ErrorCode::BadRequest,
+                "give `goal` or `goals`, not both",
+            ));
+        }
+        (Some(g), true) => vec![g],
+        (None, false) => req.goals.clone(),
+        (None, true) => {
+            return Err(ApiError::new(
+                ErrorCode::BadRequest,
+                "a plan needs a goal: give `goal` or a non-empty `goals`",
+            ));
+        }
+    };
+    let db = api
+        .jobs
+        .env
+        .knowledge
+        .floor_database(&req.place, &req.robot)
+        .await
+        .map_err(|e| match e {
+            SourceError::NotFound(m) => ApiError::new(ErrorCode::NotFound, m),
+            SourceError::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m),
+            SourceError::Unavailable(m) => ApiError::new(ErrorCode::NotReady, m),
+        })?;
+
+    // The policy: the one named, else the robot's newest.
+    let policies = &api.jobs.env.policies;
+    let policy_id = match &req.policy {
+        Some(id) => {
+            if policies.metadata(id).is_none() {
+                return Err(ApiError::new(
+                    ErrorCode::NotFound,
+                    format!("no policy `{id}`"),
+                ));
+            }
+            Some(id.clone())
+        }
+        None => policies
+            .list()
+            .into_iter()
+            .find(|p| {
+                p.robot
+                    .as_deref()
+                    .is_some_and(|r| r == db.robot || db.robot.ends_with(&format!("/{r}")))
+            })
+            .map(|p| p.id),
+    };
+    let policy = match &policy_id {
+        Some(id) => {
+            let dir = policies
+                .path(id)
+                .ok_or_else(|| ApiError::new(ErrorCode::NotFound, format!("no policy `{id}`")))?;
+            let loaded = tokio::task::spawn_blocking(move || learning::Policy::load(&dir))
+                .await
+                .map_err(|e| ApiError::internal(format!("policy loader failed: {e}")))?
+                .map_err(|e| {
+                    ApiError::new(
+                        ErrorCode::Unprocessable,
+                        format!("policy `{id}` cannot be loaded: {e}"),
+                    )
+                })?;
+            Some(Arc::new(loaded))
+        }
+        None => None,
+    };
+
+    let api2 = Arc::clone(&api);
+    let request = PlanRequest {
+        start: req.start,
+        goals,
+        options: req.options.clone(),
+    };
+    let (floor, robot) = (db.floor.clone(), db.robot.clone());
+    let report = tokio::task::spawn_blocking(move || -> Result<PlanReport, ApiError> {
+        let version = map_version(&db.floor, &db.robot, &db.graph);
+        let cached = api2
+            .worlds
+            .lock()
+            .ok()
+            .and_then(|w| w.get(&version).cloned());
+        let world = match cached {
+            Some(w) => w,
+            None => {
+                let w = db
+                    .world()
+                    .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
+                if let Ok(mut worlds) = api2.worlds.lock() {
+                    if worlds.len() >= WORLDS {
+                        worlds.clear();
+                    }
+                    worlds.insert(version.clone(), Arc::clone(&w));
+                }
+                w
+            }
+        };
+        crate::plan::validate(&world, &api2.roadmaps, &version, &request, policy)
+            .map_err(ApiError::from)
+    })
+    .await
+    .map_err(|e| ApiError::internal(format!("plan task failed: {e}")))??;
+    let note = policy_id.is_none().then(|| {
+        "no trained policy for this robot yet: validated with the classical path follower (rotate towards the next waypoint, then drive with proportional heading correction)".to_owned()
+    });
+    Ok(Json(PlanApiResponse {
+        robot,
+        floor,
+        policy: policy_id,
+        note,
+        service_ms: started.elapsed().as_secs_f64() * 1000.0,
+        report,
+    }))
+}

@@ -1,0 +1,188 @@
+//! `POST /v1/plan` through the real app: the bundled building's floor from the in-process
+//! knowledge service, its mental simulation, the roadmap, the classical follower (no policy has
+//! been trained in a fresh data directory), and each kind of refusal.
+
+use reqwest::Method;
+use serde_json::{Value, json};
+
+use crate::helpers::{TestApp, spawn_app};
+
+async fn plan(app: &TestApp, body: &Value) -> (u16, Value) {
+    let r = app
+        .request(Method::POST, "/v1/plan")
+        .json(body)
+        .send()
+        .await
+        .unwrap();
+    let status = r.status().as_u16();
+    (status, r.json().await.unwrap_or(Value::Null))
+}
+
+/// The centroid of a place's boundary, from the browsing API.
+async fn centroid(app: &TestApp, place: &str) -> (f64, f64) {
+    let r = app
+        .request(Method::GET, &format!("/v1/places/{place}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    let v: Value = r.json().await.unwrap();
+    let pts = v["boundary"].as_array().unwrap();
+    let n = pts.len() as f64;
+    let sx: f64 = pts.iter().map(|p| p[0].as_f64().unwrap()).sum();
+    let sy: f64 = pts.iter().map(|p| p[1].as_f64().unwrap()).sum();
+    (sx / n, sy / n)
+}
+
+/// A point the robot may stand on near `(x, y)`: the service's own nearest-free hint.
+async fn free_near(app: &TestApp, (x, y): (f64, f64)) -> (f64, f64) {
+    let (status, body) = plan(
+        app,
+        &json!({"robot": "R-001", "place": "F0", "start": {"x": x, "y": y}, "goal": {"x": x, "y": y}}),
+    )
+    .await;
+    if status == 422 && body["error"]["details"]["nearest_free"].is_object() {
+        let p = &body["error"]["details"]["nearest_free"];
+        (p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap())
+    } else {
+        (x, y)
+    }
+}
+
+#[tokio::test]
+async fn a_plan_across_rooms_is_validated_in_the_simulation_and_reported() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let (status, body) = plan(
+        &app,
+        &json!({
+            "robot": "R-001",
+            "place": "F0",
+            "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+            "goal": {"x": goal.0, "y": goal.1},
+            "options": {"seed": 4}
+        }),
+    )
+    .await;
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["controller"], "classical", "{body}");
+    assert!(body["note"].as_str().unwrap().contains("no trained policy"));
+    assert!(body["policy"].is_null());
+    let waypoints = body["waypoints"].as_array().unwrap();
+    assert!(waypoints.len() >= 2);
+    let last = waypoints.last().unwrap();
+    assert!((last["x"].as_f64().unwrap() - goal.0).abs() < 1e-6);
+    assert!(body["attempts"].as_array().unwrap().len() >= 1);
+    assert!(body["distance_m"].as_f64().unwrap() > 0.0);
+    assert!(body["simulated_time_s"].as_f64().unwrap() > 0.0);
+    assert!(body["min_clearance_m"].as_f64().unwrap() > 0.0);
+    let trajectory = body["trajectory"].as_array().unwrap();
+    let end = trajectory.last().unwrap();
+    let d = (end["x"].as_f64().unwrap() - goal.0).hypot(end["y"].as_f64().unwrap() - goal.1);
+    assert!(d < 0.5, "the simulated robot ended {d} m from the goal");
+
+    // The same request again hits the caches and gives the same plan.
+    let (status, again) = plan(
+        &app,
+        &json!({
+            "robot": "R-001", "place": "F0",
+            "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+            "goals": [{"x": goal.0, "y": goal.1}],
+            "options": {"seed": 4}
+        }),
+    )
+    .await;
+    assert_eq!(status, 200);
+    assert_eq!(again["waypoints"], body["waypoints"]);
+}
+
+#[tokio::test]
+async fn impossible_plans_get_distinct_client_errors() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let ok_start = json!({"x": start.0, "y": start.1});
+    let cases = [
+        (
+            json!({"robot": "no-such-robot", "place": "F0", "start": ok_start, "goal": ok_start}),
+            404,
+            "not_found",
+        ),
+        (
+            json!({"robot": "R-001", "place": "no-such-place", "start": ok_start, "goal": ok_start}),
+            404,
+            "not_found",
+        ),
+        (
+            json!({"robot": "R-001", "place": "F0", "start": ok_start}),
+            400,
+            "bad_request",
+        ),
+        (
+            json!({"robot": "R-001", "place": "F0", "start": ok_start, "goal": {"x": 1.0e6, "y": 0.0}}),
+            422,
+            "goal_outside_map",
+        ),
+        (
+            json!({"robot": "R-001", "place": "F0", "start": ok_start, "goal": ok_start, "policy": "nope"}),
+            404,
+            "not_found",
+        ),
+        (
+            json!({"robot": "R-001", "place": "F0", "start": ok_start, "goal": ok_start, "options": {"max_attempts": 0}}),
+            400,
+            "invalid_input",
+        ),
+    ];
+    for (body, want, code) in cases {
+        let (status, answer) = plan(&app, &body).await;
+        assert_eq!(status, want, "{body} -> {answer}");
+        let text = answer.to_string();
+        assert!(text.contains(code), "{body} -> {answer}");
+        assert!(
+            answer["error"]["message"]
+                .as_str()
+                .is_some_and(|m| !m.is_empty())
+        );
+    }
+    // A goal inside a wall: 422 naming it, with the nearest free point.
+    let (status, answer) = plan(
+        &app,
+        &json!({"robot": "R-001", "place": "F0", "start": ok_start, "goal": {"x": -2.275, "y": -8.075}}),
+    )
+    .await;
+    assert_eq!(status, 422, "{answer}");
+    assert_eq!(
+        answer["error"]["details"]["reason"], "goal_in_obstacle",
+        "{answer}"
+    );
+    assert!(answer["error"]["details"]["nearest_free"].is_object());
+    // Malformed JSON and a wrong type are 4xx too.
+    let r = app
+        .request(Method::POST, "/v1/plan")
+        .header("content-type", "application/json")
+        .body("{\"robot\": ")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 400);
+    let (status, _) = plan(
+        &app,
+        &json!({"robot": "R-001", "place": "F0", "start": {"x": "one", "y": 0}, "goal": ok_start}),
+    )
+    .await;
+    assert!(status == 400 || status == 422, "{status}");
+}
+
+#[tokio::test]
+async fn plans_need_a_token() {
+    let app = spawn_app().await;
+    let r = app
+        .client
+        .post(format!("{}/v1/plan", app.address))
+        .json(&json!({"robot": "R-001", "place": "F0", "start": {"x": 0, "y": 0}, "goal": {"x": 1, "y": 1}}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 401);
+}
