@@ -462,8 +462,7 @@ fn run_map(
             continue;
         };
         let mut controller = PolicyController::new(Arc::clone(policy));
-        let (first, last, elapsed) =
-            timed_validate(world, cache, name, &request, &mut controller)?;
+        let (first, last, elapsed) = timed_validate(world, cache, name, &request, &mut controller)?;
         validate_ms[0].push(elapsed);
         rows.push(row("hybrid_prm_rl", name, run, &first));
         rows.push(row("hybrid_prm_rl_resampled", name, run, &last));
@@ -689,7 +688,8 @@ fn to_markdown(
     latency: &[Latency],
     skipped: &[(String, String)],
 ) -> String {
-    let mut s = String::from("# Long-range navigation (paper Table 3) in the mental simulation\n\n");
+    let mut s =
+        String::from("# Long-range navigation (paper Table 3) in the mental simulation\n\n");
     let _ = writeln!(
         s,
         "{} runs per method and map; one mission per map of about {} m of roadmap path where the map allows (otherwise the longest route among {} sampled points of the largest free region); waypoint timer {} s; safety margin {} m; {} furniture objects; seed {}.\n",
@@ -799,6 +799,8 @@ mod tests {
         assert_eq!(st.success_distance, Some(15.0));
         assert_eq!(st.success_time, Some(30.0));
         assert_eq!(st.failure_distance, Some(4.0));
-        assert!(to_csv(&rows).starts_with("method,map,run,success,distance_m,time_s\npure_rl,m,0,true,10.000,20.000\n"));
+        assert!(to_csv(&rows).starts_with(
+            "method,map,run,success,distance_m,time_s\npure_rl,m,0,true,10.000,20.000\n"
+        ));
     }
 }

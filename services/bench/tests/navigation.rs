@@ -86,7 +86,13 @@ fn the_benchmark_writes_table_3_for_every_method() {
         report.rows
     );
     let md = std::fs::read_to_string(&report.markdown_path).expect("md");
-    for needle in ["hybrid_prm_rl", "pure_rl", "classical_prm", "Plan latency", "Table 3"] {
+    for needle in [
+        "hybrid_prm_rl",
+        "pure_rl",
+        "classical_prm",
+        "Plan latency",
+        "Table 3",
+    ] {
         assert!(md.contains(needle), "{needle} missing from\n{md}");
     }
     assert_eq!(report.latency.len(), 2);

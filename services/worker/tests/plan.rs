@@ -139,7 +139,10 @@ fn each_bad_input_has_its_own_error() {
         panic!("{e:?}")
     };
     let near = nearest_free.expect("a nearest free point");
-    assert!((near.x - 5.0).abs() < 1.0 && (near.y - 3.0).abs() < 0.5, "{near:?}");
+    assert!(
+        (near.x - 5.0).abs() < 1.0 && (near.y - 3.0).abs() < 0.5,
+        "{near:?}"
+    );
     assert_eq!(e.api_code(), edge::ErrorCode::Unprocessable);
     assert!(e.to_string().contains("nearest free point"), "{e}");
 

@@ -66,10 +66,10 @@ impl<K: Clone + Eq + Hash, V: Clone> Lru<K, V> {
     }
 
     fn insert(&mut self, k: K, v: V) {
-        if self.map.insert(k.clone(), v).is_some() {
-            if let Some(i) = self.order.iter().position(|o| *o == k) {
-                self.order.remove(i);
-            }
+        if self.map.insert(k.clone(), v).is_some()
+            && let Some(i) = self.order.iter().position(|o| *o == k)
+        {
+            self.order.remove(i);
         }
         self.order.push_back(k);
         while self.map.len() > self.capacity {
@@ -161,7 +161,8 @@ impl RoadmapCache {
         }
         let grid = planning_grid(world).map_err(PlanError::Map)?;
         let free_area_m2 = grid.free_area_m2();
-        let cspace = ConfigSpace::new(&grid, inflation).map_err(|e| PlanError::Map(e.to_string()))?;
+        let cspace =
+            ConfigSpace::new(&grid, inflation).map_err(|e| PlanError::Map(e.to_string()))?;
         let entry = Arc::new(SpaceEntry {
             cspace: Arc::new(cspace),
             free_area_m2,

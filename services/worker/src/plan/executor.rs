@@ -317,10 +317,9 @@ fn check_goals(cs: &ConfigSpace, from: Point2, goals: &[Point2]) -> Result<(), P
 /// A planner endpoint error as the request's own error, naming the point.
 fn blocked_error(which: String, e: QueryError) -> PlanError {
     match e {
-        QueryError::NonFinite { x, y, .. } => invalid(
-            which,
-            format!("must be a finite point, got ({x}, {y})"),
-        ),
+        QueryError::NonFinite { x, y, .. } => {
+            invalid(which, format!("must be a finite point, got ({x}, {y})"))
+        }
         QueryError::OutsideMap {
             point,
             nearest_free,
@@ -706,7 +705,7 @@ fn stride(poses: &[Pose2], n: u32) -> Vec<Pose> {
     let n = n as usize;
     let mut out: Vec<Pose> = poses.iter().step_by(n).map(|&p| p.into()).collect();
     if let Some(&last) = poses.last()
-        && (poses.len() - 1) % n != 0
+        && !(poses.len() - 1).is_multiple_of(n)
     {
         out.push(last.into());
     }

@@ -35,7 +35,9 @@ pub fn planning_grid(world: &World) -> Result<GridMap, String> {
     )]
     let (width, height) = (cols as usize, rows as usize);
     if width.saturating_mul(height) > MAX_CELLS {
-        return Err(format!("{width}x{height} cells is more than the planner takes"));
+        return Err(format!(
+            "{width}x{height} cells is more than the planner takes"
+        ));
     }
     let mut blocked = vec![false; width * height];
     // A wall cell's centre is at distance 0 from a wall square; a free cell's centre at least
