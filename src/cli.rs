@@ -199,6 +199,47 @@ pub enum BenchCommand {
         #[arg(long, env = "QUEUE_BENCH_POSTGRES_URL", hide_env_values = true)]
         postgres_url: Option<String>,
     },
+    /// The paper's Table 3 in the mental simulation: long missions on every ROS map under a
+    /// directory with hybrid PRM-RL, pure RL and a classical follower on the PRM path.
+    Navigation {
+        /// Directory searched recursively for ROS map_server YAML files.
+        #[arg(long, default_value = "../shared/maps/ros")]
+        maps: PathBuf,
+        /// Runs per method and map (the paper: 10).
+        #[arg(long, default_value_t = 10)]
+        runs: usize,
+        /// An exported policy (policy.safetensors + policy.json); without one only the classical
+        /// follower runs.
+        #[arg(long)]
+        policy: Option<PathBuf>,
+        /// Where navigation.csv and navigation.md go.
+        #[arg(long, default_value = "bench-out/navigation")]
+        out: PathBuf,
+        /// Mission length along the roadmap where the map allows, metres (the paper: ~140).
+        #[arg(long, default_value_t = 140.0)]
+        mission_length_m: f64,
+    },
+    /// POST /v1/plan latency of a running service under C concurrent robot clients.
+    PlanLoad {
+        /// The service's URL.
+        #[arg(long, env = "MENTALSIM_URL", default_value = "http://127.0.0.1:8080")]
+        url: String,
+        /// A bearer token [default: read from ./data/admin.token].
+        #[arg(long, env = "MENTALSIM_TOKEN", hide_env_values = true)]
+        token: Option<String>,
+        /// Concurrent clients.
+        #[arg(long, default_value_t = 50)]
+        clients: usize,
+        /// Seconds of load.
+        #[arg(long, default_value_t = 20.0)]
+        seconds: f64,
+        /// The plan request (JSON file) [default: across the bundled building's ground floor].
+        #[arg(long)]
+        body: Option<PathBuf>,
+        /// Write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// TD3 gradient steps per second, ours beside Stable-Baselines3's, same sizes, one run.
     Learner {
         /// Write the figures as JSON to this file.
@@ -592,6 +633,53 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 eprintln!("wrote {}", path.display());
             }
             Ok(())
+        }
+        BenchCommand::Navigation {
+            maps,
+            runs,
+            policy,
+            out,
+            mission_length_m,
+        } => {
+            let options = bench::navigation::NavigationBenchOptions {
+                maps_dir: maps,
+                runs,
+                policy,
+                out_dir: out,
+                mission_length_m,
+                verbose: true,
+                ..Default::default()
+            };
+            let report = bench::navigation::run_navigation_bench(options)?;
+            println!("{}", report.markdown);
+            println!(
+                "wrote {} and {}",
+                report.csv_path.display(),
+                report.markdown_path.display()
+            );
+            Ok(())
+        }
+        BenchCommand::PlanLoad {
+            url,
+            token,
+            clients,
+            seconds,
+            body,
+            json,
+        } => {
+            let body = match body {
+                Some(path) => serde_json::from_slice(&std::fs::read(&path)?)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
+                None => bench::plan_load::default_request(),
+            };
+            let report = bench::plan_load::run(&bench::plan_load::PlanLoadOptions {
+                url,
+                token: token_or_default(token)?,
+                clients,
+                seconds,
+                body,
+            })?;
+            print_json(&serde_json::to_value(&report)?, json)
         }
         BenchCommand::Learner {
             json,

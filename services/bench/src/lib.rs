@@ -4,6 +4,7 @@ pub mod knowledge;
 pub mod learner;
 pub mod movingai;
 pub mod navigation;
+pub mod plan_load;
 pub mod prm;
 pub mod sim;
 
