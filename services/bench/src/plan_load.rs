@@ -60,6 +60,9 @@ pub fn default_request() -> serde_json::Value {
     })
 }
 
+/// One client's latencies, service times, error count and first error.
+type ClientResult = (Vec<f64>, Vec<f64>, u64, Option<String>);
+
 /// Runs the load and measures.
 pub fn run(opts: &PlanLoadOptions) -> Result<PlanLoadReport, BenchError> {
     if opts.clients == 0 || !(opts.seconds > 0.0 && opts.seconds.is_finite()) {
@@ -89,7 +92,7 @@ pub fn run(opts: &PlanLoadOptions) -> Result<PlanLoadReport, BenchError> {
     }
     let deadline = Instant::now() + Duration::from_secs_f64(opts.seconds);
     let started = Instant::now();
-    let results: Vec<(Vec<f64>, Vec<f64>, u64, Option<String>)> = std::thread::scope(|s| {
+    let results: Vec<ClientResult> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..opts.clients)
             .map(|_| {
                 let client = client.clone();
