@@ -69,7 +69,9 @@ impl Components {
             knowledge: Arc::new(InProcessKnowledge::new(knowledge.clone())),
             checkpoints_dir: config.checkpoints_dir(),
             policies: PolicyStore::new(config.policies_dir()),
-            validator: None,
+            validator: Some(Arc::new(worker::plan_api::ExecutorValidator::new(
+                PolicyStore::new(config.policies_dir()),
+            ))),
         });
         Self {
             data_dir: config.data_dir.clone(),

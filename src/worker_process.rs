@@ -61,7 +61,9 @@ impl WorkerProcess {
             knowledge: Arc::new(knowledge.clone()),
             checkpoints_dir: config.checkpoints_dir(),
             policies: PolicyStore::new(config.policies_dir()),
-            validator: None,
+            validator: Some(Arc::new(worker::plan_api::ExecutorValidator::new(
+                PolicyStore::new(config.policies_dir()),
+            ))),
         });
         let shared = Arc::new(Shared {
             queue,

@@ -440,7 +440,7 @@ async fn bad_jobs_are_refused_with_distinct_errors_naming_what_is_wrong() {
     )
     .await;
     assert_eq!(status, 422, "{message}");
-    assert!(message.contains("validate"), "{message}");
+    assert!(message.contains("start"), "{message}");
 
     // Nothing was queued.
     let jobs: Vec<Value> = app

@@ -186,3 +186,74 @@ async fn plans_need_a_token() {
         .unwrap();
     assert_eq!(r.status(), 401);
 }
+
+#[tokio::test]
+async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let r = app
+        .request(Method::POST, "/v1/jobs")
+        .json(&json!({"kind": "validate", "payload": {
+            "robot": "R-001", "place": "F0",
+            "start": {"x": start.0, "y": start.1},
+            "goal": {"x": goal.0, "y": goal.1},
+            "options": {"seed": 4, "trajectory_stride": 0}
+        }}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 201);
+    let job: Value = r.json().await.unwrap();
+    let id = job["id"].as_str().unwrap().to_owned();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let done = loop {
+        let v: Value = app
+            .request(Method::GET, &format!("/v1/jobs/{id}"))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        if v["state"] == "succeeded" || v["state"] == "failed" {
+            break v;
+        }
+        assert!(std::time::Instant::now() < deadline, "job stuck: {v}");
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+    };
+    assert_eq!(done["state"], "succeeded", "{done}");
+    assert_eq!(done["result"]["controller"], "classical");
+    assert!(done["result"]["waypoints"].as_array().unwrap().len() >= 2);
+
+    // A validate job whose goal is in a wall fails, naming why, and is not retried.
+    let r = app
+        .request(Method::POST, "/v1/jobs")
+        .json(&json!({"kind": "validate", "payload": {
+            "robot": "R-001", "place": "F0",
+            "start": {"x": start.0, "y": start.1}, "goal": {"x": -2.275, "y": -8.075}
+        }}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 201);
+    let id = r.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_owned();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    let failed = loop {
+        let v: Value = app
+            .request(Method::GET, &format!("/v1/jobs/{id}"))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        if v["state"] == "failed" || v["state"] == "succeeded" {
+            break v;
+        }
+        assert!(std::time::Instant::now() < deadline, "job stuck: {v}");
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+    };
+    assert_eq!(failed["state"], "failed", "{failed}");
+    assert!(failed.to_string().contains("obstacle"), "{failed}");
+}

@@ -20,7 +20,10 @@ use sim::World;
 use utoipa::ToSchema;
 
 use crate::api::JobsApi;
+use crate::jobs::PlanValidator;
+use crate::jobs::policies::PolicyStore;
 use crate::jobs::source::SourceError;
+use crate::runner::JobError;
 use crate::plan::{PlanOptions, PlanReport, PlanRequest, Point, Pose, RoadmapCache};
 
 /// What a robot asks.
@@ -98,6 +101,124 @@ pub fn router(state: Arc<PlanApi>) -> Router {
     Router::new()
         .route("/v1/plan", post(plan))
         .with_state(state)
+}
+
+/// The newest policy trained for the robot `robot_iri` (its summary names the robot by IRI or
+/// by identifier).
+fn newest_policy(policies: &PolicyStore, robot_iri: &str) -> Option<String> {
+    policies
+        .list()
+        .into_iter()
+        .find(|p| {
+            p.robot
+                .as_deref()
+                .is_some_and(|r| r == robot_iri || robot_iri.ends_with(&format!("/{r}")))
+        })
+        .map(|p| p.id)
+}
+
+/// The plan executor behind `validate` jobs: the payload's `start`, `goal` or `goals`,
+/// `options` and optional `policy` are those of `POST /v1/plan`; the job's result is the plan
+/// report.
+#[derive(Debug, Clone)]
+pub struct ExecutorValidator {
+    policies: PolicyStore,
+}
+
+impl ExecutorValidator {
+    /// With the policies in `policies`.
+    pub fn new(policies: PolicyStore) -> Self {
+        Self { policies }
+    }
+}
+
+/// The plan part of a `validate` payload.
+#[derive(Debug, Deserialize)]
+struct ValidatePlan {
+    start: Pose,
+    #[serde(default)]
+    goal: Option<Point>,
+    #[serde(default)]
+    goals: Vec<Point>,
+    #[serde(default)]
+    options: PlanOptions,
+    #[serde(default)]
+    policy: Option<String>,
+}
+
+impl ValidatePlan {
+    fn parse(payload: &serde_json::Value) -> Result<(ValidatePlan, PlanRequest), String> {
+        let mut rest = payload.clone();
+        if let Some(o) = rest.as_object_mut() {
+            o.remove("robot");
+            o.remove("place");
+        }
+        let plan: ValidatePlan =
+            serde_json::from_value(rest).map_err(|e| format!("payload: {e}"))?;
+        let goals = match (plan.goal, plan.goals.is_empty()) {
+            (Some(_), false) => return Err("payload: give `goal` or `goals`, not both".into()),
+            (Some(g), true) => vec![g],
+            (None, false) => plan.goals.clone(),
+            (None, true) => return Err("payload.goal: a plan needs a goal".into()),
+        };
+        let request = PlanRequest {
+            start: plan.start,
+            goals,
+            options: plan.options.clone(),
+        };
+        Ok((plan, request))
+    }
+}
+
+impl PlanValidator for ExecutorValidator {
+    fn check(&self, payload: &serde_json::Value) -> Result<(), String> {
+        let (plan, _) = ValidatePlan::parse(payload)?;
+        if let Some(id) = &plan.policy
+            && self.policies.metadata(id).is_none()
+        {
+            return Err(format!("payload.policy: no policy `{id}`"));
+        }
+        Ok(())
+    }
+
+    fn validate(
+        &self,
+        world: Arc<World>,
+        payload: &serde_json::Value,
+        stopping: &dyn Fn() -> bool,
+        progress: &dyn Fn(serde_json::Value),
+    ) -> Result<serde_json::Value, JobError> {
+        let (plan, request) = ValidatePlan::parse(payload).map_err(JobError::Fatal)?;
+        if stopping() {
+            return Err(JobError::Stopped(crate::runner::StopReason::Shutdown));
+        }
+        let policy_id = plan
+            .policy
+            .clone()
+            .or_else(|| newest_policy(&self.policies, &world.spec().robot.id));
+        let policy = match &policy_id {
+            Some(id) => {
+                let dir = self
+                    .policies
+                    .path(id)
+                    .ok_or_else(|| JobError::Fatal(format!("no policy `{id}`")))?;
+                Some(Arc::new(learning::Policy::load(&dir).map_err(|e| {
+                    JobError::Fatal(format!("policy `{id}` cannot be loaded: {e}"))
+                })?))
+            }
+            None => None,
+        };
+        progress(serde_json::json!({"stage": "simulating", "policy": policy_id}));
+        let roadmaps = RoadmapCache::new(8, 1);
+        let report = crate::plan::validate(&world, &roadmaps, "validate-job", &request, policy)
+            .map_err(|e| JobError::Fatal(e.to_string()))?;
+        let mut value = serde_json::to_value(&report)
+            .map_err(|e| JobError::Fatal(format!("report: {e}")))?;
+        if let Some(o) = value.as_object_mut() {
+            o.insert("policy".into(), policy_id.into());
+        }
+        Ok(value)
+    }
 }
 
 /// A stable name of the database's content: equal strings mean equal maps, objects and robot.
@@ -178,15 +299,7 @@ async fn plan(
             }
             Some(id.clone())
         }
-        None => policies
-            .list()
-            .into_iter()
-            .find(|p| {
-                p.robot
-                    .as_deref()
-                    .is_some_and(|r| r == db.robot || db.robot.ends_with(&format!("/{r}")))
-            })
-            .map(|p| p.id),
+        None => newest_policy(policies, &db.robot),
     };
     let policy = match &policy_id {
         Some(id) => {
