@@ -27,6 +27,12 @@ pub trait Controller {
         None
     }
 
+    /// Distance at which a waypoint counts as reached, metres, when the controller needs its
+    /// own (the environment's default, 0.3 m, is what the policy was trained with).
+    fn goal_tolerance(&self) -> Option<f64> {
+        None
+    }
+
     /// Called before each simulated attempt (1-based), so stateful controllers start afresh.
     fn start_attempt(&mut self, _attempt: u32) {}
 }
@@ -90,8 +96,15 @@ pub struct FollowerParams {
     pub rotate_threshold: f64,
     /// Proportional gain of the steering, (rad/s) per rad of heading error.
     pub heading_gain: f64,
-    /// Slowest forward speed while steering within the threshold, m/s.
+    /// Slowest forward speed while driving, m/s.
     pub linear_min: f64,
+    /// Distance ahead of the robot's projection on the segment that it steers to, metres.
+    pub lookahead_m: f64,
+    /// Within this distance of the waypoint the speed falls in proportion, metres.
+    pub slow_down_m: f64,
+    /// A waypoint is reached within this distance, metres: small, so the robot turns at the
+    /// roadmap's vertices rather than cutting corners by the policy's 0.3 m tolerance.
+    pub tolerance_m: f64,
 }
 
 impl Default for FollowerParams {
@@ -102,54 +115,111 @@ impl Default for FollowerParams {
             rotate_threshold: 0.35,
             heading_gain: 2.0,
             linear_min: 0.1,
+            lookahead_m: 0.4,
+            slow_down_m: 0.8,
+            tolerance_m: 0.05,
         }
     }
 }
 
-/// The classical path follower: rotate-then-go on the straight segments between waypoints.
+/// The classical path follower: rotate-then-go along the straight segments between waypoints,
+/// steering to a carrot on the segment (pure pursuit).
 ///
-/// With the heading error `e` to the waypoint (from the true pose): when `|e|` exceeds
-/// `rotate_threshold` the robot turns on the spot at `heading_gain · e` (clamped to the angular
-/// limit); otherwise it drives at a speed falling linearly from `linear_max` (aligned) to
-/// `linear_min` (at the threshold) while steering at `heading_gain · e`. It tracks the roadmap's
-/// segments to within a few centimetres, so its result says whether the path is safe, not
-/// whether a learnt policy can follow it. It ignores the laser: obstacles the roadmap does not
-/// know about (nothing, in a simulation generated from the same knowledge) would stop it.
+/// The segment runs from the previous waypoint (or from where the robot stood when it got a
+/// waypoint far from the last one, after a replan) to the current one. The robot steers to the
+/// point `lookahead_m` ahead of its projection on the segment. With the heading error `e` to
+/// that point: when `|e|` exceeds `rotate_threshold` it turns on the spot at `heading_gain · e`
+/// (clamped to the angular limit); otherwise it drives at a speed falling linearly from
+/// `linear_max` (aligned) to `linear_min` (at the threshold), and in proportion to the distance
+/// within `slow_down_m` of the waypoint, while steering at `heading_gain · e`. Waypoints count
+/// as reached within `tolerance_m`. It tracks the roadmap's segments to within a few
+/// centimetres, so its result says whether the path is safe, not whether a learnt policy can
+/// follow it. It ignores the laser: obstacles the roadmap does not know about (none, in a
+/// simulation generated from the same knowledge) would stop it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ClassicalFollower {
     params: FollowerParams,
+    from: Option<(f64, f64)>,
+    to: Option<(f64, f64)>,
 }
 
 impl ClassicalFollower {
     /// A follower with these settings.
     pub fn new(params: FollowerParams) -> Self {
-        Self { params }
+        Self {
+            params,
+            from: None,
+            to: None,
+        }
+    }
+
+    /// The point on the current segment the robot steers to.
+    fn carrot(&self, pose: Pose2) -> (f64, f64) {
+        let (Some(a), Some(b)) = (self.from, self.to) else {
+            return (pose.x, pose.y);
+        };
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let len = dx.hypot(dy);
+        if len < 1e-9 {
+            return b;
+        }
+        let (ux, uy) = (dx / len, dy / len);
+        let t = ((pose.x - a.0) * ux + (pose.y - a.1) * uy).clamp(0.0, len);
+        let s = (t + self.params.lookahead_m).min(len);
+        (a.0 + s * ux, a.1 + s * uy)
     }
 }
 
 impl Controller for ClassicalFollower {
     fn command(&mut self, _obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
-        let p = &self.params;
-        let bearing = (waypoint.1 - pose.y).atan2(waypoint.0 - pose.x);
+        let p = self.params;
+        if self.to != Some(waypoint) {
+            // A new waypoint: the segment starts at the last one when the robot is there, else
+            // (first waypoint, replanned path) where the robot stands.
+            let here = (pose.x, pose.y);
+            self.from = match self.to {
+                Some(last) if (last.0 - here.0).hypot(last.1 - here.1) < 0.5 => Some(last),
+                _ => Some(here),
+            };
+            self.to = Some(waypoint);
+        }
+        let c = self.carrot(pose);
+        let d = (waypoint.0 - pose.x).hypot(waypoint.1 - pose.y);
+        let target = if (c.0 - pose.x).hypot(c.1 - pose.y) < 1e-6 {
+            waypoint
+        } else {
+            c
+        };
+        let bearing = (target.1 - pose.y).atan2(target.0 - pose.x);
         let e = wrap(bearing - pose.yaw);
         let angular = (p.heading_gain * e).clamp(-p.angular_max, p.angular_max);
         if e.abs() > p.rotate_threshold {
             return Action::new(0.0, angular);
         }
         let share = 1.0 - e.abs() / p.rotate_threshold;
-        let linear = p.linear_min + (p.linear_max - p.linear_min) * share;
-        Action::new(linear, angular)
+        let approach = (d / p.slow_down_m).min(1.0);
+        let linear = (p.linear_min + (p.linear_max - p.linear_min) * share) * approach;
+        Action::new(linear.max(p.linear_min.min(d)), angular)
     }
 
     fn kind(&self) -> ControllerKind {
         ControllerKind::Classical
     }
 
+    fn goal_tolerance(&self) -> Option<f64> {
+        Some(self.params.tolerance_m)
+    }
+
+    fn start_attempt(&mut self, _attempt: u32) {
+        self.from = None;
+        self.to = None;
+    }
+
     fn description(&self) -> String {
         let p = &self.params;
         format!(
-            "classical rotate-then-go follower (turn on the spot beyond {:.2} rad of heading error, then drive at up to {} m/s steering at {} rad/s per rad, angular limit {} rad/s)",
-            p.rotate_threshold, p.linear_max, p.heading_gain, p.angular_max
+            "classical rotate-then-go follower with pure pursuit on the roadmap's segments (turn on the spot beyond {:.2} rad of heading error, lookahead {} m, up to {} m/s and {} rad/s, waypoints reached within {} m)",
+            p.rotate_threshold, p.lookahead_m, p.linear_max, p.angular_max, p.tolerance_m
         )
     }
 }
@@ -183,10 +253,17 @@ mod tests {
         let behind = f.command(&obs(), Pose2::new(0.0, 0.0, 0.0), (-1.0, 0.1));
         assert_eq!(behind.linear, 0.0);
         assert!(behind.angular.abs() <= 0.5 + 1e-12 && behind.angular != 0.0);
+        let mut f = ClassicalFollower::default();
         let ahead = f.command(&obs(), Pose2::new(0.0, 0.0, 0.0), (3.0, 0.0));
         assert!((ahead.linear - 0.8).abs() < 1e-12 && ahead.angular.abs() < 1e-12);
+        let mut f = ClassicalFollower::default();
         let left = f.command(&obs(), Pose2::new(0.0, 0.0, 0.0), (3.0, 0.3));
         assert!(left.angular > 0.0 && left.linear < 0.8 && left.linear >= 0.1);
+        // Off the segment, it steers back onto it rather than straight at the waypoint.
+        let mut f = ClassicalFollower::default();
+        f.command(&obs(), Pose2::new(0.0, 0.0, 0.0), (4.0, 0.0));
+        let back = f.command(&obs(), Pose2::new(1.0, 0.1, 0.0), (4.0, 0.0));
+        assert!(back.angular < 0.0, "{back:?}");
         assert!((wrap(3.0 * PI).abs() - PI).abs() < 1e-9);
         assert!((wrap(-0.5) + 0.5).abs() < 1e-12);
     }

@@ -83,7 +83,11 @@ pub fn validate_with(
     };
     let space = roadmaps.config_space(map_version, world, inflation)?;
     let cs = &*space.cspace;
-    let env_config = env_config(beams, opts.noise);
+    let mut env_config = env_config(beams, opts.noise);
+    if let Some(t) = controller.goal_tolerance() {
+        env_config.goal_tolerance = t;
+    }
+    let max_segment_m = max_segment(&env_config, opts);
     let start = Pose2::from(request.start);
     let entry = start_entry(world, cs, start, env_config.collision_clearance)?;
     let goals: Vec<Point2> = request.goals.iter().map(|&g| g.into()).collect();
@@ -101,10 +105,11 @@ pub fn validate_with(
             ..PrmParams::default()
         };
         let (roadmap, cached) = roadmaps.roadmap(map_version, &space, &params)?;
-        let legs = plan_legs(&roadmap, opts, start, entry, &goals)?;
+        let legs = plan_legs(&roadmap, opts, start, entry, &goals, max_segment_m)?;
         controller.start_attempt(attempt);
-        let replanner: &mut Replanner<'_> =
-            &mut |from: Point2, goal: Point2| replan(&roadmap, opts, world, from, goal);
+        let replanner: &mut Replanner<'_> = &mut |from: Point2, goal: Point2| {
+            replan(&roadmap, opts, world, from, goal, max_segment_m)
+        };
         let run = drive(
             world,
             &env_config,
@@ -369,6 +374,41 @@ fn segment_clear(world: &World, a: Point2, b: Point2, min_clearance: f64) -> boo
     })
 }
 
+/// Longest straight stretch between two waypoints: half of what the robot covers at top speed
+/// within the waypoint timer, so turning and slowing never make a waypoint miss its timer (the
+/// roadmap's edges reach 15 m, which 0.8 m/s does not cover in 15 s). Longer segments get
+/// intermediate waypoints on the segment itself (free, as the segment is).
+fn max_segment(env: &EnvConfig, opts: &PlanOptions) -> f64 {
+    (0.5 * env.limits.linear_max * opts.waypoint_timeout_s).max(0.5)
+}
+
+/// `points` after `from`, with evenly spaced points inserted in every segment longer than
+/// `max_m`.
+fn subdivide(from: Point2, points: Vec<Point2>, max_m: f64) -> Vec<Point2> {
+    let mut out = Vec::with_capacity(points.len());
+    let mut prev = from;
+    for p in points {
+        let d = prev.distance(p);
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "a map-sized distance over at least 0.5 m: a small positive count"
+        )]
+        let pieces = (d / max_m).ceil().max(1.0) as usize;
+        for k in 1..pieces {
+            #[allow(clippy::cast_precision_loss, reason = "small counts")]
+            let t = k as f64 / pieces as f64;
+            out.push(Point2::new(
+                prev.x + t * (p.x - prev.x),
+                prev.y + t * (p.y - prev.y),
+            ));
+        }
+        out.push(p);
+        prev = p;
+    }
+    out
+}
+
 /// Waypoints of a whole mission: one leg per goal, each leg's waypoints after its start point,
 /// its last one the goal.
 struct Legs {
@@ -382,6 +422,7 @@ fn plan_legs(
     start: Pose2,
     entry: Option<Point2>,
     goals: &[Point2],
+    max_segment_m: f64,
 ) -> Result<Legs, PlanError> {
     let s = Point2::new(start.x, start.y);
     let mut from = entry.unwrap_or(s);
@@ -419,7 +460,8 @@ fn plan_legs(
             // Start and goal coincide: the goal is still a waypoint to reach.
             leg.push(g);
         }
-        legs.push(leg);
+        let leg_start = if i == 0 { s } else { from };
+        legs.push(subdivide(leg_start, leg, max_segment_m));
         from = g;
     }
     Ok(Legs { legs, length_m })
@@ -432,6 +474,7 @@ fn replan(
     world: &World,
     from: Point2,
     goal: Point2,
+    max_segment_m: f64,
 ) -> Result<Vec<Point2>, String> {
     let cs = roadmap.cspace();
     // A robot pushed closer to a wall than the margin first drives back into free space.
@@ -460,7 +503,7 @@ fn replan(
     if out.is_empty() {
         out.push(goal);
     }
-    Ok(out)
+    Ok(subdivide(from, out, max_segment_m))
 }
 
 /// Bounds of one simulated drive.
