@@ -237,7 +237,10 @@ async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
         .await
         .unwrap();
     assert_eq!(r.status(), 201);
-    let id = r.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_owned();
+    let id = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
     let failed = loop {
         let v: Value = app

@@ -23,8 +23,8 @@ use crate::api::JobsApi;
 use crate::jobs::PlanValidator;
 use crate::jobs::policies::PolicyStore;
 use crate::jobs::source::SourceError;
-use crate::runner::JobError;
 use crate::plan::{PlanOptions, PlanReport, PlanRequest, Point, Pose, RoadmapCache};
+use crate::runner::JobError;
 
 /// What a robot asks.
 #[derive(Debug, Clone, Deserialize, ToSchema)]
@@ -212,8 +212,8 @@ impl PlanValidator for ExecutorValidator {
         let roadmaps = RoadmapCache::new(8, 1);
         let report = crate::plan::validate(&world, &roadmaps, "validate-job", &request, policy)
             .map_err(|e| JobError::Fatal(e.to_string()))?;
-        let mut value = serde_json::to_value(&report)
-            .map_err(|e| JobError::Fatal(format!("report: {e}")))?;
+        let mut value =
+            serde_json::to_value(&report).map_err(|e| JobError::Fatal(format!("report: {e}")))?;
         if let Some(o) = value.as_object_mut() {
             o.insert("policy".into(), policy_id.into());
         }
