@@ -22,11 +22,11 @@ pub fn router(components: Arc<Components>) -> Router {
 
 /// The process is up and serving HTTP. Says nothing about the stores, by design: a liveness
 /// probe that failed on a full disk would get a healthy process restarted in a loop.
-async fn healthz() -> Json<serde_json::Value> {
+pub(crate) async fn healthz() -> Json<serde_json::Value> {
     Json(json!({ "status": "ok", "version": env!("CARGO_PKG_VERSION") }))
 }
 
-async fn metrics() -> impl IntoResponse {
+pub(crate) async fn metrics() -> impl IntoResponse {
     (
         [(
             axum::http::header::CONTENT_TYPE,
@@ -72,10 +72,18 @@ async fn readyz(State(components): State<Arc<Components>>) -> Response {
         Err(reason) => json!({ "ok": false, "reason": reason }),
     };
     let checks = json!({ "data_dir": data_dir, "graph_store": store, "job_database": jobs });
-    let failing: Vec<String> = ["data_dir", "graph_store", "job_database"]
+    readiness(checks)
+}
+
+/// `/readyz`'s answer from named checks (`{"name": {"ok": bool, "reason"?: ...}}`): 200 when
+/// every check is ok, else 503 naming each failing check and its reason.
+pub(crate) fn readiness(checks: serde_json::Value) -> Response {
+    let failing: Vec<String> = checks
+        .as_object()
         .into_iter()
-        .filter(|k| checks[*k]["ok"] != true)
-        .map(|k| format!("{k}: {}", checks[k]["reason"].as_str().unwrap_or("failed")))
+        .flatten()
+        .filter(|(_, v)| v["ok"] != true)
+        .map(|(k, v)| format!("{k}: {}", v["reason"].as_str().unwrap_or("failed")))
         .collect();
     if failing.is_empty() {
         (

@@ -8,8 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::State;
-use axum::http::StatusCode;
-use axum::response::{IntoResponse, Response};
+use axum::response::Response;
 use axum::routing::get;
 use axum::{Json, Router};
 use serde_json::json;
@@ -73,7 +72,7 @@ impl WorkerProcess {
         let router = Router::new()
             .route("/healthz", get(healthz))
             .route("/readyz", get(readyz))
-            .route("/metrics", get(metrics))
+            .route("/metrics", get(crate::health::metrics))
             .with_state(shared.clone())
             .fallback(edge::middleware::not_found);
         let router = edge::middleware::stack(
@@ -145,16 +144,6 @@ async fn healthz() -> Json<serde_json::Value> {
     Json(json!({ "status": "ok", "version": env!("CARGO_PKG_VERSION"), "role": "worker" }))
 }
 
-async fn metrics() -> impl IntoResponse {
-    (
-        [(
-            axum::http::header::CONTENT_TYPE,
-            "text/plain; version=0.0.4",
-        )],
-        edge::metrics::handle().render(),
-    )
-}
-
 /// Ready when the job database answers with every migration applied, the knowledge service
 /// is ready, and the checkpoint directory takes writes.
 async fn readyz(State(shared): State<Arc<Shared>>) -> Response {
@@ -179,24 +168,7 @@ async fn readyz(State(shared): State<Arc<Shared>>) -> Response {
     };
     let checks =
         json!({ "job_database": jobs, "knowledge": knowledge, "checkpoints_dir": checkpoints });
-    let failing: Vec<String> = ["job_database", "knowledge", "checkpoints_dir"]
-        .into_iter()
-        .filter(|k| checks[*k]["ok"] != true)
-        .map(|k| format!("{k}: {}", checks[k]["reason"].as_str().unwrap_or("failed")))
-        .collect();
-    if failing.is_empty() {
-        (
-            StatusCode::OK,
-            Json(json!({ "status": "ready", "checks": checks })),
-        )
-            .into_response()
-    } else {
-        (
-            StatusCode::SERVICE_UNAVAILABLE,
-            Json(json!({ "status": "not_ready", "reason": failing.join("; "), "checks": checks })),
-        )
-            .into_response()
-    }
+    crate::health::readiness(checks)
 }
 
 /// Writes, syncs and removes a probe file named after this process (several workers share the

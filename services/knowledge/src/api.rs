@@ -34,7 +34,9 @@ use crate::service::Knowledge;
 )]
 pub struct KnowledgeApi;
 
-struct BearerAuth;
+/// Declares the bearer-token scheme the `security` entries of our OpenAPI documents name.
+#[derive(Debug)]
+pub struct BearerAuth;
 
 impl utoipa::Modify for BearerAuth {
     fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {

@@ -43,18 +43,7 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
 )]
 pub struct WorkerApi;
 
-struct BearerAuth;
-
-impl utoipa::Modify for BearerAuth {
-    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
-        use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
-        let components = openapi.components.get_or_insert_with(Default::default);
-        components.add_security_scheme(
-            "bearer",
-            SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
-        );
-    }
-}
+use knowledge::api::BearerAuth;
 
 /// What the API handlers share.
 pub struct JobsApi {
