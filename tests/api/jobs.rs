@@ -367,80 +367,68 @@ async fn bad_jobs_are_refused_with_distinct_errors_naming_what_is_wrong() {
         "{message}"
     );
 
-    let (status, message) = refused(&app, train(json!({"robot": "R-001", "minutes": 1}))).await;
-    assert_eq!(status, 422, "{message}");
-    assert!(message.contains("place"), "{message}");
-
-    for minutes in [0.0, -1.0] {
-        let (status, message) = refused(
-            &app,
-            train(json!({"robot": "R-001", "place": "F0", "minutes": minutes})),
-        )
-        .await;
-        assert_eq!(status, 422, "{message}");
-        assert!(message.contains("minutes"), "{message}");
-    }
-
-    let (status, message) = refused(
-        &app,
-        train(
-            json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"td3": {"tau": 0}}}),
+    // (request, status, words the message must contain)
+    let cases: Vec<(Value, u16, &[&str])> = vec![
+        (
+            train(json!({"robot": "R-001", "minutes": 1})),
+            422,
+            &["place"],
         ),
-    )
-    .await;
-    assert_eq!(status, 422, "{message}");
-    assert!(
-        message.contains("config") && message.contains("tau"),
-        "{message}"
-    );
-
-    let (status, message) = refused(
-        &app,
-        train(json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"nope": 1}})),
-    )
-    .await;
-    assert_eq!(status, 422, "{message}");
-    assert!(message.contains("nope"), "{message}");
-
-    let (status, message) = refused(
-        &app,
-        train(json!({"robot": "R-404", "place": "F0", "minutes": 1})),
-    )
-    .await;
-    assert_eq!(status, 404, "{message}");
-    assert!(message.contains("R-404"), "{message}");
-
-    let (status, message) = refused(
-        &app,
-        train(json!({"robot": "R-001", "place": "F9", "minutes": 1})),
-    )
-    .await;
-    assert_eq!(status, 404, "{message}");
-    assert!(message.contains("F9"), "{message}");
-
-    let (status, message) = refused(
-        &app,
-        train(json!({"robot": "R-001", "place": "B-001", "minutes": 1})),
-    )
-    .await;
-    assert_eq!(status, 422, "{message}");
-    assert!(message.contains("no floor"), "{message}");
-
-    let (status, message) = refused(
-        &app,
-        json!({"kind": "evaluate", "payload": {"policy": "missing", "place": "F0"}}),
-    )
-    .await;
-    assert_eq!(status, 404, "{message}");
-    assert!(message.contains("policy"), "{message}");
-
-    let (status, message) = refused(
-        &app,
-        json!({"kind": "validate", "payload": {"robot": "R-001", "place": "F0"}}),
-    )
-    .await;
-    assert_eq!(status, 422, "{message}");
-    assert!(message.contains("start"), "{message}");
+        (
+            train(json!({"robot": "R-001", "place": "F0", "minutes": 0.0})),
+            422,
+            &["minutes"],
+        ),
+        (
+            train(json!({"robot": "R-001", "place": "F0", "minutes": -1.0})),
+            422,
+            &["minutes"],
+        ),
+        (
+            train(
+                json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"td3": {"tau": 0}}}),
+            ),
+            422,
+            &["config", "tau"],
+        ),
+        (
+            train(json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"nope": 1}})),
+            422,
+            &["nope"],
+        ),
+        (
+            train(json!({"robot": "R-404", "place": "F0", "minutes": 1})),
+            404,
+            &["R-404"],
+        ),
+        (
+            train(json!({"robot": "R-001", "place": "F9", "minutes": 1})),
+            404,
+            &["F9"],
+        ),
+        (
+            train(json!({"robot": "R-001", "place": "B-001", "minutes": 1})),
+            422,
+            &["no floor"],
+        ),
+        (
+            json!({"kind": "evaluate", "payload": {"policy": "missing", "place": "F0"}}),
+            404,
+            &["policy"],
+        ),
+        (
+            json!({"kind": "validate", "payload": {"robot": "R-001", "place": "F0"}}),
+            422,
+            &["start"],
+        ),
+    ];
+    for (body, want, words) in cases {
+        let (status, message) = refused(&app, body.clone()).await;
+        assert_eq!(status, want, "{body}: {message}");
+        for w in words {
+            assert!(message.contains(w), "{body}: {message} lacks {w}");
+        }
+    }
 
     // Nothing was queued.
     let jobs: Vec<Value> = app

@@ -187,6 +187,26 @@ async fn plans_need_a_token() {
     assert_eq!(r.status(), 401);
 }
 
+/// The job once it has succeeded or failed (two minutes at most).
+async fn finished_job(app: &TestApp, id: &str) -> Value {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    loop {
+        let v: Value = app
+            .request(Method::GET, &format!("/v1/jobs/{id}"))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        if v["state"] == "succeeded" || v["state"] == "failed" {
+            return v;
+        }
+        assert!(std::time::Instant::now() < deadline, "job stuck: {v}");
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+    }
+}
+
 #[tokio::test]
 async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
     let app = spawn_app().await;
@@ -206,22 +226,7 @@ async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
     assert_eq!(r.status(), 201);
     let job: Value = r.json().await.unwrap();
     let id = job["id"].as_str().unwrap().to_owned();
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
-    let done = loop {
-        let v: Value = app
-            .request(Method::GET, &format!("/v1/jobs/{id}"))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        if v["state"] == "succeeded" || v["state"] == "failed" {
-            break v;
-        }
-        assert!(std::time::Instant::now() < deadline, "job stuck: {v}");
-        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
-    };
+    let done = finished_job(&app, &id).await;
     assert_eq!(done["state"], "succeeded", "{done}");
     assert_eq!(done["result"]["controller"], "classical");
     assert!(done["result"]["waypoints"].as_array().unwrap().len() >= 2);
@@ -241,22 +246,7 @@ async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
         .as_str()
         .unwrap()
         .to_owned();
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    let failed = loop {
-        let v: Value = app
-            .request(Method::GET, &format!("/v1/jobs/{id}"))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        if v["state"] == "failed" || v["state"] == "succeeded" {
-            break v;
-        }
-        assert!(std::time::Instant::now() < deadline, "job stuck: {v}");
-        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
-    };
+    let failed = finished_job(&app, &id).await;
     assert_eq!(failed["state"], "failed", "{failed}");
     assert!(failed.to_string().contains("obstacle"), "{failed}");
 }

@@ -1087,7 +1087,7 @@ fn plot(path: &Path, maps: &[MapInfo], rows: &[PrmRow]) -> Result<(), BenchError
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    register_font();
+    learning::curves::register_font();
     let sums = summarize(rows);
     let root = BitMapBackend::new(path, (1600, 1200)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
@@ -1160,21 +1160,6 @@ fn plot(path: &Path, maps: &[MapInfo], rows: &[PrmRow]) -> Result<(), BenchError
     }
     root.present().map_err(|e| err(&e))?;
     Ok(())
-}
-
-/// Registers the embedded DejaVu Sans as plotters' "sans-serif" (no system fonts needed).
-fn register_font() {
-    use std::sync::Once;
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // Registration fails only for unparsable font bytes; text would then be missing from the
-        // plot, which draws anyway.
-        let _ = plotters::style::register_font(
-            "sans-serif",
-            plotters::style::FontStyle::Normal,
-            dejavu::sans::regular(),
-        );
-    });
 }
 
 #[cfg(test)]

@@ -171,8 +171,9 @@ pub fn plot_curves(
     Ok(())
 }
 
-/// Registers the embedded DejaVu Sans as plotters' "sans-serif" (no system fonts needed).
-fn register_font() {
+/// Registers the embedded DejaVu Sans as plotters' "sans-serif" (no system fonts needed);
+/// every plot of the project (training curves, benchmark plots) calls it first.
+pub fn register_font() {
     use std::sync::Once;
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {

@@ -567,7 +567,7 @@ impl Trainer {
 
     /// Evaluates the current actor on the fixed mission set and records the result.
     pub fn evaluate_and_record(&mut self, wall_s: f64) -> Result<EvalReport, TrainError> {
-        let report = self.evaluate(&self.missions.clone())?;
+        let report = self.evaluate(&self.missions)?;
         self.evals.push(EvalRecord {
             env_steps: self.counters.env_steps,
             wall_s,

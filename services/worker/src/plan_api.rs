@@ -103,6 +103,16 @@ pub fn router(state: Arc<PlanApi>) -> Router {
         .with_state(state)
 }
 
+/// The goals of a request that gives `goal` or `goals` (exactly one of them, non-empty).
+fn goals_of(goal: Option<Point>, goals: &[Point]) -> Result<Vec<Point>, String> {
+    match (goal, goals.is_empty()) {
+        (Some(_), false) => Err("give `goal` or `goals`, not both".into()),
+        (Some(g), true) => Ok(vec![g]),
+        (None, false) => Ok(goals.to_vec()),
+        (None, true) => Err("a plan needs a goal: give `goal` or a non-empty `goals`".into()),
+    }
+}
+
 /// The newest policy trained for the robot `robot_iri` (its summary names the robot by IRI or
 /// by identifier).
 fn newest_policy(policies: &PolicyStore, robot_iri: &str) -> Option<String> {
@@ -155,12 +165,7 @@ impl ValidatePlan {
         }
         let plan: ValidatePlan =
             serde_json::from_value(rest).map_err(|e| format!("payload: {e}"))?;
-        let goals = match (plan.goal, plan.goals.is_empty()) {
-            (Some(_), false) => return Err("payload: give `goal` or `goals`, not both".into()),
-            (Some(g), true) => vec![g],
-            (None, false) => plan.goals.clone(),
-            (None, true) => return Err("payload.goal: a plan needs a goal".into()),
-        };
+        let goals = goals_of(plan.goal, &plan.goals).map_err(|m| format!("payload: {m}"))?;
         let request = PlanRequest {
             start: plan.start,
             goals,
@@ -259,22 +264,8 @@ async fn plan(
 ) -> Result<Json<PlanApiResponse>, ApiError> {
     let started = Instant::now();
     api.jobs.tokens.require(&headers, Role::Robot)?;
-    let goals: Vec<Point> = match (req.goal, req.goals.is_empty()) {
-        (Some(_), false) => {
-            return Err(ApiError::new(
-                ErrorCode::BadRequest,
-                "give `goal` or `goals`, not both",
-            ));
-        }
-        (Some(g), true) => vec![g],
-        (None, false) => req.goals.clone(),
-        (None, true) => {
-            return Err(ApiError::new(
-                ErrorCode::BadRequest,
-                "a plan needs a goal: give `goal` or a non-empty `goals`",
-            ));
-        }
-    };
+    let goals =
+        goals_of(req.goal, &req.goals).map_err(|m| ApiError::new(ErrorCode::BadRequest, m))?;
     let db = api
         .jobs
         .env
