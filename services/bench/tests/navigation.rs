@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use bench::navigation::{NavigationBenchOptions, run_navigation_bench};
-use learning::Scaling;
 use learning::policy::{PolicyMetadata, write_policy};
+use learning::{InputLayout, Scaling};
 
 /// A 12 m x 6 m room at 0.05 m/px with an inner wall at x = 6 open at the top, as map_server
 /// files (PGM rows top first).
@@ -36,7 +36,10 @@ fn write_map(dir: &Path) {
 
 /// Steers towards the goal: linear sigmoid(3 - 60 |a|), angular tanh(20 a), a = angle / pi.
 fn write_steering_policy(dir: &Path) {
-    let scaling = Scaling::default();
+    let scaling = Scaling {
+        layout: InputLayout::Paper,
+        ..Scaling::default()
+    };
     let inputs = scaling.input_len();
     let meta = PolicyMetadata::new(scaling, vec![3], serde_json::json!({"test": true}));
     let mut w0 = vec![0.0f32; 3 * inputs];

@@ -29,7 +29,7 @@ pub mod trainer;
 
 pub use config::{Td3Config, TrainConfig};
 pub use evaluation::{BatchActor, EvalReport, Mission, evaluate, mission_set};
-pub use observation::Scaling;
+pub use observation::{InputLayout, Scaling};
 pub use policy::{Policy, PolicyError, PolicyMetadata};
 
 /// The device training runs on: the first CUDA device when libtorch sees one, else the CPU.

@@ -6,6 +6,48 @@
 use serde::{Deserialize, Serialize};
 use sim::{Action, Observation};
 
+/// Which values the network reads besides the ranges.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InputLayout {
+    /// The paper's §4.1.1: goal distance and goal angle / π. Policies exported before the
+    /// layout was recorded have it.
+    #[default]
+    Paper,
+    /// Goal distance, sin and cos of the goal angle, and the odometry velocity (linear /
+    /// `linear_max`, angular / `angular_max`). The angle's sine and cosine have no jump behind
+    /// the robot, where ±π meet; the velocity tells the network what it is already doing, which
+    /// a single scan cannot.
+    Extended,
+}
+
+impl InputLayout {
+    /// Number of inputs after the ranges.
+    pub fn extra_inputs(self) -> usize {
+        match self {
+            InputLayout::Paper => 2,
+            InputLayout::Extended => 5,
+        }
+    }
+
+    /// Names of the inputs after the ranges, in order.
+    pub fn names(self) -> &'static [&'static str] {
+        match self {
+            InputLayout::Paper => &[
+                "goal_distance / goal_distance_scale_m, clipped",
+                "goal_angle / pi (counter-clockwise, robot frame)",
+            ],
+            InputLayout::Extended => &[
+                "goal_distance / goal_distance_scale_m, clipped",
+                "sin(goal_angle) (counter-clockwise, robot frame)",
+                "cos(goal_angle)",
+                "odometry linear speed / linear_max, clipped to [-1, 1]",
+                "odometry angular speed / angular_max, clipped to [-1, 1]",
+            ],
+        }
+    }
+}
+
 /// The constants of the input and output scaling.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -24,6 +66,9 @@ pub struct Scaling {
     /// The angular speed for a network output of ±1 (the paper: 0.5 rad/s; the output is a tanh
     /// in [-1, 1]).
     pub angular_max: f32,
+    /// The inputs after the ranges (absent in files of older policies: the paper's).
+    #[serde(default)]
+    pub layout: InputLayout,
 }
 
 impl Default for Scaling {
@@ -35,25 +80,25 @@ impl Default for Scaling {
             goal_distance_clip: 2.0,
             linear_max: 0.8,
             angular_max: 0.5,
+            layout: InputLayout::Extended,
         }
     }
 }
 
-/// Inputs of the network: the ranges, then the goal distance, then the goal angle.
-pub const GOAL_INPUTS: usize = 2;
 /// Outputs of the network: linear speed in [0, 1], angular speed in [-1, 1].
 pub const ACTION_DIM: usize = 2;
 
 impl Scaling {
     /// Length of the network's input.
     pub fn input_len(&self) -> usize {
-        self.beams + GOAL_INPUTS
+        self.beams + self.layout.extra_inputs()
     }
 
     /// Writes the network input for `obs` into `out` (of length [`Scaling::input_len`]).
     ///
     /// Ranges beyond the horizon (and non-finite ones: a laser that saw nothing) read as the
-    /// horizon; the angle is divided by π.
+    /// horizon; the rest follows the [`InputLayout`]. Every input is bounded, whatever the
+    /// sensor says.
     pub fn encode_into(&self, obs: &Observation, out: &mut [f32]) {
         debug_assert_eq!(out.len(), self.input_len());
         let h = self.range_horizon_m;
@@ -66,13 +111,32 @@ impl Scaling {
         } else {
             self.goal_distance_clip
         };
-        let a = if obs.goal_angle.is_finite() {
-            obs.goal_angle / std::f32::consts::PI
+        let angle = if obs.goal_angle.is_finite() {
+            obs.goal_angle
         } else {
             0.0
         };
-        out[self.beams] = d;
-        out[self.beams + 1] = a.clamp(-1.0, 1.0);
+        let rest = &mut out[self.beams..];
+        rest[0] = d;
+        match self.layout {
+            InputLayout::Paper => {
+                rest[1] = (angle / std::f32::consts::PI).clamp(-1.0, 1.0);
+            }
+            InputLayout::Extended => {
+                let ratio = |v: f32, max: f32| {
+                    if v.is_finite() && max > 0.0 {
+                        (v / max).clamp(-1.0, 1.0)
+                    } else {
+                        0.0
+                    }
+                };
+                let (sin, cos) = angle.sin_cos();
+                rest[1] = sin;
+                rest[2] = cos;
+                rest[3] = ratio(obs.velocity[0], self.linear_max);
+                rest[4] = ratio(obs.velocity[1], self.angular_max);
+            }
+        }
     }
 
     /// The network input for `obs`, or `None` if it has the wrong number of ranges.
@@ -102,15 +166,26 @@ mod tests {
     fn inputs_are_bounded_whatever_the_sensor_says() {
         let s = Scaling {
             beams: 3,
+            layout: InputLayout::Paper,
             ..Scaling::default()
         };
         let obs = Observation {
             ranges: vec![f32::INFINITY, -1.0, 2.5],
             goal_distance: f32::NAN,
             goal_angle: 7.0,
+            velocity: [f32::NAN, -9.0],
         };
         let v = s.encode(&obs).expect("three ranges");
         assert_eq!(v, vec![1.0, 0.0, 0.5, 2.0, 1.0]);
+        let extended = Scaling {
+            layout: InputLayout::Extended,
+            ..s
+        };
+        let v = extended.encode(&obs).expect("three ranges");
+        assert_eq!(v.len(), 8);
+        assert_eq!(&v[..4], &[1.0, 0.0, 0.5, 2.0]);
+        assert!((v[4] - 7.0f32.sin()).abs() < 1e-6 && (v[5] - 7.0f32.cos()).abs() < 1e-6);
+        assert_eq!(&v[6..], &[0.0, -1.0]);
         assert!(
             s.encode(&Observation {
                 ranges: vec![1.0],
@@ -118,6 +193,16 @@ mod tests {
             })
             .is_none()
         );
+    }
+
+    #[test]
+    fn files_without_a_layout_are_read_as_the_papers() {
+        let old = r#"{"beams":23,"range_horizon_m":5.0,"goal_distance_scale_m":10.0,
+            "goal_distance_clip":2.0,"linear_max":0.8,"angular_max":0.5}"#;
+        let s: Scaling = serde_json::from_str(old).expect("an old policy's scaling");
+        assert_eq!(s.layout, InputLayout::Paper);
+        assert_eq!(s.input_len(), 25);
+        assert_eq!(Scaling::default().input_len(), 28);
     }
 
     #[test]

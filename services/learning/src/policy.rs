@@ -48,8 +48,7 @@ impl PolicyMetadata {
         let mut layout: Vec<String> = (0..scaling.beams)
             .map(|i| format!("range[{i}] / range_horizon_m (rightmost beam first)"))
             .collect();
-        layout.push("goal_distance / goal_distance_scale_m, clipped".into());
-        layout.push("goal_angle / pi (counter-clockwise, robot frame)".into());
+        layout.extend(scaling.layout.names().iter().map(|n| (*n).to_owned()));
         Self {
             format: FORMAT.into(),
             version: 1,
@@ -365,6 +364,7 @@ mod tests {
     fn tiny(dir: &Path) -> PolicyMetadata {
         let scaling = Scaling {
             beams: 2,
+            layout: crate::InputLayout::Paper,
             ..Scaling::default()
         };
         let meta = PolicyMetadata::new(scaling, vec![3], serde_json::json!({}));

@@ -86,6 +86,7 @@ impl TrainOptions {
                 progress: self.config.progress_reward,
                 time_per_step: self.config.time_per_step_reward,
                 heading: self.config.heading_reward,
+                geodesic: self.config.geodesic_reward,
                 ..self.env.reward
             },
             ..self.env.clone()

@@ -101,9 +101,10 @@ fn the_critic_loss_falls_on_a_fixed_batch() {
 fn the_pure_rust_policy_matches_tch_within_1e_5() {
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let config = Td3Config::default(); // 256-256, as exported by default
-    let mut learner = Learner::new(config.clone(), 25, tch::Device::Cpu, 6);
+    let dim = Scaling::default().input_len();
+    let mut learner = Learner::new(config.clone(), dim, tch::Device::Cpu, 6);
     // Move the weights away from their initialisation.
-    let batch = random_batch(&mut rng, 25, 256);
+    let batch = random_batch(&mut rng, dim, 256);
     for _ in 0..20 {
         learner.update(&batch, &mut rng);
     }
@@ -117,13 +118,13 @@ fn the_pure_rust_policy_matches_tch_within_1e_5() {
     let policy = Policy::load(dir.path()).unwrap();
     let n = 1000;
     // Inputs in and beyond the encoder's range.
-    let inputs: Vec<f32> = (0..n * 25)
+    let inputs: Vec<f32> = (0..n * dim)
         .map(|_| rng.random::<f32>() * 3.0 - 1.0)
         .collect();
     let mut expected = Vec::new();
     learner.act(&inputs, n, &mut expected);
     let mut worst = 0.0f32;
-    for (row, want) in inputs.chunks_exact(25).zip(expected.chunks_exact(2)) {
+    for (row, want) in inputs.chunks_exact(dim).zip(expected.chunks_exact(2)) {
         let got = policy.forward(row).unwrap();
         worst = worst
             .max((got[0] - want[0]).abs())
@@ -310,8 +311,9 @@ struct Heuristic;
 impl learning::BatchActor for Heuristic {
     fn act_batch(&self, inputs: &[f32], n: usize, out: &mut Vec<f32>) {
         out.clear();
-        for row in inputs.chunks_exact(25).take(n) {
-            let angle = row[24]; // goal angle / pi
+        for row in inputs.chunks_exact(28).take(n) {
+            // Extended layout: 23 ranges, distance, sin, cos, odometry.
+            let angle = row[24].atan2(row[25]) / std::f32::consts::PI; // goal angle / pi
             out.push(if angle.abs() < 0.2 { 1.0 } else { 0.2 });
             out.push((angle * 4.0).clamp(-1.0, 1.0));
         }

@@ -9,9 +9,14 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
+use crate::field::PathField;
 use crate::kinematics::{Action, CommandLimits, DiffDrive, integrate, wrap_angle};
 use crate::spec::Pose2;
 use crate::world::World;
+
+/// Coarse cell of the geodesic reward's path field, metres: four map cells at 5 cm, small
+/// enough for doors, large enough that the field takes a few milliseconds per goal.
+const PATH_FIELD_CELL_M: f64 = 0.2;
 
 /// Standard deviations of the Gaussian noise (paper §4.1.1: "Gaussian errors to input and
 /// output data"; the paper gives no values, these are ours).
@@ -86,6 +91,11 @@ pub struct RewardConfig {
     /// without it a goal behind the robot offers no reward for turning round, and a policy
     /// learns to stop and wait. 0 turns it off.
     pub heading: f64,
+    /// With `progress`: measure progress along the shortest path through the free region
+    /// ([`PathField`]) instead of in a straight line, and let the heading term point along that
+    /// path. Potential-based like the straight form, but a detour round a wall to its door is
+    /// progress instead of a loss. Costs one coarse Dijkstra per goal.
+    pub geodesic: bool,
 }
 
 impl Default for RewardConfig {
@@ -98,6 +108,7 @@ impl Default for RewardConfig {
             progress: false,
             time_per_step: false,
             heading: 0.0,
+            geodesic: false,
         }
     }
 }
@@ -153,12 +164,14 @@ pub struct Observation {
     pub goal_distance: f32,
     /// Bearing of the goal in the robot frame, radians in (-π, π], counter-clockwise.
     pub goal_angle: f32,
+    /// The robot's current velocity as odometry measures it: linear (m/s), angular (rad/s).
+    pub velocity: [f32; 2],
 }
 
 impl Observation {
-    /// Number of values: the ranges and the goal's two.
+    /// Number of values: the ranges, the goal's two and the velocity's two.
     pub fn len(&self) -> usize {
-        self.ranges.len() + 2
+        self.ranges.len() + 4
     }
 
     /// Whether there are no values (never: the goal is always there).
@@ -166,12 +179,13 @@ impl Observation {
         false
     }
 
-    /// Ranges then goal distance and angle, as one vector for a network.
+    /// Ranges, goal distance and angle, then velocity, as one vector.
     pub fn to_vec(&self) -> Vec<f32> {
         let mut v = Vec::with_capacity(self.len());
         v.extend_from_slice(&self.ranges);
         v.push(self.goal_distance);
         v.push(self.goal_angle);
+        v.extend_from_slice(&self.velocity);
         v
     }
 }
@@ -293,6 +307,10 @@ pub struct NavEnv {
     ranges: Vec<f64>,
     trajectory: Vec<Pose2>,
     last_observation: Option<Observation>,
+    /// The goal's path field, with `reward.geodesic`.
+    field: Option<PathField>,
+    /// The progress reward's potential at the current pose: path or straight distance, metres.
+    potential: f64,
 }
 
 impl NavEnv {
@@ -325,6 +343,8 @@ impl NavEnv {
             ranges: vec![0.0; config.beams],
             trajectory: Vec::new(),
             last_observation: None,
+            field: None,
+            potential: 0.0,
             world,
             config,
         })
@@ -416,6 +436,7 @@ impl NavEnv {
         }
         self.goal = goal;
         self.distance = (goal.0 - self.pose.x).hypot(goal.1 - self.pose.y);
+        self.refresh_field();
         if self.outcome == Outcome::ReachedGoal {
             self.outcome = Outcome::Running;
         }
@@ -478,6 +499,7 @@ impl NavEnv {
         self.distance = (goal.0 - start.x).hypot(goal.1 - start.y);
         self.outcome = Outcome::Running;
         self.started = true;
+        self.refresh_field();
         self.trajectory.clear();
         if self.config.record_trajectory {
             self.trajectory.push(start);
@@ -501,6 +523,7 @@ impl NavEnv {
                         ranges: vec![0.0; self.config.beams],
                         goal_distance: 0.0,
                         goal_angle: 0.0,
+                        velocity: [0.0; 2],
                     }),
                 reward: 0.0,
                 done: true,
@@ -530,6 +553,7 @@ impl NavEnv {
         let n = ((travel / (0.5 * radius)).ceil() as usize).clamp(1, 1000);
         let start = self.pose;
         let bearing_before = self.bearing_error();
+        let potential_before = self.potential;
         let mut min_clearance = f64::INFINITY;
         let mut collided = false;
         for k in 1..=n {
@@ -549,6 +573,7 @@ impl NavEnv {
         }
         let time_s = f64::from(self.steps) * dt;
         let distance = (self.goal.0 - self.pose.x).hypot(self.goal.1 - self.pose.y);
+        self.potential = self.potential_at(distance);
         self.outcome = if collided {
             Outcome::Collision
         } else if distance <= cfg.goal_tolerance {
@@ -569,7 +594,7 @@ impl NavEnv {
                     let most = (cfg.limits.linear_max.abs() * dt).max(1e-9);
                     let turn = (cfg.limits.angular_max.abs() * dt).max(1e-9);
                     let turned = bearing_before - self.bearing_error();
-                    r.closer * ((self.distance - distance) / most).clamp(-1.0, 1.0)
+                    r.closer * ((potential_before - self.potential) / most).clamp(-1.0, 1.0)
                         + r.closer * r.heading * (turned / turn).clamp(-1.0, 1.0)
                 }
                 Outcome::Running | Outcome::TimeLimit if distance < self.distance => r.closer,
@@ -587,10 +612,36 @@ impl NavEnv {
         }
     }
 
-    /// The true angle between the robot's heading and the goal, radians in [0, π].
+    /// The true angle between the robot's heading and the way to the goal (straight at it, or
+    /// along the path field's lookahead with `reward.geodesic`), radians in [0, π].
     fn bearing_error(&self) -> f64 {
-        let (dx, dy) = (self.goal.0 - self.pose.x, self.goal.1 - self.pose.y);
+        let target = self
+            .field
+            .as_ref()
+            .and_then(|f| f.lookahead(self.pose.x, self.pose.y))
+            .unwrap_or(self.goal);
+        let (dx, dy) = (target.0 - self.pose.x, target.1 - self.pose.y);
         wrap_angle(dy.atan2(dx) - self.pose.yaw).abs()
+    }
+
+    /// Recomputes the path field for a new goal (with `reward.geodesic`) and the potential.
+    fn refresh_field(&mut self) {
+        let r = &self.config.reward;
+        self.field = (r.progress && r.geodesic)
+            .then(|| PathField::new(&self.world, self.goal, PATH_FIELD_CELL_M));
+        self.potential = self.potential_at(self.distance);
+    }
+
+    /// The progress potential at the current pose, given the straight distance to the goal.
+    /// Off the path field's reach (pressed into a wall corner) the last potential stands, so
+    /// the reward shows no jump.
+    fn potential_at(&self, straight: f64) -> f64 {
+        match &self.field {
+            Some(f) => f
+                .distance(self.pose.x, self.pose.y)
+                .unwrap_or(self.potential),
+            None => straight,
+        }
     }
 
     /// Keeps a copy of the latest observation for steps after the end, reusing its buffer.
@@ -600,6 +651,7 @@ impl NavEnv {
                 last.ranges.clone_from(&obs.ranges);
                 last.goal_distance = obs.goal_distance;
                 last.goal_angle = obs.goal_angle;
+                last.velocity = obs.velocity;
             }
             None => self.last_observation = Some(obs.clone()),
         }
@@ -641,6 +693,7 @@ impl NavEnv {
             ranges,
             goal_distance: dist.max(0.0) as f32,
             goal_angle: angle as f32,
+            velocity: [self.executed.linear as f32, self.executed.angular as f32],
         }
     }
 }

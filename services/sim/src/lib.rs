@@ -8,6 +8,7 @@
 //! - [`world`]: [`World`], the built world with exact laser casts and clearance queries;
 //! - [`kinematics`]: differential drive;
 //! - [`env`] and [`batch`]: the reinforcement-learning environment of the paper's §4.1.1;
+//! - [`field`]: path distances to a goal (the shaped reward's navigation function);
 //! - [`render`]: top-down PNG and SVG pictures;
 //! - [`parse`]: the simulation parser, on-demand database (RDF) to [`WorldSpec`];
 //! - [`export`]: SDF 1.9 worlds and URDF robots for Gazebo and ROS.
@@ -15,6 +16,7 @@
 pub mod batch;
 pub mod env;
 pub mod export;
+pub mod field;
 pub mod kinematics;
 pub mod library;
 pub mod parse;
@@ -28,6 +30,7 @@ pub use env::{
     EnvConfig, EnvError, NavEnv, NoiseConfig, Observation, Outcome, RewardConfig, StepInfo,
     StepResult,
 };
+pub use field::PathField;
 pub use kinematics::{Action, CommandLimits, DiffDrive};
 pub use library::{LibraryModel, Model};
 pub use parse::{parse_floor, parse_on_demand, parse_robot};

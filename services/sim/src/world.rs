@@ -329,7 +329,7 @@ impl FreeRegion {
 
 /// Where the world's grid lies and how it is padded.
 #[derive(Clone, Debug)]
-struct Frame {
+pub(crate) struct Frame {
     ox: f64,
     oy: f64,
     cos: f64,
@@ -337,14 +337,14 @@ struct Frame {
     res: f64,
     inv_res: f64,
     /// Padded width and height: one blocked cell of border on every side.
-    pw: usize,
-    ph: usize,
+    pub(crate) pw: usize,
+    pub(crate) ph: usize,
 }
 
 impl Frame {
     /// World point to padded grid coordinates, in cells.
     #[inline]
-    fn to_grid(&self, x: f64, y: f64) -> (f64, f64) {
+    pub(crate) fn to_grid(&self, x: f64, y: f64) -> (f64, f64) {
         let (dx, dy) = (x - self.ox, y - self.oy);
         (
             (self.cos * dx + self.sin * dy) * self.inv_res + 1.0,
@@ -354,7 +354,7 @@ impl Frame {
 
     /// Padded grid coordinates, in cells, to a world point.
     #[inline]
-    fn to_world(&self, gx: f64, gy: f64) -> (f64, f64) {
+    pub(crate) fn to_world(&self, gx: f64, gy: f64) -> (f64, f64) {
         let (lx, ly) = ((gx - 1.0) * self.res, (gy - 1.0) * self.res);
         (
             self.ox + self.cos * lx - self.sin * ly,
@@ -637,6 +637,16 @@ impl World {
             self.frame
                 .to_world((c % pw) as f64 + 0.5, (c / pw) as f64 + 0.5),
         )
+    }
+
+    /// The grid's placement.
+    pub(crate) fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
+    /// Padded indices of the free region's cells.
+    pub(crate) fn region_cells(&self) -> &[u32] {
+        &self.region.cells
     }
 
     /// Cell size, metres.

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use learning::policy::{PolicyMetadata, write_policy};
-use learning::{Policy, Scaling};
+use learning::{InputLayout, Policy, Scaling};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sim::{
@@ -320,6 +320,7 @@ fn the_waypoint_timer_replans_from_where_the_robot_is() {
 fn steering_policy(dir: &Path, beams: usize) -> Arc<Policy> {
     let scaling = Scaling {
         beams,
+        layout: InputLayout::Paper,
         ..Scaling::default()
     };
     let inputs = scaling.input_len();

@@ -66,12 +66,14 @@ impl TrainPayload {
         self.train_config().map(|_| ())
     }
 
-    /// The training configuration: defaults, the payload's keys, the seed.
+    /// The training configuration: `mentalsim train`'s default preset
+    /// ([`TrainConfig::fast`]), the payload's keys over it, the seed.
     pub fn train_config(&self) -> Result<TrainConfig, PayloadError> {
-        let mut config: TrainConfig = match &self.config {
-            Some(v) => serde_json::from_value(v.clone())
+        let mut config = match &self.config {
+            Some(v) => TrainConfig::fast()
+                .with_json(v.clone())
                 .map_err(|e| PayloadError::Invalid(format!("payload.config: {e}")))?,
-            None => TrainConfig::default(),
+            None => TrainConfig::fast(),
         };
         if let Some(seed) = self.seed {
             config.seed = seed;

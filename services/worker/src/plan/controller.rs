@@ -244,6 +244,7 @@ mod tests {
             ranges: vec![5.0; 23],
             goal_distance: 1.0,
             goal_angle: 0.0,
+            velocity: [0.0; 2],
         }
     }
 
