@@ -318,6 +318,59 @@ async fn a_reported_object_appears_in_the_next_on_demand_database() {
     app.stop().await;
 }
 
+/// The floor database carries an ETag naming the graph's state: asked again with it, the
+/// service answers 304 until something is written.
+#[tokio::test]
+async fn the_floor_database_is_revalidated_by_etag() {
+    let app = spawn_app().await;
+    let url = "/v1/places/F0/on-demand?robot=R-001";
+    let get = |tag: Option<String>| {
+        let mut r = app
+            .request(Method::GET, url)
+            .header("accept", "application/n-triples");
+        if let Some(tag) = tag {
+            r = r.header("if-none-match", tag);
+        }
+        r.send()
+    };
+    let first = get(None).await.unwrap();
+    assert_eq!(first.status(), 200);
+    let etag = first.headers()["etag"].to_str().unwrap().to_owned();
+    assert!(etag.starts_with('"') && etag.ends_with('"'), "{etag}");
+    let again = get(Some(etag.clone())).await.unwrap();
+    assert_eq!(again.status(), 304);
+    assert!(again.text().await.unwrap().is_empty());
+    // Another representation has another tag.
+    let turtle = app
+        .request(Method::GET, url)
+        .header("accept", "text/turtle")
+        .header("if-none-match", &etag)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(turtle.status(), 200);
+
+    let report = json!({
+        "id": "etag-crate",
+        "class": "Table",
+        "pose": {"x": 0.0, "y": 0.0, "yaw": 0.0},
+        "shape": {"type": "box", "length": 0.5, "width": 0.5, "height": 0.5},
+        "colour": {"r": 0.5, "g": 0.4, "b": 0.2}
+    });
+    let created = app
+        .request(Method::POST, "/v1/places/F0/objects")
+        .json(&report)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(created.status(), 201, "{}", created.text().await.unwrap());
+    let changed = get(Some(etag.clone())).await.unwrap();
+    assert_eq!(changed.status(), 200, "a write changes the tag");
+    assert_ne!(changed.headers()["etag"].to_str().unwrap(), etag);
+    assert!(changed.text().await.unwrap().contains("etag-crate"));
+    app.stop().await;
+}
+
 #[tokio::test]
 async fn impossible_missions_are_distinct_4xx() {
     let app = spawn_app().await;
@@ -460,5 +513,44 @@ async fn a_floor_exports_as_sdf_and_the_robot_as_urdf_that_check_urdf_accepts() 
         .await
         .unwrap();
     assert_eq!(missing.status(), 404);
+    app.stop().await;
+}
+
+/// A worker's HTTP knowledge source keeps the floor database (and so its world) while the
+/// service answers 304, and reads it again after a write.
+#[tokio::test]
+async fn the_http_knowledge_source_reuses_its_database_until_a_write() {
+    use worker::jobs::source::{HttpKnowledge, KnowledgeSource};
+    let app = spawn_app().await;
+    let source = HttpKnowledge::new(&app.address, Some(app.token.clone())).unwrap();
+    let first = source.floor_database("F0", "R-001").await.unwrap();
+    let second = source.floor_database("F0", "R-001").await.unwrap();
+    assert!(
+        std::sync::Arc::ptr_eq(&first, &second),
+        "revalidated, not read again"
+    );
+    let created = app
+        .request(Method::POST, "/v1/places/F0/objects")
+        .json(&json!({
+            "id": "source-crate",
+            "class": "Table",
+            "pose": {"x": 0.0, "y": 0.0, "yaw": 0.0},
+            "shape": {"type": "box", "length": 0.5, "width": 0.5, "height": 0.5},
+            "colour": {"r": 0.5, "g": 0.4, "b": 0.2}
+        }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(created.status(), 201);
+    let third = source.floor_database("F0", "R-001").await.unwrap();
+    assert!(!std::sync::Arc::ptr_eq(&first, &third));
+    assert_ne!(first.version, third.version);
+    assert!(
+        third
+            .graph
+            .iter()
+            .any(|t| t.subject.to_string().contains("source-crate"))
+    );
+    assert!(third.graph.len() > first.graph.len());
     app.stop().await;
 }

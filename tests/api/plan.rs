@@ -250,3 +250,43 @@ async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
     assert_eq!(failed["state"], "failed", "{failed}");
     assert!(failed.to_string().contains("obstacle"), "{failed}");
 }
+
+/// The floor's database, world and roadmap are cached between plans, and a write to the
+/// knowledge makes the next plan see it: an object reported at the goal blocks it.
+#[tokio::test]
+async fn a_plan_after_a_write_sees_the_new_knowledge() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let request = json!({
+        "robot": "R-001", "place": "F0",
+        "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+        "goal": {"x": goal.0, "y": goal.1},
+        "options": {"seed": 2}
+    });
+    for _ in 0..2 {
+        let (status, body) = plan(&app, &request).await;
+        assert_eq!(status, 200, "{body}");
+    }
+    let report = json!({
+        "id": "crate-at-the-goal",
+        "class": "Table",
+        "pose": {"x": goal.0, "y": goal.1, "yaw": 0.0},
+        "shape": {"type": "box", "length": 0.8, "width": 0.8, "height": 1.0},
+        "colour": {"r": 0.5, "g": 0.4, "b": 0.2}
+    });
+    let created = app
+        .request(Method::POST, "/v1/places/F0-hall/objects")
+        .json(&report)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(created.status(), 201, "{}", created.text().await.unwrap());
+    let (status, body) = plan(&app, &request).await;
+    assert_eq!(status, 422, "the goal is now inside the crate: {body}");
+    assert!(
+        body["error"]["message"].as_str().unwrap().contains("goal"),
+        "{body}"
+    );
+    app.stop().await;
+}

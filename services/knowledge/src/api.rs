@@ -871,9 +871,11 @@ async fn on_demand_database(
 /// ancestors, the places on it with their maps and boundaries, the objects in them, and the
 /// robot. Training and evaluation workers fetch their worlds here. Turtle (default),
 /// N-Triples or JSON-LD by `Accept`; `X-Floor` and `X-Robot` give the IRIs of the floor and
-/// the robot, `X-Triple-Count` its size.
+/// the robot, `X-Triple-Count` its size. The `ETag` names the graph's state: a request with
+/// `If-None-Match` set to it is answered 304 without a body while nothing was written since.
 #[utoipa::path(get, path = "/v1/places/{id}/on-demand", params(("id" = String, Path, description = "a floor or a place on one: IRI or tosm:identifier"), WorldQuery), responses(
     (status = 200, description = "the subset", content_type = "text/turtle", body = String),
+    (status = 304, description = "unchanged since the `If-None-Match` tag"),
     (status = 404, body = ErrorBody), (status = 406, body = ErrorBody), (status = 422, body = ErrorBody)))]
 async fn floor_on_demand_database(
     State(k): State<Arc<Knowledge>>,
@@ -883,13 +885,35 @@ async fn floor_on_demand_database(
 ) -> Result<Response, ApiError> {
     k.tokens.require(&headers, Role::Robot)?;
     let format = graph_format(headers.get(header::ACCEPT).and_then(|v| v.to_str().ok()))?;
+    let if_none_match = headers
+        .get(header::IF_NONE_MATCH)
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_owned);
     blocking(move || {
         let store = k.store()?;
+        let tag = store.state_tag().map_err(ApiError::internal)?;
+        let etag = format!("\"{tag}-{}\"", format.media_type());
+        let matches = if_none_match
+            .as_deref()
+            .is_some_and(|v| v.split(',').any(|t| t.trim() == etag));
+        if matches {
+            let mut response = StatusCode::NOT_MODIFIED.into_response();
+            if let Ok(v) = HeaderValue::from_str(&etag) {
+                response.headers_mut().insert(header::ETAG, v);
+            }
+            return Ok(response);
+        }
         let db = on_demand::floor_database_of_place(&store, &id, query.robot.as_deref())?;
         let body = serialize(&db.triples, format)?;
         let mut response = ([(header::CONTENT_TYPE, format.media_type())], body).into_response();
         let h = response.headers_mut();
         h.insert("x-triple-count", HeaderValue::from(db.triples.len()));
+        // Only a state that did not change while the database was read may be named.
+        if store.state_tag().ok().as_deref() == Some(tag.as_str())
+            && let Ok(v) = HeaderValue::from_str(&etag)
+        {
+            h.insert(header::ETAG, v);
+        }
         for (name, value) in [("x-floor", db.floors.first()), ("x-robot", Some(&db.robot))] {
             if let Some(v) = value.and_then(|v| HeaderValue::from_str(v).ok()) {
                 h.insert(name, v);

@@ -104,11 +104,29 @@ pub struct KnowledgeStore {
 /// What the service derives from the graph and keeps until the next write: the typed places
 /// every on-demand database and place lookup starts from (reading them decodes every floor's
 /// map, which on a large building costs far more than the rest of a request).
-#[derive(Default)]
 struct Derived {
+    /// Numbers the stores of this process, for [`KnowledgeStore::state_tag`].
+    id: u64,
     /// Bumped after every write through the service (see [`crate::inference::refresh`]).
     generation: AtomicU64,
     places: Mutex<Option<(CacheKey, Arc<Vec<Place>>)>>,
+}
+
+impl Default for Derived {
+    fn default() -> Self {
+        static STORES: AtomicU64 = AtomicU64::new(0);
+        Self {
+            id: STORES.fetch_add(1, Ordering::Relaxed),
+            generation: AtomicU64::new(0),
+            places: Mutex::new(None),
+        }
+    }
+}
+
+/// A random name of this process, for [`KnowledgeStore::state_tag`].
+fn process_tag() -> &'static str {
+    static TAG: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TAG.get_or_init(|| uuid::Uuid::new_v4().simple().to_string()[..12].to_owned())
 }
 
 /// Identifies one state of the graph: the write generation, and for a remote store the
@@ -248,6 +266,22 @@ impl KnowledgeStore {
             .places
             .lock()
             .unwrap_or_else(PoisonError::into_inner) = None;
+    }
+
+    /// Names the graph's current state: equal tags mean equal content. It changes with every
+    /// write through the service and every new snapshot of a remote store, and differs between
+    /// processes and between stores of one process, so a tag outlives no restart. Blocking: for
+    /// a remote store it asks the store whether its content changed (one small query).
+    pub fn state_tag(&self) -> Result<String, StoreError> {
+        if let Backend::Remote(remote) = &self.backend {
+            remote.snapshot()?;
+        }
+        let (generation, snapshot) = self.cache_key();
+        Ok(format!(
+            "{}-{}-{generation}-{snapshot}",
+            process_tag(),
+            self.derived.id
+        ))
     }
 
     /// The current state's key; take it after [`Self::snapshot`].

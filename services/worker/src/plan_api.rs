@@ -4,9 +4,7 @@
 //! hybrid executor ([`crate::plan`]) before the waypoints are answered.
 
 use std::collections::HashMap;
-use std::fmt::Write as _;
-use std::hash::{Hash, Hasher};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
 use axum::extract::State;
@@ -69,11 +67,13 @@ pub struct PlanApiResponse {
 }
 
 /// State of the plan route: the jobs API's (tokens, knowledge source, policies) plus caches of
-/// worlds and roadmaps by map version.
+/// roadmaps by map version and of loaded policies. Worlds are cached with their databases by
+/// the knowledge source.
 pub struct PlanApi {
     jobs: Arc<JobsApi>,
     roadmaps: RoadmapCache,
-    worlds: Mutex<HashMap<String, Arc<World>>>,
+    /// Loaded policies by id (a policy directory never changes once written).
+    policies: Mutex<HashMap<String, Arc<learning::Policy>>>,
 }
 
 impl std::fmt::Debug for PlanApi {
@@ -82,8 +82,8 @@ impl std::fmt::Debug for PlanApi {
     }
 }
 
-/// Worlds kept at most (one per floor and robot in use).
-const WORLDS: usize = 16;
+/// Policies kept loaded at most.
+const LOADED_POLICIES: usize = 16;
 
 impl PlanApi {
     /// Over the jobs API's state.
@@ -91,8 +91,43 @@ impl PlanApi {
         Self {
             jobs,
             roadmaps: RoadmapCache::default(),
-            worlds: Mutex::new(HashMap::new()),
+            policies: Mutex::new(HashMap::new()),
         }
+    }
+
+    /// The policy `id`, loaded once.
+    async fn policy(&self, id: &str) -> Result<Arc<learning::Policy>, ApiError> {
+        let cached = self
+            .policies
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(id)
+            .cloned();
+        if let Some(p) = cached {
+            return Ok(p);
+        }
+        let dir = self
+            .jobs
+            .env
+            .policies
+            .path(id)
+            .ok_or_else(|| ApiError::new(ErrorCode::NotFound, format!("no policy `{id}`")))?;
+        let loaded = tokio::task::spawn_blocking(move || learning::Policy::load(&dir))
+            .await
+            .map_err(|e| ApiError::internal(format!("policy loader failed: {e}")))?
+            .map_err(|e| {
+                ApiError::new(
+                    ErrorCode::Unprocessable,
+                    format!("policy `{id}` cannot be loaded: {e}"),
+                )
+            })?;
+        let loaded = Arc::new(loaded);
+        let mut policies = self.policies.lock().unwrap_or_else(PoisonError::into_inner);
+        if policies.len() >= LOADED_POLICIES {
+            policies.clear();
+        }
+        policies.insert(id.to_owned(), Arc::clone(&loaded));
+        Ok(loaded)
     }
 }
 
@@ -226,23 +261,6 @@ impl PlanValidator for ExecutorValidator {
     }
 }
 
-/// A stable name of the database's content: equal strings mean equal maps, objects and robot.
-fn map_version(floor: &str, robot: &str, graph: &oxrdf::Graph) -> String {
-    struct HashWriter<'a>(&'a mut std::collections::hash_map::DefaultHasher);
-    impl std::fmt::Write for HashWriter<'_> {
-        fn write_str(&mut self, s: &str) -> std::fmt::Result {
-            s.hash(self.0);
-            Ok(())
-        }
-    }
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    let mut w = HashWriter(&mut h);
-    for t in graph {
-        let _ = write!(w, "{t}");
-    }
-    format!("{floor}|{robot}|{:016x}", h.finish())
-}
-
 /// Validate a plan in the mental simulation before the robot moves.
 #[utoipa::path(
     post,
@@ -293,21 +311,7 @@ async fn plan(
         None => newest_policy(policies, &db.robot),
     };
     let policy = match &policy_id {
-        Some(id) => {
-            let dir = policies
-                .path(id)
-                .ok_or_else(|| ApiError::new(ErrorCode::NotFound, format!("no policy `{id}`")))?;
-            let loaded = tokio::task::spawn_blocking(move || learning::Policy::load(&dir))
-                .await
-                .map_err(|e| ApiError::internal(format!("policy loader failed: {e}")))?
-                .map_err(|e| {
-                    ApiError::new(
-                        ErrorCode::Unprocessable,
-                        format!("policy `{id}` cannot be loaded: {e}"),
-                    )
-                })?;
-            Some(Arc::new(loaded))
-        }
+        Some(id) => Some(api.policy(id).await?),
         None => None,
     };
 
@@ -319,28 +323,10 @@ async fn plan(
     };
     let (floor, robot) = (db.floor.clone(), db.robot.clone());
     let report = tokio::task::spawn_blocking(move || -> Result<PlanReport, ApiError> {
-        let version = map_version(&db.floor, &db.robot, &db.graph);
-        let cached = api2
-            .worlds
-            .lock()
-            .ok()
-            .and_then(|w| w.get(&version).cloned());
-        let world = match cached {
-            Some(w) => w,
-            None => {
-                let w = db
-                    .world()
-                    .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
-                if let Ok(mut worlds) = api2.worlds.lock() {
-                    if worlds.len() >= WORLDS {
-                        worlds.clear();
-                    }
-                    worlds.insert(version.clone(), Arc::clone(&w));
-                }
-                w
-            }
-        };
-        crate::plan::validate(&world, &api2.roadmaps, &version, &request, policy)
+        let world = db
+            .world()
+            .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
+        crate::plan::validate(&world, &api2.roadmaps, &db.version, &request, policy)
             .map_err(ApiError::from)
     })
     .await

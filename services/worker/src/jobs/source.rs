@@ -3,9 +3,10 @@
 //!
 //! Everything a job simulates comes through here: no side channel from the graph store.
 
+use std::collections::HashMap;
 use std::future::Future;
 use std::pin::Pin;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::Duration;
 
 use knowledge::Knowledge;
@@ -27,8 +28,9 @@ pub enum SourceError {
     Unavailable(String),
 }
 
-/// The on-demand database of one floor for one robot.
-#[derive(Debug, Clone)]
+/// The on-demand database of one floor for one robot, and the world made from it (built once,
+/// on first use). Sources hand out shared copies while the knowledge is unchanged.
+#[derive(Debug)]
 pub struct FloorDatabase {
     /// The triples.
     pub graph: Graph,
@@ -36,22 +38,84 @@ pub struct FloorDatabase {
     pub robot: String,
     /// The floor's IRI.
     pub floor: String,
+    /// Names this content: equal versions mean equal triples (floor, robot and the state of
+    /// the knowledge they were read at). Roadmaps and worlds are cached under it.
+    pub version: String,
+    world: OnceLock<Result<Arc<World>, String>>,
 }
 
 impl FloorDatabase {
+    /// A database read at knowledge state `state`.
+    pub fn new(graph: Graph, robot: String, floor: String, state: &str) -> Self {
+        Self {
+            version: format!("{floor}|{robot}|{state}"),
+            graph,
+            robot,
+            floor,
+            world: OnceLock::new(),
+        }
+    }
+
     /// The mental simulation of the floor with the robot: the simulation parser, then the
-    /// world build. Blocking (milliseconds to a second for large maps). The error names what
-    /// in the knowledge does not make a world.
+    /// world build. Blocking (milliseconds to a second for large maps) the first time, shared
+    /// afterwards. The error names what in the knowledge does not make a world.
     pub fn world(&self) -> Result<Arc<World>, String> {
-        let spec = sim::parse_floor(&self.graph, &self.robot, &self.floor)
-            .map_err(|p| format!("the knowledge of {} does not make a world: {p}", self.floor))?;
-        World::build(spec).map_err(|e| format!("building the world of {}: {e}", self.floor))
+        self.world
+            .get_or_init(|| {
+                let spec =
+                    sim::parse_floor(&self.graph, &self.robot, &self.floor).map_err(|p| {
+                        format!("the knowledge of {} does not make a world: {p}", self.floor)
+                    })?;
+                World::build(spec).map_err(|e| format!("building the world of {}: {e}", self.floor))
+            })
+            .clone()
     }
 }
 
 /// A boxed future, for the object-safe trait below.
 pub type SourceFuture<'a> =
-    Pin<Box<dyn Future<Output = Result<FloorDatabase, SourceError>> + Send + 'a>>;
+    Pin<Box<dyn Future<Output = Result<Arc<FloorDatabase>, SourceError>> + Send + 'a>>;
+
+/// Databases kept per source (one per place and robot asked for recently).
+const CACHED_DATABASES: usize = 32;
+
+/// The databases a source read, by (place, robot) as asked, with the state tag each was read
+/// at. Databases of equal version are shared, so two places on one floor share one world.
+#[derive(Debug, Default)]
+struct DatabaseCache {
+    entries: Mutex<HashMap<(String, String), (String, Arc<FloorDatabase>)>>,
+}
+
+impl DatabaseCache {
+    /// The database for (place, robot) read at state `tag`, if cached.
+    fn get(
+        &self,
+        place: &str,
+        robot: &str,
+        tag: Option<&str>,
+    ) -> Option<(String, Arc<FloorDatabase>)> {
+        let entries = self.entries.lock().unwrap_or_else(PoisonError::into_inner);
+        entries
+            .get(&(place.to_owned(), robot.to_owned()))
+            .filter(|(t, _)| tag.is_none_or(|tag| t == tag))
+            .cloned()
+    }
+
+    /// Keeps `db` (read at state `tag`) for (place, robot); returns the shared copy, which is
+    /// an existing database of the same version when there is one.
+    fn put(&self, place: &str, robot: &str, tag: String, db: FloorDatabase) -> Arc<FloorDatabase> {
+        let mut entries = self.entries.lock().unwrap_or_else(PoisonError::into_inner);
+        let db = entries
+            .values()
+            .find(|(_, d)| d.version == db.version)
+            .map_or_else(|| Arc::new(db), |(_, d)| Arc::clone(d));
+        if entries.len() >= CACHED_DATABASES {
+            entries.clear();
+        }
+        entries.insert((place.to_owned(), robot.to_owned()), (tag, Arc::clone(&db)));
+        db
+    }
+}
 
 /// Gives the on-demand database of the floor a place is on.
 pub trait KnowledgeSource: Send + Sync + 'static {
@@ -64,12 +128,16 @@ pub trait KnowledgeSource: Send + Sync + 'static {
 #[derive(Debug, Clone)]
 pub struct InProcessKnowledge {
     knowledge: Arc<Knowledge>,
+    cache: Arc<DatabaseCache>,
 }
 
 impl InProcessKnowledge {
     /// Over the shared knowledge state.
     pub fn new(knowledge: Arc<Knowledge>) -> Self {
-        Self { knowledge }
+        Self {
+            knowledge,
+            cache: Arc::default(),
+        }
     }
 }
 
@@ -86,20 +154,28 @@ fn source_error(e: OnDemandError) -> SourceError {
 impl KnowledgeSource for InProcessKnowledge {
     fn floor_database<'a>(&'a self, place: &'a str, robot: &'a str) -> SourceFuture<'a> {
         let knowledge = self.knowledge.clone();
+        let cache = Arc::clone(&self.cache);
         let (place, robot) = (place.to_owned(), robot.to_owned());
         Box::pin(async move {
             tokio::task::spawn_blocking(move || {
-                let store = knowledge.try_store().map_err(|e| {
-                    SourceError::Unavailable(format!("the graph store is unavailable: {e}"))
-                })?;
+                let unavailable =
+                    |e| SourceError::Unavailable(format!("the graph store is unavailable: {e}"));
+                let store = knowledge.try_store().map_err(unavailable)?;
+                let tag = store.state_tag().map_err(unavailable)?;
+                if let Some((_, db)) = cache.get(&place, &robot, Some(&tag)) {
+                    return Ok(db);
+                }
                 let db = on_demand::floor_database_of_place(&store, &place, Some(&robot))
                     .map_err(source_error)?;
                 let floor = db.floors.first().cloned().unwrap_or_default();
-                Ok(FloorDatabase {
-                    graph: db.triples.into_iter().collect(),
-                    robot: db.robot,
-                    floor,
-                })
+                let db =
+                    FloorDatabase::new(db.triples.into_iter().collect(), db.robot, floor, &tag);
+                // A write while the database was read leaves it unnamed: not cached.
+                if store.state_tag().ok().as_deref() == Some(tag.as_str()) {
+                    Ok(cache.put(&place, &robot, tag, db))
+                } else {
+                    Ok(Arc::new(db))
+                }
             })
             .await
             .map_err(|e| SourceError::Unavailable(format!("knowledge task failed: {e}")))?
@@ -113,6 +189,8 @@ pub struct HttpKnowledge {
     base: String,
     token: Option<String>,
     client: reqwest::Client,
+    /// By (place, robot): the service's `ETag` and the database it came with.
+    cache: Arc<DatabaseCache>,
 }
 
 impl std::fmt::Debug for HttpKnowledge {
@@ -135,6 +213,7 @@ impl HttpKnowledge {
             base: base.trim_end_matches('/').to_owned(),
             token,
             client,
+            cache: Arc::default(),
         })
     }
 
@@ -182,6 +261,10 @@ impl KnowledgeSource for HttpKnowledge {
             if let Some(token) = &self.token {
                 request = request.bearer_auth(token);
             }
+            let cached = self.cache.get(place, robot, None);
+            if let Some((etag, _)) = &cached {
+                request = request.header(reqwest::header::IF_NONE_MATCH, etag);
+            }
             let response = request.send().await.map_err(|e| {
                 SourceError::Unavailable(format!("cannot reach the knowledge service: {e}"))
             })?;
@@ -193,7 +276,13 @@ impl KnowledgeSource for HttpKnowledge {
                     .and_then(|v| v.to_str().ok())
                     .map(str::to_owned)
             };
+            if status == reqwest::StatusCode::NOT_MODIFIED
+                && let Some((_, db)) = cached
+            {
+                return Ok(db);
+            }
             let (floor, robot_iri) = (header("x-floor"), header("x-robot"));
+            let etag = header("etag");
             let body = response.bytes().await.map_err(|e| {
                 SourceError::Unavailable(format!("reading the on-demand database: {e}"))
             })?;
@@ -207,7 +296,7 @@ impl KnowledgeSource for HttpKnowledge {
                     )),
                 });
             }
-            let (Some(floor), Some(robot)) = (floor, robot_iri) else {
+            let (Some(floor), Some(robot_iri)) = (floor, robot_iri) else {
                 return Err(SourceError::Unavailable(
                     "the knowledge service sent no X-Floor/X-Robot headers".to_owned(),
                 ));
@@ -219,10 +308,18 @@ impl KnowledgeSource for HttpKnowledge {
                 })?;
                 graph.insert(&triple);
             }
-            Ok(FloorDatabase {
-                graph,
-                robot,
-                floor,
+            Ok(match etag {
+                Some(etag) => {
+                    let db = FloorDatabase::new(graph, robot_iri, floor, &etag);
+                    self.cache.put(place, robot, etag, db)
+                }
+                // No tag: a state that changed while it was read; not cached.
+                None => Arc::new(FloorDatabase::new(
+                    graph,
+                    robot_iri,
+                    floor,
+                    &format!("untagged-{}", uuid::Uuid::new_v4()),
+                )),
             })
         })
     }
