@@ -238,7 +238,7 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::
     )?;
     let policy = Policy::load(&args.out)?;
     let held_out_seed = trainer.options().config.eval_seed.wrapping_add(1);
-    let report = evaluate_policy(&policy, &world, args.eval_episodes, held_out_seed)?;
+    let report = learning::evaluate_held_out(&policy, &world, args.eval_episodes, held_out_seed)?;
     let json = serde_json::json!({
         "success_rate": report.success_rate,
         "collision_rate": report.collision_rate,
@@ -271,29 +271,6 @@ fn map_name(map: &Path) -> String {
         .map_or_else(|| "map".into(), |s| s.to_string_lossy().into_owned())
 }
 
-/// Evaluates `policy` on `episodes` random missions in `world` drawn from `seed`.
-pub fn evaluate_policy(
-    policy: &Policy,
-    world: &Arc<World>,
-    episodes: usize,
-    seed: u64,
-) -> anyhow::Result<learning::EvalReport> {
-    let env = EnvConfig {
-        beams: policy.scaling().beams,
-        goal_distance: (2.0, 10.0),
-        ..EnvConfig::default()
-    };
-    let missions = learning::mission_set(world, &env, episodes, seed)?;
-    Ok(learning::evaluate(
-        policy,
-        world,
-        &env,
-        policy.scaling(),
-        &missions,
-        seed,
-    )?)
-}
-
 /// `mentalsim eval`: an exported policy on a map, written as JSON.
 pub fn eval(
     policy_dir: &Path,
@@ -307,7 +284,7 @@ pub fn eval(
     let policy = Policy::load(policy_dir)
         .with_context(|| format!("cannot load the policy in {}", policy_dir.display()))?;
     let world = load_world(map, 0, seed)?;
-    let report = evaluate_policy(&policy, &world, episodes, seed)?;
+    let report = learning::evaluate_held_out(&policy, &world, episodes, seed)?;
     // Time per control command of the pure-Rust runtime: encode + forward + scale.
     let obs = sim::Observation {
         ranges: vec![3.0; policy.scaling().beams],
@@ -330,6 +307,7 @@ pub fn eval(
         "env_steps": report.env_steps,
         "wall_s": report.wall_s,
         "control_command_us": per_command_us,
+        "by_detour": report.by_detour,
         "map": map.display().to_string(),
         "policy": policy_dir.display().to_string(),
         "seed": seed,

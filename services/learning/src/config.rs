@@ -93,7 +93,8 @@ pub struct TrainConfig {
     /// networks: with more, OpenMP threads wait on each other at every operation, and on a busy
     /// machine a training ran 7x slower with two threads than with one.
     pub threads: usize,
-    /// Goal distances of training episodes, metres (min, max).
+    /// Goal distances of training episodes, metres (min, max). Below the evaluation's 2 m too:
+    /// a plan's waypoints can be half a metre apart.
     pub goal_distance: (f64, f64),
     /// Steps per episode before it is cut off (a truncation: the value is bootstrapped).
     pub max_episode_steps: u32,
@@ -112,6 +113,10 @@ pub struct TrainConfig {
     /// Measure progress along the shortest path through the free region rather than in a
     /// straight line (`sim::RewardConfig::geodesic`).
     pub geodesic_reward: bool,
+    /// Probability that an episode which reached its goal is followed by one from the same pose
+    /// and velocity with a new goal (`sim::NavEnv::continue_random`), as when a plan's next
+    /// waypoint is handed over; otherwise the next episode starts from rest somewhere else.
+    pub chain_goals: f64,
 }
 
 impl Default for TrainConfig {
@@ -128,13 +133,14 @@ impl Default for TrainConfig {
             eval_seed: 20_261_122,
             checkpoint_every_s: 60.0,
             threads: 1,
-            goal_distance: (2.0, 10.0),
+            goal_distance: (0.5, 10.0),
             max_episode_steps: 400,
             progress_reward: true,
             time_per_step_reward: true,
             curriculum: true,
             heading_reward: 0.5,
             geodesic_reward: true,
+            chain_goals: 0.5,
         }
     }
 }
@@ -192,7 +198,7 @@ impl TrainConfig {
         let t = &self.td3;
         let pos = |v: f64| v.is_finite() && v > 0.0;
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
-        let checks: [(bool, &str); 18] = [
+        let checks: [(bool, &str); 19] = [
             (
                 !t.hidden.is_empty() && !t.hidden.contains(&0),
                 "td3.hidden: at least one layer, no zero width",
@@ -247,6 +253,10 @@ impl TrainConfig {
                 "max_episode_steps must be at least 1",
             ),
             (pos(t.reward_scale), "td3.reward_scale must be positive"),
+            (
+                (0.0..=1.0).contains(&self.chain_goals),
+                "chain_goals must be a probability in [0, 1]",
+            ),
         ];
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, msg)) => Err((*msg).to_owned()),

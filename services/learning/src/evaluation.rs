@@ -76,6 +76,73 @@ pub struct EvalReport {
     pub mean_return: f64,
     /// Wall-clock time of the evaluation, seconds.
     pub wall_s: f64,
+    /// Success by how far the shortest path is longer than the straight line (only from
+    /// [`evaluate_held_out`]): a policy that sees only its laser finds detours hardest.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub by_detour: Vec<DetourBucket>,
+}
+
+/// Missions whose shortest path is between `min` and `max` times the straight distance.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DetourBucket {
+    /// Lower bound of path / straight distance.
+    pub min: f64,
+    /// Upper bound (exclusive; infinite for the last bucket).
+    pub max: f64,
+    /// Missions in the bucket.
+    pub missions: usize,
+    /// Share of them that reached the goal.
+    pub success_rate: f64,
+}
+
+/// Time limit of held-out missions, steps (60 s at the paper's 0.1 s control period): a 10 m
+/// goal behind a wall can need a 30 m path.
+pub const HELD_OUT_MAX_STEPS: u32 = 600;
+
+/// The held-out evaluation `mentalsim train` ends with and `mentalsim eval` runs: `episodes`
+/// random missions with goals 2–10 m away in the world's free region, drawn from `seed`, with a
+/// 60-second limit, run by `policy`; successes are also broken down by detour.
+pub fn evaluate_held_out(
+    policy: &Policy,
+    world: &Arc<World>,
+    episodes: usize,
+    seed: u64,
+) -> Result<EvalReport, EnvError> {
+    let env = EnvConfig {
+        beams: policy.scaling().beams,
+        goal_distance: (2.0, 10.0),
+        max_steps: HELD_OUT_MAX_STEPS,
+        ..EnvConfig::default()
+    };
+    let missions = mission_set(world, &env, episodes, seed)?;
+    let (mut report, outcomes) = run(policy, world, &env, policy.scaling(), &missions, seed)?;
+    let bounds = [1.0, 1.1, 1.5, 2.0, f64::INFINITY];
+    let mut counts = vec![(0usize, 0usize); bounds.len() - 1];
+    for (m, o) in missions.iter().zip(&outcomes) {
+        let straight = (m.goal.0 - m.start.x).hypot(m.goal.1 - m.start.y).max(1e-9);
+        let field = sim::PathField::new(world, m.goal, 0.1);
+        let ratio = field.distance(m.start.x, m.start.y).unwrap_or(straight) / straight;
+        let k = bounds
+            .windows(2)
+            .position(|w| ratio < w[1])
+            .unwrap_or(bounds.len() - 2);
+        counts[k].0 += 1;
+        counts[k].1 += usize::from(*o == Outcome::ReachedGoal);
+    }
+    #[allow(clippy::cast_precision_loss, reason = "counts are small")]
+    {
+        report.by_detour = counts
+            .iter()
+            .zip(bounds.windows(2))
+            .map(|(&(n, ok), w)| DetourBucket {
+                min: w[0],
+                max: w[1],
+                missions: n,
+                success_rate: if n == 0 { 0.0 } else { ok as f64 / n as f64 },
+            })
+            .collect();
+    }
+    Ok(report)
 }
 
 /// Runs every mission once with `actor` (no exploration noise; the environment's own sensor and
@@ -89,6 +156,18 @@ pub fn evaluate(
     missions: &[Mission],
     seed: u64,
 ) -> Result<EvalReport, EnvError> {
+    run(actor, world, env, scaling, missions, seed).map(|(report, _)| report)
+}
+
+/// [`evaluate`], with each mission's outcome.
+fn run(
+    actor: &dyn BatchActor,
+    world: &Arc<World>,
+    env: &EnvConfig,
+    scaling: &Scaling,
+    missions: &[Mission],
+    seed: u64,
+) -> Result<(EvalReport, Vec<Outcome>), EnvError> {
     let started = Instant::now();
     let dim = scaling.input_len();
     let mut envs = Vec::with_capacity(missions.len());
@@ -145,7 +224,7 @@ pub fn evaluate(
             v.iter().sum::<f64>() / v.len() as f64
         }
     };
-    Ok(EvalReport {
+    let report = EvalReport {
         success_rate: share(Outcome::ReachedGoal),
         collision_rate: share(Outcome::Collision),
         timeout_rate: share(Outcome::TimeLimit),
@@ -154,5 +233,7 @@ pub fn evaluate(
         mean_time_to_goal_s: mean(&successes),
         mean_return: mean(&returns),
         wall_s: started.elapsed().as_secs_f64(),
-    })
+        by_detour: Vec::new(),
+    };
+    Ok((report, outcome))
 }

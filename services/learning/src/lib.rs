@@ -28,7 +28,10 @@ pub mod td3;
 pub mod trainer;
 
 pub use config::{Td3Config, TrainConfig};
-pub use evaluation::{BatchActor, EvalReport, Mission, evaluate, mission_set};
+pub use evaluation::{
+    BatchActor, DetourBucket, EvalReport, HELD_OUT_MAX_STEPS, Mission, evaluate, evaluate_held_out,
+    mission_set,
+};
 pub use observation::{InputLayout, Scaling};
 pub use policy::{Policy, PolicyError, PolicyMetadata};
 

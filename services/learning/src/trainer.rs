@@ -526,7 +526,13 @@ impl Trainer {
                     });
                     self.returns[i] = 0.0;
                     self.advance_curriculum()?;
-                    let obs = self.envs[i].reset_random()?;
+                    let chain = r.info.outcome == Outcome::ReachedGoal
+                        && self.rng.random::<f64>() < c.chain_goals;
+                    let obs = if chain {
+                        self.envs[i].continue_random()?
+                    } else {
+                        self.envs[i].reset_random()?
+                    };
                     self.options
                         .scaling
                         .encode_into(&obs, &mut self.inputs[i * dim..(i + 1) * dim]);

@@ -467,22 +467,56 @@ impl NavEnv {
             if world.clearance(s.0, s.1) < self.config.collision_clearance {
                 continue;
             }
-            // Goals uniform over the annulus's area, kept if they land in the free region.
-            for _ in 0..64 {
-                let u: f64 = self.rng.random();
-                let r = (dmin * dmin + u * (dmax * dmax - dmin * dmin)).sqrt();
-                let a: f64 = self.rng.random::<f64>() * 2.0 * PI;
-                let g = (s.0 + r * a.cos(), s.1 + r * a.sin());
-                if world.in_free_region(g.0, g.1) && world.clearance(g.0, g.1) > 0.0 {
-                    let yaw = wrap_angle(self.rng.random::<f64>() * 2.0 * PI - PI);
-                    return Ok((Pose2::new(s.0, s.1, yaw), g));
-                }
+            if let Some(g) = self.sample_goal_from(&world, s) {
+                let yaw = wrap_angle(self.rng.random::<f64>() * 2.0 * PI - PI);
+                return Ok((Pose2::new(s.0, s.1, yaw), g));
             }
         }
         Err(EnvError::NoGoalInRange {
             min: dmin,
             max: dmax,
         })
+    }
+
+    /// A goal in the free region at a distance from `s` within the configured range: uniform
+    /// over the annulus's area, up to 64 draws.
+    fn sample_goal_from(&mut self, world: &World, s: (f64, f64)) -> Option<(f64, f64)> {
+        let (dmin, dmax) = self.config.goal_distance;
+        for _ in 0..64 {
+            let u: f64 = self.rng.random();
+            let r = (dmin * dmin + u * (dmax * dmax - dmin * dmin)).sqrt();
+            let a: f64 = self.rng.random::<f64>() * 2.0 * PI;
+            let g = (s.0 + r * a.cos(), s.1 + r * a.sin());
+            if world.in_free_region(g.0, g.1) && world.clearance(g.0, g.1) > 0.0 {
+                return Some(g);
+            }
+        }
+        None
+    }
+
+    /// Starts a new episode where the last one reached its goal: same pose, same velocity, a
+    /// new random goal — the robot arriving at one waypoint of a plan and going on to the next,
+    /// which a reset from standstill never shows a policy. Falls back to
+    /// [`NavEnv::reset_random`] when the last episode did not reach its goal or no goal in range
+    /// is found from here.
+    pub fn continue_random(&mut self) -> Result<Observation, EnvError> {
+        if !(self.started && self.outcome == Outcome::ReachedGoal) {
+            return self.reset_random();
+        }
+        let world = Arc::clone(&self.world);
+        let here = (self.pose.x, self.pose.y);
+        let Some(goal) = self.sample_goal_from(&world, here) else {
+            return self.reset_random();
+        };
+        let velocity = self.executed;
+        let obs = self.begin(self.pose, goal);
+        self.executed = velocity;
+        let obs = Observation {
+            velocity: [velocity.linear as f32, velocity.angular as f32],
+            ..obs
+        };
+        self.remember(&obs);
+        Ok(obs)
     }
 
     fn region_point(&mut self, world: &World, n: usize) -> Option<(f64, f64)> {

@@ -345,3 +345,50 @@ fn the_progress_reward_pays_for_distance_gained_and_charges_for_distance_lost() 
         "{away:?}"
     );
 }
+
+/// After a goal, `continue_random` starts the next episode where the robot is, moving as it
+/// was, with a new goal in range; after anything else it is a random reset.
+#[test]
+fn a_reached_goal_can_be_followed_by_the_next_from_the_same_pose() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let config = EnvConfig {
+        goal_distance: (1.0, 3.0),
+        ..quiet()
+    };
+    let mut env = NavEnv::new(world, config, 3).expect("env");
+    env.reset(Pose2::new(2.0, 4.0, 0.0), (4.0, 4.0))
+        .expect("reset");
+    let mut end = None;
+    for _ in 0..100 {
+        let r = env.step(Action::new(0.8, 0.0));
+        if r.done {
+            end = Some(r);
+            break;
+        }
+    }
+    let end = end.expect("reached");
+    assert_eq!(end.info.outcome, Outcome::ReachedGoal);
+    let obs = env.continue_random().expect("next goal");
+    assert_eq!(env.pose(), end.info.pose, "same pose");
+    assert!(
+        (obs.velocity[0] - 0.8).abs() < 1e-6,
+        "still moving: {:?}",
+        obs.velocity
+    );
+    let g = env.goal();
+    let d = (g.0 - env.pose().x).hypot(g.1 - env.pose().y);
+    assert!((1.0..=3.0).contains(&d), "goal {d} m away");
+    let r = env.step(Action::new(0.8, 0.0));
+    assert_eq!(r.info.steps, 1, "a new episode");
+
+    // After a collision it starts elsewhere, from rest.
+    env.reset(Pose2::new(1.0, 4.0, std::f64::consts::PI), (3.0, 4.0))
+        .expect("reset");
+    let mut r = env.step(Action::new(0.8, 0.0));
+    while !r.done {
+        r = env.step(Action::new(0.8, 0.0));
+    }
+    assert_eq!(r.info.outcome, Outcome::Collision);
+    let obs = env.continue_random().expect("a random reset");
+    assert_eq!(obs.velocity, [0.0, 0.0]);
+}

@@ -102,7 +102,7 @@ impl JobHandler for EvaluateHandler {
             let policy = Policy::load(&dir)
                 .map_err(|e| JobError::Fatal(format!("the policy does not load: {e}")))?;
             let world = db.world().map_err(JobError::Fatal)?;
-            super::train::evaluate_policy(&policy, &world, episodes, seed)
+            learning::evaluate_held_out(&policy, &world, episodes, seed)
                 .map_err(|e| JobError::Fatal(format!("evaluation: {e}")))
         })
         .await

@@ -310,7 +310,7 @@ fn train_blocking(
         .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
     let config = &trainer.options().config;
     let held_out_seed = config.eval_seed.wrapping_add(1);
-    let report = evaluate_policy(&policy, &world, config.eval_episodes, held_out_seed)
+    let report = learning::evaluate_held_out(&policy, &world, config.eval_episodes, held_out_seed)
         .map_err(|e| JobError::Fatal(format!("evaluating the exported policy: {e}")))?;
     let created_ms = crate::clock::Clock::now_ms(&crate::clock::SystemClock);
     summary["created_ms"] = json!(created_ms);
@@ -347,20 +347,4 @@ fn train_blocking(
         "floor": summary["floor"],
         "last_training_eval": to_json(&trainer.evals().last()),
     })))
-}
-
-/// `policy` on `episodes` random missions (goals 2–10 m away) in `world` drawn from `seed`.
-pub fn evaluate_policy(
-    policy: &Policy,
-    world: &Arc<World>,
-    episodes: usize,
-    seed: u64,
-) -> Result<learning::EvalReport, sim::EnvError> {
-    let env = EnvConfig {
-        beams: policy.scaling().beams,
-        goal_distance: (2.0, 10.0),
-        ..EnvConfig::default()
-    };
-    let missions = learning::mission_set(world, &env, episodes, seed)?;
-    learning::evaluate(policy, world, &env, policy.scaling(), &missions, seed)
 }
