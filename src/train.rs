@@ -42,9 +42,13 @@ pub fn load_world(map: &Path, objects: usize, seed: u64) -> anyhow::Result<Arc<W
 /// What `mentalsim train` was asked.
 #[derive(Debug, clap::Args)]
 pub struct TrainArgs {
-    /// The ROS map_server YAML of the place to train in.
+    /// The ROS map_server YAML of the place to train in (and evaluate on).
     #[arg(long)]
     pub map: PathBuf,
+    /// Further maps whose simulations share the training environments (repeatable): one policy
+    /// for several buildings. Evaluation stays on `--map`.
+    #[arg(long = "extra-map")]
+    pub extra_maps: Vec<PathBuf>,
     /// Wall-clock budget in minutes (counting earlier sessions of a resumed run).
     #[arg(long, default_value_t = 10.0)]
     pub minutes: f64,
@@ -130,6 +134,7 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::
         anyhow::bail!("--eval-episodes must be at least 1");
     }
     let config = train_config(args)?;
+    let config_seed = config.seed;
     let world = load_world(&args.map, 0, config.seed)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
@@ -139,12 +144,18 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::
         scaling: Scaling::default(),
         out_dir: args.out.clone(),
     };
-    let mut trainer = if !args.fresh && Trainer::has_checkpoint(&args.out) {
+    let extra = args
+        .extra_maps
+        .iter()
+        .map(|m| load_world(m, 0, config_seed))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let trainer = if !args.fresh && Trainer::has_checkpoint(&args.out) {
         eprintln!("resuming the run checkpointed in {}", args.out.display());
         Trainer::resume(Arc::clone(&world), options)?
     } else {
         Trainer::new(Arc::clone(&world), options)?
     };
+    let mut trainer = trainer.with_extra_worlds(extra)?;
     let budget = Budget {
         wall_s: Some(args.minutes * 60.0),
         env_steps: None,
@@ -252,6 +263,7 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::
         "sessions": counters.sessions,
         "interrupted": interrupted,
         "map": args.map.display().to_string(),
+        "extra_maps": args.extra_maps.iter().map(|m| m.display().to_string()).collect::<Vec<_>>(),
         "seed": trainer.options().config.seed,
         "beta": trainer.options().config.td3.beta1,
         "evaluation": report,
@@ -367,6 +379,7 @@ pub fn beta_experiment(args: &BetaArgs, stop: &AtomicBool) -> anyhow::Result<Str
             );
             let run = TrainArgs {
                 map: args.map.clone(),
+                extra_maps: Vec::new(),
                 minutes: args.minutes,
                 out: out.clone(),
                 config: args.config.clone(),

@@ -372,6 +372,12 @@ impl Drop for Server {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        if std::env::var_os("BENCH_KEEP_STORES").is_some() {
+            let keep = std::env::temp_dir().join(format!("bench-store-{}", self.child.id()));
+            if std::fs::rename(&self.store_dir, &keep).is_ok() {
+                eprintln!("[bench knowledge] kept {} in {}", self.url, keep.display());
+            }
+        }
     }
 }
 

@@ -117,6 +117,9 @@ pub struct TrainConfig {
     /// and velocity with a new goal (`sim::NavEnv::continue_random`), as when a plan's next
     /// waypoint is handed over; otherwise the next episode starts from rest somewhere else.
     pub chain_goals: f64,
+    /// Eq. 1's r_time, per simulated second (`sim::RewardConfig::time`). Higher makes waiting
+    /// near obstacles cost more than the collision it avoids, so a policy keeps moving.
+    pub time_cost: f64,
 }
 
 impl Default for TrainConfig {
@@ -141,6 +144,7 @@ impl Default for TrainConfig {
             heading_reward: 0.5,
             geodesic_reward: true,
             chain_goals: 0.5,
+            time_cost: 1.0,
         }
     }
 }
@@ -198,7 +202,7 @@ impl TrainConfig {
         let t = &self.td3;
         let pos = |v: f64| v.is_finite() && v > 0.0;
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
-        let checks: [(bool, &str); 19] = [
+        let checks: [(bool, &str); 20] = [
             (
                 !t.hidden.is_empty() && !t.hidden.contains(&0),
                 "td3.hidden: at least one layer, no zero width",
@@ -253,6 +257,7 @@ impl TrainConfig {
                 "max_episode_steps must be at least 1",
             ),
             (pos(t.reward_scale), "td3.reward_scale must be positive"),
+            (nonneg(self.time_cost), "time_cost must not be negative"),
             (
                 (0.0..=1.0).contains(&self.chain_goals),
                 "chain_goals must be a probability in [0, 1]",

@@ -87,6 +87,7 @@ impl TrainOptions {
                 time_per_step: self.config.time_per_step_reward,
                 heading: self.config.heading_reward,
                 geodesic: self.config.geodesic_reward,
+                time: self.config.time_cost,
                 ..self.env.reward
             },
             ..self.env.clone()
@@ -215,6 +216,8 @@ pub struct Trainer {
     options: TrainOptions,
     env_config: EnvConfig,
     world: Arc<World>,
+    /// Further worlds the environments are spread over (evaluation stays in `world`).
+    extra_worlds: Vec<Arc<World>>,
     learner: Learner,
     buffer: ReplayBuffer,
     envs: Vec<NavEnv>,
@@ -286,10 +289,21 @@ impl Trainer {
             learner,
             env_config,
             world,
+            extra_worlds: Vec::new(),
             options,
         };
         trainer.start_envs()?;
         Ok(trainer)
+    }
+
+    /// Spreads the training environments over `world` and `extra` (environment `i` runs in
+    /// world `i mod (1 + extra.len())`), so that one policy learns several buildings; the
+    /// evaluations stay in the run's own world. Not part of the checkpoint: pass the same
+    /// worlds again after [`Trainer::resume`].
+    pub fn with_extra_worlds(mut self, extra: Vec<Arc<World>>) -> Result<Trainer, TrainError> {
+        self.extra_worlds = extra;
+        self.start_envs()?;
+        Ok(self)
     }
 
     /// Whether `out_dir` holds a checkpoint to resume from.
@@ -338,10 +352,13 @@ impl Trainer {
         let c = &self.options.config;
         let dim = self.options.scaling.input_len();
         let base = c.seed ^ (u64::from(self.counters.sessions) << 32);
+        let worlds: Vec<&Arc<World>> = std::iter::once(&self.world)
+            .chain(&self.extra_worlds)
+            .collect();
         self.envs = (0..c.envs)
             .map(|i| {
                 NavEnv::new(
-                    Arc::clone(&self.world),
+                    Arc::clone(worlds[i % worlds.len()]),
                     self.env_config.clone(),
                     sim::env_seed(base, i),
                 )

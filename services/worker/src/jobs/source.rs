@@ -83,8 +83,11 @@ const CACHED_DATABASES: usize = 32;
 /// at. Databases of equal version are shared, so two places on one floor share one world.
 #[derive(Debug, Default)]
 struct DatabaseCache {
-    entries: Mutex<HashMap<(String, String), (String, Arc<FloorDatabase>)>>,
+    entries: Mutex<HashMap<PlaceRobot, (String, Arc<FloorDatabase>)>>,
 }
+
+/// (place, robot) as a caller asked for them.
+type PlaceRobot = (String, String);
 
 impl DatabaseCache {
     /// The database for (place, robot) read at state `tag`, if cached.

@@ -37,17 +37,36 @@ pub trait Controller {
     fn start_attempt(&mut self, _attempt: u32) {}
 }
 
-/// The exported TD3 actor: it sees only the observation (23 ranges and the waypoint's (r, θ)),
-/// never the true pose, exactly as on the robot.
+/// Bearing of the waypoint beyond which the policy controller turns on the spot first, radians
+/// (100°).
+pub const ALIGN_START_RAD: f64 = 1.75;
+/// Bearing below which it hands over to the policy again, radians (20°).
+pub const ALIGN_DONE_RAD: f64 = 0.35;
+
+/// The exported TD3 actor: it sees only the observation (23 ranges, the waypoint's (r, θ),
+/// odometry), never the true pose, exactly as on the robot.
+///
+/// A waypoint far behind the robot is first faced by turning on the spot (from a bearing of
+/// [`ALIGN_START_RAD`] down to [`ALIGN_DONE_RAD`]; a round robot turning in place cannot
+/// collide), then the policy drives. Reactive policies whose laser sees only ahead dither
+/// there: with a wall in front and the goal behind, turning left and turning right look alike,
+/// and a policy trained with TD3 flips between them (the failure of most hybrid attempts
+/// before this). Plans hand the policy waypoints in every direction, so the hybrid aligns first
+/// as the classical follower does.
 #[derive(Clone, Debug)]
 pub struct PolicyController {
     policy: Arc<Policy>,
+    /// Turning towards the waypoint: the direction (+1 left, -1 right), kept until aligned.
+    aligning: Option<f64>,
 }
 
 impl PolicyController {
     /// A controller running `policy`.
     pub fn new(policy: Arc<Policy>) -> Self {
-        Self { policy }
+        Self {
+            policy,
+            aligning: None,
+        }
     }
 
     /// The policy.
@@ -58,9 +77,27 @@ impl PolicyController {
 
 impl Controller for PolicyController {
     fn command(&mut self, obs: &Observation, _pose: Pose2, _waypoint: (f64, f64)) -> Action {
+        let bearing = f64::from(obs.goal_angle);
+        let turn = match self.aligning {
+            Some(dir) if bearing.abs() > ALIGN_DONE_RAD => Some(dir),
+            Some(_) => None,
+            None if bearing.abs() > ALIGN_START_RAD => Some(bearing.signum()),
+            None => None,
+        };
+        self.aligning = turn;
+        if let Some(dir) = turn {
+            return Action {
+                linear: 0.0,
+                angular: dir * f64::from(self.policy.scaling().angular_max),
+            };
+        }
         // The executor checks the beam count before it starts, so this cannot fail; should it,
         // stopping is the safe command.
         self.policy.act(obs).unwrap_or_default()
+    }
+
+    fn start_attempt(&mut self, _attempt: u32) {
+        self.aligning = None;
     }
 
     fn kind(&self) -> ControllerKind {
@@ -246,6 +283,49 @@ mod tests {
             goal_angle: 0.0,
             velocity: [0.0; 2],
         }
+    }
+
+    /// A policy whose every output is sigmoid(0) = 0.5 linear, tanh(0) = 0 angular.
+    fn constant_policy() -> Arc<Policy> {
+        let dir = tempfile::tempdir().expect("tmp");
+        let scaling = learning::Scaling::default();
+        let inputs = scaling.input_len();
+        let meta = learning::policy::PolicyMetadata::new(scaling, vec![2], serde_json::json!({}));
+        let layers = [
+            (vec![0.0f32; 2 * inputs], vec![0.0f32; 2]),
+            (vec![0.0f32; 4], vec![0.0f32; 2]),
+        ];
+        learning::policy::write_policy(dir.path(), &meta, &layers).expect("written");
+        Arc::new(Policy::load(dir.path()).expect("loads"))
+    }
+
+    #[test]
+    fn the_policy_controller_faces_a_waypoint_behind_before_the_policy_drives() {
+        let mut c = PolicyController::new(constant_policy());
+        let at = |angle: f32| Observation {
+            goal_angle: angle,
+            ..obs()
+        };
+        let here = Pose2::new(0.0, 0.0, 0.0);
+        // Ahead: the policy's own command.
+        let a = c.command(&at(0.5), here, (1.0, 0.0));
+        assert!(
+            (a.linear - 0.4).abs() < 1e-6 && a.angular.abs() < 1e-9,
+            "{a:?}"
+        );
+        // Behind on the right: turn right on the spot, and keep turning below the start angle.
+        let a = c.command(&at(-2.5), here, (1.0, 0.0));
+        assert_eq!((a.linear, a.angular), (0.0, -0.5));
+        let a = c.command(&at(-1.0), here, (1.0, 0.0));
+        assert_eq!((a.linear, a.angular), (0.0, -0.5));
+        // Aligned: the policy again.
+        let a = c.command(&at(-0.2), here, (1.0, 0.0));
+        assert!((a.linear - 0.4).abs() < 1e-6, "{a:?}");
+        // A new attempt forgets a turn in progress.
+        c.command(&at(2.5), here, (1.0, 0.0));
+        c.start_attempt(2);
+        let a = c.command(&at(1.0), here, (1.0, 0.0));
+        assert!((a.linear - 0.4).abs() < 1e-6, "{a:?}");
     }
 
     #[test]
