@@ -163,6 +163,13 @@ async fn every_shared_ros_map_imports_and_reads_back() {
             .await
             .unwrap();
         assert_eq!(place["kind"], "floor", "{place}");
+        // The import's name is the floor's identifier: requests may use it instead of the IRI.
+        let by_name = app
+            .request(Method::GET, &format!("/v1/places/{name}"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(by_name.status(), 200, "{name}");
     }
     app.stop().await;
 }

@@ -100,7 +100,11 @@ pub fn floor_for(name: &str, grid: OccupancyGrid) -> Place {
     Place {
         iri: floor_iri,
         kind: PlaceKind::Floor,
-        symbol: Symbol::named(name),
+        // The name is the floor's identifier too, so requests can say `"place": "NAME"`.
+        symbol: Symbol {
+            identifier: Some(name.to_owned()),
+            ..Symbol::named(name)
+        },
         boundary,
         parent: None,
         connected: Vec::new(),
