@@ -218,6 +218,10 @@ pub enum BenchCommand {
         /// Mission length along the roadmap where the map allows, metres (the paper: ~140).
         #[arg(long, default_value_t = 140.0)]
         mission_length_m: f64,
+        /// Clearance the roadmap keeps beyond the robot's radius, metres (the plan endpoint's
+        /// `options.safety_margin_m`).
+        #[arg(long, default_value_t = 0.1)]
+        safety_margin_m: f64,
     },
     /// POST /v1/plan latency of a running service under C concurrent robot clients.
     PlanLoad {
@@ -640,13 +644,18 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             policy,
             out,
             mission_length_m,
+            safety_margin_m,
         } => {
+            if !(safety_margin_m.is_finite() && (0.0..=5.0).contains(&safety_margin_m)) {
+                anyhow::bail!("--safety-margin-m must lie in [0, 5] metres, got {safety_margin_m}");
+            }
             let options = bench::navigation::NavigationBenchOptions {
                 maps_dir: maps,
                 runs,
                 policy,
                 out_dir: out,
                 mission_length_m,
+                safety_margin_m,
                 verbose: true,
                 ..Default::default()
             };
