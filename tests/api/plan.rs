@@ -290,3 +290,57 @@ async fn a_plan_after_a_write_sees_the_new_knowledge() {
     );
     app.stop().await;
 }
+
+/// Writes a hand-made policy that steers towards its goal (hidden units relu(a), relu(-a), 1
+/// for the scaled goal angle a; linear sigmoid(3 - 60 |a|), angular tanh(20 a)) into `dir`,
+/// saying it was trained for `steps` environment steps.
+fn write_steering_policy(dir: &std::path::Path, steps: u64) {
+    use learning::policy::{PolicyMetadata, write_policy};
+    let scaling = learning::Scaling {
+        layout: learning::InputLayout::Paper,
+        ..learning::Scaling::default()
+    };
+    let inputs = scaling.input_len();
+    let meta = PolicyMetadata::new(scaling, vec![3], json!({"counters": {"env_steps": steps}}));
+    let mut w0 = vec![0.0f32; 3 * inputs];
+    w0[inputs - 1] = 1.0;
+    w0[2 * inputs - 1] = -1.0;
+    let layers = [
+        (w0, vec![0.0, 0.0, 1.0]),
+        (vec![-60.0, -60.0, 3.0, 20.0, -20.0, 0.0], vec![0.0, 0.0]),
+    ];
+    write_policy(dir, &meta, &layers).unwrap();
+}
+
+/// Loaded policies are kept between plans, and a policy exported again under the same id is
+/// the one the next plan drives with.
+#[tokio::test]
+async fn a_policy_exported_again_replaces_the_loaded_one() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let dir = app.data_dir.join("policies").join("steer");
+    std::fs::create_dir_all(&dir).unwrap();
+    let request = json!({
+        "robot": "R-001", "place": "F0", "policy": "steer",
+        "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+        "goal": {"x": goal.0, "y": goal.1},
+        "options": {"seed": 3, "trajectory_stride": 0}
+    });
+    for steps in [111, 222] {
+        write_steering_policy(&dir, steps);
+        for _ in 0..2 {
+            let (status, body) = plan(&app, &request).await;
+            assert_eq!(status, 200, "{body}");
+            assert_eq!(body["controller"], "policy", "{body}");
+            let description = body["controller_description"].as_str().unwrap();
+            assert!(
+                description.contains(&format!("{steps} training steps")),
+                "{description}"
+            );
+        }
+        // Another modification time for the next export, whatever the file system's clock.
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    app.stop().await;
+}

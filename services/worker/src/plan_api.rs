@@ -72,8 +72,9 @@ pub struct PlanApiResponse {
 pub struct PlanApi {
     jobs: Arc<JobsApi>,
     roadmaps: RoadmapCache,
-    /// Loaded policies by id (a policy directory never changes once written).
-    policies: Mutex<HashMap<String, Arc<learning::Policy>>>,
+    /// Loaded policies by id, with the modification time of the weights they were read from
+    /// (an export under the same id replaces the directory).
+    policies: Mutex<HashMap<String, (std::time::SystemTime, Arc<learning::Policy>)>>,
 }
 
 impl std::fmt::Debug for PlanApi {
@@ -95,23 +96,27 @@ impl PlanApi {
         }
     }
 
-    /// The policy `id`, loaded once.
+    /// The policy `id`, loaded again only when its weights file changed.
     async fn policy(&self, id: &str) -> Result<Arc<learning::Policy>, ApiError> {
-        let cached = self
-            .policies
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .get(id)
-            .cloned();
-        if let Some(p) = cached {
-            return Ok(p);
-        }
         let dir = self
             .jobs
             .env
             .policies
             .path(id)
             .ok_or_else(|| ApiError::new(ErrorCode::NotFound, format!("no policy `{id}`")))?;
+        let modified = std::fs::metadata(dir.join(learning::policy::WEIGHTS_FILE))
+            .and_then(|m| m.modified())
+            .ok();
+        let cached = self
+            .policies
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(id)
+            .filter(|(at, _)| Some(*at) == modified)
+            .map(|(_, p)| Arc::clone(p));
+        if let Some(p) = cached {
+            return Ok(p);
+        }
         let loaded = tokio::task::spawn_blocking(move || learning::Policy::load(&dir))
             .await
             .map_err(|e| ApiError::internal(format!("policy loader failed: {e}")))?
@@ -126,7 +131,9 @@ impl PlanApi {
         if policies.len() >= LOADED_POLICIES {
             policies.clear();
         }
-        policies.insert(id.to_owned(), Arc::clone(&loaded));
+        if let Some(at) = modified {
+            policies.insert(id.to_owned(), (at, Arc::clone(&loaded)));
+        }
         Ok(loaded)
     }
 }
