@@ -82,6 +82,28 @@ impl TestApp {
             .bearer_auth(&self.token)
     }
 
+    /// Reports a box-shaped table `id` of `size` metres (length = width = height) at `(x, y)`
+    /// in `place` through `POST /v1/places/{place}/objects`, and checks it was created.
+    pub async fn report_box(&self, place: &str, id: &str, (x, y): (f64, f64), size: f64) {
+        let created = self
+            .request(
+                reqwest::Method::POST,
+                &format!("/v1/places/{place}/objects"),
+            )
+            .json(&serde_json::json!({
+                "id": id,
+                "class": "Table",
+                "pose": {"x": x, "y": y, "yaw": 0.0},
+                "shape": {"type": "box", "length": size, "width": size, "height": size},
+                "colour": {"r": 0.5, "g": 0.4, "b": 0.2}
+            }))
+            .send()
+            .await
+            .expect("request sent");
+        let status = created.status();
+        assert_eq!(status, 201, "{}", created.text().await.unwrap_or_default());
+    }
+
     /// Stops the app gracefully and waits for it.
     pub async fn stop(mut self) {
         self.stop.cancel();

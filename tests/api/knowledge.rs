@@ -357,20 +357,7 @@ async fn the_floor_database_is_revalidated_by_etag() {
         .unwrap();
     assert_eq!(turtle.status(), 200);
 
-    let report = json!({
-        "id": "etag-crate",
-        "class": "Table",
-        "pose": {"x": 0.0, "y": 0.0, "yaw": 0.0},
-        "shape": {"type": "box", "length": 0.5, "width": 0.5, "height": 0.5},
-        "colour": {"r": 0.5, "g": 0.4, "b": 0.2}
-    });
-    let created = app
-        .request(Method::POST, "/v1/places/F0/objects")
-        .json(&report)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(created.status(), 201, "{}", created.text().await.unwrap());
+    app.report_box("F0", "etag-crate", (0.0, 0.0), 0.5).await;
     let changed = get(Some(etag.clone())).await.unwrap();
     assert_eq!(changed.status(), 200, "a write changes the tag");
     assert_ne!(changed.headers()["etag"].to_str().unwrap(), etag);
@@ -536,19 +523,7 @@ async fn the_http_knowledge_source_reuses_its_database_until_a_write() {
         std::sync::Arc::ptr_eq(&first, &second),
         "revalidated, not read again"
     );
-    let created = app
-        .request(Method::POST, "/v1/places/F0/objects")
-        .json(&json!({
-            "id": "source-crate",
-            "class": "Table",
-            "pose": {"x": 0.0, "y": 0.0, "yaw": 0.0},
-            "shape": {"type": "box", "length": 0.5, "width": 0.5, "height": 0.5},
-            "colour": {"r": 0.5, "g": 0.4, "b": 0.2}
-        }))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(created.status(), 201);
+    app.report_box("F0", "source-crate", (0.0, 0.0), 0.5).await;
     let third = source.floor_database("F0", "R-001").await.unwrap();
     assert!(!std::sync::Arc::ptr_eq(&first, &third));
     assert_ne!(first.version, third.version);

@@ -268,20 +268,8 @@ async fn a_plan_after_a_write_sees_the_new_knowledge() {
         let (status, body) = plan(&app, &request).await;
         assert_eq!(status, 200, "{body}");
     }
-    let report = json!({
-        "id": "crate-at-the-goal",
-        "class": "Table",
-        "pose": {"x": goal.0, "y": goal.1, "yaw": 0.0},
-        "shape": {"type": "box", "length": 0.8, "width": 0.8, "height": 1.0},
-        "colour": {"r": 0.5, "g": 0.4, "b": 0.2}
-    });
-    let created = app
-        .request(Method::POST, "/v1/places/F0-hall/objects")
-        .json(&report)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(created.status(), 201, "{}", created.text().await.unwrap());
+    app.report_box("F0-hall", "crate-at-the-goal", goal, 0.8)
+        .await;
     let (status, body) = plan(&app, &request).await;
     assert_eq!(status, 422, "the goal is now inside the crate: {body}");
     assert!(
@@ -289,27 +277,6 @@ async fn a_plan_after_a_write_sees_the_new_knowledge() {
         "{body}"
     );
     app.stop().await;
-}
-
-/// Writes a hand-made policy that steers towards its goal (hidden units relu(a), relu(-a), 1
-/// for the scaled goal angle a; linear sigmoid(3 - 60 |a|), angular tanh(20 a)) into `dir`,
-/// saying it was trained for `steps` environment steps.
-fn write_steering_policy(dir: &std::path::Path, steps: u64) {
-    use learning::policy::{PolicyMetadata, write_policy};
-    let scaling = learning::Scaling {
-        layout: learning::InputLayout::Paper,
-        ..learning::Scaling::default()
-    };
-    let inputs = scaling.input_len();
-    let meta = PolicyMetadata::new(scaling, vec![3], json!({"counters": {"env_steps": steps}}));
-    let mut w0 = vec![0.0f32; 3 * inputs];
-    w0[inputs - 1] = 1.0;
-    w0[2 * inputs - 1] = -1.0;
-    let layers = [
-        (w0, vec![0.0, 0.0, 1.0]),
-        (vec![-60.0, -60.0, 3.0, 20.0, -20.0, 0.0], vec![0.0, 0.0]),
-    ];
-    write_policy(dir, &meta, &layers).unwrap();
 }
 
 /// Loaded policies are kept between plans, and a policy exported again under the same id is
@@ -328,7 +295,12 @@ async fn a_policy_exported_again_replaces_the_loaded_one() {
         "options": {"seed": 3, "trajectory_stride": 0}
     });
     for steps in [111, 222] {
-        write_steering_policy(&dir, steps);
+        learning::policy::write_goal_seeking_policy(
+            &dir,
+            23,
+            json!({"counters": {"env_steps": steps}}),
+        )
+        .unwrap();
         for _ in 0..2 {
             let (status, body) = plan(&app, &request).await;
             assert_eq!(status, 200, "{body}");

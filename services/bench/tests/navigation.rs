@@ -3,8 +3,7 @@
 use std::path::Path;
 
 use bench::navigation::{NavigationBenchOptions, run_navigation_bench};
-use learning::policy::{PolicyMetadata, write_policy};
-use learning::{InputLayout, Scaling};
+use learning::policy::write_goal_seeking_policy;
 
 /// A 12 m x 6 m room at 0.05 m/px with an inner wall at x = 6 open at the top, as map_server
 /// files (PGM rows top first).
@@ -34,29 +33,16 @@ fn write_map(dir: &Path) {
     .expect("yaml");
 }
 
-/// Steers towards the goal: linear sigmoid(3 - 60 |a|), angular tanh(20 a), a = angle / pi.
-fn write_steering_policy(dir: &Path) {
-    let scaling = Scaling {
-        layout: InputLayout::Paper,
-        ..Scaling::default()
-    };
-    let inputs = scaling.input_len();
-    let meta = PolicyMetadata::new(scaling, vec![3], serde_json::json!({"test": true}));
-    let mut w0 = vec![0.0f32; 3 * inputs];
-    w0[inputs - 1] = 1.0;
-    w0[2 * inputs - 1] = -1.0;
-    let layers = [
-        (w0, vec![0.0, 0.0, 1.0]),
-        (vec![-60.0, -60.0, 3.0, 20.0, -20.0, 0.0], vec![0.0, 0.0]),
-    ];
-    write_policy(dir, &meta, &layers).expect("policy");
-}
-
 #[test]
 fn the_benchmark_writes_table_3_for_every_method() {
     let tmp = tempfile::tempdir().expect("tmp");
     write_map(&tmp.path().join("maps"));
-    write_steering_policy(&tmp.path().join("policy"));
+    write_goal_seeking_policy(
+        &tmp.path().join("policy"),
+        23,
+        serde_json::json!({"test": true}),
+    )
+    .expect("policy");
     let report = run_navigation_bench(NavigationBenchOptions {
         maps_dir: tmp.path().join("maps"),
         runs: 2,

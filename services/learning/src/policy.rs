@@ -286,6 +286,33 @@ fn read_f32(
         .collect())
 }
 
+/// Writes a hand-made policy, no training, into `dir`: three hidden units relu(a), relu(-a), 1
+/// for the goal bearing a = θ/π (the paper's input layout), linear speed sigmoid(3 − 60 |a|),
+/// angular speed tanh(20 a) — it turns towards the goal and drives once facing it. For tests and
+/// demonstrations of the runtime and of the plan executor; `training` goes into the metadata.
+pub fn write_goal_seeking_policy(
+    dir: &Path,
+    beams: usize,
+    training: serde_json::Value,
+) -> Result<PolicyMetadata, PolicyError> {
+    let scaling = Scaling {
+        beams,
+        layout: crate::InputLayout::Paper,
+        ..Scaling::default()
+    };
+    let inputs = scaling.input_len();
+    let meta = PolicyMetadata::new(scaling, vec![3], training);
+    let mut w0 = vec![0.0f32; 3 * inputs];
+    w0[inputs - 1] = 1.0; // relu(a)
+    w0[2 * inputs - 1] = -1.0; // relu(-a)
+    let layers = [
+        (w0, vec![0.0, 0.0, 1.0]),
+        (vec![-60.0, -60.0, 3.0, 20.0, -20.0, 0.0], vec![0.0, 0.0]),
+    ];
+    write_policy(dir, &meta, &layers)?;
+    Ok(meta)
+}
+
 /// Writes an actor's layers (`(weight [out, in] row-major, bias)` pairs, input layer first) and
 /// metadata as a policy directory. Used by the trainer's export and by tests.
 pub fn write_policy(

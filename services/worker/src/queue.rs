@@ -462,6 +462,21 @@ macro_rules! on_pool {
     };
 }
 
+/// Appends a `job_events` row in transaction `tx` (inside an [`on_pool!`] arm, where `tx` has
+/// its backend's type): job id, kind, data as JSON text, time.
+macro_rules! insert_event {
+    ($queue:expr, $tx:ident, $id:expr, $kind:expr, $data:expr, $now:expr) => {
+        sqlx::query(INSERT_EVENT)
+            .bind($id)
+            .bind($kind)
+            .bind($data)
+            .bind($now)
+            .execute(&mut *$tx)
+            .await
+            .map_err(|e| $queue.db_err(e))?
+    };
+}
+
 fn to_text(value: &Value) -> String {
     // Serialising a `Value` to a string cannot fail.
     value.to_string()
@@ -543,14 +558,7 @@ impl Queue {
             .execute(&mut *tx)
             .await
             .map_err(|e| self.db_err(e))?;
-            sqlx::query(INSERT_EVENT)
-                .bind(id.to_string())
-                .bind("state")
-                .bind(&event)
-                .bind(now)
-                .execute(&mut *tx)
-                .await
-                .map_err(|e| self.db_err(e))?;
+            insert_event!(self, tx, id.to_string(), "state", &event, now);
             tx.commit().await.map_err(|e| self.db_err(e))?;
         });
         Ok(id)
@@ -626,14 +634,7 @@ impl Queue {
                 let event = to_text(&json!({
                     "state": "running", "attempt": row.attempt, "owner": owner,
                 }));
-                sqlx::query(INSERT_EVENT)
-                    .bind(&row.id)
-                    .bind("state")
-                    .bind(&event)
-                    .bind(now)
-                    .execute(&mut *tx)
-                    .await
-                    .map_err(|e| self.db_err(e))?;
+                insert_event!(self, tx, &row.id, "state", &event, now);
             }
             tx.commit().await.map_err(|e| self.db_err(e))?;
             found
@@ -681,14 +682,7 @@ impl Queue {
                 let event = to_text(&json!({
                     "state": state, "attempt": attempt, "error": "lease expired",
                 }));
-                sqlx::query(INSERT_EVENT)
-                    .bind(id)
-                    .bind("state")
-                    .bind(&event)
-                    .bind(now)
-                    .execute(&mut *tx)
-                    .await
-                    .map_err(|e| self.db_err(e))?;
+                insert_event!(self, tx, id, "state", &event, now);
             }
             tx.commit().await.map_err(|e| self.db_err(e))?;
             rows.len()
@@ -878,14 +872,7 @@ impl Queue {
                     "state": state, "attempt": lease.attempt, "error": error,
                     "run_after_ms": (state == "queued").then_some(*run_after),
                 }));
-                sqlx::query(INSERT_EVENT)
-                    .bind(lease.job_id.to_string())
-                    .bind("state")
-                    .bind(&event)
-                    .bind(now)
-                    .execute(&mut *tx)
-                    .await
-                    .map_err(|e| self.db_err(e))?;
+                insert_event!(self, tx, lease.job_id.to_string(), "state", &event, now);
             }
             tx.commit().await.map_err(|e| self.db_err(e))?;
             row
@@ -944,14 +931,7 @@ impl Queue {
                 let event = to_text(&json!({
                     "state": state, "attempt": lease.attempt, "released": true,
                 }));
-                sqlx::query(INSERT_EVENT)
-                    .bind(lease.job_id.to_string())
-                    .bind("state")
-                    .bind(&event)
-                    .bind(now)
-                    .execute(&mut *tx)
-                    .await
-                    .map_err(|e| self.db_err(e))?;
+                insert_event!(self, tx, lease.job_id.to_string(), "state", &event, now);
             }
             tx.commit().await.map_err(|e| self.db_err(e))?;
             state
@@ -994,14 +974,7 @@ impl Queue {
                 _ => None,
             };
             if let Some((kind, data)) = event {
-                sqlx::query(INSERT_EVENT)
-                    .bind(id.to_string())
-                    .bind(kind)
-                    .bind(to_text(&data))
-                    .bind(now)
-                    .execute(&mut *tx)
-                    .await
-                    .map_err(|e| self.db_err(e))?;
+                insert_event!(self, tx, id.to_string(), kind, to_text(&data), now);
             }
             tx.commit().await.map_err(|e| self.db_err(e))?;
             state

@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use learning::policy::{PolicyMetadata, write_policy};
-use learning::{InputLayout, Policy, Scaling};
+use learning::Policy;
+use learning::policy::write_goal_seeking_policy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sim::{
@@ -315,23 +315,9 @@ fn the_waypoint_timer_replans_from_where_the_robot_is() {
     assert_sound(&world, &report, &req.goals);
 }
 
-/// A hand-made policy that steers towards the goal: hidden units relu(a), relu(-a), 1 for the
-/// scaled goal angle a; linear speed sigmoid(3 - 60 |a|), angular tanh(20 a).
+/// The goal-seeking hand-made policy (`learning::policy::write_goal_seeking_policy`).
 fn steering_policy(dir: &Path, beams: usize) -> Arc<Policy> {
-    let scaling = Scaling {
-        beams,
-        layout: InputLayout::Paper,
-        ..Scaling::default()
-    };
-    let inputs = scaling.input_len();
-    let meta = PolicyMetadata::new(scaling, vec![3], serde_json::json!({"test": true}));
-    let mut w0 = vec![0.0f32; 3 * inputs];
-    w0[inputs - 1] = 1.0; // h0 = relu(a)
-    w0[2 * inputs - 1] = -1.0; // h1 = relu(-a)
-    let b0 = vec![0.0, 0.0, 1.0]; // h2 = 1
-    let w1 = vec![-60.0, -60.0, 3.0, 20.0, -20.0, 0.0];
-    let b1 = vec![0.0, 0.0];
-    write_policy(dir, &meta, &[(w0, b0), (w1, b1)]).expect("written");
+    write_goal_seeking_policy(dir, beams, serde_json::json!({"test": true})).expect("written");
     Arc::new(Policy::load(dir).expect("loads"))
 }
 
