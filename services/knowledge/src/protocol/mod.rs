@@ -10,6 +10,7 @@
 
 mod evaluation;
 mod graph_store;
+mod inline;
 pub mod negotiation;
 mod service_description;
 mod sparql;

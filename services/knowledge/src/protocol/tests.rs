@@ -111,3 +111,63 @@ async fn a_client_that_hangs_up_stops_its_query() {
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
 }
+
+/// A query fast enough last time runs in place on the async worker; when the data has grown
+/// and it is slow this time, the watchdog still stops it at its deadline, through HTTP.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[allow(
+    clippy::await_holding_lock,
+    reason = "the lock only orders this test with the permit test, which runs no async code"
+)]
+async fn a_query_run_in_place_still_stops_at_its_deadline() {
+    let _turn = inline::tests::PERMITS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let store = KnowledgeStore::in_memory().unwrap();
+    let load = |from: usize, to: usize| {
+        let turtle: String = (from..to)
+            .map(|i| format!("<http://example.org/in-place/s{i}> <http://example.org/p> {i} .\n"))
+            .collect();
+        store
+            .embedded()
+            .unwrap()
+            .load_from_slice(oxigraph::io::RdfFormat::Turtle, turtle.as_bytes())
+            .unwrap();
+    };
+    load(0, 2);
+    let limits = QueryLimits {
+        deadline: Duration::from_millis(300),
+        max_construct_triples: 10,
+    };
+    let knowledge = Arc::new(Knowledge::new(store.clone(), Tokens::open(), limits));
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let address = listener.local_addr().unwrap();
+    tokio::spawn(async move { axum::serve(listener, router(knowledge)).await });
+    let client = reqwest::Client::new();
+    let ask = || {
+        client
+            .get(format!("http://{address}/sparql"))
+            .query(&[("query", SLOW)])
+            .header("accept", "application/sparql-results+json")
+            .send()
+    };
+    // Two triples: 8 rows, well under the in-place budget, twice (the second runs in place).
+    for _ in 0..2 {
+        assert_eq!(ask().await.unwrap().status(), 200);
+    }
+    // 2,000 triples: 8·10⁹ rows. In place (short last time), stopped by the watchdog.
+    load(2, 2000);
+    let before = inline::run_in_place();
+    let started = Instant::now();
+    let response = ask().await.unwrap();
+    assert_eq!(response.status(), 503, "{:?}", response.text().await);
+    assert_eq!(inline::run_in_place(), before + 1, "it ran in place");
+    assert!(
+        started.elapsed() < Duration::from_secs(5),
+        "stopped late: {:?}",
+        started.elapsed()
+    );
+    // Slow last time: the next run takes the blocking path and is stopped as well.
+    let response = ask().await.unwrap();
+    assert_eq!(response.status(), 503);
+}
