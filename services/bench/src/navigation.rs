@@ -101,10 +101,15 @@ impl Default for NavigationBenchOptions {
     }
 }
 
-/// The methods, in table order.
-pub const METHODS: [&str; 4] = [
+/// The methods, in table order. `hybrid_prm_rl` is what `POST /v1/plan` runs: the policy
+/// behind the collision shield (`worker::plan::Shield`); `hybrid_unshielded` is the paper's
+/// hybrid, the policy's commands sent to the wheels unchanged; `*_resampled` is the same with
+/// the roadmap re-sampled after a failed attempt.
+pub const METHODS: [&str; 6] = [
     "hybrid_prm_rl",
     "hybrid_prm_rl_resampled",
+    "hybrid_unshielded",
+    "hybrid_unshielded_resampled",
     "pure_rl",
     "classical_prm",
 ];
@@ -465,6 +470,10 @@ fn run_map(
         validate_ms[0].push(elapsed);
         rows.push(row("hybrid_prm_rl", name, run, &first));
         rows.push(row("hybrid_prm_rl_resampled", name, run, &last));
+        let mut unshielded = PolicyController::without_shield(Arc::clone(policy));
+        let (first_u, last_u, _) = timed_validate(world, cache, name, &request, &mut unshielded)?;
+        rows.push(row("hybrid_unshielded", name, run, &first_u));
+        rows.push(row("hybrid_unshielded_resampled", name, run, &last_u));
 
         // Pure RL: the policy straight at the final goal.
         let timeout = (opts.pure_rl_seconds_per_10m * mission.prm_length_m / 10.0)

@@ -77,6 +77,7 @@ pub fn validate_with(
     let opts = &request.options;
     check_request(request)?;
     let beams = controller_beams(world, controller)?;
+    controller.attach(world, beams);
     let inflation = planning::Inflation {
         robot_radius_m: world.spec().robot.footprint_radius,
         safety_margin_m: opts.safety_margin_m,

@@ -18,7 +18,7 @@ pub mod grid;
 pub mod types;
 
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
-pub use controller::{ClassicalFollower, Controller, FollowerParams, PolicyController};
+pub use controller::{ClassicalFollower, Controller, FollowerParams, PolicyController, Shield};
 pub use error::{BlockedReason, PlanError};
 pub use executor::{
     DriveLimits, DriveRun, Replanner, config_space, drive, env_config, validate, validate_with,
