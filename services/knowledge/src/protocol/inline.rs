@@ -6,8 +6,8 @@
 //! per request for a query that finds nothing, against 90 µs for `oxigraph serve`, which
 //! answers each connection on one thread).
 //!
-//! A query whose last evaluation (same text, same dataset, same format) took less than
-//! [`BUDGET`] is run again in place, as long as fewer than `workers - 1` such reads are running,
+//! A query whose last evaluation (same text, same dataset, same format) cost less than
+//! [`BUDGET`] of CPU time is run again in place, as long as fewer than `workers - 1` such reads are running,
 //! so one worker always stays free for other connections, timers and health checks. The
 //! deadline still holds: a watchdog thread cancels the query's token when it passes, and
 //! Oxigraph stops at its next step. What is lost in place is only the early stop when a client
@@ -22,8 +22,32 @@ use std::time::{Duration, Instant};
 
 use oxigraph::sparql::CancellationToken;
 
-/// A read that took less than this last time may run in place.
+/// A read that cost less than this much CPU time last time may run in place.
 pub(super) const BUDGET: Duration = Duration::from_millis(2);
+
+/// The CPU time the current thread has used so far: what a read costs, whatever the load
+/// (wall time on a busy machine also counts the time other threads held the core, and would
+/// send every query the blocking way exactly when the hand-off costs most).
+pub(super) struct CpuClock(Option<Duration>);
+
+impl CpuClock {
+    /// Starts measuring on this thread.
+    pub(super) fn start() -> Self {
+        Self(thread_cpu())
+    }
+
+    /// CPU time used by this thread since `start`; `None` when the clock cannot be read (the
+    /// read is then not remembered as short).
+    pub(super) fn elapsed(&self) -> Option<Duration> {
+        Some(thread_cpu()?.saturating_sub(self.0?))
+    }
+}
+
+fn thread_cpu() -> Option<Duration> {
+    nix::time::clock_gettime(nix::time::ClockId::CLOCK_THREAD_CPUTIME_ID)
+        .ok()
+        .map(Duration::from)
+}
 
 /// Remembered query keys before the memory is cleared and relearned.
 const CAPACITY: usize = 16_384;
@@ -52,10 +76,10 @@ fn short() -> &'static Mutex<HashMap<u64, ()>> {
     SHORT.get_or_init(|| Mutex::new(HashMap::new()))
 }
 
-/// Remembers how long the read `key` took.
-pub(super) fn record(key: u64, took: Duration) {
+/// Remembers what the read `key` cost (`None`: unknown, so not short).
+pub(super) fn record(key: u64, took: Option<Duration>) {
     let mut short = short().lock().unwrap_or_else(PoisonError::into_inner);
-    if took < BUDGET {
+    if took.is_some_and(|t| t < BUDGET) {
         if short.len() >= CAPACITY {
             short.clear();
         }
@@ -229,8 +253,8 @@ pub(super) mod tests {
             .unwrap();
         let _entered = runtime.enter();
         let (fast, slow, unseen) = (key(&["fast"]), key(&["slow"]), key(&["unseen"]));
-        record(fast, Duration::from_micros(300));
-        record(slow, Duration::from_millis(40));
+        record(fast, Some(Duration::from_micros(300)));
+        record(slow, Some(Duration::from_millis(40)));
         assert!(permit(unseen).is_none());
         assert!(permit(slow).is_none());
         let first = permit(fast).expect("short last time");
@@ -239,7 +263,7 @@ pub(super) mod tests {
         drop((first, second));
         assert!(permit(fast).is_some());
         // Slow this time: the next run takes the blocking path.
-        record(fast, Duration::from_millis(40));
+        record(fast, Some(Duration::from_millis(40)));
         assert!(permit(fast).is_none());
     }
 
@@ -250,7 +274,7 @@ pub(super) mod tests {
             .unwrap();
         let _entered = runtime.enter();
         let fast = key(&["fast on one thread"]);
-        record(fast, Duration::from_micros(300));
+        record(fast, Some(Duration::from_micros(300)));
         assert!(permit(fast).is_none());
     }
 }
