@@ -1,7 +1,7 @@
 //! Prometheus metrics: one process-wide recorder, and request counts and latencies by matched route.
 
 use std::sync::OnceLock;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use axum::extract::{MatchedPath, Request};
 use axum::middleware::Next;
@@ -33,9 +33,33 @@ pub fn handle() -> &'static PrometheusHandle {
         // Another recorder may already be installed (a host program embedding us); then we
         // still render our own handle, which simply stays empty.
         let _ = metrics::set_global_recorder(recorder);
+        start_upkeep(handle.clone());
         handle
     })
 }
+
+/// How often pending histogram samples are folded into their buckets.
+const UPKEEP_INTERVAL: Duration = Duration::from_secs(5);
+
+/// A recorder built by `build_recorder` (not `install`) keeps every histogram sample in a
+/// pending list until a scrape renders it: without a Prometheus scraping `/metrics`, memory
+/// would grow with every request. One thread folds them in every [`UPKEEP_INTERVAL`].
+fn start_upkeep(handle: PrometheusHandle) {
+    let spawned = std::thread::Builder::new()
+        .name(UPKEEP_THREAD.to_owned())
+        .spawn(move || {
+            loop {
+                std::thread::sleep(UPKEEP_INTERVAL);
+                handle.run_upkeep();
+            }
+        });
+    if let Err(e) = spawned {
+        tracing::error!(error = %e, "cannot start the metrics upkeep thread; histogram samples will pile up until /metrics is scraped");
+    }
+}
+
+/// The upkeep thread's name.
+const UPKEEP_THREAD: &str = "metrics-upkeep";
 
 /// Middleware recording `http_requests_total` and `http_request_duration_seconds`, labelled by
 /// method, matched route template (never the raw path, which would explode cardinality) and status.
@@ -54,4 +78,32 @@ pub async fn track(request: Request, next: Next) -> Response {
     metrics::histogram!("http_request_duration_seconds", &labels)
         .record(started.elapsed().as_secs_f64());
     response
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: without upkeep, every request's latency sample stayed in memory until a
+    /// scrape.
+    #[test]
+    fn the_handle_comes_with_an_upkeep_thread() {
+        handle();
+        let running = || {
+            let threads = std::fs::read_dir("/proc/self/task").expect("linux /proc");
+            threads.filter_map(Result::ok).any(|task| {
+                std::fs::read_to_string(task.path().join("comm"))
+                    .is_ok_and(|comm| comm.trim() == UPKEEP_THREAD)
+            })
+        };
+        // The thread names itself once it runs.
+        let started = Instant::now();
+        while !running() {
+            assert!(
+                started.elapsed() < Duration::from_secs(5),
+                "no {UPKEEP_THREAD} thread"
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
 }
