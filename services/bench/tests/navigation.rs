@@ -55,15 +55,15 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.missions.len(), 1, "{:?}", report.skipped);
     let m = &report.missions[0];
     assert!(!m.full_length && m.prm_length_m > 5.0, "{m:?}");
-    // Four methods, two runs each.
-    assert_eq!(report.rows.len(), 8);
+    // Six methods (both hybrids twice, pure RL, classical), two runs each.
+    assert_eq!(report.rows.len(), 12);
     let csv = std::fs::read_to_string(&report.csv_path).expect("csv");
     let mut lines = csv.lines();
     assert_eq!(
         lines.next(),
         Some("method,map,run,success,distance_m,time_s")
     );
-    assert_eq!(lines.count(), 8);
+    assert_eq!(lines.count(), 12);
     // The classical follower on the roadmap path reaches the goal.
     assert!(
         report
@@ -77,6 +77,7 @@ fn the_benchmark_writes_table_3_for_every_method() {
     let md = std::fs::read_to_string(&report.markdown_path).expect("md");
     for needle in [
         "hybrid_prm_rl",
+        "hybrid_unshielded",
         "pure_rl",
         "classical_prm",
         "Plan latency",
