@@ -7,7 +7,7 @@
 //! answers each connection on one thread).
 //!
 //! A query whose last evaluation (same text, same dataset, same format) cost less than
-//! [`BUDGET`] of CPU time is run again in place, as long as fewer than `workers - 1` such reads are running,
+//! [`BUDGET`] of CPU time (and under [`WALL_BUDGET`] of wall time) is run again in place, as long as fewer than `workers - 1` such reads are running,
 //! so one worker always stays free for other connections, timers and health checks. The
 //! deadline still holds: a watchdog thread cancels the query's token when it passes, and
 //! Oxigraph stops at its next step. What is lost in place is only the early stop when a client
@@ -25,21 +25,51 @@ use oxigraph::sparql::CancellationToken;
 /// A read that cost less than this much CPU time last time may run in place.
 pub(super) const BUDGET: Duration = Duration::from_millis(2);
 
-/// The CPU time the current thread has used so far: what a read costs, whatever the load
-/// (wall time on a busy machine also counts the time other threads held the core, and would
-/// send every query the blocking way exactly when the hand-off costs most).
-pub(super) struct CpuClock(Option<Duration>);
+/// ... and took less than this much wall time: a read that waited on the disk costs little CPU
+/// but would hold its worker for the whole wait. Generous, because on a loaded machine wall
+/// time also counts the time other threads held the core.
+pub(super) const WALL_BUDGET: Duration = Duration::from_millis(20);
 
-impl CpuClock {
+/// What one read cost.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Cost {
+    /// CPU time of the evaluating thread; `None` when its clock cannot be read.
+    pub cpu: Option<Duration>,
+    /// Wall time.
+    pub wall: Duration,
+}
+
+impl Cost {
+    fn is_short(&self) -> bool {
+        self.cpu.is_some_and(|cpu| cpu < BUDGET) && self.wall < WALL_BUDGET
+    }
+}
+
+/// Measures a read's [`Cost`] on the thread that evaluates it. CPU time is the measure of
+/// work: wall time alone would, on a busy machine, send every query the blocking way exactly
+/// when the hand-off costs most.
+pub(super) struct CostClock {
+    cpu: Option<Duration>,
+    wall: Instant,
+}
+
+impl CostClock {
     /// Starts measuring on this thread.
     pub(super) fn start() -> Self {
-        Self(thread_cpu())
+        Self {
+            cpu: thread_cpu(),
+            wall: Instant::now(),
+        }
     }
 
-    /// CPU time used by this thread since `start`; `None` when the clock cannot be read (the
-    /// read is then not remembered as short).
-    pub(super) fn elapsed(&self) -> Option<Duration> {
-        Some(thread_cpu()?.saturating_sub(self.0?))
+    /// The cost since `start`, on the same thread.
+    pub(super) fn elapsed(&self) -> Cost {
+        Cost {
+            cpu: thread_cpu()
+                .zip(self.cpu)
+                .map(|(now, then)| now.saturating_sub(then)),
+            wall: self.wall.elapsed(),
+        }
     }
 }
 
@@ -76,10 +106,10 @@ fn short() -> &'static Mutex<HashMap<u64, ()>> {
     SHORT.get_or_init(|| Mutex::new(HashMap::new()))
 }
 
-/// Remembers what the read `key` cost (`None`: unknown, so not short).
-pub(super) fn record(key: u64, took: Option<Duration>) {
+/// Remembers what the read `key` cost.
+pub(super) fn record(key: u64, cost: Cost) {
     let mut short = short().lock().unwrap_or_else(PoisonError::into_inner);
-    if took.is_some_and(|t| t < BUDGET) {
+    if cost.is_short() {
         if short.len() >= CAPACITY {
             short.clear();
         }
@@ -244,6 +274,32 @@ pub(super) mod tests {
         assert!(!spared.is_cancelled());
     }
 
+    fn cost(cpu_us: u64, wall_us: u64) -> Cost {
+        Cost {
+            cpu: Some(Duration::from_micros(cpu_us)),
+            wall: Duration::from_micros(wall_us),
+        }
+    }
+
+    #[test]
+    fn a_read_is_short_by_its_cpu_time_and_not_waiting_long() {
+        assert!(cost(300, 900).is_short());
+        // Preempted on a busy machine: still short.
+        assert!(cost(300, 9_000).is_short());
+        // Real work.
+        assert!(!cost(40_000, 40_000).is_short());
+        // Waiting on the disk: little CPU, a long hold.
+        assert!(!cost(300, 60_000).is_short());
+        // No clock: not known to be short.
+        assert!(
+            !Cost {
+                cpu: None,
+                wall: Duration::from_micros(10)
+            }
+            .is_short()
+        );
+    }
+
     #[test]
     fn only_reads_short_last_time_get_a_permit() {
         let _turn = PERMITS.lock().unwrap_or_else(PoisonError::into_inner);
@@ -253,8 +309,8 @@ pub(super) mod tests {
             .unwrap();
         let _entered = runtime.enter();
         let (fast, slow, unseen) = (key(&["fast"]), key(&["slow"]), key(&["unseen"]));
-        record(fast, Some(Duration::from_micros(300)));
-        record(slow, Some(Duration::from_millis(40)));
+        record(fast, cost(300, 400));
+        record(slow, cost(40_000, 40_000));
         assert!(permit(unseen).is_none());
         assert!(permit(slow).is_none());
         let first = permit(fast).expect("short last time");
@@ -263,7 +319,7 @@ pub(super) mod tests {
         drop((first, second));
         assert!(permit(fast).is_some());
         // Slow this time: the next run takes the blocking path.
-        record(fast, Some(Duration::from_millis(40)));
+        record(fast, cost(40_000, 40_000));
         assert!(permit(fast).is_none());
     }
 
@@ -274,7 +330,7 @@ pub(super) mod tests {
             .unwrap();
         let _entered = runtime.enter();
         let fast = key(&["fast on one thread"]);
-        record(fast, Some(Duration::from_micros(300)));
+        record(fast, cost(300, 400));
         assert!(permit(fast).is_none());
     }
 }

@@ -172,7 +172,7 @@ async fn answer_query(
             let Some(embedded) = store.embedded() else {
                 return Err(ApiError::internal("the store has no backend"));
             };
-            let started = inline::CpuClock::start();
+            let started = inline::CostClock::start();
             let result = evaluation::run_query(
                 embedded,
                 query,
