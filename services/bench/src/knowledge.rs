@@ -495,19 +495,37 @@ fn checked(
     Ok(response)
 }
 
+/// A SPARQL query by POST (direct), asking for JSON results, with the bearer token if any.
+fn sparql_request(
+    client: &reqwest::blocking::Client,
+    endpoint: &str,
+    token: Option<&str>,
+    query: &str,
+) -> reqwest::blocking::RequestBuilder {
+    let request = client
+        .post(endpoint)
+        .header("content-type", "application/sparql-query")
+        .header("accept", "application/sparql-results+json")
+        .body(query.to_owned());
+    match token {
+        Some(token) => request.bearer_auth(token),
+        None => request,
+    }
+}
+
 fn count_triples(
     client: &reqwest::blocking::Client,
     url: &str,
     token: &str,
 ) -> Result<usize, KnowledgeBenchError> {
     let response = checked(
-        client
-            .post(format!("{url}/sparql"))
-            .bearer_auth(token)
-            .header("content-type", "application/sparql-query")
-            .header("accept", "application/sparql-results+json")
-            .body("SELECT (COUNT(*) AS ?n) WHERE { { ?s ?p ?o } UNION { GRAPH ?g { ?s ?p ?o } } }")
-            .send(),
+        sparql_request(
+            client,
+            &format!("{url}/sparql"),
+            Some(token),
+            "SELECT (COUNT(*) AS ?n) WHERE { { ?s ?p ?o } UNION { GRAPH ?g { ?s ?p ?o } } }",
+        )
+        .send(),
         "counting triples",
     )?;
     let body: serde_json::Value = response
@@ -528,14 +546,7 @@ fn check_mix(
     mix: &[(&'static str, String)],
 ) -> Result<(), KnowledgeBenchError> {
     let rows = |endpoint: &str, token: Option<&str>, query: &str| {
-        let mut request = client
-            .post(endpoint)
-            .header("content-type", "application/sparql-query")
-            .header("accept", "application/sparql-results+json")
-            .body(query.to_owned());
-        if let Some(token) = token {
-            request = request.bearer_auth(token);
-        }
+        let request = sparql_request(client, endpoint, token, query);
         let body: serde_json::Value = checked(request.send(), endpoint)?
             .json()
             .map_err(|e| fail(format!("{endpoint}: {e}")))?;
@@ -663,14 +674,7 @@ fn throughput(
                 let variants = &by_kind[kind];
                 let query = &variants[(i / by_kind.len()) % variants.len()];
                 i += 1;
-                let mut request = client
-                    .post(&endpoint)
-                    .header("content-type", "application/sparql-query")
-                    .header("accept", "application/sparql-results+json")
-                    .body(query.clone());
-                if let Some(token) = &token {
-                    request = request.bearer_auth(token);
-                }
+                let request = sparql_request(&client, &endpoint, token.as_deref(), query);
                 let t0 = Instant::now();
                 let outcome = request.send().and_then(|r| {
                     let status = r.status();

@@ -7,14 +7,16 @@
 //! answers each connection on one thread).
 //!
 //! A query whose last evaluation (same text, same dataset, same format) cost less than
-//! [`BUDGET`] of CPU time (and under [`WALL_BUDGET`] of wall time) is run again in place, as long as fewer than `workers - 1` such reads are running,
-//! so one worker always stays free for other connections, timers and health checks. The
-//! deadline still holds: a watchdog thread cancels the query's token when it passes, and
-//! Oxigraph stops at its next step. What is lost in place is only the early stop when a client
-//! hangs up mid-query, which for a query that took under a millisecond last time is moot.
-//! A query never seen, or slow last time, takes the blocking path.
+//! [`BUDGET`] of CPU time and [`WALL_BUDGET`] of wall time runs again in place
+//! ([`super::Deadline::read_remembered`]), as long as fewer than `workers - 1` such reads are
+//! running, so one worker always stays free for other connections, timers and health checks.
+//! The deadline still holds: a watchdog thread cancels the query's token when it passes, and
+//! Oxigraph stops at its next step. What is lost in place is the early stop when a client hangs
+//! up mid-query: moot for a query that was short last time, and for one that has since become
+//! slow (the data grew), it runs to its deadline. A query never seen, or slow last time, takes
+//! the blocking path.
 
-use std::collections::HashMap;
+use std::collections::HashSet;
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock, PoisonError};
@@ -90,7 +92,7 @@ pub(super) fn key(parts: &[&str]) -> u64 {
 }
 
 /// Keys of reads that were short the last time they ran.
-static SHORT: OnceLock<Mutex<HashMap<u64, ()>>> = OnceLock::new();
+static SHORT: OnceLock<Mutex<HashSet<u64>>> = OnceLock::new();
 /// Reads running in place now.
 static IN_PLACE: AtomicUsize = AtomicUsize::new(0);
 /// Reads run in place since the process started.
@@ -102,8 +104,8 @@ pub(super) fn run_in_place() -> usize {
     RUN_IN_PLACE.load(Ordering::Relaxed)
 }
 
-fn short() -> &'static Mutex<HashMap<u64, ()>> {
-    SHORT.get_or_init(|| Mutex::new(HashMap::new()))
+fn short() -> &'static Mutex<HashSet<u64>> {
+    SHORT.get_or_init(|| Mutex::new(HashSet::new()))
 }
 
 /// Remembers what the read `key` cost.
@@ -113,14 +115,14 @@ pub(super) fn record(key: u64, cost: Cost) {
         if short.len() >= CAPACITY {
             short.clear();
         }
-        short.insert(key, ());
+        short.insert(key);
     } else {
         short.remove(&key);
     }
 }
 
 /// A permit to run `key` in place, when it was short last time, the runtime has a worker to
-/// spare, and it is a multi-threaded runtime at all.
+/// spare, it is a multi-threaded runtime at all, and the watchdog keeps deadlines.
 pub(super) fn permit(key: u64) -> Option<InPlace> {
     let handle = tokio::runtime::Handle::try_current().ok()?;
     if handle.runtime_flavor() != tokio::runtime::RuntimeFlavor::MultiThread {
@@ -130,8 +132,11 @@ pub(super) fn permit(key: u64) -> Option<InPlace> {
     if !short()
         .lock()
         .unwrap_or_else(PoisonError::into_inner)
-        .contains_key(&key)
+        .contains(&key)
     {
+        return None;
+    }
+    if !watchdog_running() {
         return None;
     }
     let mut running = IN_PLACE.load(Ordering::Relaxed);
@@ -165,11 +170,7 @@ impl Drop for InPlace {
 
 /// Cancels `token` at `at` unless the returned guard is dropped first.
 pub(super) fn watch(token: CancellationToken, at: Instant) -> Watched {
-    let watchdog = watchdog();
-    let mut state = watchdog
-        .state
-        .lock()
-        .unwrap_or_else(PoisonError::into_inner);
+    let mut state = WATCHED.lock().unwrap_or_else(PoisonError::into_inner);
     state.next_id += 1;
     let id = state.next_id;
     state.watched.push((id, at, token));
@@ -183,44 +184,41 @@ pub(super) struct Watched {
 
 impl Drop for Watched {
     fn drop(&mut self) {
-        let mut state = watchdog()
-            .state
+        WATCHED
             .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        state.watched.retain(|(id, _, _)| *id != self.id);
+            .unwrap_or_else(PoisonError::into_inner)
+            .watched
+            .retain(|(id, _, _)| *id != self.id);
     }
 }
 
-#[derive(Default)]
 struct WatchState {
     next_id: u64,
     watched: Vec<(u64, Instant, CancellationToken)>,
 }
 
-struct Watchdog {
-    state: Mutex<WatchState>,
-}
+/// The tokens under watch, with their deadlines.
+static WATCHED: Mutex<WatchState> = Mutex::new(WatchState {
+    next_id: 0,
+    watched: Vec::new(),
+});
 
 /// How often the watchdog looks. Waking it for every new read would cost the very thread
 /// wake-up that running in place saves; deadlines are seconds, so a tick is precise enough.
 const TICK: Duration = Duration::from_millis(20);
 
-/// The process's one watchdog thread, started on first use. Every [`TICK`] it cancels the
-/// tokens whose deadline has passed.
-fn watchdog() -> &'static Watchdog {
-    static WATCHDOG: OnceLock<&'static Watchdog> = OnceLock::new();
-    WATCHDOG.get_or_init(|| {
-        let watchdog: &'static Watchdog = Box::leak(Box::new(Watchdog {
-            state: Mutex::new(WatchState::default()),
-        }));
+/// Whether the process's one watchdog thread runs, starting it on first use. Every [`TICK`] it
+/// cancels the tokens whose deadline has passed. Without it no read may run in place.
+fn watchdog_running() -> bool {
+    static RUNNING: OnceLock<bool> = OnceLock::new();
+    *RUNNING.get_or_init(|| {
         let spawned = std::thread::Builder::new()
             .name("sparql-deadlines".to_owned())
-            .spawn(move || {
+            .spawn(|| {
                 loop {
                     std::thread::sleep(TICK);
                     let now = Instant::now();
-                    watchdog
-                        .state
+                    WATCHED
                         .lock()
                         .unwrap_or_else(PoisonError::into_inner)
                         .watched
@@ -234,13 +232,10 @@ fn watchdog() -> &'static Watchdog {
                         });
                 }
             });
-        if let Err(e) = spawned {
-            // Without the thread, deadlines of in-place reads would not fire; `permit` then
-            // still hands out permits, so say it loudly. (Spawning a thread only fails when
-            // the process is out of resources.)
-            tracing::error!(error = %e, "cannot start the SPARQL deadline watchdog");
+        if let Err(e) = &spawned {
+            tracing::warn!(error = %e, "no SPARQL deadline watchdog: every query takes the blocking path");
         }
-        watchdog
+        spawned.is_ok()
     })
 }
 
@@ -254,6 +249,7 @@ pub(super) mod tests {
 
     #[test]
     fn the_watchdog_cancels_at_the_deadline_and_not_after_unwatch() {
+        assert!(watchdog_running());
         let fires = CancellationToken::new();
         let _watched = watch(fires.clone(), Instant::now() + Duration::from_millis(30));
         let spared = CancellationToken::new();

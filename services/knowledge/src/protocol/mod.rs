@@ -17,7 +17,7 @@ mod sparql;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use axum::Router;
 use axum::http::header::{ALLOW, HOST};
@@ -257,6 +257,31 @@ impl Deadline {
                 "evaluation task failed: {join}"
             ))),
             Ok(Ok(result)) => result,
+        }
+    }
+
+    /// [`Self::read`] for a read that may come again (a query, by its text, dataset and
+    /// format: `key`). One that was short last time runs in place on this async worker
+    /// instead, its deadline kept by the watchdog (see [`inline`]); every run's cost is
+    /// remembered for the next.
+    async fn read_remembered<T: Send + 'static>(
+        &self,
+        key: u64,
+        work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+    ) -> Result<T, ApiError> {
+        let measured = move || {
+            let clock = inline::CostClock::start();
+            let result = work();
+            inline::record(key, clock.elapsed());
+            result
+        };
+        match inline::permit(key) {
+            Some(_in_place) => {
+                let _running = Running::enter();
+                let _watched = inline::watch(self.token(), Instant::now() + self.limit);
+                measured()
+            }
+            None => self.read(measured).await,
         }
     }
 

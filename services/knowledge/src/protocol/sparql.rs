@@ -3,7 +3,6 @@
 //! query.
 
 use std::sync::Arc;
-use std::time::Instant;
 
 use axum::body::Bytes;
 use axum::extract::State;
@@ -16,9 +15,7 @@ use spargebra::{GraphUpdateOperation, Query, SparqlParser};
 
 use super::evaluation::{self, EvaluationError, ProtocolDataset};
 use super::negotiation::{self, Format, GRAPH_FORMATS};
-use super::{
-    Deadline, Params, Running, body_media_type, inline, method_not_allowed, request_origin,
-};
+use super::{Deadline, Params, body_media_type, inline, method_not_allowed, request_origin};
 use crate::auth::Role;
 use crate::service::Knowledge;
 
@@ -168,31 +165,22 @@ async fn answer_query(
     } else {
         // Same text, dataset and format: the same cost as last time, most likely.
         let key = inline::key(&[text, content_type, &format!("{dataset:?}")]);
-        let evaluate = move || {
-            let Some(embedded) = store.embedded() else {
-                return Err(ApiError::internal("the store has no backend"));
-            };
-            let started = inline::CostClock::start();
-            let result = evaluation::run_query(
-                embedded,
-                query,
-                dataset.as_ref(),
-                format,
-                limits.max_construct_triples,
-                token,
-            )
-            .map_err(|e| evaluation_error(e, &exceeded));
-            inline::record(key, started.elapsed());
-            result
-        };
-        match inline::permit(key) {
-            Some(_in_place) => {
-                let _running = Running::enter();
-                let _watched = inline::watch(deadline.token(), Instant::now() + limits.deadline);
-                evaluate()?
-            }
-            None => deadline.read(evaluate).await?,
-        }
+        deadline
+            .read_remembered(key, move || {
+                let Some(embedded) = store.embedded() else {
+                    return Err(ApiError::internal("the store has no backend"));
+                };
+                evaluation::run_query(
+                    embedded,
+                    query,
+                    dataset.as_ref(),
+                    format,
+                    limits.max_construct_triples,
+                    token,
+                )
+                .map_err(|e| evaluation_error(e, &exceeded))
+            })
+            .await?
     };
     Ok((
         [
