@@ -103,6 +103,10 @@ pub enum Command {
         /// Seed of the mission set.
         #[arg(long, default_value_t = 7)]
         seed: u64,
+        /// Which held-out goals the headline figures are about (the other kind is reported
+        /// beside them).
+        #[arg(long, value_enum, default_value_t = crate::train::Goals::InView)]
+        goals: crate::train::Goals,
         /// Write the figures as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -339,8 +343,10 @@ pub fn main() -> ExitCode {
             map,
             episodes,
             seed,
+            goals,
             json,
-        } => crate::train::eval(&policy, &map, episodes, seed).and_then(|v| print_json(&v, json)),
+        } => crate::train::eval(&policy, &map, episodes, seed, goals)
+            .and_then(|v| print_json(&v, json)),
         Command::Bench(bench) => run_bench(bench),
     };
     match result {

@@ -73,6 +73,10 @@ pub struct TrainArgs {
     /// Held-out missions of the final evaluation.
     #[arg(long, default_value_t = 200)]
     pub eval_episodes: usize,
+    /// Which held-out goals `eval.json`'s headline figures are about (the other kind is
+    /// reported beside them).
+    #[arg(long, value_enum, default_value_t = Goals::InView)]
+    pub goals: Goals,
     /// Show a progress bar (the command line always does).
     #[arg(skip = true)]
     pub progress: bool,
@@ -249,13 +253,21 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<serde_json::
     )?;
     let policy = Policy::load(&args.out)?;
     let held_out_seed = trainer.options().config.eval_seed.wrapping_add(1);
-    let report = learning::evaluate_held_out(&policy, &world, args.eval_episodes, held_out_seed)?;
+    let (report, other) = held_out(
+        &policy,
+        &world,
+        args.eval_episodes,
+        held_out_seed,
+        args.goals,
+    )?;
     let json = serde_json::json!({
+        "goals": args.goals.name(),
         "success_rate": report.success_rate,
         "collision_rate": report.collision_rate,
         "timeout_rate": report.timeout_rate,
         "mean_time_to_goal_s": report.mean_time_to_goal_s,
         "eval_episodes": report.episodes,
+        args.goals.other().key(): other,
         "episodes": counters.episodes,
         "env_steps": counters.env_steps,
         "grad_steps": counters.grad_steps,
@@ -283,12 +295,77 @@ fn map_name(map: &Path) -> String {
         .map_or_else(|| "map".into(), |s| s.to_string_lossy().into_owned())
 }
 
+/// Which held-out goals the headline figures of `eval.json` are about.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Goals {
+    /// Goals 2–10 m away that the robot can reach in a straight line: the waypoints of a
+    /// roadmap plan, which is what the policy drives between.
+    InView,
+    /// Goals 2–10 m away anywhere in the free region, also behind walls, where only a detour
+    /// the laser cannot show reaches them.
+    Anywhere,
+}
+
+impl Goals {
+    fn name(self) -> &'static str {
+        match self {
+            Goals::InView => "in-view",
+            Goals::Anywhere => "anywhere",
+        }
+    }
+
+    /// The key under which `eval.json` reports this kind when it is not the headline.
+    fn key(self) -> &'static str {
+        match self {
+            Goals::InView => "goals_in_view",
+            Goals::Anywhere => "goals_anywhere",
+        }
+    }
+
+    fn other(self) -> Goals {
+        match self {
+            Goals::InView => Goals::Anywhere,
+            Goals::Anywhere => Goals::InView,
+        }
+    }
+}
+
+/// The held-out evaluation on `goals`, and a summary of the same on the other kind of goals
+/// (drawn from the same seed), so that `eval.json` always shows both.
+fn held_out(
+    policy: &Policy,
+    world: &Arc<World>,
+    episodes: usize,
+    seed: u64,
+    goals: Goals,
+) -> anyhow::Result<(learning::EvalReport, serde_json::Value)> {
+    let report =
+        learning::evaluate_held_out(policy, world, episodes, seed, goals == Goals::InView)?;
+    let other = learning::evaluate_held_out(
+        policy,
+        world,
+        episodes,
+        seed,
+        goals.other() == Goals::InView,
+    )?;
+    let summary = serde_json::json!({
+        "success_rate": other.success_rate,
+        "collision_rate": other.collision_rate,
+        "timeout_rate": other.timeout_rate,
+        "mean_time_to_goal_s": other.mean_time_to_goal_s,
+        "episodes": other.episodes,
+        "by_detour": other.by_detour,
+    });
+    Ok((report, summary))
+}
+
 /// `mentalsim eval`: an exported policy on a map, written as JSON.
 pub fn eval(
     policy_dir: &Path,
     map: &Path,
     episodes: usize,
     seed: u64,
+    goals: Goals,
 ) -> anyhow::Result<serde_json::Value> {
     if episodes == 0 {
         anyhow::bail!("--episodes must be at least 1");
@@ -296,7 +373,7 @@ pub fn eval(
     let policy = Policy::load(policy_dir)
         .with_context(|| format!("cannot load the policy in {}", policy_dir.display()))?;
     let world = load_world(map, 0, seed)?;
-    let report = learning::evaluate_held_out(&policy, &world, episodes, seed)?;
+    let (report, other) = held_out(&policy, &world, episodes, seed, goals)?;
     // Time per control command of the pure-Rust runtime: encode + forward + scale.
     let obs = sim::Observation {
         ranges: vec![3.0; policy.scaling().beams],
@@ -311,6 +388,7 @@ pub fn eval(
     }
     let per_command_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
     Ok(serde_json::json!({
+        "goals": goals.name(),
         "success_rate": report.success_rate,
         "collision_rate": report.collision_rate,
         "timeout_rate": report.timeout_rate,
@@ -320,6 +398,7 @@ pub fn eval(
         "wall_s": report.wall_s,
         "control_command_us": per_command_us,
         "by_detour": report.by_detour,
+        goals.other().key(): other,
         "map": map.display().to_string(),
         "policy": policy_dir.display().to_string(),
         "seed": seed,
@@ -388,6 +467,7 @@ pub fn beta_experiment(args: &BetaArgs, stop: &AtomicBool) -> anyhow::Result<Str
                 beta: Some(beta),
                 fresh: false,
                 eval_episodes: args.eval_episodes,
+                goals: Goals::InView,
                 progress: false,
             };
             let json = train(&run, stop)?;

@@ -120,6 +120,24 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
     ] {
         assert!(e[key].is_number(), "{key}: {e}");
     }
+    // The headline is about goals in view; the same missions' other kind is reported beside.
+    assert_eq!(e["goals"], "in-view");
+    assert_eq!(e["goals_anywhere"]["episodes"], 6);
+    assert!(e["goals_anywhere"]["success_rate"].is_number(), "{e}");
+    assert_eq!(eval["goals"], "in-view");
+    assert!(eval["goals_anywhere"]["success_rate"].is_number(), "{eval}");
+    let anywhere = mentalsim()
+        .args(["eval", "--episodes", "6", "--goals", "anywhere", "--policy"])
+        .arg(&out)
+        .arg("--map")
+        .arg(&other)
+        .output()
+        .unwrap();
+    assert!(anywhere.status.success());
+    let a: serde_json::Value = serde_json::from_slice(&anywhere.stdout).unwrap();
+    assert_eq!(a["goals"], "anywhere");
+    assert_eq!(a["success_rate"], e["goals_anywhere"]["success_rate"]);
+    assert_eq!(a["goals_in_view"]["success_rate"], e["success_rate"]);
 }
 
 #[test]

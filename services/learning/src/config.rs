@@ -120,6 +120,12 @@ pub struct TrainConfig {
     /// Eq. 1's r_time, per simulated second (`sim::RewardConfig::time`). Higher makes waiting
     /// near obstacles cost more than the collision it avoids, so a policy keeps moving.
     pub time_cost: f64,
+    /// Train only on goals the robot can drive to in a straight line (`sim::EnvConfig::
+    /// goals_in_view`): the waypoints of a roadmap plan, which is what the policy drives
+    /// between. False also draws goals behind walls, reachable only by detours the laser
+    /// cannot show: a policy then learns to hesitate (spinning on the spot), and 10 minutes
+    /// of training reached 69% of held-out goals in view against 96% with this on.
+    pub goals_in_view: bool,
 }
 
 impl Default for TrainConfig {
@@ -145,6 +151,7 @@ impl Default for TrainConfig {
             geodesic_reward: true,
             chain_goals: 0.5,
             time_cost: 1.0,
+            goals_in_view: true,
         }
     }
 }

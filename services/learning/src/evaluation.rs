@@ -101,16 +101,20 @@ pub const HELD_OUT_MAX_STEPS: u32 = 600;
 
 /// The held-out evaluation `mentalsim train` ends with and `mentalsim eval` runs: `episodes`
 /// random missions with goals 2–10 m away in the world's free region, drawn from `seed`, with a
-/// 60-second limit, run by `policy`; successes are also broken down by detour.
+/// 60-second limit, run by `policy`; successes are also broken down by detour. With `in_view`,
+/// only goals the robot can reach in a straight line (a roadmap edge's waypoints); otherwise
+/// also goals behind walls.
 pub fn evaluate_held_out(
     policy: &Policy,
     world: &Arc<World>,
     episodes: usize,
     seed: u64,
+    in_view: bool,
 ) -> Result<EvalReport, EnvError> {
     let env = EnvConfig {
         beams: policy.scaling().beams,
         goal_distance: (2.0, 10.0),
+        goals_in_view: in_view,
         max_steps: HELD_OUT_MAX_STEPS,
         ..EnvConfig::default()
     };

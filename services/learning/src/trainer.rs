@@ -81,6 +81,7 @@ impl TrainOptions {
     fn env_config(&self) -> EnvConfig {
         EnvConfig {
             goal_distance: self.config.goal_distance,
+            goals_in_view: self.config.goals_in_view,
             max_steps: self.config.max_episode_steps,
             reward: sim::RewardConfig {
                 progress: self.config.progress_reward,

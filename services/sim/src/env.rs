@@ -134,6 +134,10 @@ pub struct EnvConfig {
     pub max_steps: u32,
     /// Distance range between start and goal for random resets, metres (min, max).
     pub goal_distance: (f64, f64),
+    /// Random goals only where the robot can drive to them in a straight line
+    /// ([`World::segment_clearance`] above `collision_clearance`), as between the waypoints
+    /// of a roadmap plan; otherwise anywhere in the free region, also behind walls.
+    pub goals_in_view: bool,
     /// Whether to keep the poses of the episode (for renders and plan validation).
     pub record_trajectory: bool,
 }
@@ -150,6 +154,7 @@ impl Default for EnvConfig {
             collision_clearance: 0.02,
             max_steps: 500,
             goal_distance: (2.0, 10.0),
+            goals_in_view: false,
             record_trajectory: false,
         }
     }
@@ -478,8 +483,8 @@ impl NavEnv {
         })
     }
 
-    /// A goal in the free region at a distance from `s` within the configured range: uniform
-    /// over the annulus's area, up to 64 draws.
+    /// A goal in the free region at a distance from `s` within the configured range (and in
+    /// view, with `goals_in_view`): uniform over the annulus's area, up to 64 draws.
     fn sample_goal_from(&mut self, world: &World, s: (f64, f64)) -> Option<(f64, f64)> {
         let (dmin, dmax) = self.config.goal_distance;
         for _ in 0..64 {
@@ -487,7 +492,11 @@ impl NavEnv {
             let r = (dmin * dmin + u * (dmax * dmax - dmin * dmin)).sqrt();
             let a: f64 = self.rng.random::<f64>() * 2.0 * PI;
             let g = (s.0 + r * a.cos(), s.1 + r * a.sin());
-            if world.in_free_region(g.0, g.1) && world.clearance(g.0, g.1) > 0.0 {
+            if world.in_free_region(g.0, g.1)
+                && world.clearance(g.0, g.1) > 0.0
+                && (!self.config.goals_in_view
+                    || world.segment_clearance(s, g) > self.config.collision_clearance)
+            {
                 return Some(g);
             }
         }

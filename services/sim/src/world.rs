@@ -865,6 +865,29 @@ impl World {
         self.object_clearance(x, y, wall)
     }
 
+    /// The smallest footprint clearance ([`World::clearance`]) along the straight segment from
+    /// `a` to `b`, sampled every half map cell: above the collision threshold, the robot can
+    /// drive the segment straight, as it drives a roadmap edge.
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "the step count is a small positive number"
+    )]
+    pub fn segment_clearance(&self, a: (f64, f64), b: (f64, f64)) -> f64 {
+        let length = (b.0 - a.0).hypot(b.1 - a.1);
+        if !length.is_finite() {
+            return f64::NEG_INFINITY;
+        }
+        let steps = ((length / (0.5 * self.frame.res)).ceil() as usize).max(1);
+        #[allow(clippy::cast_precision_loss, reason = "step counts are small")]
+        (0..=steps)
+            .map(|i| {
+                let t = i as f64 / steps as f64;
+                self.clearance(a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1))
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Clearance of the footprint to walls only.
     #[allow(
         clippy::cast_possible_truncation,

@@ -157,6 +157,33 @@ fn random_resets_respect_the_distance_range() {
     }
 }
 
+#[test]
+fn goals_in_view_can_be_driven_to_in_a_straight_line() {
+    let world = furnished();
+    // Through the table, and past it along the free lower half of the room.
+    assert!(world.segment_clearance((2.0, 4.0), (6.0, 4.0)) <= 0.0);
+    let open = world.segment_clearance((2.0, 1.5), (6.0, 1.5));
+    assert!(open > 0.3, "{open}");
+    let sample = |in_view| {
+        let config = EnvConfig {
+            goal_distance: (3.0, 8.0),
+            goals_in_view: in_view,
+            ..EnvConfig::default()
+        };
+        let mut env = NavEnv::new(Arc::clone(&world), config, 11).expect("env");
+        (0..300)
+            .map(|_| {
+                let (s, g) = env.sample_start_goal().expect("sample");
+                world.segment_clearance((s.x, s.y), g)
+            })
+            .collect::<Vec<_>>()
+    };
+    let threshold = EnvConfig::default().collision_clearance;
+    assert!(sample(true).iter().all(|&c| c > threshold));
+    // Without the condition some goals lie behind the furniture.
+    assert!(sample(false).iter().any(|&c| c <= threshold));
+}
+
 /// Steps `env` with actions from its own stream and returns everything observed.
 fn roll(env: &mut NavEnv, actions: &mut ChaCha8Rng, steps: usize) -> Vec<(Vec<f32>, f64, bool)> {
     let mut out = vec![];

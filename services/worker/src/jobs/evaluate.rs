@@ -32,6 +32,10 @@ pub struct EvaluatePayload {
     /// Seed of the mission set [default: 7].
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Only goals the robot can reach in a straight line, as between a plan's waypoints
+    /// [default: true]; false also draws goals behind walls.
+    #[serde(default)]
+    pub goals_in_view: Option<bool>,
 }
 
 impl EvaluatePayload {
@@ -97,12 +101,13 @@ impl JobHandler for EvaluateHandler {
         }
         let episodes = payload.episodes.unwrap_or(DEFAULT_EPISODES);
         let seed = payload.seed.unwrap_or(7);
+        let in_view = payload.goals_in_view.unwrap_or(true);
         let floor = db.floor.clone();
         let report = tokio::task::spawn_blocking(move || -> Result<_, JobError> {
             let policy = Policy::load(&dir)
                 .map_err(|e| JobError::Fatal(format!("the policy does not load: {e}")))?;
             let world = db.world().map_err(JobError::Fatal)?;
-            learning::evaluate_held_out(&policy, &world, episodes, seed)
+            learning::evaluate_held_out(&policy, &world, episodes, seed, in_view)
                 .map_err(|e| JobError::Fatal(format!("evaluation: {e}")))
         })
         .await
@@ -124,6 +129,7 @@ impl JobHandler for EvaluateHandler {
             "env_steps": report.env_steps,
             "wall_s": report.wall_s,
             "seed": seed,
+            "goals_in_view": in_view,
         }))
     }
 }

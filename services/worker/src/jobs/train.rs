@@ -310,8 +310,9 @@ fn train_blocking(
         .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
     let config = &trainer.options().config;
     let held_out_seed = config.eval_seed.wrapping_add(1);
-    let report = learning::evaluate_held_out(&policy, &world, config.eval_episodes, held_out_seed)
-        .map_err(|e| JobError::Fatal(format!("evaluating the exported policy: {e}")))?;
+    let report =
+        learning::evaluate_held_out(&policy, &world, config.eval_episodes, held_out_seed, true)
+            .map_err(|e| JobError::Fatal(format!("evaluating the exported policy: {e}")))?;
     let created_ms = crate::clock::Clock::now_ms(&crate::clock::SystemClock);
     summary["created_ms"] = json!(created_ms);
     summary["eval"] = json!({
@@ -321,6 +322,7 @@ fn train_blocking(
         "mean_time_to_goal_s": report.mean_time_to_goal_s,
         "episodes": report.episodes,
         "seed": held_out_seed,
+        "goals": "in-view",
     });
     trainer
         .export(&staged, summary.clone())
