@@ -244,11 +244,20 @@ impl Deadline {
         &self,
         work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
     ) -> Result<T, ApiError> {
+        self.read_within(self.limit, work).await
+    }
+
+    /// [`Self::read`] with `limit` left of the deadline.
+    async fn read_within<T: Send + 'static>(
+        &self,
+        limit: Duration,
+        work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+    ) -> Result<T, ApiError> {
         let work = move || {
             let _running = Running::enter();
             work()
         };
-        match tokio::time::timeout(self.limit, tokio::task::spawn_blocking(work)).await {
+        match tokio::time::timeout(limit, tokio::task::spawn_blocking(work)).await {
             Err(_elapsed) => {
                 self.token.cancel();
                 Err(self.exceeded())
@@ -261,28 +270,44 @@ impl Deadline {
     }
 
     /// [`Self::read`] for a read that may come again (a query, by its text, dataset and
-    /// format: `key`). One that was short last time runs in place on this async worker
-    /// instead, its deadline kept by the watchdog (see [`inline`]); every run's cost is
-    /// remembered for the next.
+    /// format: `key`), given the token that stops it. One that was short last time runs in
+    /// place on this async worker instead, on a leash ([`inline::LEASH`]): if it has not
+    /// finished by then (the data grew), the watchdog stops it, it is remembered as long, and
+    /// it runs again from the start on a blocking thread with what is left of the deadline.
+    /// A read has no side effects, so the second run answers exactly what the first would
+    /// have. Every run's cost is remembered for the next.
     async fn read_remembered<T: Send + 'static>(
         &self,
         key: u64,
-        work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+        work: impl Fn(CancellationToken) -> Result<T, ApiError> + Send + 'static,
     ) -> Result<T, ApiError> {
-        let measured = move || {
+        let measured = move |token: CancellationToken| {
             let clock = inline::CostClock::start();
-            let result = work();
+            let result = work(token);
             inline::record(key, clock.elapsed());
             result
         };
-        match inline::permit(key) {
-            Some(_in_place) => {
-                let _running = Running::enter();
-                let _watched = inline::watch(self.token(), Instant::now() + self.limit);
-                measured()
-            }
-            None => self.read(measured).await,
+        let Some(in_place) = inline::permit(key) else {
+            let token = self.token();
+            return self.read(move || measured(token)).await;
+        };
+        let started = Instant::now();
+        let leash = CancellationToken::new();
+        let result = {
+            let _running = Running::enter();
+            let _watched = inline::watch(leash.clone(), started + self.limit.min(inline::LEASH));
+            measured(leash.clone())
+        };
+        drop(in_place);
+        let left = self.limit.saturating_sub(started.elapsed());
+        if result.is_ok() || !leash.is_cancelled() {
+            return result;
         }
+        if left.is_zero() {
+            return Err(self.exceeded());
+        }
+        let token = self.token();
+        self.read_within(left, move || measured(token)).await
     }
 
     /// Runs a write on a blocking thread, cancels it at the deadline, and waits for its real

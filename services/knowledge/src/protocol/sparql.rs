@@ -147,7 +147,7 @@ async fn answer_query(
     let dataset = protocol_dataset(params, "default-graph-uri", "named-graph-uri")?;
     let limits = knowledge.limits;
     let deadline = Deadline::start(limits.deadline);
-    let (token, exceeded) = (deadline.token(), deadline.exceeded());
+    let exceeded = deadline.exceeded();
     let store = knowledge.store_async().await?;
     let body = if let Some(remote) = store.remote_store().cloned() {
         // The deadline is the HTTP client's timeout too; this one also bounds re-serializing.
@@ -166,13 +166,13 @@ async fn answer_query(
         // Same text, dataset and format: the same cost as last time, most likely.
         let key = inline::key(&[text, content_type, &format!("{dataset:?}")]);
         deadline
-            .read_remembered(key, move || {
+            .read_remembered(key, move |token| {
                 let Some(embedded) = store.embedded() else {
                     return Err(ApiError::internal("the store has no backend"));
                 };
                 evaluation::run_query(
                     embedded,
-                    query,
+                    query.clone(),
                     dataset.as_ref(),
                     format,
                     limits.max_construct_triples,

@@ -52,6 +52,61 @@ async fn a_read_answers_at_its_deadline_and_cancels() {
     assert!(seen.is_cancelled());
 }
 
+/// A read that was short last time runs in place; when it is slow this time, its leash stops
+/// it long before its deadline and it runs again, from the start, on a blocking thread.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[allow(
+    clippy::await_holding_lock,
+    reason = "the lock only orders this test with the permit test, which runs no async code"
+)]
+async fn a_read_that_outgrows_its_leash_in_place_runs_again_on_a_blocking_thread() {
+    let _turn = inline::tests::PERMITS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let key = inline::key(&["outgrows its leash"]);
+    inline::record(
+        key,
+        inline::Cost {
+            cpu: Some(Duration::from_micros(100)),
+            wall: Duration::from_micros(100),
+        },
+    );
+    let deadline = Deadline::start(Duration::from_secs(20));
+    let runs = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let seen = Arc::clone(&runs);
+    let before = inline::run_in_place();
+    let started = Instant::now();
+    let outcome = deadline
+        .read_remembered(key, move |token| {
+            let mut runs = seen.lock().unwrap();
+            runs.push(std::thread::current().id());
+            if runs.len() == 1 {
+                drop(runs);
+                // Slow this time: works until stopped.
+                while !token.is_cancelled() {
+                    assert!(started.elapsed() < Duration::from_secs(10), "never stopped");
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                return Err(ApiError::new(ErrorCode::Timeout, "stopped"));
+            }
+            Ok(runs.len())
+        })
+        .await;
+    assert_eq!(outcome.unwrap(), 2, "the second run answers");
+    assert!(
+        inline::run_in_place() > before,
+        "the first run was in place"
+    );
+    let elapsed = started.elapsed();
+    assert!(elapsed >= inline::LEASH, "{elapsed:?}");
+    assert!(
+        elapsed < Duration::from_secs(2),
+        "held past its leash: {elapsed:?}"
+    );
+    let runs = runs.lock().unwrap();
+    assert_ne!(runs[0], runs[1], "the second run is on another thread");
+}
+
 #[test]
 fn params_decode_once_and_reject_invalid_utf8() {
     let params = Params::parse(b"graph=http://e/%2531&q=a+b%20c&default").unwrap();
@@ -118,7 +173,8 @@ async fn a_client_that_hangs_up_stops_its_query() {
 }
 
 /// A query fast enough last time runs in place on the async worker; when the data has grown
-/// and it is slow this time, the watchdog still stops it at its deadline, through HTTP.
+/// and it is slow this time, its leash stops it, it runs again on a blocking thread, and it is
+/// stopped at its deadline there, through HTTP.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[allow(
     clippy::await_holding_lock,
