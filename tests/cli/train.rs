@@ -193,3 +193,67 @@ fn train_and_eval_refuse_bad_input_naming_it() {
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("gama"));
 }
+
+#[test]
+fn bench_beta_trains_one_policy_per_beta_and_seed_and_tabulates_their_evaluations() {
+    let Some(map) = shared_map("strands_tum_kitchen", "tum_kitchen.yaml") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("beta");
+    let config = dir.path().join("config.json");
+    std::fs::write(
+        &config,
+        r#"{"td3": {"hidden": [32, 32], "batch_size": 64}, "envs": 4, "random_steps": 200,
+            "eval_every": 400, "eval_episodes": 5, "max_episode_steps": 100}"#,
+    )
+    .unwrap();
+    let output = mentalsim()
+        .args([
+            "bench",
+            "beta",
+            "--minutes",
+            "0.03",
+            "--betas",
+            "0,5",
+            "--seeds",
+            "1",
+            "--eval-episodes",
+            "10",
+            "--map",
+        ])
+        .arg(&map)
+        .arg("--out")
+        .arg(&out)
+        .arg("--config")
+        .arg(&config)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(out.join("beta.png").is_file());
+    let table = std::fs::read_to_string(out.join("beta.md")).unwrap();
+    // Each run's row carries what that run's own eval.json says, both kinds of goals.
+    for beta in ["0", "5"] {
+        let eval = json(&out.join(format!("beta-{beta}/seed-1/eval.json")));
+        assert_eq!(eval["beta"].as_f64().unwrap(), beta.parse::<f64>().unwrap());
+        let row = format!(
+            "| {beta} | 1 | {:.1}% | {:.1}% | {:.1}% | {} |",
+            eval["success_rate"].as_f64().unwrap() * 100.0,
+            eval["collision_rate"].as_f64().unwrap() * 100.0,
+            eval["goals_anywhere"]["success_rate"].as_f64().unwrap() * 100.0,
+            eval["episodes"],
+        );
+        assert!(table.contains(&row), "{row} not in\n{table}");
+    }
+    // A negative β is refused, naming the flag.
+    let output = mentalsim()
+        .args(["bench", "beta", "--betas=-1", "--map"])
+        .arg(&map)
+        .arg("--out")
+        .arg(dir.path().join("bad"))
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("--betas"));
+}
