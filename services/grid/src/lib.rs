@@ -1,9 +1,13 @@
 //! Grid algorithms and the small stable primitives the simulator, the planner and the
-//! benchmarks share. No IO, no allocation beyond the outputs.
+//! benchmarks share. No IO; the distance transforms use rayon's pool for their row pass.
 //!
+//! - [`distance`]: exact Euclidean distance and feature transforms (nearest blocked cell);
+//! - [`regions`]: 4-connected region labelling;
 //! - [`seed`]: SplitMix64, the seed mixer behind every derived seed (environments in a batch,
 //!   re-sampled roadmaps, benchmark runs);
 //! - [`hash`]: 64-bit FNV-1a, content fingerprints stable across platforms and Rust versions.
 
+pub mod distance;
 pub mod hash;
+pub mod regions;
 pub mod seed;
