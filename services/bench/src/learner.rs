@@ -14,7 +14,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::prm::BenchError;
+use crate::error::BenchError;
 
 /// What to measure.
 #[derive(Debug, Clone)]

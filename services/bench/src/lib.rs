@@ -1,7 +1,9 @@
 //! Benchmark harnesses behind `mentalsim bench ...`.
 
+pub mod error;
 pub mod knowledge;
 pub mod learner;
+pub mod maps;
 pub mod movingai;
 pub mod navigation;
 pub mod plan_load;

@@ -11,11 +11,12 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use planning::{
-    ConfigSpace, GridMap, Inflation, Point2, PrmParams, QueryOptions, Roadmap, SearchAlgorithm,
-    optimal_samples,
+    ConfigSpace, Inflation, PlanningGrid, Point2, PrmParams, QueryOptions, Roadmap,
+    SearchAlgorithm, optimal_samples,
 };
 
-use crate::prm::{BenchError, hash_str, mix};
+use crate::error::BenchError;
+use crate::maps::map_seed;
 
 /// What to run.
 #[derive(Debug, Clone, PartialEq)]
@@ -82,7 +83,7 @@ pub struct MovingAiReport {
 }
 
 /// Parses a MovingAI `.map`: `.`, `G`, `S` are free; everything else is blocked.
-pub fn parse_map(text: &str) -> Result<GridMap, String> {
+pub fn parse_map(text: &str) -> Result<PlanningGrid, String> {
     let mut lines = text.lines();
     let mut width = None;
     let mut height = None;
@@ -120,7 +121,7 @@ pub fn parse_map(text: &str) -> Result<GridMap, String> {
             blocked[row * w + col] = !matches!(b, b'.' | b'G' | b'S');
         }
     }
-    Ok(GridMap {
+    Ok(PlanningGrid {
         width: w,
         height: h,
         resolution: 1.0,
@@ -206,7 +207,7 @@ pub fn run_movingai_bench(opts: &MovingAiOptions) -> Result<MovingAiReport, Benc
 fn run_map(
     opts: &MovingAiOptions,
     name: &str,
-    grid: &GridMap,
+    grid: &PlanningGrid,
     scens: &[Scenario],
 ) -> Result<MovingAiMapResult, planning::BuildError> {
     let free_cells = grid.blocked.iter().filter(|b| !**b).count();
@@ -238,7 +239,7 @@ fn run_map(
         samples: n,
         neighbours: opts.neighbours,
         max_edge_m: opts.max_edge_m,
-        seed: mix(opts.seed, hash_str(name)),
+        seed: map_seed(opts.seed, name),
         ..PrmParams::default()
     };
     let t = Instant::now();

@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+use grid::seed::mix;
 use learning::Policy;
 use planning::{Point2, PrmParams, QueryOptions};
 use rand::SeedableRng;
@@ -40,7 +41,8 @@ use worker::plan::{
     PlanOptions, PlanRequest, PolicyController, RoadmapCache,
 };
 
-use crate::prm::{BenchError, find_yamls, map_names, mix};
+use crate::error::BenchError;
+use crate::maps::{find_yamls, map_names};
 
 /// What `mentalsim bench navigation` runs.
 #[derive(Debug, Clone, PartialEq)]

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use crate::prm::BenchError;
+use crate::error::BenchError;
 
 /// What to send and for how long.
 #[derive(Debug, Clone)]

@@ -20,7 +20,7 @@ use sim::{
     Outcome, Pose3, Shape, Size3, World,
 };
 
-use crate::prm::BenchError;
+use crate::error::BenchError;
 
 /// The paper's Gazebo set-up: about 2.4 experiences per second (§5.2: ~1 million experiences in
 /// 116 hours).
@@ -399,7 +399,7 @@ pub fn on_demand_database(
             class_iri: class_iri.unwrap_or_else(|| format!("{}{class_local}", tosm::vocab::NS)),
             class,
             symbol: tosm::Symbol::named(class_local),
-            pose: tosm::Pose::new(o.pose.x, o.pose.y, o.pose.z, o.pose.yaw),
+            pose: Pose3::new(o.pose.x, o.pose.y, o.pose.z, o.pose.yaw),
             shape: match o.shape {
                 Shape::Box => tosm::Shape::Box {
                     length: o.size.x,
@@ -843,7 +843,7 @@ mod tests {
     fn a_small_run_reports_every_key() {
         let yaml = shared("aws_small_house/map.yaml");
         if !yaml.exists() {
-            println!("skipped: {} is missing", yaml.display());
+            fixtures::missing(format!("the shared map {}", yaml.display()));
             return;
         }
         let report = run_sim_bench(SimBenchOptions {
@@ -874,26 +874,5 @@ mod tests {
     fn a_missing_map_is_an_io_error() {
         let e = run_sim_bench(SimBenchOptions::new("/nonexistent/map.yaml"));
         assert!(matches!(e, Err(BenchError::Io { .. })), "{e:?}");
-    }
-
-    /// The full benchmark: `cargo test -p bench --release sim::tests::full -- --ignored --nocapture`
-    /// (peers from MENTALSIM_IRSIM_PYTHON / MENTALSIM_IRSIM_X_PYTHON when set).
-    #[test]
-    #[ignore = "minutes long; run by hand or through `mentalsim bench sim`"]
-    fn full() {
-        let yaml = shared("cob_ipa_production_plant/map.yaml");
-        let peer = |var: &str| std::env::var_os(var).map(|p| PeerOptions { python: p.into() });
-        let report = run_sim_bench(SimBenchOptions {
-            irsim: peer("MENTALSIM_IRSIM_PYTHON"),
-            irsim_x: peer("MENTALSIM_IRSIM_X_PYTHON"),
-            render_png: std::env::var_os("MENTALSIM_RENDER").map(PathBuf::from),
-            ..SimBenchOptions::new(yaml)
-        })
-        .expect("runs");
-        println!("{}", report.summary());
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report.to_json()).unwrap_or_default()
-        );
     }
 }

@@ -735,7 +735,7 @@ fn to_object(
             identifier: Some(slug.to_owned()),
             description: None,
         },
-        pose: tosm::Pose::new(report.pose.x, report.pose.y, z, report.pose.yaw),
+        pose: tosm::Pose3::new(report.pose.x, report.pose.y, z, report.pose.yaw),
         shape,
         colour: report.colour.as_ref().map(|c| tosm::Colour {
             r: c.r,

@@ -2,7 +2,7 @@
 //! in a named graph of its own.
 
 use oxigraph::model::{NamedNode, Quad};
-use tosm::{MapError, MetricMap, OccupancyGrid, Place, PlaceKind, RosMapMeta, Symbol};
+use tosm::{MetricMap, OccupancyGrid, Place, PlaceKind, RosMapError, RosMapMeta, Symbol};
 
 use crate::service::Knowledge;
 use crate::store::StoreError;
@@ -22,7 +22,7 @@ pub enum ImportError {
         name: String,
         /// What is wrong.
         #[source]
-        source: MapError,
+        source: RosMapError,
     },
     /// The name cannot be used in an IRI.
     #[error("map name {0:?} must be 1-64 characters of a-z, 0-9, '-' and '_'")]

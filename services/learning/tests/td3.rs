@@ -11,7 +11,7 @@ use learning::trainer::{Budget, TrainOptions, Trainer};
 use learning::{Scaling, Td3Config, TrainConfig};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sim::{GridMap, Occupancy, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec};
+use sim::{FloorMap, Occupancy, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec};
 
 /// A 10 m × 8 m room with a pillar in the middle.
 fn room() -> Arc<World> {
@@ -28,7 +28,7 @@ fn room() -> Arc<World> {
     }
     World::build(WorldSpec {
         id: "room".into(),
-        floor: Some(GridMap {
+        floor: Some(FloorMap {
             id: "room".into(),
             grid,
             wall_height: 2.0,

@@ -9,9 +9,10 @@
 
 use rand::Rng;
 
-use crate::edt::squared_distance_transform;
+use grid::distance::{Outside, squared_distance_transform};
+
 use crate::error::{ConfigSpaceError, Endpoint, QueryError};
-use crate::grid::{GridMap, Point2};
+use crate::map::{PlanningGrid, Point2};
 
 /// How far the robot keeps from obstacles.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,7 +100,7 @@ fn coarse_grid(w: usize, h: usize, free: &[bool], factor: usize) -> CoarseGrid {
 
 impl ConfigSpace {
     /// Inflates `map` for a robot. O(cells): one exact distance transform and one flood fill.
-    pub fn new(map: &GridMap, inflation: Inflation) -> Result<Self, ConfigSpaceError> {
+    pub fn new(map: &PlanningGrid, inflation: Inflation) -> Result<Self, ConfigSpaceError> {
         map.validate()?;
         for (name, value) in [
             ("robot radius", inflation.robot_radius_m),
@@ -110,7 +111,8 @@ impl ConfigSpace {
             }
         }
         let (w, h) = (map.width, map.height);
-        let d2 = squared_distance_transform(w, h, &map.blocked);
+        // Space beyond the map counts as blocked: the robot is never planned off its edge.
+        let d2 = squared_distance_transform(&map.blocked, w, h, Outside::Blocked);
         let need_cells = inflation.total_m() / map.resolution + 0.5;
         // Free iff sqrt(d2) >= need_cells, decided on the exact integer d2.
         let need_d2 = need_cells * need_cells;
@@ -119,7 +121,10 @@ impl ConfigSpace {
             .map(|&d| d >= 1 && f64::from(d) >= need_d2)
             .collect();
         let dist: Vec<f32> = d2.iter().map(|&d| (f64::from(d)).sqrt() as f32).collect();
-        let (region, counts) = label_regions(w, h, &free);
+        let grid::regions::Regions {
+            labels: region,
+            sizes: counts,
+        } = grid::regions::label(&free, w, h);
         let mut region_start = Vec::with_capacity(counts.len() + 1);
         let mut acc = 0u32;
         region_start.push(0);
@@ -172,7 +177,7 @@ impl ConfigSpace {
     pub fn inflation(&self) -> Inflation {
         self.inflation
     }
-    /// Fingerprint of the map this space was built from (see [`GridMap::fingerprint`]).
+    /// Fingerprint of the map this space was built from (see [`PlanningGrid::fingerprint`]).
     pub fn map_fingerprint(&self) -> u64 {
         self.map_fingerprint
     }
@@ -577,48 +582,6 @@ pub(crate) fn walk_supercover(a: [f64; 2], b: [f64; 2], mut visit: impl FnMut(i6
     }
 }
 
-/// 4-connected labelling of free cells; returns labels (0 = not free) and the cell count of each
-/// region (index r-1 for region r).
-fn label_regions(w: usize, h: usize, free: &[bool]) -> (Vec<RegionId>, Vec<u32>) {
-    let mut label = vec![0u32; w * h];
-    let mut counts = Vec::new();
-    let mut stack = Vec::new();
-    for start in 0..w * h {
-        if !free[start] || label[start] != 0 {
-            continue;
-        }
-        let id = counts.len() as u32 + 1;
-        let mut count = 0u32;
-        label[start] = id;
-        stack.push(start as u32);
-        while let Some(i) = stack.pop() {
-            let i = i as usize;
-            count += 1;
-            let (c, r) = (i % w, i / w);
-            let mut push = |j: usize| {
-                if free[j] && label[j] == 0 {
-                    label[j] = id;
-                    stack.push(j as u32);
-                }
-            };
-            if c > 0 {
-                push(i - 1);
-            }
-            if c + 1 < w {
-                push(i + 1);
-            }
-            if r > 0 {
-                push(i - w);
-            }
-            if r + 1 < h {
-                push(i + w);
-            }
-        }
-        counts.push(count);
-    }
-    (label, counts)
-}
-
 /// Free cells that are ridges of the distance field along some direction: an approximate
 /// medial axis. Samples there have the most clearance and fall into doors and corridors
 /// far more often than uniform samples do.
@@ -688,7 +651,7 @@ mod tests {
                 }
             }
         }
-        let map = GridMap {
+        let map = PlanningGrid {
             width: w,
             height: h,
             resolution: 0.05,

@@ -2,11 +2,11 @@
 
 use std::fmt;
 
-use crate::grid::Point2;
+use crate::map::Point2;
 
-/// A map the planner cannot use.
+/// A [`crate::PlanningGrid`] the planner cannot use.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum MapError {
+pub enum GridError {
     /// Zero width or height.
     #[error("the map is empty ({width}x{height} cells)")]
     Empty {
@@ -49,7 +49,7 @@ pub enum MapError {
 pub enum ConfigSpaceError {
     /// The map itself is unusable.
     #[error(transparent)]
-    Map(#[from] MapError),
+    Grid(#[from] GridError),
     /// Robot radius or safety margin negative or not finite.
     #[error("{name} must be a finite number of metres >= 0, got {value}")]
     BadRadius {

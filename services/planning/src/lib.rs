@@ -1,20 +1,19 @@
 //! Probabilistic roadmap, graph search, hybrid PRM-RL executor and plan validation; no IO.
 //!
-//! The flow: a [`GridMap`] (converted by the caller from its own map type) and the robot's
+//! The flow: a [`PlanningGrid`] (converted by the caller from its own map type) and the robot's
 //! [`Inflation`] give a [`ConfigSpace`] (inflated free space, distance field, free regions),
 //! computed once per map version and robot. A [`Roadmap`] is built on it once per
 //! [`PrmParams`] (the cache key is a [`RoadmapKey`]) and answers many [`Roadmap::query`] calls.
 
 mod cspace;
-mod edt;
 mod error;
-mod grid;
+mod map;
 mod roadmap;
 mod search;
 
 pub use cspace::{ConfigSpace, Inflation, RegionId};
-pub use error::{BuildError, ConfigSpaceError, Endpoint, MapError, QueryError};
-pub use grid::{GridMap, Point2};
+pub use error::{BuildError, ConfigSpaceError, Endpoint, GridError, QueryError};
+pub use map::{PlanningGrid, Point2};
 pub use roadmap::{
     BuildStats, MAX_SAMPLES, Plan, PrmParams, QueryOptions, Roadmap, RoadmapKey, optimal_samples,
 };

@@ -4,13 +4,14 @@
 use std::sync::Arc;
 
 use planning::{
-    BuildError, ConfigSpace, ConfigSpaceError, Endpoint, GridMap, Inflation, MapError, Point2,
-    PrmParams, QueryError, QueryOptions, Roadmap, RoadmapKey, SearchAlgorithm, optimal_samples,
+    BuildError, ConfigSpace, ConfigSpaceError, Endpoint, GridError, Inflation, PlanningGrid,
+    Point2, PrmParams, QueryError, QueryOptions, Roadmap, RoadmapKey, SearchAlgorithm,
+    optimal_samples,
 };
 use proptest::prelude::*;
 
 /// A map from ASCII art, top line = top row; `#` blocked. 0.1 m cells, origin (0, 0).
-fn map(art: &str) -> GridMap {
+fn map(art: &str) -> PlanningGrid {
     let lines: Vec<&str> = art
         .lines()
         .map(str::trim)
@@ -24,7 +25,7 @@ fn map(art: &str) -> GridMap {
             blocked[row * w + c] = ch == b'#';
         }
     }
-    GridMap {
+    PlanningGrid {
         width: w,
         height: h,
         resolution: 0.1,
@@ -42,7 +43,7 @@ fn point_robot() -> Inflation {
 }
 
 /// Two 3 m rooms joined by a door 0.5 m wide, and a closed room on the far right.
-fn two_rooms() -> GridMap {
+fn two_rooms() -> PlanningGrid {
     let (w, h) = (80usize, 30usize);
     let mut blocked = vec![false; w * h];
     for r in 0..h {
@@ -52,7 +53,7 @@ fn two_rooms() -> GridMap {
             blocked[r * w + c] = wall || closed;
         }
     }
-    GridMap {
+    PlanningGrid {
         width: w,
         height: h,
         resolution: 0.1,
@@ -62,7 +63,7 @@ fn two_rooms() -> GridMap {
     }
 }
 
-fn build(grid: &GridMap, inflation: Inflation, params: &PrmParams) -> Roadmap {
+fn build(grid: &PlanningGrid, inflation: Inflation, params: &PrmParams) -> Roadmap {
     let cs = Arc::new(ConfigSpace::new(grid, inflation).expect("cspace"));
     Roadmap::build(cs, params).expect("roadmap")
 }
@@ -90,13 +91,13 @@ fn bad_maps_are_rejected() {
     g.width = 0;
     assert!(matches!(
         ConfigSpace::new(&g, point_robot()),
-        Err(ConfigSpaceError::Map(MapError::Empty { .. }))
+        Err(ConfigSpaceError::Grid(GridError::Empty { .. }))
     ));
     let mut g = map("...\n...");
     g.blocked.pop();
     assert!(matches!(
         ConfigSpace::new(&g, point_robot()),
-        Err(ConfigSpaceError::Map(MapError::SizeMismatch {
+        Err(ConfigSpaceError::Grid(GridError::SizeMismatch {
             expected: 6,
             actual: 5
         }))
@@ -106,14 +107,14 @@ fn bad_maps_are_rejected() {
         g.resolution = res;
         assert!(matches!(
             ConfigSpace::new(&g, point_robot()),
-            Err(ConfigSpaceError::Map(MapError::BadResolution(_)))
+            Err(ConfigSpaceError::Grid(GridError::BadResolution(_)))
         ));
     }
     let mut g = map("...\n...");
     g.origin_x = f64::NAN;
     assert!(matches!(
         ConfigSpace::new(&g, point_robot()),
-        Err(ConfigSpaceError::Map(MapError::BadOrigin { .. }))
+        Err(ConfigSpaceError::Grid(GridError::BadOrigin { .. }))
     ));
 }
 
@@ -451,7 +452,7 @@ fn min_clearance_is_reported_and_respects_the_inflation() {
 }
 
 /// A pseudo-random cluttered map for the property tests.
-fn cluttered(seed: u64, w: usize, h: usize, density: u64) -> GridMap {
+fn cluttered(seed: u64, w: usize, h: usize, density: u64) -> PlanningGrid {
     let mut state = seed | 1;
     let mut blocked = vec![false; w * h];
     // Rectangular obstacles rather than speckle, so free space has corridors and corners.
@@ -470,7 +471,7 @@ fn cluttered(seed: u64, w: usize, h: usize, density: u64) -> GridMap {
             }
         }
     }
-    GridMap {
+    PlanningGrid {
         width: w,
         height: h,
         resolution: 0.1,

@@ -16,17 +16,10 @@ pub struct EnvBatch {
     auto_reset: bool,
 }
 
-/// The seed of environment `index` in a batch seeded with `seed` (SplitMix64, so neighbouring
-/// environments get unrelated streams).
+/// The seed of environment `index` in a batch seeded with `seed`: the `index`-th SplitMix64
+/// output from `seed` ([`grid::seed::nth`]), so neighbouring environments get unrelated streams.
 pub fn env_seed(seed: u64, index: usize) -> u64 {
-    let mut z = seed.wrapping_add(
-        (index as u64)
-            .wrapping_add(1)
-            .wrapping_mul(0x9E37_79B9_7F4A_7C15),
-    );
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    grid::seed::nth(seed, index as u64)
 }
 
 impl EnvBatch {

@@ -6,6 +6,7 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
+use crate::spec::as_u32;
 use crate::world::{Frame, World};
 
 /// Coarse cells searched around a point for a reachable one: a robot pressed against a wall
@@ -56,7 +57,7 @@ impl PathField {
             cw,
             ch,
             dist: vec![f32::INFINITY; cw * ch],
-            next: (0..cw * ch).map(raster_u32).collect(),
+            next: (0..cw * ch).map(as_u32).collect(),
             goal,
             cell,
         };
@@ -75,7 +76,7 @@ impl PathField {
         let d0 = (gx - self.goal.0).hypot(gy - self.goal.1) as f32;
         self.dist[g] = d0;
         let mut heap = BinaryHeap::new();
-        heap.push(Reverse((d0.to_bits(), raster_u32(g))));
+        heap.push(Reverse((d0.to_bits(), as_u32(g))));
         let (cw, ch) = (self.cw, self.ch);
         let straight = self.cell as f32;
         let diagonal = straight * std::f32::consts::SQRT_2;
@@ -116,8 +117,8 @@ impl PathField {
                 let nd = d + step;
                 if nd < self.dist[j] {
                     self.dist[j] = nd;
-                    self.next[j] = raster_u32(i);
-                    heap.push(Reverse((nd.to_bits(), raster_u32(j))));
+                    self.next[j] = as_u32(i);
+                    heap.push(Reverse((nd.to_bits(), as_u32(j))));
                 }
             }
         }
@@ -213,18 +214,10 @@ impl PathField {
     }
 }
 
-#[allow(
-    clippy::cast_possible_truncation,
-    reason = "grids are limited to MAX_GRID_CELLS, far below u32::MAX"
-)]
-fn raster_u32(i: usize) -> u32 {
-    i as u32
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spec::{GridMap, Occupancy, OccupancyGrid, Pose2, RobotSpec, WorldSpec};
+    use crate::spec::{FloorMap, Occupancy, OccupancyGrid, Pose2, RobotSpec, WorldSpec};
 
     /// A 6 m × 4 m room split by a wall at x = 3 m with a door at its top, y in [2.9, 4).
     fn split_room() -> std::sync::Arc<World> {
@@ -242,7 +235,7 @@ mod tests {
         }
         World::build(WorldSpec {
             id: "split-room".into(),
-            floor: Some(GridMap {
+            floor: Some(FloorMap {
                 id: "split-room".into(),
                 grid,
                 wall_height: 2.5,

@@ -7,7 +7,8 @@
 //! - [`library`]: the model library and placeholders;
 //! - [`world`]: [`World`], the built world with exact laser casts and clearance queries;
 //! - [`kinematics`]: differential drive;
-//! - [`env`] and [`batch`]: the reinforcement-learning environment of the paper's §4.1.1;
+//! - [`env`](mod@crate::env) and [`batch`]: the reinforcement-learning environment of the
+//!   paper's §4.1.1;
 //! - [`field`]: path distances to a goal (the shaped reward's navigation function);
 //! - [`render`]: top-down PNG and SVG pictures;
 //! - [`parse`]: the simulation parser, on-demand database (RDF) to [`WorldSpec`];
@@ -20,7 +21,6 @@ pub mod field;
 pub mod kinematics;
 pub mod library;
 pub mod parse;
-mod raster;
 pub mod render;
 pub mod spec;
 pub mod world;
@@ -35,8 +35,8 @@ pub use kinematics::{Action, CommandLimits, DiffDrive};
 pub use library::{LibraryModel, Model};
 pub use parse::{parse_floor, parse_on_demand, parse_robot};
 pub use spec::{
-    CameraSpec, Colour, DiffDriveSpec, GridMap, LaserSpec, ObjectSpec, Occupancy, OccupancyGrid,
-    Pose2, Pose3, Problem, Problems, RobotPartSpec, RobotSpec, Severity, Shape, Size3, WallSpec,
-    WheelSpec, WorldSpec,
+    CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec, Occupancy, OccupancyGrid,
+    Pose2, Pose3, RobotPartSpec, RobotSpec, Severity, Shape, Size3, SpecProblem, SpecProblems,
+    WallSpec, WheelSpec, WorldSpec,
 };
 pub use world::{BuildOptions, FreeRegion, World};

@@ -8,8 +8,8 @@ use std::collections::HashMap;
 use oxrdf::Graph;
 
 use crate::spec::{
-    CameraSpec, Colour, DiffDriveSpec, GridMap, LaserSpec, ObjectSpec, Pose3, Problem, Problems,
-    RobotPartSpec, RobotSpec, Shape, Size3, WallSpec, WheelSpec, WorldSpec,
+    CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec, RobotPartSpec, RobotSpec,
+    Shape, Size3, SpecProblem, SpecProblems, WallSpec, WheelSpec, WorldSpec,
 };
 
 /// Height of the walls that occupied map cells and boundaries become, metres: a storey.
@@ -23,18 +23,22 @@ fn tosm_term(local: &str) -> String {
 
 /// Reads the world of the on-demand database `graph` for the robot `robot_iri`: the one floor
 /// with a metric map (or, with none, the places' boundaries), the objects inside it and the robot.
-pub fn parse_on_demand(graph: &Graph, robot_iri: &str) -> Result<WorldSpec, Problems> {
+pub fn parse_on_demand(graph: &Graph, robot_iri: &str) -> Result<WorldSpec, SpecProblems> {
     parse(graph, robot_iri, None)
 }
 
 /// As [`parse_on_demand`], for the floor `floor_iri` of a graph that holds several.
-pub fn parse_floor(graph: &Graph, robot_iri: &str, floor_iri: &str) -> Result<WorldSpec, Problems> {
+pub fn parse_floor(
+    graph: &Graph,
+    robot_iri: &str,
+    floor_iri: &str,
+) -> Result<WorldSpec, SpecProblems> {
     parse(graph, robot_iri, Some(floor_iri))
 }
 
 /// The robot `robot_iri` of a graph as the simulator and the URDF export need it.
-pub fn parse_robot(graph: &Graph, robot_iri: &str) -> Result<RobotSpec, Problems> {
-    let mut out = Problems::default();
+pub fn parse_robot(graph: &Graph, robot_iri: &str) -> Result<RobotSpec, SpecProblems> {
+    let mut out = SpecProblems::default();
     let robot = match tosm::read_robot(graph, robot_iri) {
         Ok(r) => robot_spec(&r, &mut out),
         Err(p) => {
@@ -48,14 +52,18 @@ pub fn parse_robot(graph: &Graph, robot_iri: &str) -> Result<RobotSpec, Problems
     }
 }
 
-fn from_tosm(problems: tosm::Problems, out: &mut Problems) {
+fn from_tosm(problems: tosm::Problems, out: &mut SpecProblems) {
     for p in problems.0 {
-        out.push(Problem::error(p.individual, p.property, p.message));
+        out.push(SpecProblem::error(p.individual, p.property, p.message));
     }
 }
 
-fn parse(graph: &Graph, robot_iri: &str, floor_iri: Option<&str>) -> Result<WorldSpec, Problems> {
-    let mut out = Problems::default();
+fn parse(
+    graph: &Graph,
+    robot_iri: &str,
+    floor_iri: Option<&str>,
+) -> Result<WorldSpec, SpecProblems> {
+    let mut out = SpecProblems::default();
     let robot = match tosm::read_robot(graph, robot_iri) {
         Ok(r) => robot_spec(&r, &mut out),
         Err(p) => {
@@ -80,7 +88,7 @@ fn parse(graph: &Graph, robot_iri: &str, floor_iri: Option<&str>) -> Result<Worl
             .collect();
         let on_floor = |iri: &str| reaches(iri, &floor.iri, &parents);
         if let Some(map) = &floor.map {
-            spec_floor = Some(GridMap {
+            spec_floor = Some(FloorMap {
                 id: floor.iri.clone(),
                 grid: map.grid.clone(),
                 wall_height: WALL_HEIGHT,
@@ -97,13 +105,13 @@ fn parse(graph: &Graph, robot_iri: &str, floor_iri: Option<&str>) -> Result<Worl
                     .collect()
             };
             if bounded.is_empty() {
-                out.push(Problem::error(
+                out.push(SpecProblem::error(
                     &floor.iri,
                     tosm_term("hasMap"),
                     "the floor has no metric map and no place on it has a boundary: there is no static geometry to simulate",
                 ));
             } else if bounded.len() > 1 || bounded[0].iri != floor.iri {
-                notes.push(Problem::warning(
+                notes.push(SpecProblem::warning(
                     &floor.iri,
                     tosm_term("hasMap"),
                     "the floor has no metric map: the boundaries of its places become walls, so doorways between them are closed",
@@ -182,12 +190,12 @@ fn reaches(iri: &str, target: &str, up: &HashMap<&str, Option<&str>>) -> bool {
 fn choose_floor<'a>(
     places: &'a [tosm::Place],
     wanted: Option<&str>,
-    out: &mut Problems,
+    out: &mut SpecProblems,
 ) -> Option<&'a tosm::Place> {
     if let Some(iri) = wanted {
         let found = places.iter().find(|p| p.iri == iri);
         if found.is_none() {
-            out.push(Problem::error(
+            out.push(SpecProblem::error(
                 iri,
                 "rdf:type",
                 "is not described as a tosm:Place in the on-demand database",
@@ -218,7 +226,7 @@ fn choose_floor<'a>(
                     if let [one] = top.as_slice() {
                         Some(one)
                     } else {
-                        out.push(Problem::error(
+                        out.push(SpecProblem::error(
                             "on-demand database",
                             tosm_term("hasMap"),
                             format!(
@@ -232,7 +240,7 @@ fn choose_floor<'a>(
             }
         }
         many => {
-            out.push(Problem::error(
+            out.push(SpecProblem::error(
                 "on-demand database",
                 tosm_term("hasMap"),
                 format!(
@@ -259,17 +267,6 @@ fn shape_size(shape: &tosm::Shape) -> (Shape, Size3) {
     (s, Size3::new(x, y, z))
 }
 
-fn pose3(p: &tosm::Pose) -> Pose3 {
-    Pose3 {
-        x: p.x,
-        y: p.y,
-        z: p.z,
-        roll: p.roll,
-        pitch: p.pitch,
-        yaw: p.yaw,
-    }
-}
-
 #[allow(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
@@ -287,12 +284,12 @@ fn colour(c: Option<&tosm::Colour>, name: Option<&str>) -> Option<Colour> {
         .or_else(|| name.and_then(Colour::parse))
 }
 
-fn object_spec(o: &tosm::Object, notes: &mut Vec<Problem>) -> ObjectSpec {
+fn object_spec(o: &tosm::Object, notes: &mut Vec<SpecProblem>) -> ObjectSpec {
     let (shape, size) = shape_size(&o.shape);
     let colour = colour(o.colour.as_ref(), o.colour_name.as_deref()).unwrap_or_else(|| {
         let is_placeholder = crate::library::LibraryModel::for_class(&o.class_iri).is_none();
         if is_placeholder {
-            notes.push(Problem::warning(
+            notes.push(SpecProblem::warning(
                 &o.iri,
                 tosm_term("colourRed"),
                 "the object has no colour: its placeholder is grey",
@@ -305,18 +302,18 @@ fn object_spec(o: &tosm::Object, notes: &mut Vec<Problem>) -> ObjectSpec {
         class: Some(o.class_iri.clone()),
         shape,
         size,
-        pose: pose3(&o.pose),
+        pose: o.pose,
         colour,
         open: o.is_open.unwrap_or(false),
     }
 }
 
 /// The robot as the simulator needs it, or `None` with the reasons in `out`.
-fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
+fn robot_spec(r: &tosm::Robot, out: &mut SpecProblems) -> Option<RobotSpec> {
     let iri = r.iri.as_str();
     let before = out.0.len();
     if !r.differential_drive {
-        out.push(Problem::error(
+        out.push(SpecProblem::error(
             iri,
             "rdf:type",
             "the simulator drives differential robots only (tosm:DifferentialDriveRobot)",
@@ -325,7 +322,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
     let active: Vec<&tosm::Wheel> = r.active_wheels().collect();
     let (separation, radius) = if let [a, b] = active.as_slice() {
         if (a.radius - b.radius).abs() > 1e-3 {
-            out.push(Problem::warning(
+            out.push(SpecProblem::warning(
                 &b.part.iri,
                 tosm_term("wheelRadiusM"),
                 format!(
@@ -336,7 +333,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
         }
         (r.wheel_separation(), Some((a.radius + b.radius) / 2.0))
     } else {
-        out.push(Problem::error(
+        out.push(SpecProblem::error(
             iri,
             tosm_term("hasPart"),
             format!(
@@ -348,7 +345,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
     };
     let laser = match r.lasers.as_slice() {
         [] => {
-            out.push(Problem::error(
+            out.push(SpecProblem::error(
                 iri,
                 tosm_term("hasSensor"),
                 "the robot has no laser range finder: the simulated policy observes one",
@@ -357,7 +354,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
         }
         [first, rest @ ..] => {
             if !rest.is_empty() {
-                out.push(Problem::warning(
+                out.push(SpecProblem::warning(
                     iri,
                     tosm_term("hasSensor"),
                     format!(
@@ -373,7 +370,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
                 range_max: first.range_max,
                 fov: first.view_angle,
                 samples: first.samples as usize,
-                mount: pose3(&first.part.mounting),
+                mount: first.part.mounting,
             })
         }
     };
@@ -389,7 +386,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
                 id: p.iri.clone(),
                 shape,
                 size,
-                pose: pose3(&p.mounting),
+                pose: p.mounting,
                 colour: colour(p.colour.as_ref(), None).unwrap_or(Colour::GREY),
                 mass: p.physical.mass_kg,
             })
@@ -402,13 +399,13 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
             id: w.part.iri.clone(),
             radius: w.radius,
             width: w.width.unwrap_or(w.radius / 2.0),
-            pose: pose3(&w.part.mounting),
+            pose: w.part.mounting,
             active: w.active,
         })
         .collect();
     let footprint = RobotSpec::footprint_from_parts(&parts, &wheels);
     if footprint.is_none() {
-        out.push(Problem::error(
+        out.push(SpecProblem::error(
             iri,
             tosm_term("hasShape"),
             "no part of the robot has a shape: its footprint is unknown",
@@ -429,7 +426,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut Problems) -> Option<RobotSpec> {
             fps: c.fps,
             hfov: c.horizontal_fov,
             depth_range: c.depth_range,
-            mount: pose3(&c.part.mounting),
+            mount: c.part.mounting,
         })
         .collect();
     if out.0[before..]

@@ -542,14 +542,14 @@ fn merged_runs(world: &World, unknown: bool) -> Vec<[u32; 4]> {
             while col < w && world.cell_look(col, row) == Some(unknown) {
                 col += 1;
             }
-            let key = (crate::raster::as_u32(start), crate::raster::as_u32(col));
+            let key = (crate::spec::as_u32(start), crate::spec::as_u32(col));
             let idx = match open.remove(&key) {
                 Some(i) => {
                     done[i][3] += 1;
                     i
                 }
                 None => {
-                    done.push([key.0, crate::raster::as_u32(row), key.1 - key.0, 1]);
+                    done.push([key.0, crate::spec::as_u32(row), key.1 - key.0, 1]);
                     done.len() - 1
                 }
             };

@@ -17,10 +17,10 @@ pub mod write;
 
 pub use model::{
     Camera, CameraKind, Colour, Joint, JointKind, Laser, MetricMap, Object, ObjectClass, Part,
-    Physical, Place, PlaceKind, Pose, Relation, RelationKind, Robot, Shape, StructuralPart, Symbol,
-    Wheel,
+    Physical, Place, PlaceKind, Pose3, Relation, RelationKind, Robot, Shape, StructuralPart,
+    Symbol, Wheel,
 };
-pub use occupancy::{MapError, Occupancy, OccupancyGrid, Pose2, RosMapMeta};
+pub use occupancy::{Occupancy, OccupancyGrid, Pose2, RosMapError, RosMapMeta};
 pub use problems::{Problem, Problems};
 pub use read::{
     read_objects, read_objects_lenient, read_places, read_places_lenient, read_robot, read_robots,

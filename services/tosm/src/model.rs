@@ -7,9 +7,10 @@
 use crate::occupancy::{CANONICAL_FREE_THRESH, CANONICAL_OCCUPIED_THRESH, OccupancyGrid, Pose2};
 
 /// A pose in 3-D: position in metres, orientation as roll, pitch, yaw in radians (extrinsic
-/// x, y, z rotations, as in URDF and SDF).
+/// x, y, z rotations, as in URDF and SDF). The TOSM class `tosm:Pose`; the simulator's worlds
+/// use the same type (`sim::Pose3`).
 #[derive(Copy, Clone, Debug, PartialEq, Default)]
-pub struct Pose {
+pub struct Pose3 {
     /// Position along x, metres.
     pub x: f64,
     /// Position along y, metres.
@@ -24,7 +25,7 @@ pub struct Pose {
     pub yaw: f64,
 }
 
-impl Pose {
+impl Pose3 {
     /// A pose at `(x, y, z)` turned by `yaw` about the vertical axis.
     pub fn new(x: f64, y: f64, z: f64, yaw: f64) -> Self {
         Self {
@@ -35,6 +36,18 @@ impl Pose {
             pitch: 0.0,
             yaw,
         }
+    }
+
+    /// Whether every component is finite.
+    pub fn is_finite(&self) -> bool {
+        [self.x, self.y, self.z, self.roll, self.pitch, self.yaw]
+            .iter()
+            .all(|v| v.is_finite())
+    }
+
+    /// Whether roll and pitch are (numerically) zero.
+    pub fn is_upright(&self) -> bool {
+        self.roll.abs() < 1e-9 && self.pitch.abs() < 1e-9
     }
 }
 
@@ -270,7 +283,7 @@ pub struct Object {
     /// Symbolic model.
     pub symbol: Symbol,
     /// Pose of the shape's centre in the floor's frame.
-    pub pose: Pose,
+    pub pose: Pose3,
     /// Shape and size.
     pub shape: Shape,
     /// Colour, when known.
@@ -299,7 +312,7 @@ pub struct Part {
     /// Symbolic model.
     pub symbol: Symbol,
     /// Pose of the part's centre in the robot frame.
-    pub mounting: Pose,
+    pub mounting: Pose3,
     /// Shape and size, when given (wheels are described by radius and width instead).
     pub shape: Option<Shape>,
     /// Colour, when known.

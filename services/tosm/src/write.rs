@@ -11,7 +11,7 @@ use oxrdf::{Literal, NamedNode, NamedNodeRef, Term, Triple};
 
 use crate::model::{
     Camera, CameraKind, Colour, Joint, JointKind, MetricMap, Object, ObjectClass, Part, Physical,
-    Place, PlaceKind, Pose, Relation, RelationKind, Robot, Shape, Symbol, Wheel,
+    Place, PlaceKind, Pose3, Relation, RelationKind, Robot, Shape, Symbol, Wheel,
 };
 use crate::occupancy::OccupancyGrid;
 use crate::problems::{Problem, Problems};
@@ -193,7 +193,7 @@ impl Writer {
         }
     }
 
-    fn pose(&mut self, owner: &NamedNode, p: NamedNodeRef<'_>, pose: &Pose) {
+    fn pose(&mut self, owner: &NamedNode, p: NamedNodeRef<'_>, pose: &Pose3) {
         let Some(node) = self.node(&format!("{}/pose", owner.as_str()), owner.as_str(), p) else {
             return;
         };

@@ -8,8 +8,8 @@ use std::path::PathBuf;
 use oxrdf::vocab::rdf;
 use oxrdf::{Graph, Literal, NamedNode, NamedOrBlankNode, Term, Triple};
 use tosm::{
-    CameraKind, Colour, JointKind, Object, ObjectClass, Physical, Place, PlaceKind, Pose, Problems,
-    Relation, RelationKind, Robot, Shape, Symbol, vocab,
+    CameraKind, Colour, JointKind, Object, ObjectClass, Physical, Place, PlaceKind, Pose3,
+    Problems, Relation, RelationKind, Robot, Shape, Symbol, vocab,
 };
 
 const ROBOT: &str = "https://mentalsim.dev/data/robots/differential-robot";
@@ -176,7 +176,7 @@ fn sample_object() -> Object {
             identifier: Some("C-1".to_owned()),
             description: Some("Seen by the robot".to_owned()),
         },
-        pose: Pose {
+        pose: Pose3 {
             x: 1.25,
             y: -0.5,
             z: 0.2,
@@ -263,7 +263,7 @@ fn a_class_declared_in_the_graph_is_recognised() {
     assert_eq!(objects.len(), 1);
     assert_eq!(objects[0].class_iri, t("Piano"));
     assert_eq!(objects[0].class, ObjectClass::Other);
-    assert_eq!(objects[0].pose, Pose::new(0.5, 0.5, 0.0, 0.0));
+    assert_eq!(objects[0].pose, Pose3::new(0.5, 0.5, 0.0, 0.0));
 }
 
 /// A well-formed room and object that each bad-data test below breaks in one way.

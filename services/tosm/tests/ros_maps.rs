@@ -38,10 +38,7 @@ fn every_shared_ros_map_parses_with_the_readme_free_area() {
     )
     .join(ROOT);
     if !root.is_dir() {
-        println!(
-            "skipped: the shared map collection is not at {}",
-            root.display()
-        );
+        fixtures::missing(format!("the shared map collection at {}", root.display()));
         return;
     }
     let listed: std::collections::BTreeSet<String> =

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use oxrdf::{Graph, Triple};
 use tosm::{
     Colour, MetricMap, Object, ObjectClass, Occupancy, OccupancyGrid, Physical, Place, PlaceKind,
-    Pose, Relation, RelationKind, RosMapMeta, Shape, Symbol, vocab,
+    Pose3, Relation, RelationKind, RosMapMeta, Shape, Symbol, vocab,
 };
 
 const BUILDING: &str = "https://mentalsim.dev/data/buildings/sample-building";
@@ -184,7 +184,7 @@ struct ObjectSpec {
     class: ObjectClass,
     name: &'static str,
     place: (i64, &'static str),
-    pose: Pose,
+    pose: Pose3,
     shape: Shape,
     colour: (f64, f64, f64, &'static str),
     mass_kg: f64,
@@ -202,7 +202,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: VendingMachine,
             name: "Beverage vending machine",
             place: (0, "living-room"),
-            pose: Pose::new(4.2, -2.0, 0.915, PI),
+            pose: Pose3::new(4.2, -2.0, 0.915, PI),
             shape: Shape::Box {
                 length: 0.8,
                 width: 0.9,
@@ -218,7 +218,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Shelf,
             name: "Book shelf",
             place: (0, "living-room"),
-            pose: Pose::new(1.0, 0.25, 0.9, -FRAC_PI_2),
+            pose: Pose3::new(1.0, 0.25, 0.9, -FRAC_PI_2),
             shape: Shape::Box {
                 length: 0.4,
                 width: 1.2,
@@ -234,7 +234,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Table,
             name: "Dining table",
             place: (0, "living-room"),
-            pose: Pose::new(1.0, -4.0, 0.375, 0.0),
+            pose: Pose3::new(1.0, -4.0, 0.375, 0.0),
             shape: Shape::Box {
                 length: 1.6,
                 width: 0.9,
@@ -250,7 +250,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Chair,
             name: "Chair",
             place: (0, "living-room"),
-            pose: Pose::new(1.0, -3.2, 0.45, -FRAC_PI_2),
+            pose: Pose3::new(1.0, -3.2, 0.45, -FRAC_PI_2),
             shape: Shape::Box {
                 length: 0.45,
                 width: 0.45,
@@ -266,7 +266,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Chair,
             name: "Chair",
             place: (0, "living-room"),
-            pose: Pose::new(2.15, -4.0, 0.45, PI),
+            pose: Pose3::new(2.15, -4.0, 0.45, PI),
             shape: Shape::Box {
                 length: 0.45,
                 width: 0.45,
@@ -282,7 +282,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Door,
             name: "Living room door",
             place: (0, "living-room"),
-            pose: Pose::new(-1.9, -2.6, 1.0, FRAC_PI_2),
+            pose: Pose3::new(-1.9, -2.6, 1.0, FRAC_PI_2),
             shape: Shape::Box {
                 length: 0.9,
                 width: 0.04,
@@ -298,7 +298,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Table,
             name: "Round table",
             place: (0, "hall"),
-            pose: Pose::new(-12.7, -3.3, 0.375, 0.0),
+            pose: Pose3::new(-12.7, -3.3, 0.375, 0.0),
             shape: Shape::Cylinder {
                 diameter: 1.0,
                 height: 0.75,
@@ -313,7 +313,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Chair,
             name: "Chair",
             place: (0, "hall"),
-            pose: Pose::new(-12.7, -2.45, 0.45, -FRAC_PI_2),
+            pose: Pose3::new(-12.7, -2.45, 0.45, -FRAC_PI_2),
             shape: Shape::Box {
                 length: 0.45,
                 width: 0.45,
@@ -329,7 +329,7 @@ fn object_specs() -> Vec<ObjectSpec> {
             class: Bin,
             name: "Waste bin",
             place: (1, "kitchen"),
-            pose: Pose::new(-1.5, 2.5, 0.2, 0.0),
+            pose: Pose3::new(-1.5, 2.5, 0.2, 0.0),
             shape: Shape::Cylinder {
                 diameter: 0.3,
                 height: 0.4,

@@ -9,7 +9,7 @@ use learning::policy::write_goal_seeking_policy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sim::{
-    Action, GridMap, Observation, Occupancy, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec,
+    Action, FloorMap, Observation, Occupancy, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec,
 };
 use worker::plan::{
     AttemptOutcome, ClassicalFollower, Controller, ControllerKind, PlanError, PlanOptions,
@@ -51,7 +51,7 @@ fn room() -> Arc<World> {
     block(12.9, 1.0, 13.0, 4.0);
     World::build(WorldSpec {
         id: "plan-test-room".into(),
-        floor: Some(GridMap {
+        floor: Some(FloorMap {
             id: "room".into(),
             grid: g,
             wall_height: 2.5,
@@ -361,7 +361,7 @@ fn a_real_map_validates_a_multi_goal_plan() {
     let grid = OccupancyGrid::from_ros_map_server(&meta, &image).expect("grid");
     let world = World::build(WorldSpec {
         id: "aws_small_house".into(),
-        floor: Some(GridMap {
+        floor: Some(FloorMap {
             id: "aws_small_house".into(),
             grid,
             wall_height: 2.5,

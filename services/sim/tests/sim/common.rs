@@ -1,7 +1,7 @@
 //! Fixtures: rooms with known geometry and objects.
 
 use sim::{
-    Colour, GridMap, ObjectSpec, Occupancy, OccupancyGrid, Pose2, Pose3, RobotSpec, Shape, Size3,
+    Colour, FloorMap, ObjectSpec, Occupancy, OccupancyGrid, Pose2, Pose3, RobotSpec, Shape, Size3,
     WorldSpec,
 };
 
@@ -29,7 +29,7 @@ pub fn room(w: f64, h: f64) -> WorldSpec {
 pub fn room_at(w: f64, h: f64, origin: Pose2) -> WorldSpec {
     WorldSpec {
         id: "test-room".into(),
-        floor: Some(GridMap {
+        floor: Some(FloorMap {
             id: "room".into(),
             grid: room_grid(w, h, origin),
             wall_height: 2.5,

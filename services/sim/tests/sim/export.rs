@@ -62,21 +62,27 @@ fn furnished_spec() -> sim::WorldSpec {
     spec
 }
 
-/// The sdformat checker, compiled once per target directory; `None` (with a message) when
-/// libsdformat or a C++ compiler is missing.
+/// The sdformat checker, compiled once per target directory; `None` (with a message, or a
+/// failure under CI: `fixtures::missing`) when libsdformat or a C++ compiler is missing.
 fn sdf_checker() -> Option<PathBuf> {
     let bin = scratch("check_sdf");
     if bin.exists() {
         return Some(bin);
     }
-    let flags = Command::new("pkg-config")
+    let flags = match Command::new("pkg-config")
         .args(["--cflags", "--libs", "sdformat12"])
         .output()
-        .ok()?;
-    if !flags.status.success() {
-        println!("skipped: libsdformat (pkg-config sdformat12) is not installed");
-        return None;
-    }
+    {
+        Ok(out) if out.status.success() => out,
+        Ok(_) => {
+            fixtures::missing("libsdformat (pkg-config sdformat12)");
+            return None;
+        }
+        Err(_) => {
+            fixtures::missing("pkg-config (to find libsdformat)");
+            return None;
+        }
+    };
     let src = scratch("check_sdf.cc");
     std::fs::write(
         &src,
@@ -107,7 +113,9 @@ int main(int argc, char **argv) {
     match status {
         Ok(s) if s.success() => Some(bin),
         other => {
-            println!("skipped: could not compile the sdformat checker with g++: {other:?}");
+            fixtures::missing(format!(
+                "a g++ that compiles the sdformat checker ({other:?})"
+            ));
             None
         }
     }
@@ -174,7 +182,7 @@ fn the_robot_urdf_is_accepted_by_check_urdf() {
             String::from_utf8_lossy(&out.stdout),
             String::from_utf8_lossy(&out.stderr)
         ),
-        Err(_) => println!("skipped: check_urdf (liburdfdom-tools) is not installed"),
+        Err(_) => fixtures::missing("check_urdf (liburdfdom-tools)"),
     }
 }
 
@@ -218,7 +226,7 @@ fn the_sample_building_and_robot_export_to_files_gazebo_and_ros_load() {
             String::from_utf8_lossy(&out.stdout)
         );
     } else {
-        println!("skipped: check_urdf (liburdfdom-tools) is not installed");
+        fixtures::missing("check_urdf (liburdfdom-tools)");
     }
     let sdf = world_sdf(&spec);
     let path = scratch("sample-building-floor-0.sdf");

@@ -1,9 +1,10 @@
-//! A world built from a real ROS map in ../shared/maps (skipped, saying so, when absent).
+//! A world built from a real ROS map in ../shared/maps (skipped, saying so, when absent; a
+//! failure under CI: `fixtures::missing`).
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use sim::{Action, EnvConfig, GridMap, NavEnv, OccupancyGrid, RobotSpec, World, WorldSpec};
+use sim::{Action, EnvConfig, FloorMap, NavEnv, OccupancyGrid, RobotSpec, World, WorldSpec};
 
 fn shared_map(folder: &str, yaml: &str) -> Option<(String, OccupancyGrid)> {
     let dir = PathBuf::from(
@@ -14,13 +15,13 @@ fn shared_map(folder: &str, yaml: &str) -> Option<(String, OccupancyGrid)> {
     .join(folder);
     let yaml_path = dir.join(yaml);
     let Ok(text) = std::fs::read_to_string(&yaml_path) else {
-        println!("skipped: {} is missing", yaml_path.display());
+        fixtures::missing(format!("the shared map {}", yaml_path.display()));
         return None;
     };
     let meta = tosm::RosMapMeta::parse_yaml(&text).expect("yaml parses");
     let image_path = dir.join(&meta.image);
     let Ok(image) = std::fs::read(&image_path) else {
-        println!("skipped: {} is missing", image_path.display());
+        fixtures::missing(format!("the shared map image {}", image_path.display()));
         return None;
     };
     let grid = OccupancyGrid::from_ros_map_server(&meta, &image).expect("map decodes");
@@ -35,7 +36,7 @@ fn a_world_from_a_real_ros_map() {
     let free_area = grid.free_area_m2();
     let spec = WorldSpec {
         id: id.clone(),
-        floor: Some(GridMap {
+        floor: Some(FloorMap {
             id,
             grid,
             wall_height: 2.5,

@@ -6,7 +6,7 @@
 //! planned around as the simulator sees them: a table's legs block, the space between them does
 //! not, which is why the executor validates in the simulation rather than trusting the grid.
 
-use planning::GridMap;
+use planning::PlanningGrid;
 use sim::{Shape, World};
 
 /// Cells above this many are refused: the world grid is capped at the same order by `sim`.
@@ -16,7 +16,7 @@ const MAX_CELLS: usize = 40_000_000;
 ///
 /// For a floor map with zero yaw (every shared map) cell centres coincide with the world's
 /// cells, so walls are reproduced exactly; a rotated map is resampled at cell centres.
-pub fn planning_grid(world: &World) -> Result<GridMap, String> {
+pub fn planning_grid(world: &World) -> Result<PlanningGrid, String> {
     let [x0, y0, x1, y1] = world.bounds();
     let res = world.resolution();
     let robot = &world.spec().robot;
@@ -108,7 +108,7 @@ pub fn planning_grid(world: &World) -> Result<GridMap, String> {
             }
         }
     }
-    let grid = GridMap {
+    let grid = PlanningGrid {
         width,
         height,
         resolution: res,

@@ -1,6 +1,8 @@
 //! The planner's map input: a metric occupancy grid reduced to blocked / not blocked.
 
-use crate::error::MapError;
+use grid::hash::Fnv1a;
+
+use crate::error::GridError;
 
 /// A point in the map frame, in metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,7 +31,7 @@ impl Point2 {
 /// this, so the planner knows nothing of file formats. Unknown cells should be given as blocked:
 /// the planner never plans through space nobody has seen.
 #[derive(Debug, Clone, PartialEq)]
-pub struct GridMap {
+pub struct PlanningGrid {
     /// Number of columns.
     pub width: usize,
     /// Number of rows.
@@ -44,11 +46,11 @@ pub struct GridMap {
     pub blocked: Vec<bool>,
 }
 
-impl GridMap {
+impl PlanningGrid {
     /// Checks that the grid is usable: non-empty, sizes agree, finite positive resolution.
-    pub fn validate(&self) -> Result<(), MapError> {
+    pub fn validate(&self) -> Result<(), GridError> {
         if self.width == 0 || self.height == 0 {
-            return Err(MapError::Empty {
+            return Err(GridError::Empty {
                 width: self.width,
                 height: self.height,
             });
@@ -58,21 +60,21 @@ impl GridMap {
             .width
             .checked_mul(self.height)
             .filter(|&c| c < u32::MAX as usize)
-            .ok_or(MapError::TooLarge {
+            .ok_or(GridError::TooLarge {
                 width: self.width,
                 height: self.height,
             })?;
         if self.blocked.len() != cells {
-            return Err(MapError::SizeMismatch {
+            return Err(GridError::SizeMismatch {
                 expected: cells,
                 actual: self.blocked.len(),
             });
         }
         if !(self.resolution.is_finite() && self.resolution > 0.0) {
-            return Err(MapError::BadResolution(self.resolution));
+            return Err(GridError::BadResolution(self.resolution));
         }
         if !(self.origin_x.is_finite() && self.origin_y.is_finite()) {
-            return Err(MapError::BadOrigin {
+            return Err(GridError::BadOrigin {
                 x: self.origin_x,
                 y: self.origin_y,
             });
@@ -83,7 +85,7 @@ impl GridMap {
     /// A content fingerprint (FNV-1a over geometry and cells), usable as a map version when the
     /// caller has none: equal maps give equal fingerprints on every platform.
     pub fn fingerprint(&self) -> u64 {
-        let mut h = Fnv::new();
+        let mut h = Fnv1a::new();
         h.write(&(self.width as u64).to_le_bytes());
         h.write(&(self.height as u64).to_le_bytes());
         h.write(&self.resolution.to_bits().to_le_bytes());
@@ -104,23 +106,5 @@ impl GridMap {
     pub fn free_area_m2(&self) -> f64 {
         let free = self.blocked.iter().filter(|b| !**b).count();
         free as f64 * self.resolution * self.resolution
-    }
-}
-
-/// 64-bit FNV-1a: tiny, stable across platforms and Rust versions (unlike `DefaultHasher`).
-struct Fnv(u64);
-
-impl Fnv {
-    fn new() -> Self {
-        Self(0xcbf2_9ce4_8422_2325)
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 ^= u64::from(b);
-            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-    }
-    fn finish(&self) -> u64 {
-        self.0
     }
 }

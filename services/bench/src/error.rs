@@ -1,0 +1,70 @@
+//! Why a benchmark could not run: the one error type of every harness here.
+
+use std::path::{Path, PathBuf};
+
+/// Why the benchmark could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// A file or directory could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A map file is malformed.
+    #[error("{path}: {source}")]
+    Map {
+        /// The YAML file.
+        path: PathBuf,
+        /// What is wrong.
+        source: tosm::RosMapError,
+    },
+    /// A map or scenario file is malformed (MovingAI formats).
+    #[error("{path}: {message}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The planner rejected the map.
+    #[error("{path}: {source}")]
+    ConfigSpace {
+        /// The map file.
+        path: PathBuf,
+        /// What is wrong.
+        source: planning::ConfigSpaceError,
+    },
+    /// The planner rejected the parameters.
+    #[error("{map}: {source}")]
+    Build {
+        /// The map.
+        map: String,
+        /// What is wrong.
+        source: planning::BuildError,
+    },
+    /// No map to run on.
+    #[error("no ROS map_server .yaml file under {0}")]
+    NoMaps(PathBuf),
+    /// An option is out of range.
+    #[error("bad option: {0}")]
+    BadOption(String),
+    /// The plot could not be drawn.
+    #[error("plot {path}: {message}")]
+    Plot {
+        /// The PNG path.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+}
+
+/// Maps an IO error on `path` to [`BenchError::Io`].
+pub(crate) fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> BenchError + '_ {
+    move |source| BenchError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}

@@ -1,0 +1,340 @@
+//! Building a roadmap: the paper's samples joined to their nearest neighbours by valid edges,
+//! isolated samples re-drawn, then (beyond the paper) a few cross-component edge tests and
+//! visibility repair, and the bridging of components that share a free region.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+use std::num::NonZeroUsize;
+use std::sync::Arc;
+
+use kiddo::SquaredEuclidean;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::bridge::bridge_components;
+use super::{BuildStats, PrmParams, Roadmap, components, kd_tree};
+use crate::cspace::{ConfigSpace, jitter};
+use crate::error::BuildError;
+use crate::search::{Csr, Edge};
+
+/// How many rounds isolated samples are re-drawn before they are left alone.
+const RESAMPLE_ROUNDS: usize = 32;
+
+impl Roadmap {
+    /// Builds the roadmap. As the paper: samples in free space (ridge-biased here), each joined
+    /// to its nearest neighbours by valid straight edges no longer than d_max, isolated samples
+    /// re-drawn. Beyond the paper, `repair_share` of the n samples go to visibility repair:
+    /// a few extra edge tests between nearby components, then connector and guard samples.
+    pub fn build(cspace: Arc<ConfigSpace>, params: &PrmParams) -> Result<Self, BuildError> {
+        params.validate()?;
+        if cspace.free_cells().is_empty() {
+            return Err(BuildError::NoFreeSpace {
+                inflation_m: cspace.inflation().total_m(),
+            });
+        }
+        let cs = &*cspace;
+        let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
+        let mut stats = BuildStats::default();
+        // Most samples are the paper's random ones; the rest are spent where they join
+        // components or cover unseen space (see `repair`).
+        let repair_budget = ((params.samples as f64) * params.repair_share).floor() as usize;
+        let random_count = (params.samples - repair_budget).max(1);
+        let mut nodes: Vec<[f64; 2]> = (0..random_count)
+            .map(|_| draw(cs, params, &mut rng))
+            .collect();
+        stats.samples_drawn = nodes.len();
+        let dmax = params.max_edge_m / cs.resolution();
+        let dmax2 = dmax * dmax;
+        let k = params.neighbours;
+        let tests =
+            NonZeroUsize::new(params.max_tests_per_node.max(k) + 1).unwrap_or(NonZeroUsize::MIN);
+
+        // Tested pairs (lo, hi) -> edge length if valid. Cleared for nodes that get re-drawn.
+        let mut tested: HashMap<u64, Option<f64>, BuildHasherDefault<PairHasher>> =
+            HashMap::default();
+        let mut adj: Vec<Vec<(u32, f64)>> = vec![Vec::new(); nodes.len()];
+        let mut pending: Vec<u32> = (0..nodes.len() as u32).collect();
+        for round in 0..=RESAMPLE_ROUNDS {
+            let tree = kd_tree(&nodes)?;
+            for &i in &pending {
+                let p = nodes[i as usize];
+                let near = tree
+                    .query(&p)
+                    .nearest_n::<SquaredEuclidean<f64>>(tests)
+                    .within(dmax2)
+                    .execute();
+                let mut valid = 0usize;
+                for nb in near {
+                    let j = nb.item;
+                    if j == i {
+                        continue;
+                    }
+                    let key = pair_key(i, j);
+                    let len = match tested.get(&key) {
+                        Some(r) => *r,
+                        None => {
+                            stats.edge_checks += 1;
+                            let q = nodes[j as usize];
+                            let r = cs.segment_free_grid(p, q).then(|| nb.distance.sqrt());
+                            tested.insert(key, r);
+                            if let Some(len) = r {
+                                adj[i as usize].push((j, len));
+                                adj[j as usize].push((i, len));
+                            }
+                            r
+                        }
+                    };
+                    if len.is_some() {
+                        valid += 1;
+                        if valid >= k {
+                            break;
+                        }
+                    }
+                }
+            }
+            pending = (0..nodes.len() as u32)
+                .filter(|&i| adj[i as usize].is_empty())
+                .collect();
+            if pending.is_empty() || round == RESAMPLE_ROUNDS {
+                break;
+            }
+            // Re-draw isolated samples (the paper's rule); their old pair results no longer hold.
+            tested.retain(|&key, _| {
+                let (a, b) = ((key >> 32) as u32, key as u32);
+                !(adj[a as usize].is_empty() || adj[b as usize].is_empty())
+            });
+            for &i in &pending {
+                nodes[i as usize] = draw(cs, params, &mut rng);
+                stats.samples_drawn += 1;
+            }
+        }
+        let mut uf = UnionFind::new(nodes.len());
+        for (i, list) in adj.iter().enumerate() {
+            for &(j, _) in list {
+                uf.union(i as u32, j);
+            }
+        }
+        // Join components that are close: test a few more neighbours lying in other components.
+        // Part of the repair, so that repair_share = 0 is exactly the paper's PRM.
+        let wide = NonZeroUsize::new(3 * tests.get()).unwrap_or(NonZeroUsize::MIN);
+        let tree = kd_tree(&nodes)?;
+        let cross_nodes = if params.repair_share > 0.0 {
+            nodes.len() as u32
+        } else {
+            0
+        };
+        for i in 0..cross_nodes {
+            let p = nodes[i as usize];
+            let near = tree
+                .query(&p)
+                .nearest_n::<SquaredEuclidean<f64>>(wide)
+                .within(dmax2)
+                .execute();
+            let mut tries = 0;
+            for nb in near {
+                let j = nb.item;
+                if j == i || uf.find(i) == uf.find(j) || tested.contains_key(&pair_key(i, j)) {
+                    continue;
+                }
+                tries += 1;
+                stats.edge_checks += 1;
+                let r = cs
+                    .segment_free_grid(p, nodes[j as usize])
+                    .then(|| nb.distance.sqrt());
+                tested.insert(pair_key(i, j), r);
+                if let Some(len) = r {
+                    adj[i as usize].push((j, len));
+                    adj[j as usize].push((i, len));
+                    uf.union(i, j);
+                }
+                if tries >= CROSS_TESTS {
+                    break;
+                }
+            }
+        }
+        let budget = params.samples.saturating_sub(random_count);
+        repair(
+            cs, params, &mut rng, budget, &mut nodes, &mut adj, &mut uf, &mut stats,
+        );
+        if params.repair_share > 0.0 {
+            bridge_components(cs, &mut nodes, &mut adj, &mut uf, &mut stats);
+        }
+        stats.isolated = adj.iter().filter(|a| a.is_empty()).count();
+
+        // Each edge's clearance is computed once here, so a query reads it for the roadmap part
+        // of its path and traces only the segments it adds (start and goal links).
+        let mut edges: Vec<Edge> = Vec::with_capacity(adj.iter().map(Vec::len).sum::<usize>() / 2);
+        for (i, list) in adj.iter().enumerate() {
+            for &(j, len) in list {
+                if (i as u32) < j {
+                    let min = cs.segment_min_dist(nodes[i], nodes[j as usize]) as f32;
+                    edges.push((i as u32, j, len, min));
+                }
+            }
+        }
+        stats.edges = edges.len();
+        let graph = Csr::from_edges(nodes.len(), &edges);
+        let component = components(&graph);
+        stats.components = component
+            .iter()
+            .copied()
+            .max()
+            .map_or(0, |m| m as usize + 1);
+        let tree = kd_tree(&nodes)?;
+        Ok(Self {
+            cspace,
+            params: params.clone(),
+            nodes,
+            graph,
+            component,
+            tree,
+            stats,
+        })
+    }
+}
+
+/// Cross-component edge tests per node after the k-nearest pass.
+const CROSS_TESTS: usize = 3;
+/// Candidate samples drawn per repair sample kept.
+const REPAIR_TRIALS_PER_SAMPLE: usize = 4;
+/// Visibility tests per repair candidate.
+const REPAIR_TESTS: usize = 8;
+
+/// Visibility-based repair (after Siméon, Laumond and Nissoux's Visibility-PRM): spends `budget`
+/// samples on candidates that see two or more components (connectors, which join them) or see
+/// no node at all (guards, which cover space no query could otherwise reach). Candidates that
+/// only see one component add nothing and are dropped. When the trials run out, the rest of the
+/// budget becomes ordinary samples so the roadmap always has n nodes.
+#[allow(clippy::too_many_arguments)]
+fn repair(
+    cs: &ConfigSpace,
+    params: &PrmParams,
+    rng: &mut ChaCha8Rng,
+    budget: usize,
+    nodes: &mut Vec<[f64; 2]>,
+    adj: &mut Vec<Vec<(u32, f64)>>,
+    uf: &mut UnionFind,
+    stats: &mut BuildStats,
+) {
+    let dmax = params.max_edge_m / cs.resolution();
+    let dmax2 = dmax * dmax;
+    let mut added = 0usize;
+    let mut trials = 0usize;
+    let mut near: Vec<(f64, u32)> = Vec::new();
+    let mut seen: Vec<(u32, u32, f64)> = Vec::new(); // (component root, node, length)
+    while added < budget {
+        let exhausted = trials >= budget * REPAIR_TRIALS_PER_SAMPLE;
+        trials += 1;
+        let p = draw(cs, params, rng);
+        stats.samples_drawn += 1;
+        // Brute-force neighbours: the node set grows one by one here, and n is small.
+        near.clear();
+        near.extend(nodes.iter().enumerate().filter_map(|(j, q)| {
+            let d2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
+            (d2 <= dmax2).then_some((d2, j as u32))
+        }));
+        let m = params.max_tests_per_node.min(near.len());
+        if m < near.len() {
+            near.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0));
+            near.truncate(m);
+        }
+        near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        seen.clear();
+        let mut tests = 0;
+        for &(d2, j) in &near {
+            let root = uf.find(j);
+            if seen.iter().any(|s| s.0 == root) {
+                continue;
+            }
+            if tests >= REPAIR_TESTS && !exhausted {
+                break;
+            }
+            tests += 1;
+            stats.edge_checks += 1;
+            if cs.segment_free_grid(p, nodes[j as usize]) {
+                seen.push((root, j, d2.sqrt()));
+            }
+        }
+        let keep = exhausted || seen.len() != 1;
+        if !keep {
+            continue;
+        }
+        let id = nodes.len() as u32;
+        nodes.push(p);
+        adj.push(Vec::new());
+        uf.push();
+        for &(_, j, len) in &seen {
+            adj[id as usize].push((j, len));
+            adj[j as usize].push((id, len));
+            uf.union(id, j);
+        }
+        added += 1;
+    }
+}
+
+/// Disjoint sets over node ids, with path halving.
+pub(super) struct UnionFind {
+    parent: Vec<u32>,
+}
+
+impl UnionFind {
+    pub(super) fn new(n: usize) -> Self {
+        Self {
+            parent: (0..n as u32).collect(),
+        }
+    }
+    pub(super) fn push(&mut self) {
+        self.parent.push(self.parent.len() as u32);
+    }
+    pub(super) fn find(&mut self, mut a: u32) -> u32 {
+        while self.parent[a as usize] != a {
+            let grand = self.parent[self.parent[a as usize] as usize];
+            self.parent[a as usize] = grand;
+            a = grand;
+        }
+        a
+    }
+    pub(super) fn union(&mut self, a: u32, b: u32) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            // Smaller id as root keeps the structure deterministic.
+            let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+            self.parent[hi as usize] = lo;
+        }
+    }
+}
+
+/// A fresh sample: on a ridge cell with probability `skeleton_share`, else uniform in free space.
+fn draw(cs: &ConfigSpace, params: &PrmParams, rng: &mut ChaCha8Rng) -> [f64; 2] {
+    let ridge = &cs.skeleton_cells;
+    let cells = if !ridge.is_empty() && rng.random::<f64>() < params.skeleton_share {
+        ridge.as_slice()
+    } else {
+        cs.free_cells()
+    };
+    let idx = cells[rng.random_range(0..cells.len())] as usize;
+    jitter(idx, cs.width, rng)
+}
+
+fn pair_key(a: u32, b: u32) -> u64 {
+    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+    (u64::from(lo) << 32) | u64::from(hi)
+}
+
+/// Multiplicative hash for u64 pair keys: SipHash would be a tenth of the build time here.
+#[derive(Default)]
+struct PairHasher(u64);
+
+impl Hasher for PairHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(5) ^ u64::from(b)).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
