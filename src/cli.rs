@@ -537,8 +537,8 @@ fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> 
 /// still exports what was learned.
 fn run_train(args: crate::train::TrainArgs) -> anyhow::Result<()> {
     let stop = stop_flag()?;
-    let json = crate::train::train(&args, &stop)?;
-    print_json(&json, None)?;
+    let summary = crate::train::train(&args, &stop)?;
+    print_json(&serde_json::to_value(&summary)?, None)?;
     eprintln!(
         "wrote the policy, curves.csv, curves.png and eval.json to {}",
         args.out.display()
@@ -597,18 +597,18 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             eval_episodes,
         } => {
             let stop = stop_flag()?;
-            let text = crate::train::beta_experiment(
-                &crate::train::BetaArgs {
-                    map,
-                    minutes,
-                    betas,
-                    seeds,
-                    out: out.clone(),
-                    config,
-                    eval_episodes,
-                },
-                &stop,
-            )?;
+            let options = bench::beta::BetaOptions {
+                map,
+                robot_ttl: crate::train::bundled_robot_ttl().as_bytes().to_vec(),
+                robot_iri: crate::train::ROBOT_IRI.to_owned(),
+                minutes,
+                betas,
+                seeds,
+                out: out.clone(),
+                config,
+                eval_episodes,
+            };
+            let text = bench::beta::run_beta_experiment(&options, &stop)?;
             println!("{text}");
             eprintln!("wrote beta.md and beta.png to {}", out.display());
             Ok(())

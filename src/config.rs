@@ -31,7 +31,7 @@ pub struct TokenConfig {
     /// Who holds it, for logs and provenance.
     pub name: String,
     /// `engineer` (read and write) or `robot` (read, robot endpoints).
-    pub role: knowledge::Role,
+    pub role: edge::Role,
 }
 
 impl std::fmt::Debug for TokenConfig {

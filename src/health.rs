@@ -1,13 +1,23 @@
-//! Liveness (`/healthz`) and readiness (`/readyz`) of the process and its backing stores.
+//! Liveness (`/healthz`), readiness (`/readyz`) and metrics of a process and its backing
+//! stores.
+//!
+//! Readiness is one [`Readiness`] list of named [`Check`]s, the same for `mentalsim serve`
+//! (data directory, graph store, job database) and `mentalsim worker` (job database, knowledge
+//! service, checkpoint directory): 200 `{"status": "ready", "checks": {...}}` when every check
+//! passes, else 503 `{"status": "not_ready", "reason": "<name>: <why>; ...", "checks": {...}}`,
+//! each check `{"ok": bool, <what was checked>, "reason"?: string}`.
 
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use axum::extract::State;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::{Json, Router, routing::get};
+use serde::Serialize;
 use serde_json::json;
+use worker::JobDatabase;
 
 use crate::startup::Components;
 
@@ -26,6 +36,7 @@ pub(crate) async fn healthz() -> Json<serde_json::Value> {
     Json(json!({ "status": "ok", "version": env!("CARGO_PKG_VERSION") }))
 }
 
+/// This process's metrics in Prometheus' text format.
 pub(crate) async fn metrics() -> impl IntoResponse {
     (
         [(
@@ -40,87 +51,199 @@ pub(crate) async fn metrics() -> impl IntoResponse {
 /// database answers with every migration applied. Each check reports separately; a failing one
 /// says why, and the answer is 503.
 async fn readyz(State(components): State<Arc<Components>>) -> Response {
-    let data_dir = match probe_writable(components.data_dir()).await {
-        Ok(()) => json!({ "ok": true, "path": components.data_dir() }),
-        Err(reason) => json!({ "ok": false, "path": components.data_dir(), "reason": reason }),
-    };
+    let data_dir = writable(components.data_dir()).await;
     let store = match components.store().await {
         Ok(store) => {
-            let location = store.location().to_owned();
+            let location = Detail::Location(store.location().to_owned());
             match tokio::task::spawn_blocking(move || store.check()).await {
-                Ok(Ok(())) => json!({ "ok": true, "location": location }),
-                Ok(Err(e)) => json!({ "ok": false, "location": location, "reason": e.to_string() }),
-                Err(e) => json!({ "ok": false, "reason": format!("check task failed: {e}") }),
+                Ok(Ok(())) => Check::pass().with(location),
+                Ok(Err(e)) => Check::fail(e.to_string()).with(location),
+                Err(e) => Check::fail(format!("check task failed: {e}")),
             }
         }
-        Err(reason) => json!({ "ok": false, "reason": reason }),
+        Err(reason) => Check::fail(reason),
     };
-    let jobs = match components.jobs().await {
-        Ok(db) => match db.status().await {
-            Ok(s) if s.applied_migrations == s.expected_migrations => json!({
-                "ok": true,
-                "migrations": s.applied_migrations,
-            }),
-            Ok(s) => json!({
-                "ok": false,
-                "reason": format!(
-                    "{} of {} migrations applied", s.applied_migrations, s.expected_migrations
-                ),
-            }),
-            Err(e) => json!({ "ok": false, "reason": e.to_string() }),
-        },
-        Err(reason) => json!({ "ok": false, "reason": reason }),
-    };
-    let checks = json!({ "data_dir": data_dir, "graph_store": store, "job_database": jobs });
-    readiness(checks)
+    let jobs = job_database(components.jobs().await).await;
+    Readiness::default()
+        .with("data_dir", data_dir)
+        .with("graph_store", store)
+        .with("job_database", jobs)
+        .into_response()
 }
 
-/// `/readyz`'s answer from named checks (`{"name": {"ok": bool, "reason"?: ...}}`): 200 when
-/// every check is ok, else 503 naming each failing check and its reason.
-pub(crate) fn readiness(checks: serde_json::Value) -> Response {
-    let failing: Vec<String> = checks
-        .as_object()
-        .into_iter()
-        .flatten()
-        .filter(|(_, v)| v["ok"] != true)
-        .map(|(k, v)| format!("{k}: {}", v["reason"].as_str().unwrap_or("failed")))
-        .collect();
-    if failing.is_empty() {
-        (
-            StatusCode::OK,
-            Json(json!({ "status": "ready", "checks": checks })),
-        )
-            .into_response()
-    } else {
-        (
-            StatusCode::SERVICE_UNAVAILABLE,
-            Json(json!({
-                "status": "not_ready",
-                "reason": failing.join("; "),
-                "checks": checks,
-            })),
-        )
-            .into_response()
+/// What a check looked at, shown whether it passed or not.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Detail {
+    /// A directory (`"path"`).
+    Path(PathBuf),
+    /// Where the graph store is (`"location"`).
+    Location(String),
+    /// A service's URL (`"url"`).
+    Url(String),
+    /// Migrations applied (`"migrations"`).
+    Migrations(usize),
+}
+
+/// One readiness check: whether it passed, what it looked at, and why it failed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Check {
+    /// It passed.
+    pub ok: bool,
+    /// What it looked at (flattened into the check's object).
+    #[serde(flatten)]
+    pub detail: Option<Detail>,
+    /// Why it failed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+}
+
+impl Check {
+    /// A check that passed.
+    pub fn pass() -> Self {
+        Self {
+            ok: true,
+            detail: None,
+            reason: None,
+        }
+    }
+
+    /// A check that failed, and why.
+    pub fn fail(reason: impl Into<String>) -> Self {
+        Self {
+            ok: false,
+            detail: None,
+            reason: Some(reason.into()),
+        }
+    }
+
+    /// Passed on `Ok`, failed with the reason on `Err`.
+    pub fn from_result(result: Result<(), String>) -> Self {
+        match result {
+            Ok(()) => Self::pass(),
+            Err(reason) => Self::fail(reason),
+        }
+    }
+
+    /// The same check, saying what it looked at.
+    pub fn with(mut self, detail: Detail) -> Self {
+        self.detail = Some(detail);
+        self
     }
 }
 
-/// Creates, syncs and removes a small file: the only reliable way to know writes succeed
-/// (permissions, read-only mounts, a full disk, a path that is not a directory).
-async fn probe_writable(dir: &Path) -> Result<(), String> {
-    let dir = dir.to_owned();
+/// A process's readiness: its checks by name (the keys of `/readyz`'s `checks`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Readiness {
+    checks: BTreeMap<&'static str, Check>,
+}
+
+impl Readiness {
+    /// The list with `check` under `name`.
+    pub fn with(mut self, name: &'static str, check: Check) -> Self {
+        self.checks.insert(name, check);
+        self
+    }
+
+    /// Every check passed.
+    pub fn is_ready(&self) -> bool {
+        self.checks.values().all(|c| c.ok)
+    }
+
+    /// The failing checks, `name: reason` joined by `; ` (empty when ready).
+    pub fn reason(&self) -> String {
+        self.checks
+            .iter()
+            .filter(|(_, c)| !c.ok)
+            .map(|(name, c)| format!("{name}: {}", c.reason.as_deref().unwrap_or("failed")))
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+}
+
+impl IntoResponse for Readiness {
+    /// 200 when every check passed, else 503 naming each failing check and its reason.
+    fn into_response(self) -> Response {
+        if self.is_ready() {
+            let body = json!({ "status": "ready", "checks": self.checks });
+            (StatusCode::OK, Json(body)).into_response()
+        } else {
+            let body = json!({
+                "status": "not_ready",
+                "reason": self.reason(),
+                "checks": self.checks,
+            });
+            (StatusCode::SERVICE_UNAVAILABLE, Json(body)).into_response()
+        }
+    }
+}
+
+/// The job database answers, with every migration this build embeds applied.
+pub(crate) async fn job_database(db: Result<&JobDatabase, String>) -> Check {
+    match db {
+        Ok(db) => match db.status().await {
+            Ok(s) if s.applied_migrations == s.expected_migrations => {
+                Check::pass().with(Detail::Migrations(s.applied_migrations))
+            }
+            Ok(s) => Check::fail(format!(
+                "{} of {} migrations applied",
+                s.applied_migrations, s.expected_migrations
+            )),
+            Err(e) => Check::fail(e.to_string()),
+        },
+        Err(reason) => Check::fail(reason),
+    }
+}
+
+/// `dir` takes writes: a probe file (named after this process, as several workers may share
+/// the directory) is created, synced and removed — the only reliable way to know (permissions,
+/// read-only mounts, a full disk, a path that is not a directory).
+pub(crate) async fn writable(dir: &Path) -> Check {
+    let path = dir.to_owned();
     let result = tokio::task::spawn_blocking(move || -> std::io::Result<()> {
         use std::io::Write;
-        std::fs::create_dir_all(&dir)?;
-        let probe = dir.join(".readyz-probe");
+        std::fs::create_dir_all(&path)?;
+        let probe = path.join(format!(".readyz-probe-{}", std::process::id()));
         let mut file = std::fs::File::create(&probe)?;
         file.write_all(b"ok")?;
         file.sync_all()?;
         std::fs::remove_file(&probe)
     })
     .await;
-    match result {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(format!("data directory is not writable: {e}")),
-        Err(e) => Err(format!("write probe failed: {e}")),
+    let check = match result {
+        Ok(Ok(())) => Check::pass(),
+        Ok(Err(e)) => Check::fail(format!("not writable: {e}")),
+        Err(e) => Check::fail(format!("write probe failed: {e}")),
+    };
+    check.with(Detail::Path(dir.to_owned()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checks_serialize_as_readyz_shows_them() {
+        let ready = Readiness::default()
+            .with("job_database", Check::pass().with(Detail::Migrations(3)))
+            .with(
+                "data_dir",
+                Check::fail("not writable: denied").with(Detail::Path("/d".into())),
+            )
+            .with("graph_store", Check::fail("closed"));
+        assert_eq!(
+            serde_json::to_value(&ready.checks).unwrap(),
+            json!({
+                "job_database": {"ok": true, "migrations": 3},
+                "data_dir": {"ok": false, "path": "/d", "reason": "not writable: denied"},
+                "graph_store": {"ok": false, "reason": "closed"},
+            })
+        );
+        assert!(!ready.is_ready());
+        assert_eq!(
+            ready.reason(),
+            "data_dir: not writable: denied; graph_store: closed"
+        );
+        assert!(Readiness::default().with("x", Check::pass()).is_ready());
     }
 }

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use knowledge::{Role, Tokens};
+use edge::{Role, Tokens};
 
 use crate::config::Config;
 

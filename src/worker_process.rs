@@ -3,21 +3,22 @@
 
 use std::future::Future;
 use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::State;
-use axum::response::Response;
+use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
 use serde_json::json;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use worker::LazyQueue;
 use worker::jobs::{HttpKnowledge, JobEnv, PolicyStore};
+use worker::{LazyQueue, Queue};
 
 use crate::config::Config;
+use crate::health::{self, Check, Detail, Readiness};
 
 struct Shared {
     queue: Arc<LazyQueue>,
@@ -72,7 +73,7 @@ impl WorkerProcess {
         let router = Router::new()
             .route("/healthz", get(healthz))
             .route("/readyz", get(readyz))
-            .route("/metrics", get(crate::health::metrics))
+            .route("/metrics", get(health::metrics))
             .with_state(shared.clone())
             .fallback(edge::middleware::not_found);
         let router = edge::middleware::stack(
@@ -147,47 +148,13 @@ async fn healthz() -> Json<serde_json::Value> {
 /// Ready when the job database answers with every migration applied, the knowledge service
 /// is ready, and the checkpoint directory takes writes.
 async fn readyz(State(shared): State<Arc<Shared>>) -> Response {
-    let jobs = match shared.queue.get().await {
-        Ok(q) => match q.database().status().await {
-            Ok(s) if s.applied_migrations == s.expected_migrations => {
-                json!({ "ok": true, "migrations": s.applied_migrations })
-            }
-            Ok(s) => json!({ "ok": false, "reason": format!(
-                "{} of {} migrations applied", s.applied_migrations, s.expected_migrations) }),
-            Err(e) => json!({ "ok": false, "reason": e.to_string() }),
-        },
-        Err(reason) => json!({ "ok": false, "reason": reason }),
-    };
-    let knowledge = match shared.knowledge.ready().await {
-        Ok(()) => json!({ "ok": true, "url": shared.knowledge.base() }),
-        Err(reason) => json!({ "ok": false, "url": shared.knowledge.base(), "reason": reason }),
-    };
-    let checkpoints = match probe_writable(&shared.checkpoints_dir).await {
-        Ok(()) => json!({ "ok": true, "path": shared.checkpoints_dir }),
-        Err(reason) => json!({ "ok": false, "path": shared.checkpoints_dir, "reason": reason }),
-    };
-    let checks =
-        json!({ "job_database": jobs, "knowledge": knowledge, "checkpoints_dir": checkpoints });
-    crate::health::readiness(checks)
-}
-
-/// Writes, syncs and removes a probe file named after this process (several workers share the
-/// directory).
-async fn probe_writable(dir: &Path) -> Result<(), String> {
-    let dir = dir.to_owned();
-    let result = tokio::task::spawn_blocking(move || -> std::io::Result<()> {
-        use std::io::Write;
-        std::fs::create_dir_all(&dir)?;
-        let probe = dir.join(format!(".readyz-probe-{}", std::process::id()));
-        let mut file = std::fs::File::create(&probe)?;
-        file.write_all(b"ok")?;
-        file.sync_all()?;
-        std::fs::remove_file(&probe)
-    })
-    .await;
-    match result {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(format!("not writable: {e}")),
-        Err(e) => Err(format!("write probe failed: {e}")),
-    }
+    let jobs = health::job_database(shared.queue.get().await.map(Queue::database)).await;
+    let knowledge = Check::from_result(shared.knowledge.ready().await)
+        .with(Detail::Url(shared.knowledge.base().to_owned()));
+    let checkpoints = health::writable(&shared.checkpoints_dir).await;
+    Readiness::default()
+        .with("job_database", jobs)
+        .with("knowledge", knowledge)
+        .with("checkpoints_dir", checkpoints)
+        .into_response()
 }

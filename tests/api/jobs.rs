@@ -481,12 +481,12 @@ async fn robots_read_jobs_but_only_engineers_create_and_cancel_them() {
                 mentalsim::config::TokenConfig {
                     token: engineer.to_owned(),
                     name: "alice".to_owned(),
-                    role: knowledge::Role::Engineer,
+                    role: edge::Role::Engineer,
                 },
                 mentalsim::config::TokenConfig {
                     token: robot.to_owned(),
                     name: "R-001".to_owned(),
-                    role: knowledge::Role::Robot,
+                    role: edge::Role::Robot,
                 },
             ];
         },

@@ -15,7 +15,7 @@ fn shared_ros_maps() -> Option<Vec<PathBuf>> {
     )
     .join("../shared/maps/ros");
     if !root.is_dir() {
-        eprintln!("skipping: {} is absent", root.display());
+        fixtures::missing(format!("the shared ROS maps at {}", root.display()));
         return None;
     }
     let mut yamls = Vec::new();
@@ -499,7 +499,7 @@ async fn a_floor_exports_as_sdf_and_the_robot_as_urdf_that_check_urdf_accepts() 
             String::from_utf8_lossy(&out.stdout),
             String::from_utf8_lossy(&out.stderr)
         ),
-        Err(_) => eprintln!("skipping check_urdf: not installed (Debian liburdfdom-tools)"),
+        Err(_) => fixtures::missing("check_urdf (Debian liburdfdom-tools)"),
     }
     let missing = app
         .request(Method::GET, "/v1/robots/R-404/robot.urdf")

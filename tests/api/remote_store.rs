@@ -146,8 +146,8 @@ fn url_encode(s: &str) -> String {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
     let Some(binary) = oxigraph_binary() else {
-        eprintln!(
-            "skipping: no `oxigraph` binary (pip install oxigraph into .venv, or set OXIGRAPH_BIN)"
+        fixtures::missing(
+            "the `oxigraph` binary (pip install oxigraph into .venv, or set OXIGRAPH_BIN)",
         );
         return;
     };

@@ -1,5 +1,6 @@
 //! Benchmark harnesses behind `mentalsim bench ...`.
 
+pub mod beta;
 pub mod error;
 pub mod knowledge;
 pub mod learner;

@@ -8,7 +8,7 @@
 //! each run with its own roadmap seed and simulation noise:
 //!
 //! - `hybrid_prm_rl`: the policy through the roadmap's waypoints with the executor of
-//!   `worker::plan` (15 s waypoint timer, replanning), counted on its **first** attempt only:
+//!   `rehearsal` (15 s waypoint timer, replanning), counted on its **first** attempt only:
 //!   one drive, as the paper's robot drove once. This is the row to compare with Table 3.
 //! - `hybrid_prm_rl_resampled`: the same call as the plan endpoint makes it, with up to
 //!   `max_attempts` roadmap re-samples after a collision or stall; a success is a validated
@@ -17,13 +17,13 @@
 //! - `pure_rl`: the policy driven straight at the final goal, no waypoints, with a generous
 //!   timer (`pure_rl_seconds_per_10m` per 10 m of roadmap path).
 //! - `classical_prm`: the classical rotate-then-go follower on the roadmap's waypoints, first
-//!   attempt (the same executor with [`worker::plan::ClassicalFollower`]).
+//!   attempt (the same executor with [`rehearsal::ClassicalFollower`]).
 //!
 //! Without a policy only `classical_prm` runs, and the summary says so.
 //!
 //! Outputs: `navigation.csv` (method, map, run, success, distance_m, time_s) and
 //! `navigation.md` (Table 3 per map and over all maps, plus the plan latency: the wall time of
-//! one `worker::plan::validate` call for the long mission, p50 and p99 over runs).
+//! one `rehearsal::validate` call for the long mission, p50 and p99 over runs).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -35,11 +35,11 @@ use learning::Policy;
 use planning::{Point2, PrmParams, QueryOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use sim::{Pose2, World};
-use worker::plan::{
+use rehearsal::{
     AttemptOutcome, AttemptReport, ClassicalFollower, Controller, DriveLimits, PlanError,
     PlanOptions, PlanRequest, PolicyController, RoadmapCache,
 };
+use sim::{Pose2, World};
 
 use crate::error::BenchError;
 use crate::maps::{find_yamls, map_names};
@@ -104,7 +104,7 @@ impl Default for NavigationBenchOptions {
 }
 
 /// The methods, in table order. `hybrid_prm_rl` is what `POST /v1/plan` runs: the policy
-/// behind the collision shield (`worker::plan::Shield`); `hybrid_unshielded` is the paper's
+/// behind the collision shield (`rehearsal::Shield`); `hybrid_unshielded` is the paper's
 /// hybrid, the policy's commands sent to the wheels unchanged; `*_resampled` is the same with
 /// the roadmap re-sampled after a failed attempt.
 pub const METHODS: [&str; 6] = [
@@ -355,7 +355,7 @@ fn choose_mission(
     name: &str,
     opts: &NavigationBenchOptions,
 ) -> Result<Option<Mission>, PlanError> {
-    let space = worker::plan::config_space(world, cache, name, opts.safety_margin_m)?;
+    let space = rehearsal::config_space(world, cache, name, opts.safety_margin_m)?;
     let cs = &space.cspace;
     let Some(region) = cs.largest_region() else {
         return Ok(None);
@@ -416,7 +416,7 @@ fn run_map(
 ) -> Result<MapOutcome, BenchError> {
     let yaw = (mission.goal.y - mission.start.y).atan2(mission.goal.x - mission.start.x);
     let start = Pose2::new(mission.start.x, mission.start.y, yaw);
-    let space = worker::plan::config_space(world, cache, name, opts.safety_margin_m)
+    let space = rehearsal::config_space(world, cache, name, opts.safety_margin_m)
         .map_err(|e| plan_err(name, &e))?;
     let mut rows = Vec::new();
     let mut validate_ms: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
@@ -425,8 +425,8 @@ fn run_map(
         // Seeds far apart so the re-samples of one run never reuse another run's roadmap.
         let seed = opts.seed.wrapping_add(1000 * (run as u64 + 1));
         let request = PlanRequest {
-            start: start.into(),
-            goals: vec![mission.goal.into()],
+            start,
+            goals: vec![mission.goal],
             options: PlanOptions {
                 max_attempts: opts.max_attempts,
                 waypoint_timeout_s: opts.waypoint_timeout_s,
@@ -480,8 +480,8 @@ fn run_map(
         // Pure RL: the policy straight at the final goal.
         let timeout = (opts.pure_rl_seconds_per_10m * mission.prm_length_m / 10.0)
             .max(opts.pure_rl_seconds_per_10m);
-        let env = worker::plan::env_config(policy.scaling().beams, true);
-        let pure = worker::plan::drive(
+        let env = rehearsal::env_config(policy.scaling().beams, true);
+        let pure = rehearsal::drive(
             world,
             &env,
             start,
@@ -550,7 +550,7 @@ fn timed_validate(
     controller: &mut dyn Controller,
 ) -> Result<(AttemptReport, AttemptReport, f64), BenchError> {
     let t = Instant::now();
-    let result = worker::plan::validate_with(world, cache, name, request, controller);
+    let result = rehearsal::validate_with(world, cache, name, request, controller);
     let elapsed = ms(t);
     let attempts = match result {
         Ok(report) => report.attempts,
@@ -750,7 +750,7 @@ fn to_markdown(
         );
     }
 
-    s.push_str("\n## Plan latency\n\nWall time of one `worker::plan::validate` call for the map's long mission (roadmap of the first attempt cached, as the service keeps it per map version; re-samples build theirs inside the call), and of building that roadmap once.\n\n| Map | Controller | p50 (ms) | p99 (ms) | Calls | Roadmap build p50 (ms) |\n|---|---|---|---|---|---|\n");
+    s.push_str("\n## Plan latency\n\nWall time of one `rehearsal::validate` call for the map's long mission (roadmap of the first attempt cached, as the service keeps it per map version; re-samples build theirs inside the call), and of building that roadmap once.\n\n| Map | Controller | p50 (ms) | p99 (ms) | Calls | Roadmap build p50 (ms) |\n|---|---|---|---|---|---|\n");
     for l in latency {
         let _ = writeln!(
             s,

@@ -112,6 +112,23 @@ struct Inner<'a> {
     details: Option<&'a serde_json::Value>,
 }
 
+// The OpenAPI schema of what `ApiError` serialises to (its doc comment is the schema's
+// description, so it stays as published).
+/// The error body every endpoint answers with.
+#[derive(Serialize, utoipa::ToSchema)]
+pub struct ErrorBody {
+    error: ErrorDetail,
+}
+
+/// An error's code and message.
+#[derive(Serialize, utoipa::ToSchema)]
+pub struct ErrorDetail {
+    /// Stable machine-readable code, e.g. `bad_request`, `not_found`, `unprocessable`.
+    code: String,
+    /// What is wrong, for people.
+    message: String,
+}
+
 impl ApiError {
     /// An error with a code and a message that names what is wrong.
     pub fn new(code: ErrorCode, message: impl Into<String>) -> Self {

@@ -4,6 +4,7 @@
 
 use oxigraph::model::NamedNodeRef;
 
+use crate::graphs::{ONTOLOGY_GRAPH, ROBOT_GRAPH, SAMPLE_BUILDING_GRAPH};
 use crate::store::{KnowledgeStore, StoreError};
 
 /// One bundled file and the named graph it is loaded into.
@@ -20,17 +21,17 @@ pub struct BundledGraph {
 /// Everything bundled, in load order.
 pub const BUNDLED: &[BundledGraph] = &[
     BundledGraph {
-        graph: "https://mentalsim.dev/graph/ontology/tosm",
+        graph: ONTOLOGY_GRAPH,
         file: "tosm.ttl",
         turtle: include_str!("../../../ontologies/tosm.ttl"),
     },
     BundledGraph {
-        graph: "https://mentalsim.dev/graph/robots/differential-robot",
+        graph: ROBOT_GRAPH,
         file: "robots/differential-robot.ttl",
         turtle: include_str!("../../../ontologies/robots/differential-robot.ttl"),
     },
     BundledGraph {
-        graph: "https://mentalsim.dev/graph/environments/sample-building",
+        graph: SAMPLE_BUILDING_GRAPH,
         file: "environments/sample-building.ttl",
         turtle: include_str!("../../../ontologies/environments/sample-building.ttl"),
     },

@@ -14,11 +14,8 @@ use std::collections::{HashMap, HashSet};
 use oxigraph::model::vocab::{rdf, rdfs};
 use oxigraph::model::{GraphNameRef, NamedNode, NamedNodeRef, Quad, Term, Triple};
 
+use crate::graphs::INFERRED_GRAPH;
 use crate::store::{KnowledgeStore, StoreError};
-
-/// The named graph holding the entailments. Never edit it: it is replaced on every write.
-pub const INFERRED_GRAPH: NamedNodeRef<'static> =
-    NamedNodeRef::new_unchecked("https://mentalsim.dev/graph/inferred");
 
 const OWL_INVERSE_OF: NamedNodeRef<'static> =
     NamedNodeRef::new_unchecked("http://www.w3.org/2002/07/owl#inverseOf");

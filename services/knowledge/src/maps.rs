@@ -4,13 +4,12 @@
 use oxigraph::model::{NamedNode, Quad};
 use tosm::{MetricMap, OccupancyGrid, Place, PlaceKind, RosMapError, RosMapMeta, Symbol};
 
+use crate::graphs::MAPS_GRAPH_NS;
 use crate::service::Knowledge;
 use crate::store::StoreError;
 
-/// Where imported floors and their graphs are named.
+/// Where imported floors are named (their graphs under [`MAPS_GRAPH_NS`]).
 pub const FLOOR_NS: &str = "https://mentalsim.dev/data/maps/";
-/// Prefix of the named graph each imported map lives in.
-pub const GRAPH_NS: &str = "https://mentalsim.dev/graph/maps/";
 
 /// Why an import was refused or failed.
 #[derive(Debug, thiserror::Error)]
@@ -131,7 +130,7 @@ pub fn import(
         name: name.to_owned(),
         message: p.to_string(),
     })?;
-    let graph_iri = format!("{GRAPH_NS}{name}");
+    let graph_iri = format!("{MAPS_GRAPH_NS}{name}");
     let graph = NamedNode::new_unchecked(graph_iri.clone());
     let store = knowledge.try_store()?;
     let quads: Vec<Quad> = triples
@@ -166,7 +165,8 @@ fn valid_name(name: &str) -> Result<(), ImportError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{KnowledgeStore, QueryLimits, Tokens};
+    use crate::{KnowledgeStore, QueryLimits};
+    use edge::Tokens;
 
     fn knowledge() -> Knowledge {
         Knowledge::new(

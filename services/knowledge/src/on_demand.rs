@@ -13,7 +13,7 @@ use oxigraph::model::vocab::rdf;
 use oxigraph::model::{Graph, GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
 use tosm::{Place, PlaceKind, vocab};
 
-use crate::inference::INFERRED_GRAPH;
+use crate::graphs::INFERRED_GRAPH;
 use crate::store::{KnowledgeStore, StoreError};
 
 /// A point or a place a mission passes through.

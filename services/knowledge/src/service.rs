@@ -1,12 +1,15 @@
-//! The knowledge service's shared state: the store, the tokens, the query limits, and what
-//! must happen after every write.
+//! The knowledge service's shared state: the store, the tokens, the query limits, how its
+//! SPARQL reads run, and what must happen after every write.
+//!
+//! Everything a service remembers lives here, per instance: two services in one process (the
+//! in-process tests start many) share nothing.
 
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-use edge::{ApiError, ErrorCode};
+use edge::{ApiError, ErrorCode, Tokens};
 
-use crate::auth::Tokens;
+use crate::protocol::inline::ReadState;
 use crate::store::{KnowledgeStore, StoreError};
 
 /// Limits on SPARQL evaluation.
@@ -42,6 +45,8 @@ pub struct Knowledge {
     /// SPARQL limits.
     pub limits: QueryLimits,
     refresh_lock: Mutex<()>,
+    /// What this service's SPARQL reads cost last time, which run in place, and its watchdog.
+    reads: Arc<ReadState>,
 }
 
 impl std::fmt::Debug for Knowledge {
@@ -83,6 +88,7 @@ impl Knowledge {
             tokens,
             limits,
             refresh_lock: Mutex::new(()),
+            reads: Arc::new(ReadState::new()),
         }
     }
 
@@ -108,7 +114,7 @@ impl Knowledge {
     }
 
     /// The store for an async handler: the open store at once, or opened on a blocking thread.
-    pub async fn store_async(self: &std::sync::Arc<Self>) -> Result<KnowledgeStore, ApiError> {
+    pub async fn store_async(self: &Arc<Self>) -> Result<KnowledgeStore, ApiError> {
         if let Some(store) = self.opened_store() {
             return Ok(store);
         }
@@ -124,6 +130,18 @@ impl Knowledge {
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .clone()
+    }
+
+    /// How this service's SPARQL reads run (see `protocol/inline.rs`).
+    pub(crate) fn reads(&self) -> &Arc<ReadState> {
+        &self.reads
+    }
+
+    /// SPARQL reads (queries, graph dumps) of this service running right now, including those
+    /// whose client has gone and which are still unwinding: a gauge for metrics, and how tests
+    /// see that a cancelled evaluation really stopped.
+    pub fn running_reads(&self) -> usize {
+        self.reads.running()
     }
 
     /// Must be called after every successful write (SPARQL update, Graph Store PUT/POST/DELETE,

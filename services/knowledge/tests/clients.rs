@@ -24,11 +24,10 @@ async fn sparqlwrapper_and_rdflib_work_unchanged() {
     match probe {
         Ok(output) if output.status.success() => {}
         _ => {
-            println!(
-                "skipping: {} cannot import SPARQLWrapper and rdflib (scripts/setup installs them \
-                 from requirements.txt)",
+            fixtures::missing(format!(
+                "{} with SPARQLWrapper and rdflib (scripts/setup installs them)",
                 python.display()
-            );
+            ));
             return;
         }
     }

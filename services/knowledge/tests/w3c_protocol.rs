@@ -482,11 +482,11 @@ async fn run(case: &Case) -> Result<(), String> {
 /// Runs every case of `manifest`; returns (passed, failures).
 async fn run_suite(label: &str, manifest: &Path) -> Option<(usize, Vec<String>)> {
     if !manifest.exists() {
-        println!(
-            "skipping the {label} suite: {} is missing (the W3C tests live in shared/ beside the \
+        fixtures::missing(format!(
+            "the {label} suite's manifest {} (the W3C tests live in shared/ beside the \
              repository; set MENTALSIM_SHARED to point elsewhere)",
             manifest.display()
-        );
+        ));
         return None;
     }
     let cases = Manifest::load(manifest).cases();

@@ -6,7 +6,30 @@
 //! paper's Eq. 18 (its §5.2 compares 0, 1 and 5). Noise scales are in the network's action
 //! space (linear in [0, 1], angular in [-1, 1]).
 
+use std::path::{Path, PathBuf};
+
 use serde::{Deserialize, Serialize};
+
+/// Why a training configuration file could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigFileError {
+    /// The file could not be read.
+    #[error("cannot read the training configuration {}: {error}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why (in the message, not a `source`, so that it is printed once).
+        error: std::io::Error,
+    },
+    /// It is not JSON, or a key is unknown or of the wrong type (the message names it).
+    #[error("invalid training configuration {}: {message}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
 
 /// The TD3 learner.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -202,6 +225,21 @@ impl TrainConfig {
         let mut merged = serde_json::to_value(self).map_err(|e| e.to_string())?;
         overlay(&mut merged, json);
         serde_json::from_value(merged).map_err(|e| e.to_string())
+    }
+
+    /// This configuration with the JSON file at `path` put over it ([`TrainConfig::with_json`]).
+    pub fn with_json_file(&self, path: &Path) -> Result<TrainConfig, ConfigFileError> {
+        let invalid = |message: String| ConfigFileError::Invalid {
+            path: path.to_owned(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|error| ConfigFileError::Read {
+            path: path.to_owned(),
+            error,
+        })?;
+        let top: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| invalid(e.to_string()))?;
+        self.with_json(top).map_err(invalid)
     }
 
     /// The first setting out of range, named.

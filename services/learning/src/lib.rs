@@ -13,7 +13,11 @@
 //! - [`trainer`]: the loop, evaluation, checkpoints, export;
 //! - [`curves`]: training curves as CSV and PNG (Figure 10);
 //! - [`policy`]: the exported policy and its runtime;
-//! - [`evaluation`]: success and collision rates on a fixed mission set.
+//! - [`evaluation`]: success and collision rates on a fixed mission set;
+//! - [`summary`]: what a run reports ([`TrainSummary`], `eval.json`) and the held-out
+//!   evaluation on both kinds of goals;
+//! - [`run`] (feature `train`): a whole training run into a directory — train, curves,
+//!   export, held-out evaluation, `eval.json` — as `mentalsim train` and `bench beta` make it.
 
 pub mod config;
 #[cfg(feature = "train")]
@@ -23,17 +27,21 @@ pub mod observation;
 pub mod policy;
 pub mod replay;
 #[cfg(feature = "train")]
+pub mod run;
+pub mod summary;
+#[cfg(feature = "train")]
 pub mod td3;
 #[cfg(feature = "train")]
 pub mod trainer;
 
-pub use config::{Td3Config, TrainConfig};
+pub use config::{ConfigFileError, Td3Config, TrainConfig};
 pub use evaluation::{
     BatchActor, DetourBucket, EvalReport, HELD_OUT_MAX_STEPS, Mission, evaluate, evaluate_held_out,
     mission_set,
 };
 pub use observation::{InputLayout, Scaling};
 pub use policy::{Policy, PolicyError, PolicyMetadata};
+pub use summary::{Goals, GoalsSummary, HeldOut, TrainSummary, held_out};
 
 /// The device training runs on: the first CUDA device when libtorch sees one, else the CPU.
 #[cfg(feature = "train")]

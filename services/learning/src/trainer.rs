@@ -176,6 +176,26 @@ pub struct Progress {
     pub checkpoints_written: u64,
 }
 
+impl std::fmt::Display for Progress {
+    /// One line for a progress bar's message or a log: steps, episodes, gradient steps, the
+    /// success rate and mean reward of the last 100 episodes, and the latest evaluation.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "steps {} episodes {} grad steps {} success {:.0}% reward {:.1}",
+            self.counters.env_steps,
+            self.counters.episodes,
+            self.counters.grad_steps,
+            self.success_rate_100 * 100.0,
+            self.mean_reward_100,
+        )?;
+        if let Some(e) = &self.last_eval {
+            write!(f, " eval {:.0}%", e.report.success_rate * 100.0)?;
+        }
+        Ok(())
+    }
+}
+
 /// The random generator's position, to continue the same stream after a resume.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 struct RngState {

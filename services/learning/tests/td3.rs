@@ -387,36 +387,52 @@ fn the_actor_climbs_the_critic_to_the_best_action() {
     );
 }
 
+/// A whole run into a directory (what `mentalsim train` does): curves, the exported policy
+/// and `eval.json`, whose figures are the returned summary's; a second run resumes.
 #[test]
-#[ignore = "debug"]
-fn debug_policy_behaviour() {
-    let policy = Policy::load(std::path::Path::new(&std::env::var("POLICY").unwrap())).unwrap();
-    let world = room();
-    let env = sim::EnvConfig {
-        goal_distance: (1.0, 5.0),
-        ..sim::EnvConfig::default()
+fn a_run_writes_curves_policy_and_an_eval_json_that_is_its_summary() {
+    use learning::run::{TrainRun, run};
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let spec = TrainRun {
+        world: room(),
+        extra_worlds: Vec::new(),
+        map: "maps/room/map.yaml".into(),
+        extra_maps: Vec::new(),
+        config: small_options(&out).config,
+        out: out.clone(),
+        minutes: 0.03,
+        fresh: false,
+        eval_episodes: 4,
+        goals: learning::Goals::InView,
     };
-    let missions = learning::mission_set(&world, &env, 5, 3).unwrap();
-    for m in &missions {
-        let mut e = sim::NavEnv::new(world.clone(), env.clone(), 1).unwrap();
-        let mut obs = e.reset(m.start, m.goal).unwrap();
-        let mut line = String::new();
-        for k in 0..400 {
-            let input = policy.scaling().encode(&obs).unwrap();
-            let y = policy.forward(&input).unwrap();
-            let r = e.step(policy.scaling().command(y));
-            if k % 10 == 0 {
-                line += &format!(
-                    "[d{:.1} a{:.2} v{:.2} w{:.2}] ",
-                    obs.goal_distance, obs.goal_angle, y[0], y[1]
-                );
-            }
-            obs = r.observation;
-            if r.done {
-                line += &format!("{:?} at {k}", r.info.outcome);
-                break;
-            }
-        }
-        println!("{line}\n");
+    assert!(!spec.resumes());
+    let summary = run(spec.clone(), &mut |_| true).unwrap();
+    for file in [
+        "policy.safetensors",
+        "policy.json",
+        "curves.csv",
+        "curves.png",
+        "evals.csv",
+        "eval.json",
+        "checkpoint/state.json",
+    ] {
+        assert!(out.join(file).is_file(), "{file} missing");
     }
+    let eval: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(eval, serde_json::to_value(&summary).unwrap());
+    assert_eq!(eval["goals"], "in-view");
+    assert_eq!(eval["eval_episodes"], 4);
+    assert_eq!(eval["goals_anywhere"]["episodes"], 4);
+    assert_eq!(eval["map"], "maps/room/map.yaml");
+    assert!(summary.env_steps > 0 && summary.wall_s >= 1.8 && !summary.interrupted);
+    assert_eq!(summary.sessions, 1);
+    assert_eq!(learning::run::map_name(&spec.map), "room");
+
+    // The budget is spent: a second run resumes, trains no further and reports again.
+    assert!(spec.resumes());
+    let again = run(spec, &mut |_| true).unwrap();
+    assert_eq!(again.sessions, 2);
+    assert_eq!(again.env_steps, summary.env_steps);
 }

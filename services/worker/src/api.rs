@@ -15,10 +15,7 @@ use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use edge::{ApiError, ErrorCode};
-use knowledge::Tokens;
-use knowledge::api::{ErrorBody, ErrorDetail};
-use knowledge::auth::Role;
+use edge::{ApiError, BearerAuth, ErrorBody, ErrorCode, ErrorDetail, Role, Tokens};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use tokio_util::sync::CancellationToken;
@@ -27,7 +24,7 @@ use uuid::Uuid;
 
 use crate::jobs::policies::{METADATA, WEIGHTS, summary};
 use crate::jobs::{
-    EvaluatePayload, JobEnv, PayloadError, PolicySummary, TrainPayload, ValidatePayload,
+    EvaluatePayload, JobEnv, JobKind, PayloadError, PolicySummary, TrainPayload, ValidatePayload,
 };
 use crate::lazy::LazyQueue;
 use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
@@ -42,8 +39,6 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
     security(("bearer" = []))
 )]
 pub struct WorkerApi;
-
-use knowledge::api::BearerAuth;
 
 /// What the API handlers share.
 pub struct JobsApi {
@@ -222,8 +217,9 @@ async fn create_job(
     Json(request): Json<NewJobRequest>,
 ) -> Result<Response, ApiError> {
     let principal = api.tokens.require(&headers, Role::Engineer)?;
-    let payload = api.env.check_new(&request.kind, &request.payload).await?;
-    let mut job = NewJob::new(request.kind.clone(), payload);
+    let kind: JobKind = request.kind.parse().map_err(PayloadError::from)?;
+    let payload = api.env.check_new(kind, &request.payload).await?;
+    let mut job = NewJob::new(kind, payload);
     if let Some(p) = request.priority {
         job = job.priority(p);
     }

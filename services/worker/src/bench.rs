@@ -11,7 +11,7 @@ use serde_json::json;
 
 use crate::database::{Backend, JobDatabase, PoolSize};
 use crate::queue::{NewJob, Queue, QueueError};
-use crate::temp_postgres::{Durability, TempPostgres, TempPostgresError};
+use fixtures::{Durability, TempPostgres, TempPostgresError};
 
 /// One backend's figures.
 #[derive(Debug, Clone, Serialize)]

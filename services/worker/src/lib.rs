@@ -11,21 +11,20 @@
 //!   the knowledge source they take worlds from, and the exported policies on disk.
 //! - [`api`]: the jobs and policies REST API (with server-sent events) and its OpenAPI document.
 //! - [`service`]: runners over a lazily opened queue ([`LazyQueue`]) and the retention purge.
-//! - [`temp_postgres`]: a throw-away PostgreSQL cluster for tests and benchmarks.
-//! - [`bench`]: the queue throughput benchmark.
+//! - `bench` (feature `bench`, off by default): the queue throughput benchmark behind
+//!   `mentalsim bench queue`.
 
 pub mod api;
+#[cfg(feature = "bench")]
 pub mod bench;
 pub mod clock;
 pub mod database;
 pub mod jobs;
 pub mod lazy;
-pub mod plan;
 pub mod plan_api;
 pub mod queue;
 pub mod runner;
 pub mod service;
-pub mod temp_postgres;
 
 pub use clock::{Clock, ManualClock, SystemClock};
 pub use database::{Backend, DatabaseError, DatabaseStatus, JobDatabase, PoolSize};

@@ -1,7 +1,15 @@
 //! `POST /v1/plan` — what robots call (the paper's Figure 4): the floor's on-demand database
 //! from the knowledge service, its mental simulation, the cached roadmap for that map version,
 //! and the plan driven in the simulation with the robot's latest trained policy through the
-//! hybrid executor ([`crate::plan`]) before the waypoints are answered.
+//! hybrid executor (the `rehearsal` crate) before the waypoints are answered.
+//!
+//! - [`types`]: the wire types (serde, OpenAPI schemas) and their conversions to and from the
+//!   executor's core types;
+//! - [`error`]: [`PlanErrorResponse`], the executor's refusals as API errors (code, `reason`,
+//!   `details`).
+
+pub mod error;
+pub mod types;
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -11,8 +19,8 @@ use axum::extract::State;
 use axum::http::HeaderMap;
 use axum::routing::post;
 use axum::{Json, Router};
-use edge::{ApiError, ErrorCode};
-use knowledge::auth::Role;
+use edge::{ApiError, ErrorCode, Role};
+use rehearsal::{PlanError, RoadmapCache};
 use serde::{Deserialize, Serialize};
 use sim::World;
 use utoipa::ToSchema;
@@ -21,8 +29,13 @@ use crate::api::JobsApi;
 use crate::jobs::PlanValidator;
 use crate::jobs::policies::PolicyStore;
 use crate::jobs::source::SourceError;
-use crate::plan::{PlanOptions, PlanReport, PlanRequest, Point, Pose, RoadmapCache};
 use crate::runner::JobError;
+
+pub use self::error::PlanErrorResponse;
+pub use self::types::{
+    AttemptOutcome, AttemptReport, ControllerKind, PlanOptions, PlanReport, PlanRequest, Point,
+    Pose, RoadmapInfo,
+};
 
 /// What a robot asks.
 #[derive(Debug, Clone, Deserialize, ToSchema)]
@@ -136,6 +149,21 @@ impl PlanApi {
         }
         Ok(loaded)
     }
+}
+
+/// Runs the executor ([`rehearsal::validate`]) on a request in the wire types and answers the
+/// report in them: with `policy` (hybrid PRM-RL) when given, else the classical follower.
+/// `map_version` keys `roadmaps`: equal strings must mean equal maps (and objects). Blocks: call
+/// it on a blocking thread.
+pub fn rehearse(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+    policy: Option<Arc<learning::Policy>>,
+) -> Result<PlanReport, PlanError> {
+    let request = rehearsal::PlanRequest::from(request.clone());
+    rehearsal::validate(world, roadmaps, map_version, &request, policy).map(PlanReport::from)
 }
 
 /// The route.
@@ -257,7 +285,7 @@ impl PlanValidator for ExecutorValidator {
         };
         progress(serde_json::json!({"stage": "simulating", "policy": policy_id}));
         let roadmaps = RoadmapCache::new(8, 1);
-        let report = crate::plan::validate(&world, &roadmaps, "validate-job", &request, policy)
+        let report = rehearse(&world, &roadmaps, "validate-job", &request, policy)
             .map_err(|e| JobError::Fatal(e.to_string()))?;
         let mut value =
             serde_json::to_value(&report).map_err(|e| JobError::Fatal(format!("report: {e}")))?;
@@ -333,8 +361,8 @@ async fn plan(
         let world = db
             .world()
             .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
-        crate::plan::validate(&world, &api2.roadmaps, &db.version, &request, policy)
-            .map_err(ApiError::from)
+        rehearse(&world, &api2.roadmaps, &db.version, &request, policy)
+            .map_err(|e| e.to_api_error())
     })
     .await
     .map_err(|e| ApiError::internal(format!("plan task failed: {e}")))??;

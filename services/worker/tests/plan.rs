@@ -1,26 +1,19 @@
-//! The plan executor with real components: worlds built by `sim`, roadmaps by `planning`, the
-//! pure-Rust policy runtime of `learning`.
+//! The plan endpoint's side of the executor: requests and reports in the wire types (serde),
+//! and each refusal of `rehearsal` with its own API code, `reason` and details. The executor's
+//! own behaviour is tested in `rehearsal`'s `tests/executor.rs`.
 
-use std::path::Path;
 use std::sync::Arc;
 
-use learning::Policy;
-use learning::policy::write_goal_seeking_policy;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
+use rehearsal::{ClassicalFollower, Controller, PlanError, RoadmapCache};
 use sim::{
     Action, FloorMap, Observation, Occupancy, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec,
 };
-use worker::plan::{
-    AttemptOutcome, ClassicalFollower, Controller, ControllerKind, PlanError, PlanOptions,
-    PlanReport, PlanRequest, Point, Pose, RoadmapCache, validate, validate_with,
+use worker::plan_api::{
+    AttemptOutcome, ControllerKind, PlanErrorResponse, PlanOptions, PlanRequest, Point, Pose,
+    rehearse,
 };
 
 const RES: f64 = 0.05;
-/// The environment's collision clearance (sim's default).
-const COLLISION_CLEARANCE: f64 = 0.02;
-/// The environment's goal tolerance (sim's default).
-const GOAL_TOLERANCE: f64 = 0.3;
 
 /// A 14 m x 8 m room: an inner wall at x = 5 from the floor to y = 6 (pass above it), and a
 /// sealed box at x in [10, 13], y in [1, 4] whose inside no path reaches.
@@ -72,66 +65,51 @@ fn request(goals: &[(f64, f64)]) -> PlanRequest {
     }
 }
 
-/// The report's run really happened without a collision and ended at the last goal.
-fn assert_sound(world: &World, report: &PlanReport, goals: &[Point]) {
-    assert!(report.min_clearance_m >= COLLISION_CLEARANCE, "{report:?}");
-    for p in &report.trajectory {
-        assert!(
-            world.clearance(p.x, p.y) >= COLLISION_CLEARANCE,
-            "pose ({}, {}) is in collision",
-            p.x,
-            p.y
-        );
-    }
-    let end = report.trajectory.last().expect("a trajectory");
-    let last = goals.last().expect("a goal");
-    assert!(
-        (end.x - last.x).hypot(end.y - last.y) <= GOAL_TOLERANCE + 1e-9,
-        "ends at ({}, {}), goal ({}, {})",
-        end.x,
-        end.y,
-        last.x,
-        last.y
-    );
-    assert_eq!(report.goal_indices.len(), goals.len());
-    for (gi, g) in report.goal_indices.iter().zip(goals) {
+#[test]
+fn a_validated_plan_serialises_for_the_http_layer() {
+    let world = room();
+    let cache = RoadmapCache::default();
+    let req = request(&[(7.0, 2.0), (12.0, 6.0), (8.0, 1.0)]);
+    let report = rehearse(&world, &cache, "room-v1", &req, None).expect("validated");
+    assert_eq!(report.controller, ControllerKind::Classical);
+    assert!(report.controller_description.contains("rotate-then-go"));
+    for (gi, g) in report.goal_indices.iter().zip(&req.goals) {
         assert_eq!(report.waypoints[*gi], *g);
     }
-    assert!(report.distance_m >= report.waypoint_path_length_m * 0.9);
-    assert!(report.simulated_time_s > 0.0 && report.prm_path_length_m > 0.0);
     assert_eq!(
         report.attempts.last().map(|a| a.outcome),
         Some(AttemptOutcome::Reached)
     );
-}
-
-#[test]
-fn the_classical_follower_validates_a_multi_goal_plan() {
-    let world = room();
-    let cache = RoadmapCache::default();
-    let req = request(&[(7.0, 2.0), (12.0, 6.0), (8.0, 1.0)]);
-    let report = validate(&world, &cache, "room-v1", &req, None).expect("validated");
-    assert_eq!(report.controller, ControllerKind::Classical);
-    assert!(report.controller_description.contains("rotate-then-go"));
-    assert_sound(&world, &report, &req.goals);
-    // Around the inner wall: longer than the straight line to the first goal.
-    assert!(report.prm_path_length_m > 5.0 + 4.0 + 5.0);
     // Serialises for the HTTP layer.
     let json = serde_json::to_value(&report).expect("json");
     assert_eq!(json["controller"], "classical");
+    assert_eq!(json["attempts"][0]["outcome"], "reached");
+    assert_eq!(json["roadmap"]["cached"], false);
+    let end = &json["trajectory"]
+        .as_array()
+        .expect("poses")
+        .last()
+        .expect("a pose");
+    assert!(
+        end["x"].is_f64() && end["y"].is_f64() && end["yaw"].is_f64(),
+        "{end}"
+    );
+    assert_eq!(
+        json["waypoints"].as_array().map(Vec::len),
+        Some(report.waypoints.len())
+    );
     // The same request again plans on the cached roadmap and gives the same report.
-    let again = validate(&world, &cache, "room-v1", &req, None).expect("validated");
+    let again = rehearse(&world, &cache, "room-v1", &req, None).expect("validated");
     assert!(again.roadmap.cached);
     assert_eq!(again.waypoints, report.waypoints);
     assert_eq!(again.trajectory, report.trajectory);
-    assert!(cache.stats().hits >= 1);
 }
 
 #[test]
 fn each_bad_input_has_its_own_error() {
     let world = room();
     let cache = RoadmapCache::default();
-    let run = |goals: &[(f64, f64)]| validate(&world, &cache, "room-v1", &request(goals), None);
+    let run = |goals: &[(f64, f64)]| rehearse(&world, &cache, "room-v1", &request(goals), None);
 
     let e = run(&[(5.0, 3.0)]).expect_err("in the wall");
     assert_eq!(e.reason(), "goal_in_obstacle", "{e}");
@@ -145,19 +123,22 @@ fn each_bad_input_has_its_own_error() {
     );
     assert_eq!(e.api_code(), edge::ErrorCode::Unprocessable);
     assert!(e.to_string().contains("nearest free point"), "{e}");
+    let details = e.details();
+    assert_eq!(details["which"], "goals[0]");
+    assert_eq!(details["blocked"], "in_obstacle");
+    assert_eq!(details["point"], serde_json::json!({"x": 5.0, "y": 3.0}));
+    assert_eq!(details["nearest_free"]["x"], near.x);
 
     let e = run(&[(20.0, 3.0)]).expect_err("outside");
     assert_eq!(e.reason(), "goal_outside_map", "{e}");
 
     let e = run(&[(7.0, 2.0), (11.5, 2.5)]).expect_err("sealed box");
     assert_eq!(e.reason(), "unreachable", "{e}");
-    let PlanError::Unreachable {
-        goal_index, from, ..
-    } = &e
-    else {
-        panic!("{e:?}")
-    };
-    assert_eq!((*goal_index, from.as_str()), (1, "goals[0]"));
+    let details = e.details();
+    assert_eq!(
+        (&details["goal_index"], &details["from"]),
+        (&serde_json::json!(1), &serde_json::json!("goals[0]"))
+    );
 
     let e = run(&[(f64::NAN, 3.0)]).expect_err("NaN");
     assert_eq!(e.reason(), "invalid_input");
@@ -169,13 +150,18 @@ fn each_bad_input_has_its_own_error() {
 
     let mut req = request(&[(7.0, 2.0)]);
     req.start = Pose::new(5.0, 1.0, 0.0);
-    let e = validate(&world, &cache, "room-v1", &req, None).expect_err("start in the wall");
+    let e = rehearse(&world, &cache, "room-v1", &req, None).expect_err("start in the wall");
     assert_eq!(e.reason(), "start_in_obstacle", "{e}");
+    assert_eq!(e.details()["which"], "start");
 
     let mut req = request(&[(7.0, 2.0)]);
     req.options.max_attempts = 0;
-    let e = validate(&world, &cache, "room-v1", &req, None).expect_err("no attempts");
+    let e = rehearse(&world, &cache, "room-v1", &req, None).expect_err("no attempts");
     assert!(e.to_string().contains("options.max_attempts"), "{e}");
+    assert_eq!(e.details()["field"], "options.max_attempts");
+    let api = e.to_api_error();
+    assert_eq!(api.code(), edge::ErrorCode::BadRequest);
+    assert_eq!(api.message(), e.to_string());
 
     // Request JSON with a typo is refused by serde, not silently defaulted.
     assert!(
@@ -188,51 +174,25 @@ fn each_bad_input_has_its_own_error() {
         serde_json::from_str(r#"{"start": {"x": 1, "y": 1}, "goals": [{"x": 2, "y": 2}]}"#)
             .expect("defaults");
     assert_eq!(ok.options, PlanOptions::default());
+    assert_eq!(
+        rehearsal::PlanOptions::from(ok.options),
+        rehearsal::PlanOptions::default()
+    );
 }
 
-/// Drives straight ahead on its first attempt (into the inner wall), then follows the path.
-struct ReckessFirst {
-    attempt: u32,
-    follower: ClassicalFollower,
-}
+/// Drives straight ahead on every attempt (into the inner wall).
+struct Reckless;
 
-impl Controller for ReckessFirst {
-    fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
-        if self.attempt == 1 {
-            Action::new(0.8, 0.0)
-        } else {
-            self.follower.command(obs, pose, waypoint)
-        }
+impl Controller for Reckless {
+    fn command(&mut self, _obs: &Observation, _pose: Pose2, _waypoint: (f64, f64)) -> Action {
+        Action::new(0.8, 0.0)
     }
-    fn kind(&self) -> ControllerKind {
-        ControllerKind::Classical
+    fn kind(&self) -> rehearsal::ControllerKind {
+        ClassicalFollower::default().kind()
     }
     fn description(&self) -> String {
-        "reckless on the first attempt".into()
+        "reckless".into()
     }
-    fn start_attempt(&mut self, attempt: u32) {
-        self.attempt = attempt;
-    }
-}
-
-#[test]
-fn a_collision_resamples_the_roadmap_and_tries_again() {
-    let world = room();
-    let cache = RoadmapCache::default();
-    let mut req = request(&[(7.0, 2.0)]);
-    req.options.seed = 40;
-    let mut c = ReckessFirst {
-        attempt: 0,
-        follower: ClassicalFollower::default(),
-    };
-    let report = validate_with(&world, &cache, "room-v1", &req, &mut c).expect("validated");
-    assert_eq!(report.attempts.len(), 2, "{:?}", report.attempts);
-    let first = &report.attempts[0];
-    assert_eq!(first.outcome, AttemptOutcome::Collision);
-    assert!(first.reason.contains("collision"), "{}", first.reason);
-    assert_eq!(report.attempts[1].roadmap_seed, 41);
-    assert_eq!(report.roadmap.seed, 41);
-    assert_sound(&world, &report, &req.goals);
 }
 
 #[test]
@@ -241,163 +201,18 @@ fn no_attempt_validating_is_its_own_error_with_every_reason() {
     let cache = RoadmapCache::default();
     let mut req = request(&[(7.0, 2.0)]);
     req.options.max_attempts = 3;
-    let mut c = ReckessFirst {
-        attempt: 0,
-        follower: ClassicalFollower::default(),
-    };
-    // Reckless on every attempt.
-    struct Always(ReckessFirst);
-    impl Controller for Always {
-        fn command(&mut self, o: &Observation, p: Pose2, w: (f64, f64)) -> Action {
-            self.0.attempt = 1;
-            self.0.command(o, p, w)
-        }
-        fn kind(&self) -> ControllerKind {
-            self.0.kind()
-        }
-        fn description(&self) -> String {
-            self.0.description()
-        }
-    }
-    c.attempt = 1;
-    let e = validate_with(&world, &cache, "room-v1", &req, &mut Always(c)).expect_err("fails");
+    let req = rehearsal::PlanRequest::from(req);
+    let e = rehearsal::validate_with(&world, &cache, "room-v1", &req, &mut Reckless)
+        .expect_err("fails");
     assert_eq!(e.reason(), "not_validated");
     assert_eq!(e.api_code(), edge::ErrorCode::Conflict);
     let PlanError::NotValidated { attempts } = &e else {
         panic!("{e:?}")
     };
     assert_eq!(attempts.len(), 3);
-    assert!(
-        attempts
-            .iter()
-            .all(|a| a.outcome == AttemptOutcome::Collision)
-    );
     let details = e.details();
     assert_eq!(details["attempts"].as_array().map(Vec::len), Some(3));
-}
-
-/// Stands still for the first 16 s of its first attempt, then follows.
-struct LateStarter {
-    steps: u32,
-    follower: ClassicalFollower,
-}
-
-impl Controller for LateStarter {
-    fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
-        self.steps += 1;
-        if self.steps <= 160 {
-            Action::default()
-        } else {
-            self.follower.command(obs, pose, waypoint)
-        }
-    }
-    fn kind(&self) -> ControllerKind {
-        ControllerKind::Classical
-    }
-    fn description(&self) -> String {
-        "late".into()
-    }
-}
-
-#[test]
-fn the_waypoint_timer_replans_from_where_the_robot_is() {
-    let world = room();
-    let cache = RoadmapCache::default();
-    let req = request(&[(7.0, 2.0), (3.0, 6.5)]);
-    let mut c = LateStarter {
-        steps: 0,
-        follower: ClassicalFollower::default(),
-    };
-    let report = validate_with(&world, &cache, "room-v1", &req, &mut c).expect("validated");
-    assert_eq!(report.attempts.len(), 1);
-    assert_eq!(report.replans, 1);
-    assert!(report.simulated_time_s > 15.0);
-    assert_sound(&world, &report, &req.goals);
-}
-
-/// The goal-seeking hand-made policy (`learning::policy::write_goal_seeking_policy`).
-fn steering_policy(dir: &Path, beams: usize) -> Arc<Policy> {
-    write_goal_seeking_policy(dir, beams, serde_json::json!({"test": true})).expect("written");
-    Arc::new(Policy::load(dir).expect("loads"))
-}
-
-#[test]
-fn a_policy_drives_the_hybrid_planner() {
-    let world = room();
-    let cache = RoadmapCache::default();
-    let dir = tempfile::tempdir().expect("tmp");
-    let policy = steering_policy(dir.path(), 23);
-    let req = request(&[(7.0, 2.0), (12.0, 6.0)]);
-    let report = validate(&world, &cache, "room-v1", &req, Some(policy)).expect("validated");
-    assert_eq!(report.controller, ControllerKind::Policy);
-    assert!(report.controller_description.contains("TD3 actor"));
-    assert_sound(&world, &report, &req.goals);
-
-    // A policy whose input the robot's laser cannot give is a bad request.
-    let dir = tempfile::tempdir().expect("tmp");
-    let odd = steering_policy(dir.path(), 100_000);
-    let e = validate(&world, &cache, "room-v1", &req, Some(odd)).expect_err("beams");
-    assert_eq!(e.reason(), "invalid_input");
-    assert!(e.to_string().contains("`policy`"), "{e}");
-}
-
-/// A real shared map: three goals far apart in the largest free region.
-#[test]
-fn a_real_map_validates_a_multi_goal_plan() {
-    let yaml = std::path::PathBuf::from(
-        std::env::var("CARGO_MANIFEST_DIR")
-            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
-    )
-    .join("../../../shared/maps/ros/aws_small_house/map.yaml");
-    let Ok(text) = std::fs::read_to_string(&yaml) else {
-        eprintln!(
-            "skipped: {} is absent (the shared maps live beside the project)",
-            yaml.display()
-        );
-        return;
-    };
-    let meta = tosm::RosMapMeta::parse_yaml(&text).expect("yaml");
-    let image = std::fs::read(yaml.with_file_name(&meta.image)).expect("image");
-    let grid = OccupancyGrid::from_ros_map_server(&meta, &image).expect("grid");
-    let world = World::build(WorldSpec {
-        id: "aws_small_house".into(),
-        floor: Some(FloorMap {
-            id: "aws_small_house".into(),
-            grid,
-            wall_height: 2.5,
-        }),
-        walls: vec![],
-        objects: vec![],
-        robot: RobotSpec::example_differential(),
-        notes: vec![],
-    })
-    .expect("world");
-    let cache = RoadmapCache::default();
-    let space = worker::plan::config_space(&world, &cache, "aws_small_house", 0.1).expect("cs");
-    let cs = &space.cspace;
-    let region = cs.largest_region().expect("free space");
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let mut points = vec![cs.sample_free(&mut rng, Some(region)).expect("a point")];
-    while points.len() < 4 {
-        let p = cs.sample_free(&mut rng, Some(region)).expect("a point");
-        if points.iter().all(|q| q.distance(p) > 3.0) {
-            points.push(p);
-        }
-    }
-    let req = PlanRequest {
-        start: Pose::new(points[0].x, points[0].y, 1.0),
-        goals: points[1..].iter().map(|&p| p.into()).collect(),
-        options: PlanOptions::default(),
-    };
-    let report = validate(&world, &cache, "aws_small_house", &req, None).expect("validated");
-    assert_sound(&world, &report, &req.goals);
-    eprintln!(
-        "aws_small_house: {} waypoints, PRM path {:.1} m, driven {:.1} m in {:.1} s, min clearance {:.3} m, {} attempts",
-        report.waypoints.len(),
-        report.prm_path_length_m,
-        report.distance_m,
-        report.simulated_time_s,
-        report.min_clearance_m,
-        report.attempts.len()
-    );
+    assert_eq!(details["attempts"][0]["outcome"], "collision");
+    assert!(details["attempts"][0]["end_pose"]["yaw"].is_f64());
+    assert_eq!(details["reason"], "not_validated");
 }

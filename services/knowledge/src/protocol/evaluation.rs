@@ -13,7 +13,7 @@ use oxigraph::sparql::{
 use oxigraph::store::Store;
 
 use super::negotiation::Format;
-use crate::remote::RemoteStore;
+use crate::store::RemoteStore;
 
 /// rdflib's name for "the default graph" of a `Dataset`. rdflib sends it as
 /// `default-graph-uri`, and writes either into the real default graph (`Dataset.add`) or into a

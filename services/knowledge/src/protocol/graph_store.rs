@@ -10,7 +10,7 @@ use axum::extract::State;
 use axum::http::header::{ACCEPT, CONTENT_TYPE, LOCATION, VARY};
 use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorCode};
+use edge::{ApiError, ErrorCode, Role};
 use oxigraph::io::{RdfFormat, RdfParser, RdfSerializer};
 use oxigraph::model::{GraphName, NamedNode, Quad, TripleRef};
 use oxigraph::sparql::CancellationToken;
@@ -19,8 +19,7 @@ use super::negotiation::{self, DATASET_FORMATS, Format, GRAPH_FORMATS};
 use super::{
     Deadline, Params, blocking, body_media_type, graph_store_method_not_allowed, request_origin,
 };
-use crate::auth::Role;
-use crate::inference::INFERRED_GRAPH;
+use crate::graphs::INFERRED_GRAPH;
 use crate::service::Knowledge;
 use crate::store::KnowledgeStore;
 
@@ -160,7 +159,7 @@ async fn read(
         }
     };
     let limits = knowledge.limits;
-    let deadline = Deadline::start(limits.deadline);
+    let deadline = Deadline::start(knowledge.reads(), limits.deadline);
     let (token, exceeded) = (deadline.token(), deadline.exceeded());
     let body = deadline
         .read(move || {

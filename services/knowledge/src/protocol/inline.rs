@@ -18,11 +18,15 @@
 //! plus one watchdog tick, once; it is then remembered as long. What is lost in place is the
 //! early stop when a client hangs up mid-query: moot within the leash. A query never seen, or
 //! long last time, takes the blocking path.
+//!
+//! All of this is one service's state, [`ReadState`], owned by its `Knowledge`: what runs in
+//! place is remembered per service (and per text), the count of reads in place is bounded per
+//! service, and each service's watchdog thread ends with it.
 
 use std::collections::HashSet;
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, OnceLock, PoisonError};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::{Duration, Instant};
 
 use oxigraph::sparql::CancellationToken;
@@ -99,105 +103,158 @@ pub(super) fn key(parts: &[&str]) -> u64 {
     hasher.finish()
 }
 
-/// Keys of reads that were short the last time they ran.
-static SHORT: OnceLock<Mutex<HashSet<u64>>> = OnceLock::new();
-/// Reads running in place now.
-static IN_PLACE: AtomicUsize = AtomicUsize::new(0);
-/// Reads run in place since the process started.
-static RUN_IN_PLACE: AtomicUsize = AtomicUsize::new(0);
-
-/// How many reads have run in place since the process started.
-#[cfg(test)]
-pub(super) fn run_in_place() -> usize {
-    RUN_IN_PLACE.load(Ordering::Relaxed)
+/// How one service's reads run: which were short last time, which run in place now, the
+/// watchdog that keeps their leashes, and how many run at all.
+///
+/// Each [`crate::Knowledge`] owns one, so two services in one process (tests start many) learn
+/// and count separately: what one was asked says nothing about the other's data. The watchdog
+/// thread starts with the first read that may run in place and ends within a [`TICK`] of the
+/// state being dropped.
+pub(crate) struct ReadState {
+    /// Keys of reads that were short the last time they ran.
+    short: Mutex<HashSet<u64>>,
+    /// Reads running in place now.
+    in_place: AtomicUsize,
+    /// Reads run in place since the service started.
+    run_in_place: AtomicUsize,
+    /// Reads running now, in place or on blocking threads (see [`Running`]).
+    running: AtomicUsize,
+    /// The tokens under watch; `None` when the watchdog thread could not start.
+    watchdog: OnceLock<Option<Watchdog>>,
 }
 
-fn short() -> &'static Mutex<HashSet<u64>> {
-    SHORT.get_or_init(|| Mutex::new(HashSet::new()))
+impl std::fmt::Debug for ReadState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReadState")
+            .field("in_place", &self.in_place.load(Ordering::Relaxed))
+            .field("running", &self.running.load(Ordering::Relaxed))
+            .finish_non_exhaustive()
+    }
 }
 
-/// Remembers what the read `key` cost.
-pub(super) fn record(key: u64, cost: Cost) {
-    let mut short = short().lock().unwrap_or_else(PoisonError::into_inner);
-    if cost.is_short() {
-        if short.len() >= CAPACITY {
-            short.clear();
+impl ReadState {
+    /// A service's state: nothing remembered, nothing running, no watchdog yet.
+    pub(crate) fn new() -> Self {
+        Self {
+            short: Mutex::new(HashSet::new()),
+            in_place: AtomicUsize::new(0),
+            run_in_place: AtomicUsize::new(0),
+            running: AtomicUsize::new(0),
+            watchdog: OnceLock::new(),
         }
-        short.insert(key);
-    } else {
-        short.remove(&key);
     }
-}
 
-/// A permit to run `key` in place, when it was short last time, fewer reads than the runtime
-/// has workers run in place now, it is a multi-threaded runtime at all, and the watchdog keeps
-/// deadlines and leashes.
-pub(super) fn permit(key: u64) -> Option<InPlace> {
-    let handle = tokio::runtime::Handle::try_current().ok()?;
-    if handle.runtime_flavor() != tokio::runtime::RuntimeFlavor::MultiThread {
-        return None;
+    /// How many reads have run in place since the service started.
+    #[cfg(test)]
+    pub(super) fn run_in_place(&self) -> usize {
+        self.run_in_place.load(Ordering::Relaxed)
     }
-    let spare = handle.metrics().num_workers();
-    if !short()
-        .lock()
-        .unwrap_or_else(PoisonError::into_inner)
-        .contains(&key)
-    {
-        return None;
+
+    /// Reads running now, in place or on blocking threads, including those whose client has
+    /// gone and which are still unwinding.
+    pub(crate) fn running(&self) -> usize {
+        self.running.load(Ordering::Relaxed)
     }
-    if !watchdog_running() {
-        return None;
+
+    /// Counts one running read for as long as the guard lives.
+    pub(super) fn enter(&self) -> Running<'_> {
+        self.running.fetch_add(1, Ordering::Relaxed);
+        Running { state: self }
     }
-    let mut running = IN_PLACE.load(Ordering::Relaxed);
-    loop {
-        if running >= spare {
+
+    fn short(&self) -> std::sync::MutexGuard<'_, HashSet<u64>> {
+        self.short.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Remembers what the read `key` cost.
+    pub(super) fn record(&self, key: u64, cost: Cost) {
+        let mut short = self.short();
+        if cost.is_short() {
+            if short.len() >= CAPACITY {
+                short.clear();
+            }
+            short.insert(key);
+        } else {
+            short.remove(&key);
+        }
+    }
+
+    /// A permit to run `key` in place, when it was short last time, fewer reads than the
+    /// runtime has workers run in place now, it is a multi-threaded runtime at all, and the
+    /// watchdog keeps deadlines and leashes.
+    pub(super) fn permit(&self, key: u64) -> Option<InPlace<'_>> {
+        let handle = tokio::runtime::Handle::try_current().ok()?;
+        if handle.runtime_flavor() != tokio::runtime::RuntimeFlavor::MultiThread {
             return None;
         }
-        match IN_PLACE.compare_exchange_weak(
-            running,
-            running + 1,
-            Ordering::AcqRel,
-            Ordering::Relaxed,
-        ) {
-            Ok(_) => {
-                RUN_IN_PLACE.fetch_add(1, Ordering::Relaxed);
-                return Some(InPlace);
-            }
-            Err(now) => running = now,
+        let spare = handle.metrics().num_workers();
+        if !self.short().contains(&key) {
+            return None;
         }
+        let watchdog = self.watchdog()?;
+        let mut running = self.in_place.load(Ordering::Relaxed);
+        loop {
+            if running >= spare {
+                return None;
+            }
+            match self.in_place.compare_exchange_weak(
+                running,
+                running + 1,
+                Ordering::AcqRel,
+                Ordering::Relaxed,
+            ) {
+                Ok(_) => {
+                    self.run_in_place.fetch_add(1, Ordering::Relaxed);
+                    return Some(InPlace {
+                        state: self,
+                        watchdog,
+                    });
+                }
+                Err(now) => running = now,
+            }
+        }
+    }
+
+    /// This service's watchdog, starting its thread on first use; `None` when no thread could
+    /// be started, and then no read may run in place.
+    fn watchdog(&self) -> Option<&Watchdog> {
+        self.watchdog.get_or_init(Watchdog::start).as_ref()
+    }
+}
+
+impl Default for ReadState {
+    fn default() -> Self {
+        Self::new()
     }
 }
 
 /// One read running in place; releases its slot when dropped.
-pub(super) struct InPlace;
+pub(super) struct InPlace<'a> {
+    state: &'a ReadState,
+    watchdog: &'a Watchdog,
+}
 
-impl Drop for InPlace {
-    fn drop(&mut self) {
-        IN_PLACE.fetch_sub(1, Ordering::AcqRel);
+impl InPlace<'_> {
+    /// Cancels `token` at `at` unless the returned guard is dropped first.
+    pub(super) fn watch(&self, token: CancellationToken, at: Instant) -> Watched<'_> {
+        self.watchdog.watch(token, at)
     }
 }
 
-/// Cancels `token` at `at` unless the returned guard is dropped first.
-pub(super) fn watch(token: CancellationToken, at: Instant) -> Watched {
-    let mut state = WATCHED.lock().unwrap_or_else(PoisonError::into_inner);
-    state.next_id += 1;
-    let id = state.next_id;
-    state.watched.push((id, at, token));
-    Watched { id }
-}
-
-/// A token under watch; unwatched when dropped.
-pub(super) struct Watched {
-    id: u64,
-}
-
-impl Drop for Watched {
+impl Drop for InPlace<'_> {
     fn drop(&mut self) {
-        WATCHED
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .watched
-            .retain(|(id, _, _)| *id != self.id);
+        self.state.in_place.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// Counts one running read; uncounted when dropped.
+pub(super) struct Running<'a> {
+    state: &'a ReadState,
+}
+
+impl Drop for Running<'_> {
+    fn drop(&mut self) {
+        self.state.running.fetch_sub(1, Ordering::Relaxed);
     }
 }
 
@@ -206,28 +263,42 @@ struct WatchState {
     watched: Vec<(u64, Instant, CancellationToken)>,
 }
 
-/// The tokens under watch, with their deadlines.
-static WATCHED: Mutex<WatchState> = Mutex::new(WatchState {
-    next_id: 0,
-    watched: Vec::new(),
-});
+/// The tokens under watch, with their deadlines, and the thread that cancels them. The thread
+/// holds only a weak reference: it ends at its next tick once the watchdog is dropped.
+struct Watchdog {
+    watched: Arc<Mutex<WatchState>>,
+    /// Alive as long as the thread runs (it holds the only strong reference): how a test sees
+    /// that the thread ended.
+    #[cfg(test)]
+    thread_alive: std::sync::Weak<()>,
+}
 
 /// How often the watchdog looks. Waking it for every new read would cost the very thread
 /// wake-up that running in place saves; deadlines are seconds, so a tick is precise enough.
 const TICK: Duration = Duration::from_millis(20);
 
-/// Whether the process's one watchdog thread runs, starting it on first use. Every [`TICK`] it
-/// cancels the tokens whose deadline has passed. Without it no read may run in place.
-fn watchdog_running() -> bool {
-    static RUNNING: OnceLock<bool> = OnceLock::new();
-    *RUNNING.get_or_init(|| {
+impl Watchdog {
+    /// Starts the thread that, every [`TICK`], cancels the tokens whose deadline has passed.
+    fn start() -> Option<Self> {
+        let watched = Arc::new(Mutex::new(WatchState {
+            next_id: 0,
+            watched: Vec::new(),
+        }));
+        let weak = Arc::downgrade(&watched);
+        let alive = Arc::new(());
+        #[cfg(test)]
+        let thread_alive = Arc::downgrade(&alive);
         let spawned = std::thread::Builder::new()
             .name("sparql-deadlines".to_owned())
-            .spawn(|| {
+            .spawn(move || {
+                let _alive = alive;
                 loop {
                     std::thread::sleep(TICK);
+                    let Some(watched) = weak.upgrade() else {
+                        return;
+                    };
                     let now = Instant::now();
-                    WATCHED
+                    watched
                         .lock()
                         .unwrap_or_else(PoisonError::into_inner)
                         .watched
@@ -241,31 +312,61 @@ fn watchdog_running() -> bool {
                         });
                 }
             });
-        if let Err(e) = &spawned {
-            tracing::warn!(error = %e, "no SPARQL deadline watchdog: every query takes the blocking path");
+        match spawned {
+            Ok(_) => Some(Self {
+                watched,
+                #[cfg(test)]
+                thread_alive,
+            }),
+            Err(e) => {
+                tracing::warn!(error = %e, "no SPARQL deadline watchdog: every query takes the blocking path");
+                None
+            }
         }
-        spawned.is_ok()
-    })
+    }
+
+    /// Cancels `token` at `at` unless the returned guard is dropped first.
+    fn watch(&self, token: CancellationToken, at: Instant) -> Watched<'_> {
+        let mut state = self.watched.lock().unwrap_or_else(PoisonError::into_inner);
+        state.next_id += 1;
+        let id = state.next_id;
+        state.watched.push((id, at, token));
+        Watched {
+            watched: &self.watched,
+            id,
+        }
+    }
+}
+
+/// A token under watch; unwatched when dropped.
+pub(super) struct Watched<'a> {
+    watched: &'a Mutex<WatchState>,
+    id: u64,
+}
+
+impl Drop for Watched<'_> {
+    fn drop(&mut self) {
+        self.watched
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .watched
+            .retain(|(id, _, _)| *id != self.id);
+    }
 }
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)] // reason: tests
-pub(super) mod tests {
+mod tests {
     use super::*;
-
-    /// Tests that count permits, which are process-wide, take turns.
-    pub(in crate::protocol) static PERMITS: Mutex<()> = Mutex::new(());
 
     #[test]
     fn the_watchdog_cancels_at_the_deadline_and_not_after_unwatch() {
-        assert!(watchdog_running());
+        let state = ReadState::new();
+        let watchdog = state.watchdog().expect("the watchdog runs");
         let fires = CancellationToken::new();
-        let _watched = watch(fires.clone(), Instant::now() + Duration::from_millis(30));
+        let _watched = watchdog.watch(fires.clone(), Instant::now() + Duration::from_millis(30));
         let spared = CancellationToken::new();
-        drop(watch(
-            spared.clone(),
-            Instant::now() + Duration::from_millis(30),
-        ));
+        drop(watchdog.watch(spared.clone(), Instant::now() + Duration::from_millis(30)));
         let started = Instant::now();
         while !fires.is_cancelled() {
             assert!(
@@ -277,6 +378,26 @@ pub(super) mod tests {
         assert!(started.elapsed() >= Duration::from_millis(25));
         std::thread::sleep(Duration::from_millis(50));
         assert!(!spared.is_cancelled());
+    }
+
+    #[test]
+    fn the_watchdog_thread_ends_with_its_service() {
+        let state = ReadState::new();
+        let alive = state
+            .watchdog()
+            .expect("the watchdog runs")
+            .thread_alive
+            .clone();
+        assert!(alive.upgrade().is_some());
+        drop(state);
+        let started = Instant::now();
+        while alive.upgrade().is_some() {
+            assert!(
+                started.elapsed() < Duration::from_secs(5),
+                "the watchdog thread outlived its service"
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
     }
 
     fn cost(cpu_us: u64, wall_us: u64) -> Cost {
@@ -307,36 +428,61 @@ pub(super) mod tests {
 
     #[test]
     fn only_reads_short_last_time_get_a_permit() {
-        let _turn = PERMITS.lock().unwrap_or_else(PoisonError::into_inner);
+        let state = ReadState::new();
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(3)
             .build()
             .unwrap();
         let _entered = runtime.enter();
         let (fast, slow, unseen) = (key(&["fast"]), key(&["slow"]), key(&["unseen"]));
-        record(fast, cost(300, 400));
-        record(slow, cost(40_000, 40_000));
-        assert!(permit(unseen).is_none());
-        assert!(permit(slow).is_none());
-        let first = permit(fast).expect("short last time");
-        let second = permit(fast).expect("a second worker");
-        let third = permit(fast).expect("a third worker");
-        assert!(permit(fast).is_none(), "one read in place per worker");
+        state.record(fast, cost(300, 400));
+        state.record(slow, cost(40_000, 40_000));
+        assert!(state.permit(unseen).is_none());
+        assert!(state.permit(slow).is_none());
+        let first = state.permit(fast).expect("short last time");
+        let second = state.permit(fast).expect("a second worker");
+        let third = state.permit(fast).expect("a third worker");
+        assert!(state.permit(fast).is_none(), "one read in place per worker");
         drop((first, second, third));
-        assert!(permit(fast).is_some());
+        assert!(state.permit(fast).is_some());
+        assert_eq!(state.run_in_place(), 4);
         // Slow this time: the next run takes the blocking path.
-        record(fast, cost(40_000, 40_000));
-        assert!(permit(fast).is_none());
+        state.record(fast, cost(40_000, 40_000));
+        assert!(state.permit(fast).is_none());
+    }
+
+    #[test]
+    fn each_service_remembers_its_own_reads() {
+        let (one, other) = (ReadState::new(), ReadState::new());
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .build()
+            .unwrap();
+        let _entered = runtime.enter();
+        let fast = key(&["fast in one service"]);
+        one.record(fast, cost(300, 400));
+        let in_place = one.permit(fast).expect("short last time in this service");
+        assert!(
+            other.permit(fast).is_none(),
+            "never run by the other service"
+        );
+        drop(in_place);
+        assert_eq!((one.run_in_place(), other.run_in_place()), (1, 0));
+        let running = one.enter();
+        assert_eq!((one.running(), other.running()), (1, 0));
+        drop(running);
+        assert_eq!(one.running(), 0);
     }
 
     #[test]
     fn a_current_thread_runtime_never_runs_reads_in_place() {
+        let state = ReadState::new();
         let runtime = tokio::runtime::Builder::new_current_thread()
             .build()
             .unwrap();
         let _entered = runtime.enter();
         let fast = key(&["fast on one thread"]);
-        record(fast, cost(300, 400));
-        assert!(permit(fast).is_none());
+        state.record(fast, cost(300, 400));
+        assert!(state.permit(fast).is_none());
     }
 }

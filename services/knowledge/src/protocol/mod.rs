@@ -10,13 +10,12 @@
 
 mod evaluation;
 mod graph_store;
-mod inline;
+pub(crate) mod inline;
 pub mod negotiation;
 mod service_description;
 mod sparql;
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use axum::Router;
@@ -27,6 +26,7 @@ use axum::routing::{MethodFilter, get, on};
 use edge::{ApiError, ErrorCode};
 use oxigraph::sparql::CancellationToken;
 
+use self::inline::ReadState;
 use crate::service::Knowledge;
 
 /// The routes `/sparql`, `/store` and `/store/{graph…}` over `knowledge`.
@@ -210,16 +210,20 @@ fn body_media_type(headers: &HeaderMap) -> Option<(String, bool)> {
 /// request timeout fired) the evaluation sees the cancelled token at its next step and
 /// returns. The deadline itself is a timer raced against the blocking task, so a request
 /// costs no extra task.
+///
+/// Reads are counted, and remembered for running in place, in the service's [`ReadState`].
 struct Deadline {
     token: CancellationToken,
     limit: Duration,
+    reads: Arc<ReadState>,
 }
 
 impl Deadline {
-    fn start(limit: Duration) -> Self {
+    fn start(reads: &Arc<ReadState>, limit: Duration) -> Self {
         Self {
             token: CancellationToken::new(),
             limit,
+            reads: Arc::clone(reads),
         }
     }
 
@@ -253,8 +257,9 @@ impl Deadline {
         limit: Duration,
         work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
     ) -> Result<T, ApiError> {
+        let reads = Arc::clone(&self.reads);
         let work = move || {
-            let _running = Running::enter();
+            let _running = reads.enter();
             work()
         };
         match tokio::time::timeout(limit, tokio::task::spawn_blocking(work)).await {
@@ -281,21 +286,22 @@ impl Deadline {
         key: u64,
         work: impl Fn(CancellationToken) -> Result<T, ApiError> + Send + 'static,
     ) -> Result<T, ApiError> {
+        let reads = Arc::clone(&self.reads);
         let measured = move |token: CancellationToken| {
             let clock = inline::CostClock::start();
             let result = work(token);
-            inline::record(key, clock.elapsed());
+            reads.record(key, clock.elapsed());
             result
         };
-        let Some(in_place) = inline::permit(key) else {
+        let Some(in_place) = self.reads.permit(key) else {
             let token = self.token();
             return self.read(move || measured(token)).await;
         };
         let started = Instant::now();
         let leash = CancellationToken::new();
         let result = {
-            let _running = Running::enter();
-            let _watched = inline::watch(leash.clone(), started + self.limit.min(inline::LEASH));
+            let _running = self.reads.enter();
+            let _watched = in_place.watch(leash.clone(), started + self.limit.min(inline::LEASH));
             measured(leash.clone())
         };
         drop(in_place);
@@ -333,31 +339,6 @@ impl Deadline {
 impl Drop for Deadline {
     fn drop(&mut self) {
         self.token.cancel();
-    }
-}
-
-/// Reads (queries, graph dumps) running on blocking threads in this process right now,
-/// including those whose client has gone and which are still unwinding: a gauge for metrics,
-/// and how tests see that a cancelled evaluation really stopped.
-pub fn running_reads() -> usize {
-    RUNNING.load(Ordering::Relaxed)
-}
-
-static RUNNING: AtomicUsize = AtomicUsize::new(0);
-
-/// Counts one running read for as long as it lives.
-struct Running;
-
-impl Running {
-    fn enter() -> Self {
-        RUNNING.fetch_add(1, Ordering::Relaxed);
-        Running
-    }
-}
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        RUNNING.fetch_sub(1, Ordering::Relaxed);
     }
 }
 

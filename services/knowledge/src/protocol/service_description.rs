@@ -11,7 +11,7 @@ use oxigraph::model::{Literal, NamedNode, Term, Triple};
 
 use super::Params;
 use super::negotiation::{self, Format, GRAPH_FORMATS, RESULT_FORMATS};
-use crate::inference::INFERRED_GRAPH;
+use crate::graphs::INFERRED_GRAPH;
 
 const SD: &str = "http://www.w3.org/ns/sparql-service-description#";
 

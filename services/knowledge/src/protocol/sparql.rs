@@ -9,14 +9,13 @@ use axum::extract::State;
 use axum::http::header::{ACCEPT, CONTENT_TYPE, VARY};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorCode};
+use edge::{ApiError, ErrorCode, Role};
 use oxigraph::model::NamedNode;
 use spargebra::{GraphUpdateOperation, Query, SparqlParser};
 
 use super::evaluation::{self, EvaluationError, ProtocolDataset};
 use super::negotiation::{self, Format, GRAPH_FORMATS};
 use super::{Deadline, Params, body_media_type, inline, method_not_allowed, request_origin};
-use crate::auth::Role;
 use crate::service::Knowledge;
 
 const FORM: &str = "application/x-www-form-urlencoded";
@@ -146,7 +145,7 @@ async fn answer_query(
     let content_type = negotiation::content_type(format);
     let dataset = protocol_dataset(params, "default-graph-uri", "named-graph-uri")?;
     let limits = knowledge.limits;
-    let deadline = Deadline::start(limits.deadline);
+    let deadline = Deadline::start(knowledge.reads(), limits.deadline);
     let exceeded = deadline.exceeded();
     let store = knowledge.store_async().await?;
     let body = if let Some(remote) = store.remote_store().cloned() {
@@ -219,7 +218,7 @@ async fn apply_update(
              its own USING or WITH clause",
         ));
     }
-    let deadline = Deadline::start(knowledge.limits.deadline);
+    let deadline = Deadline::start(knowledge.reads(), knowledge.limits.deadline);
     let (token, exceeded) = (deadline.token(), deadline.exceeded());
     let store = knowledge.store_async().await?;
     if let Some(remote) = store.remote_store().cloned() {

@@ -6,12 +6,19 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use edge::Tokens;
+
 use super::*;
-use crate::{KnowledgeStore, QueryLimits, Tokens};
+use crate::{KnowledgeStore, QueryLimits};
+
+/// A deadline of `limit` with reads counted in a state of its own.
+fn deadline(limit: Duration) -> Deadline {
+    Deadline::start(&Arc::new(ReadState::new()), limit)
+}
 
 #[tokio::test]
 async fn dropping_the_deadline_cancels_its_token() {
-    let deadline = Deadline::start(Duration::from_secs(60));
+    let deadline = deadline(Duration::from_secs(60));
     let token = deadline.token();
     assert!(!token.is_cancelled());
     drop(deadline);
@@ -20,7 +27,7 @@ async fn dropping_the_deadline_cancels_its_token() {
 
 #[tokio::test]
 async fn a_write_is_cancelled_at_its_deadline_and_its_outcome_awaited() {
-    let deadline = Deadline::start(Duration::from_millis(50));
+    let deadline = deadline(Duration::from_millis(50));
     let token = deadline.token();
     let started = Instant::now();
     let outcome = deadline
@@ -37,7 +44,7 @@ async fn a_write_is_cancelled_at_its_deadline_and_its_outcome_awaited() {
 
 #[tokio::test]
 async fn a_read_answers_at_its_deadline_and_cancels() {
-    let deadline = Deadline::start(Duration::from_millis(50));
+    let deadline = deadline(Duration::from_millis(50));
     let token = deadline.token();
     let seen = token.clone();
     let outcome = deadline
@@ -55,26 +62,19 @@ async fn a_read_answers_at_its_deadline_and_cancels() {
 /// A read that was short last time runs in place; when it is slow this time, its leash stops
 /// it long before its deadline and it runs again, from the start, on a blocking thread.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-#[allow(
-    clippy::await_holding_lock,
-    reason = "the lock only orders this test with the permit test, which runs no async code"
-)]
 async fn a_read_that_outgrows_its_leash_in_place_runs_again_on_a_blocking_thread() {
-    let _turn = inline::tests::PERMITS
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let reads = Arc::new(ReadState::new());
     let key = inline::key(&["outgrows its leash"]);
-    inline::record(
+    reads.record(
         key,
         inline::Cost {
             cpu: Some(Duration::from_micros(100)),
             wall: Duration::from_micros(100),
         },
     );
-    let deadline = Deadline::start(Duration::from_secs(20));
+    let deadline = Deadline::start(&reads, Duration::from_secs(20));
     let runs = Arc::new(std::sync::Mutex::new(Vec::new()));
     let seen = Arc::clone(&runs);
-    let before = inline::run_in_place();
     let started = Instant::now();
     let outcome = deadline
         .read_remembered(key, move |token| {
@@ -93,10 +93,8 @@ async fn a_read_that_outgrows_its_leash_in_place_runs_again_on_a_blocking_thread
         })
         .await;
     assert_eq!(outcome.unwrap(), 2, "the second run answers");
-    assert!(
-        inline::run_in_place() > before,
-        "the first run was in place"
-    );
+    assert_eq!(reads.run_in_place(), 1, "the first run was in place");
+    assert_eq!(reads.running(), 0, "both runs were counted and are done");
     let elapsed = started.elapsed();
     assert!(elapsed >= inline::LEASH, "{elapsed:?}");
     assert!(
@@ -145,7 +143,8 @@ async fn a_client_that_hangs_up_stops_its_query() {
     let knowledge = Arc::new(Knowledge::new(store, Tokens::open(), limits));
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let address = listener.local_addr().unwrap();
-    tokio::spawn(async move { axum::serve(listener, router(knowledge)).await });
+    let app = router(knowledge.clone());
+    tokio::spawn(async move { axum::serve(listener, app).await });
 
     let client = reqwest::Client::builder()
         .timeout(Duration::from_millis(500))
@@ -157,13 +156,13 @@ async fn a_client_that_hangs_up_stops_its_query() {
         .send();
     let started = Instant::now();
     let wait_running = async {
-        while running_reads() == 0 {
+        while knowledge.running_reads() == 0 {
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
     };
     let (result, ()) = tokio::join!(request, wait_running);
     assert!(result.unwrap_err().is_timeout(), "the client gave up");
-    while running_reads() > 0 {
+    while knowledge.running_reads() > 0 {
         assert!(
             started.elapsed() < Duration::from_secs(10),
             "the query still runs after its client left"
@@ -176,14 +175,7 @@ async fn a_client_that_hangs_up_stops_its_query() {
 /// and it is slow this time, its leash stops it, it runs again on a blocking thread, and it is
 /// stopped at its deadline there, through HTTP.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-#[allow(
-    clippy::await_holding_lock,
-    reason = "the lock only orders this test with the permit test, which runs no async code"
-)]
 async fn a_query_run_in_place_still_stops_at_its_deadline() {
-    let _turn = inline::tests::PERMITS
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let store = KnowledgeStore::in_memory().unwrap();
     load_numbered(&store, 0..2);
     let limits = QueryLimits {
@@ -193,15 +185,16 @@ async fn a_query_run_in_place_still_stops_at_its_deadline() {
     let knowledge = Arc::new(Knowledge::new(store.clone(), Tokens::open(), limits));
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let address = listener.local_addr().unwrap();
-    tokio::spawn(async move { axum::serve(listener, router(knowledge)).await });
+    let app = router(knowledge.clone());
+    tokio::spawn(async move { axum::serve(listener, app).await });
     let client = reqwest::Client::new();
-    // Not `SLOW` itself: what runs in place is remembered per query text, process-wide, and
-    // the hang-up test must see its query on the blocking path.
-    let query = format!("{SLOW} # in place");
+    // `SLOW` itself, as the hang-up test sends: what runs in place is remembered per service,
+    // so that test's service still sees its query on the blocking path.
+    let query = SLOW;
     let ask = || {
         client
             .get(format!("http://{address}/sparql"))
-            .query(&[("query", query.as_str())])
+            .query(&[("query", query)])
             .header("accept", "application/sparql-results+json")
             .send()
     };
@@ -211,11 +204,11 @@ async fn a_query_run_in_place_still_stops_at_its_deadline() {
     }
     // 2,000 triples: 8·10⁹ rows. In place (short last time), stopped by the watchdog.
     load_numbered(&store, 2..2000);
-    let before = inline::run_in_place();
+    let before = knowledge.reads().run_in_place();
     let started = Instant::now();
     let response = ask().await.unwrap();
     assert_eq!(response.status(), 503, "{:?}", response.text().await);
-    assert!(inline::run_in_place() > before, "it ran in place");
+    assert!(knowledge.reads().run_in_place() > before, "it ran in place");
     assert!(
         started.elapsed() < Duration::from_secs(5),
         "stopped late: {:?}",

@@ -8,7 +8,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use knowledge::{Knowledge, KnowledgeStore, QueryLimits, Role, Tokens};
+use edge::{Role, Tokens};
+use knowledge::{Knowledge, KnowledgeStore, QueryLimits};
 
 /// Tokens the fixtures configure when a test asks for authentication.
 pub const ENGINEER_TOKEN: &str = "engineer-secret";

@@ -25,14 +25,64 @@ pub use source::{FloorDatabase, HttpKnowledge, InProcessKnowledge, KnowledgeSour
 pub use train::{TrainHandler, TrainPayload};
 pub use validate::{PlanValidator, ValidateHandler, ValidatePayload};
 
-/// The `train` kind.
-pub const TRAIN: &str = "train";
-/// The `evaluate` kind.
-pub const EVALUATE: &str = "evaluate";
-/// The `validate` kind.
-pub const VALIDATE: &str = "validate";
-/// Every kind, in the order error messages list them.
-pub const KINDS: [&str; 3] = [TRAIN, EVALUATE, VALIDATE];
+/// The kinds of job this service runs. The queue stores a kind as its name (TEXT, so the
+/// runner stays generic over handlers); the API accepts and shows the same names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JobKind {
+    /// TD3 in the mental simulation of a floor, exported as a policy.
+    Train,
+    /// An exported policy on a floor's held-out missions.
+    Evaluate,
+    /// A plan tried in the mental simulation.
+    Validate,
+}
+
+impl JobKind {
+    /// Every kind, in the order error messages list them.
+    pub const ALL: [JobKind; 3] = [JobKind::Train, JobKind::Evaluate, JobKind::Validate];
+
+    /// The name stored in the queue and used by the API.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobKind::Train => "train",
+            JobKind::Evaluate => "evaluate",
+            JobKind::Validate => "validate",
+        }
+    }
+}
+
+impl std::fmt::Display for JobKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl From<JobKind> for String {
+    fn from(kind: JobKind) -> String {
+        kind.as_str().to_owned()
+    }
+}
+
+impl std::str::FromStr for JobKind {
+    type Err = UnknownKind;
+
+    fn from_str(s: &str) -> Result<Self, UnknownKind> {
+        JobKind::ALL
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| UnknownKind(s.to_owned()))
+    }
+}
+
+/// A job kind this service does not have (the API answers 400).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown job kind {0:?}: expected one of {names}", names = kind_names())]
+pub struct UnknownKind(pub String);
+
+fn kind_names() -> String {
+    JobKind::ALL.map(JobKind::as_str).join(", ")
+}
 
 /// What the handlers share: where worlds come from and where files go.
 #[derive(Clone)]
@@ -60,29 +110,32 @@ impl std::fmt::Debug for JobEnv {
 impl JobEnv {
     /// Registers the handlers of every kind on `worker`.
     pub fn register(self: &Arc<Self>, worker: Worker) -> Worker {
-        worker
-            .register(TRAIN, TrainHandler::new(self.clone()))
-            .register(EVALUATE, EvaluateHandler::new(self.clone()))
-            .register(VALIDATE, ValidateHandler::new(self.clone()))
+        JobKind::ALL
+            .into_iter()
+            .fold(worker, |worker, kind| match kind {
+                JobKind::Train => worker.register(kind, TrainHandler::new(self.clone())),
+                JobKind::Evaluate => worker.register(kind, EvaluateHandler::new(self.clone())),
+                JobKind::Validate => worker.register(kind, ValidateHandler::new(self.clone())),
+            })
     }
 
-    /// Checks a job about to be created: the kind exists, the payload has the kind's shape and
-    /// values in range, and what it names (robot, place, policy) exists. Returns the payload
-    /// as it will be stored.
-    pub async fn check_new(&self, kind: &str, payload: &Value) -> Result<Value, PayloadError> {
+    /// Checks a job about to be created: the payload has the kind's shape and values in range,
+    /// and what it names (robot, place, policy) exists. Returns the payload as it will be
+    /// stored. (Whether the kind exists is its parsing: [`JobKind`]'s `FromStr`.)
+    pub async fn check_new(&self, kind: JobKind, payload: &Value) -> Result<Value, PayloadError> {
         match kind {
-            TRAIN => {
+            JobKind::Train => {
                 let p: TrainPayload = parse(payload)?;
                 p.check()?;
                 self.check_floor(&p.place, &p.robot).await?;
             }
-            EVALUATE => {
+            JobKind::Evaluate => {
                 let p: EvaluatePayload = parse(payload)?;
                 p.check()?;
                 let robot = evaluate::policy_robot(&self.policies, &p)?;
                 self.check_floor(&p.place, &robot).await?;
             }
-            VALIDATE => {
+            JobKind::Validate => {
                 let p: ValidatePayload = parse(payload)?;
                 let Some(validator) = &self.validator else {
                     return Err(PayloadError::Unprocessable(
@@ -92,12 +145,6 @@ impl JobEnv {
                 };
                 validator.check(payload).map_err(PayloadError::Invalid)?;
                 self.check_floor(&p.place, &p.robot).await?;
-            }
-            other => {
-                return Err(PayloadError::UnknownKind(format!(
-                    "unknown job kind {other:?}: expected one of {}",
-                    KINDS.join(", ")
-                )));
             }
         }
         Ok(payload.clone())
@@ -131,6 +178,12 @@ pub enum PayloadError {
     /// The knowledge service cannot answer now (503).
     #[error("{0}")]
     Unavailable(String),
+}
+
+impl From<UnknownKind> for PayloadError {
+    fn from(e: UnknownKind) -> Self {
+        PayloadError::UnknownKind(e.to_string())
+    }
 }
 
 impl From<PayloadError> for JobError {
@@ -194,6 +247,20 @@ pub fn rfc3339(ms: i64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn kinds_round_trip_through_their_names_and_serde() {
+        for kind in JobKind::ALL {
+            assert_eq!(kind.as_str().parse::<JobKind>(), Ok(kind));
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.as_str());
+            assert_eq!(String::from(kind), kind.to_string());
+        }
+        let e = "dance".parse::<JobKind>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown job kind \"dance\": expected one of train, evaluate, validate"
+        );
+    }
 
     #[test]
     fn rfc3339_formats_known_instants() {

@@ -1,7 +1,8 @@
 //! `validate`: a plan tried in the mental simulation before a robot moves. The handler does
 //! what every kind does — payload, world from the knowledge service, blocking thread,
 //! cancellation — and hands the world to a [`PlanValidator`], the plan executor's hook (the
-//! `planning` crate's hybrid PRM–RL executor implements it; see `JobEnv::validator`). Without
+//! `rehearsal` crate's hybrid PRM–RL executor implements it through
+//! [`ExecutorValidator`](crate::plan_api::ExecutorValidator); see `JobEnv::validator`). Without
 //! one, creating a `validate` job is refused (422) and a stray one fails as fatal.
 
 use std::sync::Arc;

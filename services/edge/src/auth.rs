@@ -1,11 +1,16 @@
-//! Bearer tokens and roles: engineers read and write the graph; robots read it and use the
-//! robot endpoints.
+//! Bearer tokens and roles, the same for every service: engineers read and write (the graph,
+//! jobs); robots read and use the robot endpoints (on-demand databases, object reports, plans).
+//!
+//! A handler authenticates with [`Tokens::authenticate`] (any valid token) or
+//! [`Tokens::require`] (a role, or an engineer's token), both reading the request's
+//! `Authorization: Bearer <token>` header; [`BearerAuth`] declares the scheme in the services'
+//! OpenAPI documents.
 
 use std::collections::HashMap;
 
+use crate::error::{ApiError, ErrorCode};
 use axum::http::HeaderMap;
 use axum::http::header::AUTHORIZATION;
-use edge::{ApiError, ErrorCode};
 
 /// What a token may do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -113,6 +118,21 @@ impl Tokens {
                 ),
             ))
         }
+    }
+}
+
+/// Declares the bearer-token scheme the `security` entries of our OpenAPI documents name.
+#[derive(Debug)]
+pub struct BearerAuth;
+
+impl utoipa::Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
+        );
     }
 }
 

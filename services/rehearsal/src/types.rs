@@ -1,82 +1,11 @@
-//! Request and report of a plan validation: the wire types of `POST /v1/plan` (serde, OpenAPI
-//! schemas). The executor takes and returns these; core types (`sim::Pose2`, `planning::Point2`)
-//! are converted at this edge, not exposed.
+//! What the executor takes and returns: plain values in the map frame (`sim::Pose2`,
+//! `planning::Point2`), no serde. An HTTP edge keeps its own wire types and converts them.
 
-use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
+use planning::Point2;
+use sim::Pose2;
 
-/// A point in the map frame, metres.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct Point {
-    /// x, metres.
-    pub x: f64,
-    /// y, metres.
-    pub y: f64,
-}
-
-impl Point {
-    /// A point from its coordinates.
-    pub const fn new(x: f64, y: f64) -> Self {
-        Self { x, y }
-    }
-
-    pub(crate) fn is_finite(self) -> bool {
-        self.x.is_finite() && self.y.is_finite()
-    }
-}
-
-impl From<planning::Point2> for Point {
-    fn from(p: planning::Point2) -> Self {
-        Self { x: p.x, y: p.y }
-    }
-}
-
-impl From<Point> for planning::Point2 {
-    fn from(p: Point) -> Self {
-        planning::Point2::new(p.x, p.y)
-    }
-}
-
-/// A pose in the map frame: position in metres, heading in radians (counter-clockwise from +x).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct Pose {
-    /// x, metres.
-    pub x: f64,
-    /// y, metres.
-    pub y: f64,
-    /// Heading, radians; 0 when not given.
-    #[serde(default)]
-    pub yaw: f64,
-}
-
-impl Pose {
-    /// A pose from its coordinates.
-    pub const fn new(x: f64, y: f64, yaw: f64) -> Self {
-        Self { x, y, yaw }
-    }
-}
-
-impl From<sim::Pose2> for Pose {
-    fn from(p: sim::Pose2) -> Self {
-        Self {
-            x: p.x,
-            y: p.y,
-            yaw: p.yaw,
-        }
-    }
-}
-
-impl From<Pose> for sim::Pose2 {
-    fn from(p: Pose) -> Self {
-        sim::Pose2::new(p.x, p.y, p.yaw)
-    }
-}
-
-/// How a plan is validated. Every field has a default.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(default, deny_unknown_fields)]
+/// How a plan is validated. [`PlanOptions::default`] gives the defaults of the plan endpoint.
+#[derive(Clone, Debug, PartialEq)]
 pub struct PlanOptions {
     /// Simulated runs at most, each on a roadmap re-sampled with a new seed (default 5).
     pub max_attempts: u32,
@@ -90,7 +19,7 @@ pub struct PlanOptions {
     pub shortcut: bool,
     /// Clearance kept beyond the robot's radius when sampling the roadmap, metres (default 0.1).
     pub safety_margin_m: f64,
-    /// PRM samples n; `null` for the paper's n* = ceil(0.05 · free area + 84) (Eq. 19).
+    /// PRM samples n; `None` for the paper's n* = ceil(0.05 · free area + 84) (Eq. 19).
     pub samples: Option<usize>,
     /// Seed of the roadmaps and the simulation: the same request gives the same report.
     pub seed: u64,
@@ -117,21 +46,18 @@ impl Default for PlanOptions {
 }
 
 /// What to plan: from the robot's pose through one goal or a sequence of goals.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct PlanRequest {
     /// The robot's current pose.
-    pub start: Pose,
+    pub start: Pose2,
     /// Goals, visited in order; at least one.
-    pub goals: Vec<Point>,
+    pub goals: Vec<Point2>,
     /// Validation settings.
-    #[serde(default)]
     pub options: PlanOptions,
 }
 
 /// Which controller drove the simulated robot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ControllerKind {
     /// The exported TD3 policy (hybrid PRM-RL, the paper's §4.2.2).
     Policy,
@@ -141,7 +67,7 @@ pub enum ControllerKind {
 }
 
 impl ControllerKind {
-    /// The name as it appears on the wire and in benchmark tables.
+    /// The name in reports and benchmark tables: `policy` or `classical`.
     pub fn as_str(self) -> &'static str {
         match self {
             ControllerKind::Policy => "policy",
@@ -151,8 +77,7 @@ impl ControllerKind {
 }
 
 /// How one simulated attempt ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum AttemptOutcome {
     /// Every goal reached without a collision: the plan is validated.
     Reached,
@@ -164,7 +89,7 @@ pub enum AttemptOutcome {
 }
 
 impl AttemptOutcome {
-    /// The name as it appears on the wire.
+    /// The name in reports and benchmark tables: `reached`, `collision` or `stalled`.
     pub fn as_str(self) -> &'static str {
         match self {
             AttemptOutcome::Reached => "reached",
@@ -175,7 +100,7 @@ impl AttemptOutcome {
 }
 
 /// One simulated run of the plan on one roadmap.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct AttemptReport {
     /// 1-based.
     pub attempt: u32,
@@ -200,15 +125,15 @@ pub struct AttemptReport {
     /// Length of the roadmap path planned at the start of the attempt, metres.
     pub prm_path_length_m: f64,
     /// Where the robot ended.
-    pub end_pose: Pose,
+    pub end_pose: Pose2,
 }
 
 /// A plan validated in the mental simulation.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct PlanReport {
     /// The waypoints to follow, in order, as the simulated robot reached them (replanned ones
     /// included), ending with the last goal. The start is not repeated.
-    pub waypoints: Vec<Point>,
+    pub waypoints: Vec<Point2>,
     /// Index into `waypoints` of each goal.
     pub goal_indices: Vec<usize>,
     /// The controller that drove the simulated robot.
@@ -230,13 +155,13 @@ pub struct PlanReport {
     /// Replans in the validating run.
     pub replans: u32,
     /// Poses of the validating run (every `trajectory_stride`-th, and the last).
-    pub trajectory: Vec<Pose>,
+    pub trajectory: Vec<Pose2>,
     /// The roadmap of the validating run.
     pub roadmap: RoadmapInfo,
 }
 
 /// The roadmap a report planned on.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RoadmapInfo {
     /// Samples n.
     pub samples: usize,

@@ -15,15 +15,16 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
+use grid::seed::mix;
 use learning::Policy;
-use planning::{ConfigSpace, Endpoint, Point2, PrmParams, QueryError, QueryOptions, Roadmap};
+use planning::{ConfigSpace, Point2, PrmParams, QueryError, QueryOptions, Roadmap};
 use sim::{EnvConfig, NavEnv, NoiseConfig, Outcome, Pose2, World};
 
-use super::cache::{RoadmapCache, SpaceEntry};
-use super::controller::{ClassicalFollower, Controller, PolicyController};
-use super::error::{BlockedReason, PlanError, invalid};
-use super::types::{
-    AttemptOutcome, AttemptReport, PlanOptions, PlanReport, PlanRequest, Point, Pose, RoadmapInfo,
+use crate::cache::{RoadmapCache, SpaceEntry};
+use crate::controller::{ClassicalFollower, Controller, PolicyController};
+use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
+use crate::types::{
+    AttemptOutcome, AttemptReport, PlanOptions, PlanReport, PlanRequest, RoadmapInfo,
 };
 
 /// Most goals one request may carry.
@@ -89,10 +90,10 @@ pub fn validate_with(
         env_config.goal_tolerance = t;
     }
     let max_segment_m = max_segment(&env_config, opts);
-    let start = Pose2::from(request.start);
+    let start = request.start;
     let entry = start_entry(world, cs, start, env_config.collision_clearance)?;
-    let goals: Vec<Point2> = request.goals.iter().map(|&g| g.into()).collect();
-    check_goals(cs, entry.unwrap_or(Point2::new(start.x, start.y)), &goals)?;
+    let goals = &request.goals;
+    check_goals(cs, entry.unwrap_or(Point2::new(start.x, start.y)), goals)?;
 
     let samples = opts
         .samples
@@ -106,7 +107,7 @@ pub fn validate_with(
             ..PrmParams::default()
         };
         let (roadmap, cached) = roadmaps.roadmap(map_version, &space, &params)?;
-        let legs = plan_legs(&roadmap, opts, start, entry, &goals, max_segment_m)?;
+        let legs = plan_legs(&roadmap, opts, start, entry, goals, max_segment_m)?;
         controller.start_attempt(attempt);
         let replanner: &mut Replanner<'_> = &mut |from: Point2, goal: Point2| {
             replan(&roadmap, opts, world, from, goal, max_segment_m)
@@ -136,14 +137,14 @@ pub fn validate_with(
             waypoints_reached: run.reached.len(),
             goals_reached: run.goal_indices.len(),
             prm_path_length_m: legs.length_m,
-            end_pose: run.end_pose.into(),
+            end_pose: run.end_pose,
         };
         let reached = run.outcome == AttemptOutcome::Reached;
         attempts.push(report);
         if reached {
             let waypoint_path_length_m = polyline_length(start, &run.reached);
             return Ok(PlanReport {
-                waypoints: run.reached.iter().map(|&p| p.into()).collect(),
+                waypoints: run.reached,
                 goal_indices: run.goal_indices,
                 controller: controller.kind(),
                 controller_description: controller.description(),
@@ -221,7 +222,7 @@ fn check_request(request: &PlanRequest) -> Result<(), PlanError> {
         ));
     }
     for (i, g) in request.goals.iter().enumerate() {
-        if !g.is_finite() {
+        if !(g.x.is_finite() && g.y.is_finite()) {
             let field = if g.x.is_finite() { "y" } else { "x" };
             return Err(invalid(
                 format!("goals[{i}].{field}"),
@@ -284,7 +285,7 @@ fn start_entry(
     collision_clearance: f64,
 ) -> Result<Option<Point2>, PlanError> {
     let p = Point2::new(start.x, start.y);
-    match cs.validate_endpoint(Endpoint::Start, p) {
+    match cs.validate_endpoint(planning::Endpoint::Start, p) {
         Ok(()) => Ok(None),
         Err(e @ QueryError::InObstacle { .. }) => {
             let escape = cs.nearest_free(p).filter(|&q| {
@@ -293,50 +294,51 @@ fn start_entry(
             });
             match escape {
                 Some(q) => Ok(Some(q)),
-                None => Err(blocked_error("start".into(), e)),
+                None => Err(blocked_error(Endpoint::Start, e)),
             }
         }
-        Err(e) => Err(blocked_error("start".into(), e)),
+        Err(e) => Err(blocked_error(Endpoint::Start, e)),
     }
 }
 
 /// Every goal must be free and in the same free region as the point before it.
 fn check_goals(cs: &ConfigSpace, from: Point2, goals: &[Point2]) -> Result<(), PlanError> {
     for (i, &g) in goals.iter().enumerate() {
-        cs.validate_endpoint(Endpoint::Goal, g)
-            .map_err(|e| blocked_error(format!("goals[{i}]"), e))?;
+        cs.validate_endpoint(planning::Endpoint::Goal, g)
+            .map_err(|e| blocked_error(Endpoint::Goal(i), e))?;
     }
-    let mut prev = (from, "the start".to_owned());
+    let mut prev = (from, Endpoint::Start);
     for (i, &g) in goals.iter().enumerate() {
         if cs.region_of(prev.0) != cs.region_of(g) {
             return Err(PlanError::Unreachable {
                 goal_index: i,
-                goal: g.into(),
+                goal: g,
                 from: prev.1,
             });
         }
-        prev = (g, format!("goals[{i}]"));
+        prev = (g, Endpoint::Goal(i));
     }
     Ok(())
 }
 
 /// A planner endpoint error as the request's own error, naming the point.
-fn blocked_error(which: String, e: QueryError) -> PlanError {
+fn blocked_error(which: Endpoint, e: QueryError) -> PlanError {
     match e {
-        QueryError::NonFinite { x, y, .. } => {
-            invalid(which, format!("must be a finite point, got ({x}, {y})"))
-        }
+        QueryError::NonFinite { x, y, .. } => invalid(
+            which.to_string(),
+            format!("must be a finite point, got ({x}, {y})"),
+        ),
         QueryError::OutsideMap {
             point,
             nearest_free,
             ..
         } => PlanError::Blocked {
-            which,
-            point: point.into(),
+            endpoint: which,
+            point,
             reason: BlockedReason::OutsideMap,
             clearance_m: None,
             required_m: 0.0,
-            nearest_free: nearest_free.map(Into::into),
+            nearest_free,
         },
         QueryError::InObstacle {
             point,
@@ -345,12 +347,12 @@ fn blocked_error(which: String, e: QueryError) -> PlanError {
             nearest_free,
             ..
         } => PlanError::Blocked {
-            which,
-            point: point.into(),
+            endpoint: which,
+            point,
             reason: BlockedReason::InObstacle,
             clearance_m: Some(clearance_m),
             required_m,
-            nearest_free: nearest_free.map(Into::into),
+            nearest_free,
         },
         other @ (QueryError::Unreachable { .. } | QueryError::NotConnected) => {
             PlanError::Map(format!("{which}: {other}"))
@@ -431,9 +433,9 @@ fn plan_legs(
     let mut legs = Vec::with_capacity(goals.len());
     for (i, &g) in goals.iter().enumerate() {
         let which = if i == 0 {
-            "start".to_owned()
+            Endpoint::Start
         } else {
-            format!("goals[{}]", i - 1)
+            Endpoint::Goal(i - 1)
         };
         let mut plan = roadmap
             .query(from, g, QueryOptions::default())
@@ -441,11 +443,11 @@ fn plan_legs(
                 QueryError::Unreachable { .. } | QueryError::NotConnected => {
                     PlanError::Unreachable {
                         goal_index: i,
-                        goal: g.into(),
-                        from: which.clone(),
+                        goal: g,
+                        from: which,
                     }
                 }
-                other => blocked_error(format!("goals[{i}]"), other),
+                other => blocked_error(Endpoint::Goal(i), other),
             })?;
         if opts.shortcut {
             plan = roadmap.shortcut(&plan);
@@ -579,7 +581,7 @@ pub fn drive(
         .map_err(|e| invalid("policy", e.to_string()))?;
     let mut obs = env
         .reset(start, (current.0.x, current.0.y))
-        .map_err(|e| env_error("start", e))?;
+        .map_err(|e| env_error(Endpoint::Start, e))?;
     let dt = env_config.control_period;
     #[allow(
         clippy::cast_possible_truncation,
@@ -628,7 +630,7 @@ pub fn drive(
                         current = next;
                         obs = env
                             .set_goal((current.0.x, current.0.y))
-                            .map_err(|e| env_error("waypoint", e))?;
+                            .map_err(|e| env_error(Endpoint::Waypoint, e))?;
                         steps_on_waypoint = 0;
                     }
                 }
@@ -688,7 +690,7 @@ pub fn drive(
                 current = next;
                 obs = env
                     .set_goal((current.0.x, current.0.y))
-                    .map_err(|e| env_error("waypoint", e))?;
+                    .map_err(|e| env_error(Endpoint::Waypoint, e))?;
                 steps_on_waypoint = 0;
             }
         }
@@ -714,18 +716,18 @@ pub fn drive(
 
 /// An environment refusal during a drive (the executor's checks make these unreachable in
 /// practice: starts and waypoints come from free configuration space).
-fn env_error(which: &str, e: sim::EnvError) -> PlanError {
+fn env_error(which: Endpoint, e: sim::EnvError) -> PlanError {
     match e {
         sim::EnvError::StartBlocked {
             x, y, nearest_free, ..
         }
         | sim::EnvError::GoalBlocked { x, y, nearest_free } => PlanError::Blocked {
-            which: which.to_owned(),
-            point: Point::new(x, y),
+            endpoint: which,
+            point: Point2::new(x, y),
             reason: BlockedReason::InObstacle,
             clearance_m: None,
             required_m: 0.0,
-            nearest_free: nearest_free.map(|(x, y)| Point::new(x, y)),
+            nearest_free: nearest_free.map(|(x, y)| Point2::new(x, y)),
         },
         other => PlanError::Map(other.to_string()),
     }
@@ -742,27 +744,18 @@ fn polyline_length(start: Pose2, points: &[Point2]) -> f64 {
 }
 
 /// Every `n`-th pose and the last; none for `n == 0`.
-fn stride(poses: &[Pose2], n: u32) -> Vec<Pose> {
+fn stride(poses: &[Pose2], n: u32) -> Vec<Pose2> {
     if n == 0 {
         return Vec::new();
     }
     let n = n as usize;
-    let mut out: Vec<Pose> = poses.iter().step_by(n).map(|&p| p.into()).collect();
+    let mut out: Vec<Pose2> = poses.iter().step_by(n).copied().collect();
     if let Some(&last) = poses.last()
         && !(poses.len() - 1).is_multiple_of(n)
     {
-        out.push(last.into());
+        out.push(last);
     }
     out
-}
-
-/// SplitMix64 of two values: decorrelated seeds for attempts.
-pub fn mix(a: u64, b: u64) -> u64 {
-    let mut z = a ^ b.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
 }
 
 /// The configuration space the executor plans on for `world`, `map_version` and a safety

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use learning::Policy;
 use sim::{Action, Observation, Pose2, World};
 
-use super::types::ControllerKind;
+use crate::types::ControllerKind;
 
 /// A controller: one velocity command per control period.
 pub trait Controller {
@@ -145,7 +145,7 @@ impl Controller for PolicyController {
         let steps = m
             .training
             .pointer("/counters/env_steps")
-            .and_then(serde_json::Value::as_u64)
+            .and_then(|v| v.as_u64())
             .map_or_else(String::new, |s| format!(", {s} training steps"));
         let shield = if self.shielded {
             format!(

@@ -3,6 +3,10 @@
 //! the URL. Nothing store-specific: an Oxigraph server, Fuseki, GraphDB, Virtuoso or Neptune
 //! all speak it.
 //!
+//! Besides the protocol calls, it implements the whole-graph writes of
+//! [`KnowledgeStore`](crate::store::KnowledgeStore) as single SPARQL updates (the embedded
+//! backend's transactions).
+//!
 //! The HTTP client is reqwest's async one. The SPARQL endpoint awaits it directly; the blocking
 //! code of the crate (graph walks, inference, imports, running on `spawn_blocking` threads)
 //! waits on it through the runtime's handle.
@@ -17,14 +21,16 @@ use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
-use oxigraph::model::{GraphName, Literal, NamedNodeRef, NamedOrBlankNode, Quad, Term, Triple};
+use oxigraph::model::{
+    GraphName, Literal, NamedNode, NamedNodeRef, NamedOrBlankNode, Quad, Term, Triple,
+};
 use oxigraph::sparql::results::{
     QueryResultsFormat, QueryResultsParser, SliceQueryResultsParserOutput,
 };
 use oxigraph::store::Store;
 
-use crate::inference::INFERRED_GRAPH;
-use crate::store::StoreError;
+use crate::graphs::INFERRED_GRAPH;
+use crate::store::error::StoreError;
 
 /// How long a snapshot of the remote is used at most, even when the version marker did not
 /// change: the bound on how stale a write that bypassed the service can look.
@@ -250,6 +256,103 @@ impl RemoteStore {
         }
     }
 
+    /// Runs a trivial query on the remote's endpoint. Blocking.
+    pub(crate) fn check(&self) -> Result<(), StoreError> {
+        self.ask("ASK { ?s ?p ?o }").map(drop)
+    }
+
+    /// Whether the remote holds no triple in any graph. Blocking.
+    pub(crate) fn is_empty(&self) -> Result<bool, StoreError> {
+        self.ask("ASK { { ?s ?p ?o } UNION { GRAPH ?g { ?s ?p ?o } } }")
+            .map(|any| !any)
+    }
+
+    /// Whether the named graph `graph` exists. Blocking.
+    pub(crate) fn contains_named_graph(&self, graph: NamedNodeRef<'_>) -> Result<bool, StoreError> {
+        self.ask(&format!("ASK {{ GRAPH {graph} {{ }} }}"))
+    }
+
+    /// Adds `quads` in one update. Blocking.
+    pub(crate) fn insert(&self, quads: &[Quad]) -> Result<(), StoreError> {
+        self.update(&insert_data(quads))
+    }
+
+    /// The content of `graph` becomes `quads`, in one update; returns whether a named graph
+    /// was created. Blocking.
+    pub(crate) fn replace_graph(
+        &self,
+        graph: &GraphName,
+        quads: &[Quad],
+    ) -> Result<bool, StoreError> {
+        let (created, mut update) = match graph {
+            GraphName::NamedNode(g) => (
+                !self.contains_named_graph(g.as_ref())?,
+                format!("DROP SILENT GRAPH {g} ;\nCREATE SILENT GRAPH {g} ;\n"),
+            ),
+            GraphName::DefaultGraph | GraphName::BlankNode(_) => {
+                (false, "CLEAR SILENT DEFAULT ;\n".to_owned())
+            }
+        };
+        update.push_str(&insert_data(quads));
+        self.update(&update)?;
+        Ok(created)
+    }
+
+    /// Adds `quads` to `graph`, creating it if needed, in one update; returns whether it was
+    /// created. Blocking.
+    pub(crate) fn merge_into_graph(
+        &self,
+        graph: &GraphName,
+        quads: &[Quad],
+    ) -> Result<bool, StoreError> {
+        let (created, mut update) = match graph {
+            GraphName::NamedNode(g) => (
+                !self.contains_named_graph(g.as_ref())?,
+                format!("CREATE SILENT GRAPH {g} ;\n"),
+            ),
+            GraphName::DefaultGraph | GraphName::BlankNode(_) => (false, String::new()),
+        };
+        update.push_str(&insert_data(quads));
+        self.update(&update)?;
+        Ok(created)
+    }
+
+    /// Drops a named graph (returns whether it existed) or empties the default graph
+    /// (returns true). Blocking.
+    pub(crate) fn drop_graph(&self, graph: &GraphName) -> Result<bool, StoreError> {
+        match graph {
+            GraphName::NamedNode(g) => {
+                if !self.contains_named_graph(g.as_ref())? {
+                    return Ok(false);
+                }
+                self.update(&format!("DROP SILENT GRAPH {g}"))?;
+                Ok(true)
+            }
+            _ => {
+                self.update("CLEAR SILENT DEFAULT")?;
+                Ok(true)
+            }
+        }
+    }
+
+    /// In `graph`, removes every triple whose subject is one of `subjects`, then adds `quads`,
+    /// in one update. Returns whether anything was removed. Blocking.
+    pub(crate) fn replace_subjects(
+        &self,
+        graph: NamedNodeRef<'_>,
+        subjects: &[NamedNode],
+        quads: &[Quad],
+    ) -> Result<bool, StoreError> {
+        let values: String = subjects.iter().map(|s| format!("{s} ")).collect();
+        let pattern = format!("GRAPH {graph} {{ VALUES ?s {{ {values}}} ?s ?p ?o }}");
+        let existed = self.ask(&format!("ASK {{ {pattern} }}"))?;
+        let mut update =
+            format!("DELETE {{ GRAPH {graph} {{ ?s ?p ?o }} }} WHERE {{ {pattern} }} ;\n");
+        update.push_str(&insert_data(quads));
+        self.update(&update)?;
+        Ok(existed)
+    }
+
     fn bad_answer(&self, message: impl Into<String>) -> StoreError {
         StoreError::Query {
             location: self.query_url.clone(),
@@ -419,13 +522,40 @@ impl RemoteStore {
             INFERRED_GRAPH.into_owned(),
         ));
         let mut update = format!("DROP SILENT GRAPH {INFERRED_GRAPH} ;\n");
-        update.push_str(&crate::store::insert_data(&quads));
+        update.push_str(&insert_data(&quads));
         self.update(&update)?;
         let mut all = asserted;
         all.extend(quads);
         self.install_snapshot(&all, Some(version))?;
         Ok(written)
     }
+}
+
+/// `INSERT DATA { … }` for `quads`, grouped by graph, terms in their N-Triples form (which
+/// SPARQL reads as is). Blank nodes keep their labels, so within one request they stay one
+/// node each.
+fn insert_data(quads: &[Quad]) -> String {
+    use std::fmt::Write;
+    let mut out = String::with_capacity(quads.len() * 120 + 32);
+    out.push_str("INSERT DATA {\n");
+    let mut current: Option<&GraphName> = None;
+    for quad in quads {
+        if current != Some(&quad.graph_name) {
+            if matches!(current, Some(GraphName::NamedNode(_))) {
+                out.push_str("}\n");
+            }
+            if let GraphName::NamedNode(g) = &quad.graph_name {
+                let _ = writeln!(out, "GRAPH {g} {{");
+            }
+            current = Some(&quad.graph_name);
+        }
+        let _ = writeln!(out, "{} {} {} .", quad.subject, quad.predicate, quad.object);
+    }
+    if matches!(current, Some(GraphName::NamedNode(_))) {
+        out.push_str("}\n");
+    }
+    out.push('}');
+    out
 }
 
 #[cfg(test)]
@@ -465,5 +595,33 @@ mod tests {
             timeout: Duration::from_secs(1),
         };
         assert_eq!(explicit.endpoints().1, "http://h/repositories/x/statements");
+    }
+
+    #[test]
+    fn insert_data_round_trips_through_an_update() {
+        let g = NamedNode::new("http://example.org/g").unwrap();
+        let turtle =
+            "@prefix : <http://example.org/> . :a :p \"x\\\"y\\n\"@en , [ :q 1 ] . :b :r :c .";
+        let quads = oxigraph::io::RdfParser::from_format(oxigraph::io::RdfFormat::Turtle)
+            .rename_blank_nodes()
+            .with_default_graph(g.as_ref())
+            .for_slice(turtle.as_bytes())
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap();
+        let mut all = quads.clone();
+        all.push(Quad::new(
+            NamedNode::new("http://example.org/d").unwrap(),
+            NamedNode::new("http://example.org/p").unwrap(),
+            Literal::from(2.5),
+            GraphName::DefaultGraph,
+        ));
+        let store = Store::new().unwrap();
+        store.update(insert_data(&all).as_str()).unwrap();
+        assert_eq!(store.len().unwrap(), all.len());
+        let blank_links = store
+            .quads_for_pattern(None, None, None, Some(g.as_ref().into()))
+            .filter(|q| q.as_ref().unwrap().object.is_blank_node())
+            .count();
+        assert_eq!(blank_links, 1);
     }
 }

@@ -13,8 +13,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use planning::{ConfigSpace, Inflation, PrmParams, Roadmap, RoadmapKey};
 use sim::World;
 
-use super::error::PlanError;
-use super::grid::planning_grid;
+use crate::error::{PlanError, invalid};
+use crate::planning_grid::planning_grid;
 
 /// The configuration space of one map version for one robot inflation, with the free area of
 /// the uninflated map (the paper's n* is computed from it).
@@ -197,7 +197,7 @@ impl RoadmapCache {
         }
         let roadmap = Roadmap::build(Arc::clone(&space.cspace), params).map_err(|e| match e {
             planning::BuildError::NoFreeSpace { .. } => PlanError::Map(e.to_string()),
-            other => super::error::invalid("options.samples", other.to_string()),
+            other => invalid("options.samples", other.to_string()),
         })?;
         let roadmap = Arc::new(roadmap);
         self.lock().roadmaps.insert(key, Arc::clone(&roadmap));

@@ -1,0 +1,111 @@
+//! Map import (`POST /v1/maps`): a ROS map_server map, uploaded as a multipart form, becomes a
+//! floor in a named graph of its own. Engineers only.
+
+use std::sync::Arc;
+
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::{Multipart, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use edge::{ApiError, ErrorBody, ErrorCode, Role};
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use super::task::blocking;
+use crate::maps::{self, ImportError};
+use crate::service::Knowledge;
+
+/// The result of a map import.
+#[derive(Serialize, ToSchema)]
+pub struct ImportedMap {
+    /// The new floor's IRI.
+    floor: String,
+    /// The named graph it lives in.
+    graph: String,
+    /// Size in cells.
+    width: usize,
+    /// Size in cells.
+    height: usize,
+    /// Metres per cell.
+    resolution: f64,
+    /// Free area, m².
+    free_area_m2: f64,
+    /// Triples written.
+    triples: usize,
+}
+
+impl From<ImportError> for ApiError {
+    fn from(e: ImportError) -> Self {
+        match e {
+            ImportError::Store(e) => ApiError::from(e),
+            e if e.is_client_error() => ApiError::new(ErrorCode::Unprocessable, e.to_string()),
+            e => ApiError::internal(e),
+        }
+    }
+}
+
+/// Imports a ROS map_server map as a floor. Multipart form: `yaml` (the map's YAML), `image`
+/// (its PGM or PNG), `name` (lower-case letters, digits, `-`, `_`). Engineers only.
+#[utoipa::path(post, path = "/v1/maps", request_body(content_type = "multipart/form-data", content = String, description = "fields: name, yaml, image"), responses((status = 201, body = ImportedMap), (status = 400, body = ErrorBody), (status = 422, body = ErrorBody)))]
+pub(super) async fn import_map(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    mut form: Multipart,
+) -> Result<Response, ApiError> {
+    k.tokens.require(&headers, Role::Engineer)?;
+    let (mut name, mut yaml, mut image): (Option<String>, Option<String>, Option<Bytes>) =
+        (None, None, None);
+    while let Some(field) = form
+        .next_field()
+        .await
+        .map_err(|e| ApiError::bad_request(format!("malformed multipart body: {e}")))?
+    {
+        let field_name = field.name().unwrap_or("").to_owned();
+        let data = field
+            .bytes()
+            .await
+            .map_err(|e| ApiError::bad_request(format!("field {field_name}: {e}")))?;
+        match field_name.as_str() {
+            "name" => name = Some(String::from_utf8_lossy(&data).trim().to_owned()),
+            "yaml" => {
+                yaml = Some(
+                    String::from_utf8(data.to_vec())
+                        .map_err(|_| ApiError::bad_request("field yaml is not UTF-8 text"))?,
+                )
+            }
+            "image" => image = Some(data),
+            other => {
+                return Err(ApiError::bad_request(format!(
+                    "unexpected form field {other:?}: expected name, yaml, image"
+                )));
+            }
+        }
+    }
+    let yaml = yaml
+        .ok_or_else(|| ApiError::bad_request("missing form field `yaml` (the map_server YAML)"))?;
+    let image = image.ok_or_else(|| {
+        ApiError::bad_request("missing form field `image` (the PGM or PNG the YAML names)")
+    })?;
+    let name = name.ok_or_else(|| ApiError::bad_request("missing form field `name`"))?;
+    let imported =
+        blocking(move || maps::import(&k, &name, &yaml, &image).map_err(ApiError::from)).await?;
+    let floor = imported.floor_iri.clone();
+    let mut response = (
+        StatusCode::CREATED,
+        Json(ImportedMap {
+            floor: imported.floor_iri,
+            graph: imported.graph_iri,
+            width: imported.size.0,
+            height: imported.size.1,
+            resolution: imported.resolution,
+            free_area_m2: imported.free_area_m2,
+            triples: imported.triples,
+        }),
+    )
+        .into_response();
+    if let Ok(v) = HeaderValue::from_str(&floor) {
+        response.headers_mut().insert(header::LOCATION, v);
+    }
+    Ok(response)
+}

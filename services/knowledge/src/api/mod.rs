@@ -1,0 +1,65 @@
+//! The knowledge service's REST API for robots and operators: browse places and robots, fetch
+//! a floor's map, import maps, report perceived objects, and get on-demand databases. One
+//! module per resource; this one assembles their routes and the OpenAPI document.
+//!
+//! Wire types live here and are converted from the core types on purpose.
+
+mod maps;
+mod objects;
+mod on_demand;
+mod places;
+mod robots;
+mod task;
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::routing::{get, post};
+use edge::{BearerAuth, ErrorBody, ErrorDetail};
+use utoipa::OpenApi;
+
+// The handlers' OpenAPI descriptions, named without their module: utoipa makes a handler's
+// module path its tag, and the document has none.
+use self::maps::{__path_import_map, ImportedMap};
+use self::objects::{
+    __path_report_object, ColourInput, ObjectReport, PoseInput, ReportedObject, ShapeInput,
+};
+use self::on_demand::{
+    __path_floor_on_demand_database, __path_on_demand_database, OnDemandRequest, WaypointInput,
+};
+use self::places::{
+    __path_get_place, __path_list_places, __path_place_map, __path_world_sdf, PlaceView,
+};
+use self::robots::{__path_get_robot, __path_list_robots, __path_robot_urdf, RobotView};
+use crate::service::Knowledge;
+
+/// The OpenAPI document of the REST API, generated from the handlers of the resource modules.
+#[derive(OpenApi)]
+#[openapi(
+    info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
+    paths(list_places, get_place, place_map, world_sdf, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database, floor_on_demand_database),
+    components(schemas(PlaceView, RobotView, ImportedMap, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointInput, ErrorBody, ErrorDetail)),
+    modifiers(&BearerAuth),
+    security(("bearer" = []))
+)]
+pub struct KnowledgeApi;
+
+/// The REST routes under `/v1`.
+pub fn router(knowledge: Arc<Knowledge>) -> Router {
+    Router::new()
+        .route("/v1/places", get(places::list_places))
+        .route("/v1/places/{id}", get(places::get_place))
+        .route("/v1/places/{id}/map.png", get(places::place_map))
+        .route("/v1/places/{id}/objects", post(objects::report_object))
+        .route("/v1/places/{id}/world.sdf", get(places::world_sdf))
+        .route("/v1/robots/{id}/robot.urdf", get(robots::robot_urdf))
+        .route("/v1/robots", get(robots::list_robots))
+        .route("/v1/robots/{id}", get(robots::get_robot))
+        .route("/v1/maps", post(maps::import_map))
+        .route("/v1/on-demand", post(on_demand::on_demand_database))
+        .route(
+            "/v1/places/{id}/on-demand",
+            get(on_demand::floor_on_demand_database),
+        )
+        .with_state(knowledge)
+}

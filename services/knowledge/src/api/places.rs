@@ -1,0 +1,202 @@
+//! Places: browse them (`/v1/places`, `/v1/places/{id}`), a floor's map as a PNG, and the SDF
+//! world of a floor generated from the graph by the simulation parser.
+
+use std::sync::Arc;
+
+use axum::Json;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, header};
+use axum::response::{IntoResponse, Response};
+use edge::{ApiError, ErrorBody, ErrorCode};
+use oxigraph::model::Graph;
+use serde::{Deserialize, Serialize};
+use tosm::{Place, PlaceKind};
+use utoipa::ToSchema;
+
+use super::task::blocking;
+use crate::on_demand;
+use crate::service::Knowledge;
+
+/// A place as robots and operators browse it.
+#[derive(Serialize, ToSchema)]
+pub struct PlaceView {
+    /// The place's IRI.
+    iri: String,
+    /// `tosm:identifier`, usable as `{id}` in paths.
+    id: Option<String>,
+    /// `tosm:name`.
+    name: String,
+    /// building, floor, corridor, room, hall or place.
+    kind: String,
+    /// The place it is directly inside of.
+    parent: Option<String>,
+    /// Places reachable directly from it.
+    connected: Vec<String>,
+    /// Occupied share of its area, in [0, 1].
+    complexity: Option<f64>,
+    /// Boundary polygon in the floor frame, metres.
+    boundary: Vec<[f64; 2]>,
+    /// For floors: the map's size in cells, resolution in m/cell and free area in m².
+    map: Option<MapView>,
+}
+
+/// Summary of a floor's metric map.
+#[derive(Serialize, ToSchema)]
+pub struct MapView {
+    width: usize,
+    height: usize,
+    resolution: f64,
+    origin: [f64; 3],
+    free_area_m2: f64,
+}
+
+fn kind_name(kind: PlaceKind) -> &'static str {
+    match kind {
+        PlaceKind::Building => "building",
+        PlaceKind::Floor => "floor",
+        PlaceKind::Corridor => "corridor",
+        PlaceKind::Room => "room",
+        PlaceKind::Hall => "hall",
+        PlaceKind::Other => "place",
+    }
+}
+
+impl From<&Place> for PlaceView {
+    fn from(p: &Place) -> Self {
+        Self {
+            iri: p.iri.clone(),
+            id: p.symbol.identifier.clone(),
+            name: p.symbol.name.clone(),
+            kind: kind_name(p.kind).to_owned(),
+            parent: p.parent.clone(),
+            connected: p.connected.clone(),
+            complexity: p.complexity,
+            boundary: p.boundary.iter().map(|&(x, y)| [x, y]).collect(),
+            map: p.map.as_ref().map(|m| MapView {
+                width: m.grid.width,
+                height: m.grid.height,
+                resolution: m.resolution,
+                origin: [m.origin.x, m.origin.y, m.origin.yaw],
+                free_area_m2: m.grid.free_area_m2(),
+            }),
+        }
+    }
+}
+
+/// The index of the place with IRI or identifier `id`; 404 when there is none.
+pub(super) fn find_place(places: &[Place], id: &str) -> Result<usize, ApiError> {
+    places
+        .iter()
+        .position(|p| p.iri == id || p.symbol.identifier.as_deref() == Some(id))
+        .ok_or_else(|| ApiError::not_found(format!("no place has IRI or identifier {id:?}")))
+}
+
+/// Every place, buildings to rooms.
+#[utoipa::path(get, path = "/v1/places", responses((status = 200, body = [PlaceView]), (status = 401, body = ErrorBody)))]
+pub(super) async fn list_places(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+) -> Result<Json<Vec<PlaceView>>, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    blocking(move || {
+        let store = k.store()?;
+        let places = on_demand::all_places(&store)?;
+        Ok(Json(places.iter().map(PlaceView::from).collect()))
+    })
+    .await
+}
+
+/// One place, by IRI (percent-encoded) or identifier.
+#[utoipa::path(get, path = "/v1/places/{id}", params(("id" = String, Path, description = "IRI or tosm:identifier")), responses((status = 200, body = PlaceView), (status = 404, body = ErrorBody)))]
+pub(super) async fn get_place(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<PlaceView>, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    blocking(move || {
+        let store = k.store()?;
+        let places = on_demand::all_places(&store)?;
+        let i = find_place(&places, &id)?;
+        Ok(Json(PlaceView::from(&places[i])))
+    })
+    .await
+}
+
+/// A floor's occupancy grid as a PNG (free 254, occupied 0, unknown 205; top row first).
+#[utoipa::path(get, path = "/v1/places/{id}/map.png", params(("id" = String, Path)), responses((status = 200, content_type = "image/png", body = Vec<u8>), (status = 404, body = ErrorBody)))]
+pub(super) async fn place_map(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    let png = blocking(move || {
+        let store = k.store()?;
+        let places = on_demand::all_places(&store)?;
+        let place = &places[find_place(&places, &id)?];
+        place.map.as_ref().map(|m| m.png.clone()).ok_or_else(|| {
+            ApiError::not_found(format!(
+                "place {} has no metric map (only floors do)",
+                place.iri
+            ))
+        })
+    })
+    .await?;
+    Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
+}
+
+/// Which robot to place in an exported world.
+#[derive(Deserialize, utoipa::IntoParams)]
+pub struct WorldQuery {
+    /// The robot's IRI or identifier [default: the first robot in the store].
+    pub(super) robot: Option<String>,
+}
+
+/// The SDF 1.9 world of a floor (or of the floor a place is on), generated from the graph alone
+/// by the simulation parser: walls from the metric map, library models, and placeholders of
+/// their stated shape and colour. Gazebo loads it as it is.
+#[utoipa::path(get, path = "/v1/places/{id}/world.sdf", params(("id" = String, Path), WorldQuery), responses((status = 200, content_type = "application/xml", body = String), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody)))]
+pub(super) async fn world_sdf(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    axum::extract::Query(query): axum::extract::Query<WorldQuery>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    let sdf = blocking(move || {
+        let store = k.store()?;
+        let places = on_demand::all_places(&store)?;
+        let place = &places[find_place(&places, &id)?];
+        let mut floor = Some(place);
+        while let Some(p) = floor {
+            if p.kind == PlaceKind::Floor {
+                break;
+            }
+            floor = p
+                .parent
+                .as_deref()
+                .and_then(|parent| places.iter().find(|q| q.iri == parent));
+        }
+        let floor = floor.ok_or_else(|| {
+            ApiError::new(
+                ErrorCode::Unprocessable,
+                format!(
+                    "{} is on no floor: only floors and the places on them have a world",
+                    place.iri
+                ),
+            )
+        })?;
+        let db = on_demand::floor_database(&store, &floor.iri, query.robot.as_deref())?;
+        let graph: Graph = db.triples.into_iter().collect();
+        let spec = sim::parse_floor(&graph, &db.robot, &floor.iri).map_err(|p| {
+            ApiError::new(
+                ErrorCode::Unprocessable,
+                format!("the stored knowledge does not make a world: {p}"),
+            )
+        })?;
+        Ok(sim::export::world_sdf(&spec))
+    })
+    .await?;
+    Ok(([(header::CONTENT_TYPE, "application/xml")], sdf).into_response())
+}

@@ -1,0 +1,212 @@
+//! A training run into a directory, the way `mentalsim train` and `mentalsim bench beta` make
+//! one: train (resuming the run checkpointed there unless told not to) until the wall-clock
+//! budget is spent or the caller stops it, write the curves (`curves.csv`, `curves.png`,
+//! `evals.csv`), export the policy, evaluate the exported policy — the pure-Rust runtime robots
+//! embed — on held-out missions drawn from a seed training never used, and write that
+//! [`TrainSummary`] as `eval.json`.
+//!
+//! The caller builds the worlds (from maps, through the simulation parser) and shows progress.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use sim::{EnvConfig, EnvError, World};
+
+use crate::config::TrainConfig;
+use crate::curves::{self, PlotError};
+use crate::observation::Scaling;
+use crate::policy::{Policy, PolicyError};
+use crate::summary::{Goals, TrainSummary, held_out};
+use crate::trainer::{Budget, Progress, TrainError, TrainOptions, Trainer};
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct TrainRun {
+    /// The world trained in and evaluated on.
+    pub world: Arc<World>,
+    /// Further worlds that share the training environments (one policy for several places).
+    pub extra_worlds: Vec<Arc<World>>,
+    /// The map `world` was built from (recorded in `eval.json` and the policy, and named in
+    /// the plot's title).
+    pub map: PathBuf,
+    /// The maps of `extra_worlds`.
+    pub extra_maps: Vec<PathBuf>,
+    /// The training configuration (validated by the trainer).
+    pub config: TrainConfig,
+    /// Where the checkpoint, curves, exported policy and `eval.json` go.
+    pub out: PathBuf,
+    /// Wall-clock budget in minutes, counting earlier sessions of a resumed run.
+    pub minutes: f64,
+    /// Start from scratch even if `out` holds a checkpoint.
+    pub fresh: bool,
+    /// Held-out missions of the final evaluation (of each kind of goals).
+    pub eval_episodes: usize,
+    /// Which held-out goals the headline figures are about.
+    pub goals: Goals,
+}
+
+impl TrainRun {
+    /// Whether the run continues the one checkpointed in `out`.
+    pub fn resumes(&self) -> bool {
+        !self.fresh && Trainer::has_checkpoint(&self.out)
+    }
+}
+
+/// Why a run failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// A setting is out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// Training failed.
+    #[error(transparent)]
+    Train(#[from] TrainError),
+    /// The exported policy could not be read back.
+    #[error(transparent)]
+    Policy(#[from] PolicyError),
+    /// The held-out evaluation could not set up its missions.
+    #[error("held-out evaluation: {0}")]
+    Evaluation(#[from] EnvError),
+    /// A plot could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// A file could not be written.
+    #[error("{}: {error}", path.display())]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// What failed (in the message, not a `source`, so that it is printed once).
+        error: std::io::Error,
+    },
+}
+
+fn write(path: PathBuf, contents: impl AsRef<[u8]>) -> Result<(), RunError> {
+    std::fs::write(&path, contents).map_err(|error| RunError::Io { path, error })
+}
+
+/// A short name of a map for titles: its folder's name (ROS maps live one per folder), else
+/// its file's stem.
+pub fn map_name(map: &Path) -> String {
+    map.parent()
+        .and_then(|p| p.file_name())
+        .or_else(|| map.file_stem())
+        .map_or_else(|| "map".into(), |s| s.to_string_lossy().into_owned())
+}
+
+/// Trains, writes the curves, exports the policy into `run.out`, evaluates it on held-out
+/// missions and writes `eval.json`; returns what `eval.json` says. `on_progress` is called a
+/// few times a second; returning false stops the run early, with a checkpoint, and the policy
+/// learned so far is still exported and evaluated (`interrupted` says so).
+pub fn run(
+    run: TrainRun,
+    on_progress: &mut dyn FnMut(&Progress) -> bool,
+) -> Result<TrainSummary, RunError> {
+    if !(run.minutes.is_finite() && run.minutes > 0.0) {
+        return Err(RunError::Invalid(format!(
+            "the budget must be a positive number of minutes, got {}",
+            run.minutes
+        )));
+    }
+    if run.eval_episodes == 0 {
+        return Err(RunError::Invalid(
+            "at least one held-out mission is needed".into(),
+        ));
+    }
+    std::fs::create_dir_all(&run.out).map_err(|error| RunError::Io {
+        path: run.out.clone(),
+        error,
+    })?;
+    let options = TrainOptions {
+        config: run.config.clone(),
+        env: EnvConfig::default(),
+        scaling: Scaling::default(),
+        out_dir: run.out.clone(),
+    };
+    let trainer = if run.resumes() {
+        Trainer::resume(Arc::clone(&run.world), options)?
+    } else {
+        Trainer::new(Arc::clone(&run.world), options)?
+    };
+    let mut trainer = trainer.with_extra_worlds(run.extra_worlds.clone())?;
+    let budget = Budget {
+        wall_s: Some(run.minutes * 60.0),
+        env_steps: None,
+    };
+    let mut interrupted = false;
+    trainer.run(budget, &mut |p| {
+        let go_on = on_progress(p);
+        interrupted |= !go_on;
+        go_on
+    })?;
+    let counters = trainer.counters().clone();
+    let config = trainer.options().config.clone();
+
+    // Curves.
+    let episodes = trainer.episodes();
+    write(run.out.join("curves.csv"), curves::curves_csv(episodes))?;
+    let title = format!(
+        "TD3 in the mental simulation of {} (β1 = β2 = {})",
+        map_name(&run.map),
+        config.td3.beta1
+    );
+    curves::plot_curves(
+        &run.out.join("curves.png"),
+        &title,
+        &[("reward".into(), curves::smooth(episodes))],
+    )?;
+    let mut evals_csv = String::from(
+        "env_steps,wall_s,success_rate,collision_rate,timeout_rate,mean_time_to_goal_s,mean_return\n",
+    );
+    for e in trainer.evals() {
+        evals_csv.push_str(&format!(
+            "{},{:.1},{:.4},{:.4},{:.4},{:.2},{:.2}\n",
+            e.env_steps,
+            e.wall_s,
+            e.report.success_rate,
+            e.report.collision_rate,
+            e.report.timeout_rate,
+            e.report.mean_time_to_goal_s,
+            e.report.mean_return
+        ));
+    }
+    write(run.out.join("evals.csv"), evals_csv)?;
+
+    // Export, then evaluate the exported policy on held-out missions drawn from a seed
+    // training never used.
+    trainer.export(
+        &run.out,
+        serde_json::json!({ "map": run.map.display().to_string() }),
+    )?;
+    let policy = Policy::load(&run.out)?;
+    let held_out_seed = config.eval_seed.wrapping_add(1);
+    let evaluation = held_out(
+        &policy,
+        &run.world,
+        run.eval_episodes,
+        held_out_seed,
+        run.goals,
+    )?;
+    let summary = TrainSummary {
+        episodes: counters.episodes,
+        env_steps: counters.env_steps,
+        grad_steps: counters.grad_steps,
+        wall_s: counters.wall_s,
+        sessions: counters.sessions,
+        interrupted,
+        map: run.map.display().to_string(),
+        extra_maps: run
+            .extra_maps
+            .iter()
+            .map(|m| m.display().to_string())
+            .collect(),
+        ..TrainSummary::new(evaluation, config)
+    };
+    // Through `Value`, whose keys are sorted: the file reads the same run after run.
+    let json = serde_json::to_value(&summary).and_then(|v| serde_json::to_string_pretty(&v));
+    let json = json.map_err(|e| RunError::Io {
+        path: run.out.join("eval.json"),
+        error: e.into(),
+    })?;
+    write(run.out.join("eval.json"), format!("{json}\n"))?;
+    Ok(summary)
+}
