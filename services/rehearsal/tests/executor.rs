@@ -14,56 +14,15 @@ use rehearsal::{
     AttemptOutcome, BlockedReason, ClassicalFollower, Controller, ControllerKind, Endpoint,
     PlanError, PlanOptions, PlanReport, PlanRequest, RoadmapCache, validate, validate_with,
 };
-use sim::{
-    Action, FloorMap, Observation, Occupancy, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec,
-};
+use sim::{Action, FloorMap, Observation, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec};
 
-const RES: f64 = 0.05;
 /// The environment's collision clearance (sim's default).
 const COLLISION_CLEARANCE: f64 = 0.02;
 /// The environment's goal tolerance (sim's default).
 const GOAL_TOLERANCE: f64 = 0.3;
 
-/// A 14 m x 8 m room: an inner wall at x = 5 from the floor to y = 6 (pass above it), and a
-/// sealed box at x in [10, 13], y in [1, 4] whose inside no path reaches.
 fn room() -> Arc<World> {
-    let (cols, rows) = (280usize, 160usize);
-    let mut g = OccupancyGrid::filled(cols, rows, RES, Pose2::new(0.0, 0.0, 0.0), Occupancy::Free);
-    let mut block = |x0: f64, y0: f64, x1: f64, y1: f64| {
-        for r in 0..rows {
-            for c in 0..cols {
-                let (x, y) = ((c as f64 + 0.5) * RES, (r as f64 + 0.5) * RES);
-                if x >= x0 && x <= x1 && y >= y0 && y <= y1 {
-                    g.cells[r * cols + c] = Occupancy::Occupied;
-                }
-            }
-        }
-    };
-    // Border.
-    block(0.0, 0.0, 14.0, 0.1);
-    block(0.0, 7.9, 14.0, 8.0);
-    block(0.0, 0.0, 0.1, 8.0);
-    block(13.9, 0.0, 14.0, 8.0);
-    // Inner wall.
-    block(4.9, 0.0, 5.1, 6.0);
-    // Sealed box.
-    block(10.0, 1.0, 13.0, 1.1);
-    block(10.0, 3.9, 13.0, 4.0);
-    block(10.0, 1.0, 10.1, 4.0);
-    block(12.9, 1.0, 13.0, 4.0);
-    World::build(WorldSpec {
-        id: "plan-test-room".into(),
-        floor: Some(FloorMap {
-            id: "room".into(),
-            grid: g,
-            wall_height: 2.5,
-        }),
-        walls: vec![],
-        objects: vec![],
-        robot: RobotSpec::example_differential(),
-        notes: vec![],
-    })
-    .expect("the room builds")
+    fixtures::worlds::walled_room()
 }
 
 fn request(goals: &[(f64, f64)]) -> PlanRequest {
