@@ -149,11 +149,9 @@ pub fn run_beta_experiment(options: &BetaOptions, stop: &AtomicBool) -> Result<S
             })?;
             curves.push(read_curve(&text));
         }
-        #[allow(clippy::cast_precision_loss, reason = "a few seeds")]
         let mean = rates.iter().sum::<f64>() / rates.len() as f64;
         let lo = rates.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = rates.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        #[allow(clippy::cast_precision_loss, reason = "a few seeds")]
         let mean_anywhere = anywhere.iter().sum::<f64>() / anywhere.len() as f64;
         summary.push_str(&format!(
             "| {beta} | {:.1}% | {:.1}% | {:.1}% | {:.1}% | {} |\n",
@@ -253,7 +251,6 @@ fn mean_curve(curves: &[Vec<CurvePoint>]) -> Vec<CurvePoint> {
     (0..len)
         .map(|i| {
             let vals: Vec<f64> = curves.iter().map(|c| c[i].mean).collect();
-            #[allow(clippy::cast_precision_loss, reason = "a few seeds")]
             let n = vals.len() as f64;
             let m = vals.iter().sum::<f64>() / n;
             let sd = (vals.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n).sqrt();

@@ -131,7 +131,6 @@ pub fn run_learner_bench(opts: &LearnerBenchOptions) -> Result<LearnerBenchRepor
         step(&mut learner, &mut rng);
     }
     let ours_s = t.elapsed().as_secs_f64();
-    #[allow(clippy::cast_precision_loss, reason = "step counts")]
     let ours = opts.steps as f64 / ours_s;
 
     let (sb3, status) = match &opts.python {
@@ -141,7 +140,6 @@ pub fn run_learner_bench(opts: &LearnerBenchOptions) -> Result<LearnerBenchRepor
             Err(e) => (None, format!("not run: {e}")),
         },
     };
-    #[allow(clippy::cast_precision_loss, reason = "step counts")]
     Ok(LearnerBenchReport {
         grad_steps_per_s_ours: ours,
         grad_steps_per_s_sb3: sb3,

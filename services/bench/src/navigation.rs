@@ -584,7 +584,6 @@ pub fn percentile(v: &mut [f64], q: f64) -> f64 {
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
-        clippy::cast_precision_loss,
         reason = "a rank within the slice"
     )]
     let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
@@ -639,7 +638,6 @@ impl Stats {
                 fd += r.distance_m;
             }
         }
-        #[allow(clippy::cast_precision_loss, reason = "run counts")]
         let mean = |sum: f64, k: usize| (k > 0).then(|| sum / k as f64);
         Stats {
             runs: n,
@@ -655,9 +653,7 @@ impl Stats {
         if self.runs == 0 {
             0.0
         } else {
-            #[allow(clippy::cast_precision_loss, reason = "run counts")]
-            let r = self.successes as f64 / self.runs as f64;
-            r
+            self.successes as f64 / self.runs as f64
         }
     }
 }

@@ -148,13 +148,11 @@ pub fn run(opts: &PlanLoadOptions) -> Result<PlanLoadReport, BenchError> {
         #[allow(
             clippy::cast_possible_truncation,
             clippy::cast_sign_loss,
-            clippy::cast_precision_loss,
             reason = "a rank"
         )]
         let rank = ((p / 100.0) * v.len() as f64).ceil() as usize;
         v[rank.clamp(1, v.len()) - 1]
     };
-    #[allow(clippy::cast_precision_loss, reason = "counts")]
     let n = lat.len() as f64;
     Ok(PlanLoadReport {
         p50_ms: pct(&lat, 50.0),

@@ -55,10 +55,6 @@ pub fn squared_distance_transform(
 
 /// Euclidean distance, in cells, between the centres of cells `i` and `j` of a grid `width`
 /// wide (for example a cell and its feature).
-#[allow(
-    clippy::cast_precision_loss,
-    reason = "grid coordinates are far below 2^52"
-)]
 pub fn centre_distance(i: usize, j: usize, width: usize) -> f64 {
     let (xi, yi) = ((i % width) as f64, (i / width) as f64);
     let (xj, yj) = ((j % width) as f64, (j / width) as f64);
@@ -231,10 +227,6 @@ impl Envelope {
     /// Every quantity but the boundaries is an integer below 2⁵³, so exact in any order; the
     /// boundaries are one correctly rounded division of the same two integers whatever the
     /// layout, which keeps ties where they always fell.
-    #[allow(
-        clippy::cast_precision_loss,
-        reason = "grid coordinates are far below 2^52"
-    )]
     fn build(&mut self, y: u32, rows: &[u32]) -> bool {
         let Self {
             f,
@@ -328,6 +320,12 @@ fn as_u32(v: usize) -> u32 {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap,
+    reason = "test grids and values are small"
+)]
 mod tests {
     use super::*;
     use proptest::prelude::*;

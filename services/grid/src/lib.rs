@@ -7,6 +7,15 @@
 //!   re-sampled roadmaps, benchmark runs);
 //! - [`hash`]: 64-bit FNV-1a, content fingerprints stable across platforms and Rust versions.
 
+// Casts that can lose a sign, wrap or truncate hide bugs: each one here says why it cannot.
+// (`planning` and `bench` do not yet; `cast_precision_loss` stays off everywhere: counts far
+// below 2^52 convert to f64 exactly.)
+#![warn(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap
+)]
+
 pub mod distance;
 pub mod hash;
 pub mod regions;

@@ -106,6 +106,12 @@ fn as_u32(v: usize) -> u32 {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap,
+    reason = "test grids and values are small"
+)]
 mod tests {
     use super::*;
     use proptest::prelude::*;

@@ -33,11 +33,9 @@ pub fn smooth(episodes: &[EpisodeRecord]) -> Vec<CurvePoint> {
     let mut out = Vec::with_capacity(episodes.len());
     for (i, e) in episodes.iter().enumerate() {
         let w = &episodes[i.saturating_sub(WINDOW - 1)..=i];
-        #[allow(clippy::cast_precision_loss, reason = "at most WINDOW")]
         let n = w.len() as f64;
         let mean = w.iter().map(|e| e.reward).sum::<f64>() / n;
         let var = w.iter().map(|e| (e.reward - mean).powi(2)).sum::<f64>() / n;
-        #[allow(clippy::cast_precision_loss, reason = "at most WINDOW")]
         let success = w.iter().filter(|e| e.outcome == "goal").count() as f64 / n;
         out.push(CurvePoint {
             episode: e.episode,
@@ -98,7 +96,6 @@ pub fn plot_curves(
     };
     let root = BitMapBackend::new(path, (960, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    #[allow(clippy::cast_precision_loss, reason = "episode counts")]
     let x_max = series
         .iter()
         .flat_map(|(_, p)| p.last().map(|p| p.episode as f64))
@@ -129,12 +126,10 @@ pub fn plot_curves(
     let colours = [BLUE, GREEN, RED, MAGENTA, CYAN, BLACK];
     for (k, (label, points)) in series.iter().enumerate() {
         let colour = colours[k % colours.len()];
-        #[allow(clippy::cast_precision_loss, reason = "episode counts")]
         let upper: Vec<(f64, f64)> = points
             .iter()
             .map(|p| (p.episode as f64, p.mean + p.std))
             .collect();
-        #[allow(clippy::cast_precision_loss, reason = "episode counts")]
         let lower: Vec<(f64, f64)> = points
             .iter()
             .rev()
@@ -147,7 +142,6 @@ pub fn plot_curves(
                 colour.mix(0.15).filled(),
             )))
             .map_err(|e| err(&e))?;
-        #[allow(clippy::cast_precision_loss, reason = "episode counts")]
         chart
             .draw_series(LineSeries::new(
                 points.iter().map(|p| (p.episode as f64, p.mean)),

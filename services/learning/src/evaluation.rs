@@ -133,7 +133,6 @@ pub fn evaluate_held_out(
         counts[k].0 += 1;
         counts[k].1 += usize::from(*o == Outcome::ReachedGoal);
     }
-    #[allow(clippy::cast_precision_loss, reason = "counts are small")]
     {
         report.by_detour = counts
             .iter()
@@ -212,7 +211,6 @@ fn run(
         running = still;
     }
     let n = missions.len().max(1);
-    #[allow(clippy::cast_precision_loss, reason = "counts are small")]
     let share = |o: Outcome| outcome.iter().filter(|&&x| x == o).count() as f64 / n as f64;
     let successes: Vec<f64> = outcome
         .iter()
@@ -220,7 +218,6 @@ fn run(
         .filter(|(o, _)| **o == Outcome::ReachedGoal)
         .map(|(_, t)| *t)
         .collect();
-    #[allow(clippy::cast_precision_loss, reason = "counts are small")]
     let mean = |v: &[f64]| {
         if v.is_empty() {
             0.0

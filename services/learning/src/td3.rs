@@ -116,7 +116,6 @@ impl Adam {
     }
 
     #[allow(
-        clippy::cast_precision_loss,
         clippy::cast_possible_truncation,
         clippy::cast_possible_wrap,
         reason = "step counts fit"

@@ -460,16 +460,13 @@ impl Trainer {
     /// The progress snapshot.
     pub fn progress(&self, budget: &Budget) -> Progress {
         let last: Vec<&EpisodeRecord> = self.episodes.iter().rev().take(100).collect();
-        #[allow(clippy::cast_precision_loss, reason = "at most 100")]
         let n = last.len().max(1) as f64;
         let success = last.iter().filter(|e| e.outcome == "goal").count();
-        #[allow(clippy::cast_precision_loss, reason = "counts are small")]
         let fraction = match (budget.wall_s, budget.env_steps) {
             (Some(w), _) if w > 0.0 => Some((self.counters.wall_s / w).min(1.0)),
             (_, Some(s)) if s > 0 => Some((self.counters.env_steps as f64 / s as f64).min(1.0)),
             _ => None,
         };
-        #[allow(clippy::cast_precision_loss, reason = "at most 100")]
         let success_rate_100 = success as f64 / n;
         Progress {
             counters: self.counters.clone(),
@@ -580,7 +577,6 @@ impl Trainer {
             }
             // Lines 8–17: gradient steps.
             if self.buffer.len() >= c.td3.batch_size {
-                #[allow(clippy::cast_precision_loss, reason = "a handful of environments")]
                 {
                     self.counters.update_debt += n as f64 * c.updates_per_step;
                 }

@@ -440,6 +440,12 @@ fn wrap(a: f64) -> f64 {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap,
+    reason = "test grids and values are small"
+)]
 mod tests {
     use super::*;
 

@@ -371,7 +371,6 @@ fn segment_clear(world: &World, a: Point2, b: Point2, min_clearance: f64) -> boo
     )]
     let n = ((len / step).ceil() as usize).max(1);
     (0..=n).all(|k| {
-        #[allow(clippy::cast_precision_loss, reason = "small counts")]
         let t = k as f64 / n as f64;
         world.clearance(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)) >= min_clearance
     })
@@ -399,7 +398,6 @@ fn subdivide(from: Point2, points: Vec<Point2>, max_m: f64) -> Vec<Point2> {
         )]
         let pieces = (d / max_m).ceil().max(1.0) as usize;
         for k in 1..pieces {
-            #[allow(clippy::cast_precision_loss, reason = "small counts")]
             let t = k as f64 / pieces as f64;
             out.push(Point2::new(
                 prev.x + t * (p.x - prev.x),

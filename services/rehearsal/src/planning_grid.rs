@@ -43,10 +43,8 @@ pub fn planning_grid(world: &World) -> Result<PlanningGrid, String> {
     // A wall cell's centre is at distance 0 from a wall square; a free cell's centre at least
     // half a cell away. `wall_clearance` is that distance minus the robot's radius.
     for (row, cells) in blocked.chunks_mut(width).enumerate() {
-        #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
         let y = y0 + (row as f64 + 0.5) * res;
         for (col, cell) in cells.iter_mut().enumerate() {
-            #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
             let x = x0 + (col as f64 + 0.5) * res;
             *cell = world.wall_clearance(x, y) + radius < 0.25 * res;
         }
@@ -81,7 +79,6 @@ pub fn planning_grid(world: &World) -> Result<PlanningGrid, String> {
                 #[allow(
                     clippy::cast_possible_truncation,
                     clippy::cast_sign_loss,
-                    clippy::cast_precision_loss,
                     reason = "clamped into [0, n - 1] before the cast"
                 )]
                 let i = ((v - origin) / res).floor().clamp(0.0, (n - 1) as f64) as usize;
@@ -96,10 +93,8 @@ pub fn planning_grid(world: &World) -> Result<PlanningGrid, String> {
                 to_cell(part.pose.y + bound, y0, height),
             );
             for row in r0..=r1 {
-                #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
                 let y = y0 + (row as f64 + 0.5) * res;
                 for col in c0..=c1 {
-                    #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
                     let x = x0 + (col as f64 + 0.5) * res;
                     if inside(x, y) {
                         blocked[row * width + col] = true;

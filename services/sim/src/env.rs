@@ -520,6 +520,10 @@ impl NavEnv {
         let velocity = self.executed;
         let obs = self.begin(self.pose, goal);
         self.executed = velocity;
+        #[allow(
+            clippy::cast_possible_truncation,
+            reason = "speeds are bounded by the drive limits; observations are f32"
+        )]
         let obs = Observation {
             velocity: [velocity.linear as f32, velocity.angular as f32],
             ..obs
@@ -600,7 +604,6 @@ impl NavEnv {
         let mut min_clearance = f64::INFINITY;
         let mut collided = false;
         for k in 1..=n {
-            #[allow(clippy::cast_precision_loss, reason = "k <= 1000")]
             let p = integrate(start, exec, dt * k as f64 / n as f64);
             let c = self.world.clearance(p.x, p.y);
             min_clearance = min_clearance.min(c);

@@ -160,7 +160,6 @@ pub fn world_sdf(spec: &WorldSpec) -> String {
         let _ = writeln!(s, r#"      <link name="link">"#);
         let h = floor.wall_height;
         for (k, [c, r, w, hh]) in solid_rectangles(g).into_iter().enumerate() {
-            #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
             let (x, y, sx, sy) = (
                 (c as f64 + w as f64 / 2.0) * g.resolution,
                 (r as f64 + hh as f64 / 2.0) * g.resolution,

@@ -49,7 +49,6 @@ impl PathField {
             let c = c as usize;
             passable[(c / frame.pw / k) * cw + (c % frame.pw) / k] = true;
         }
-        #[allow(clippy::cast_precision_loss, reason = "k is small")]
         let cell = k as f64 * res;
         let mut field = PathField {
             frame,
@@ -153,7 +152,6 @@ impl PathField {
 
     fn best_cell(&self, x: f64, y: f64) -> Option<(usize, f64)> {
         let (gx, gy) = self.frame.to_grid(x, y);
-        #[allow(clippy::cast_precision_loss, reason = "k is small")]
         let k = self.k as f64;
         #[allow(
             clippy::cast_possible_truncation,
@@ -194,7 +192,6 @@ impl PathField {
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
-        clippy::cast_precision_loss,
         reason = "checked to lie inside the grid before the cast"
     )]
     fn coarse_index(&self, x: f64, y: f64) -> Option<usize> {
@@ -206,7 +203,6 @@ impl PathField {
     }
 
     /// World point at the centre of coarse cell `i`.
-    #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
     fn centre(&self, i: usize) -> (f64, f64) {
         let k = self.k as f64;
         let (x, y) = ((i % self.cw) as f64, (i / self.cw) as f64);

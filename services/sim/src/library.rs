@@ -229,7 +229,6 @@ fn library_parts(model: LibraryModel, size: Size3, open: bool) -> Vec<LocalPart>
             )]
             let n = ((span / 0.4).round() as usize).clamp(1, BOARD_NAMES.len());
             for (k, name) in BOARD_NAMES.iter().take(n).enumerate() {
-                #[allow(clippy::cast_precision_loss, reason = "k < 8")]
                 let top = plinth + span * (k as f64 + 1.0) / n as f64;
                 parts.push((
                     name,

@@ -348,7 +348,6 @@ impl Canvas {
         )]
         let steps = n as usize;
         for k in 0..steps {
-            #[allow(clippy::cast_precision_loss, reason = "k < 4096")]
             let a = k as f64 / n * std::f64::consts::TAU;
             self.put_f(cx + r * a.cos(), cy + r * a.sin(), c);
         }
@@ -367,7 +366,6 @@ impl Canvas {
         )]
         let steps = n as usize;
         for k in 0..=steps {
-            #[allow(clippy::cast_precision_loss, reason = "k <= 1e5")]
             let t = k as f64 / n;
             self.put_f(a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1), c);
         }

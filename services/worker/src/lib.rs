@@ -14,6 +14,15 @@
 //! - `bench` (feature `bench`, off by default): the queue throughput benchmark behind
 //!   `mentalsim bench queue`.
 
+// Casts that can lose a sign, wrap or truncate hide bugs: each one here says why it cannot.
+// (`planning` and `bench` do not yet; `cast_precision_loss` stays off everywhere: counts far
+// below 2^52 convert to f64 exactly.)
+#![warn(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap
+)]
+
 pub mod api;
 #[cfg(feature = "bench")]
 pub mod bench;

@@ -223,10 +223,6 @@ pub struct LaserSpec {
 impl LaserSpec {
     /// Angle of sample `i` relative to the sensor's x axis, as ROS `LaserScan` numbers them
     /// (from `-fov/2` counter-clockwise; a full circle does not repeat its first sample).
-    #[allow(
-        clippy::cast_precision_loss,
-        reason = "sample counts are far below 2^52"
-    )]
     pub fn sample_angle(&self, i: usize) -> f64 {
         let full = self.fov >= std::f64::consts::TAU - 1e-9;
         let steps = if full {
@@ -243,7 +239,6 @@ impl LaserSpec {
     /// Angles of `n` equally spaced beams picked from the scan's samples (the paper's 23 sparse
     /// readings), relative to the sensor's x axis; `None` when `n` is 0 or exceeds the samples.
     #[allow(
-        clippy::cast_precision_loss,
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
         reason = "sample counts are far below 2^52 and the rounded index is within 0..samples"

@@ -158,7 +158,6 @@ impl Frame {
             x1 = x1.max(gx);
             y1 = y1.max(gy);
         }
-        #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
         let (mx, my) = ((self.pw - 1) as f64, (self.ph - 1) as f64);
         [
             x0.floor().clamp(0.0, mx) as usize,
@@ -366,7 +365,6 @@ impl World {
     }
 
     /// Area of the free region, square metres.
-    #[allow(clippy::cast_precision_loss, reason = "cell counts are far below 2^52")]
     pub fn free_region_area_m2(&self) -> f64 {
         self.region.len() as f64 * self.frame.res * self.frame.res
     }
@@ -383,7 +381,6 @@ impl World {
         let n = self.region.cells.len();
         let i = *self.region.cells.get(pick % n.max(1))? as usize;
         let (cx, cy) = (i % self.frame.pw, i / self.frame.pw);
-        #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
         Some(self.frame.to_world(cx as f64 + u, cy as f64 + v))
     }
 
@@ -391,7 +388,6 @@ impl World {
     pub fn nearest_free_point(&self, x: f64, y: f64) -> Option<(f64, f64)> {
         let (gx, gy) = self.frame.to_grid(x, y);
         let pw = self.frame.pw;
-        #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
         let best = self.region.cells.iter().min_by(|a, b| {
             let d = |c: u32| {
                 let c = c as usize;
@@ -401,7 +397,6 @@ impl World {
             d(**a).total_cmp(&d(**b))
         })?;
         let c = *best as usize;
-        #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
         Some(
             self.frame
                 .to_world((c % pw) as f64 + 0.5, (c / pw) as f64 + 0.5),
@@ -429,7 +424,6 @@ impl World {
     }
 
     /// World rectangle covered by the grid (without its border): min x, min y, max x, max y.
-    #[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
     pub fn bounds(&self) -> [f64; 4] {
         let f = &self.frame;
         let (w, h) = ((f.pw - 1) as f64, (f.ph - 1) as f64);
@@ -450,7 +444,6 @@ impl World {
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
-        clippy::cast_precision_loss,
         reason = "checked to lie inside the grid before the cast"
     )]
     fn cell_index(&self, x: f64, y: f64) -> Option<usize> {
@@ -497,7 +490,6 @@ impl World {
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
-        clippy::cast_precision_loss,
         reason = "checked to lie inside the grid before the cast"
     )]
     pub(crate) fn grid_cell(&self, x: f64, y: f64) -> Option<(usize, usize)> {
@@ -543,7 +535,6 @@ fn fill_rect(mask: &mut [bool], pw: usize, r: &[usize; 4]) {
 
 /// Marks the cells whose centre lies within the wall's half thickness (at least half a cell, so
 /// a thin wall is never a gap).
-#[allow(clippy::cast_precision_loss, reason = "grid sizes are far below 2^52")]
 fn rasterise_wall(frame: &Frame, wall: &crate::spec::WallSpec, mask: &mut [bool]) {
     let half = (wall.thickness / 2.0).max(frame.res * std::f64::consts::FRAC_1_SQRT_2);
     let [ax, ay] = wall.start;

@@ -53,7 +53,6 @@ impl World {
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
-        clippy::cast_precision_loss,
         reason = "positions are checked to lie inside the padded grid before each cast"
     )]
     fn cast(&self, x: f64, y: f64, dx: f64, dy: f64, max_range: f64) -> f64 {
@@ -197,7 +196,6 @@ impl World {
             return f64::NEG_INFINITY;
         }
         let steps = ((length / (0.5 * self.frame.res)).ceil() as usize).max(1);
-        #[allow(clippy::cast_precision_loss, reason = "step counts are small")]
         (0..=steps)
             .map(|i| {
                 let t = i as f64 / steps as f64;
@@ -210,7 +208,6 @@ impl World {
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
-        clippy::cast_precision_loss,
         reason = "positions are checked to lie inside the padded grid before the cast"
     )]
     pub fn wall_clearance(&self, x: f64, y: f64) -> f64 {

@@ -175,7 +175,6 @@ fn required<'a>(doc: &'a Yaml, key: &'static str) -> Result<&'a Yaml, RosMapErro
 fn as_number(value: &Yaml) -> Option<f64> {
     match value {
         Yaml::Real(_) => value.as_f64(),
-        #[allow(clippy::cast_precision_loss, reason = "map values are small integers")]
         Yaml::Integer(i) => Some(*i as f64),
         _ => None,
     }

@@ -214,10 +214,6 @@ impl OccupancyGrid {
         let col = (lx / self.resolution).floor();
         let row = (ly / self.resolution).floor();
         // NaN fails both comparisons, so NaN input lands in `None`.
-        #[allow(
-            clippy::cast_precision_loss,
-            reason = "grid sizes are far below 2^52 cells"
-        )]
         let inside =
             col >= 0.0 && row >= 0.0 && col < self.width as f64 && row < self.height as f64;
         #[allow(
@@ -233,10 +229,6 @@ impl OccupancyGrid {
     }
 
     /// The world position of the centre of cell `(col, row)` (also for cells outside the grid).
-    #[allow(
-        clippy::cast_precision_loss,
-        reason = "grid sizes are far below 2^52 cells"
-    )]
     pub fn cell_center(&self, col: usize, row: usize) -> (f64, f64) {
         let lx = (col as f64 + 0.5) * self.resolution;
         let ly = (row as f64 + 0.5) * self.resolution;
@@ -266,7 +258,6 @@ impl OccupancyGrid {
     }
 
     /// Free area in square metres (free cells times the cell area).
-    #[allow(clippy::cast_precision_loss, reason = "cell counts are far below 2^52")]
     pub fn free_area_m2(&self) -> f64 {
         self.free_cell_count() as f64 * self.resolution * self.resolution
     }
