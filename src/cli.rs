@@ -103,10 +103,13 @@ pub enum Command {
         /// Seed of the mission set.
         #[arg(long, default_value_t = 7)]
         seed: u64,
-        /// Which held-out goals the headline figures are about (the other kind is reported
-        /// beside them).
-        #[arg(long, value_enum, default_value_t = crate::train::Goals::InView)]
-        goals: crate::train::Goals,
+        /// Which missions: held-out goals (`in-view`, `anywhere`; the other kind is reported
+        /// beside them), or `edges`: every roadmap edge of the map, both directions (PRM-RL).
+        #[arg(long, value_enum, default_value_t = crate::train::EvalGoals::InView)]
+        goals: crate::train::EvalGoals,
+        /// With `--goals edges`: rollouts per edge and direction.
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=1000))]
+        rollouts: u32,
         /// Write the figures as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -344,8 +347,9 @@ pub fn main() -> ExitCode {
             episodes,
             seed,
             goals,
+            rollouts,
             json,
-        } => crate::train::eval(&policy, &map, episodes, seed, goals)
+        } => crate::train::eval(&policy, &map, episodes, seed, goals, rollouts)
             .and_then(|v| print_json(&v, json)),
         Command::Bench(bench) => run_bench(bench),
     };

@@ -200,8 +200,21 @@ fn describe(error: &figment::Error) -> String {
     }
 }
 
-/// Environment variables with our prefix that are not configuration keys.
-const NOT_KEYS: &[&str] = &["config"];
+/// Environment variables with our prefix that are not configuration keys: the configuration
+/// file, the CLI clients' service and token, and what the scripts and tests read (the venv, the
+/// missing-fixture rule, the PostgreSQL binaries, the shared fixtures, the Python clients'
+/// endpoint). A shell that sets them must still be able to run `serve`.
+const NOT_KEYS: &[&str] = &[
+    "config",
+    "url",
+    "token",
+    "venv",
+    "require_all",
+    "require_postgres",
+    "pg_bin",
+    "shared",
+    "sparql_url",
+];
 
 impl Config {
     /// Merges the layers. `file` is the optional TOML file (`--config` or `MENTALSIM_CONFIG`).
@@ -528,6 +541,10 @@ mod tests {
                 "bind = '0.0.0.0:9000'\ndata_dir = '/srv/a'\nrequest_timeout_s = 50",
             )?;
             jail.set_env("MENTALSIM_DATA_DIR", "/srv/b");
+            // What the scripts and the CLI clients read is not configuration, and no error.
+            for key in ["VENV", "REQUIRE_ALL", "TOKEN", "URL", "PG_BIN"] {
+                jail.set_env(format!("MENTALSIM_{key}"), "x");
+            }
             let config = load(Some("m.toml"), Overrides::default()).unwrap();
             assert_eq!(config.bind.port(), 9000);
             assert_eq!(config.data_dir, PathBuf::from("/srv/b"));

@@ -217,7 +217,8 @@ pub fn eval(
     map: &Path,
     episodes: usize,
     seed: u64,
-    goals: Goals,
+    goals: EvalGoals,
+    rollouts: u32,
 ) -> anyhow::Result<serde_json::Value> {
     if episodes == 0 {
         anyhow::bail!("--episodes must be at least 1");
@@ -225,7 +226,14 @@ pub fn eval(
     let policy = Policy::load(policy_dir)
         .with_context(|| format!("cannot load the policy in {}", policy_dir.display()))?;
     let world = load_world(map, 0, seed)?;
-    let goals = learning::Goals::from(goals);
+    let edges = match goals {
+        EvalGoals::Edges => Some(edge_eval(&world, &policy, seed, rollouts)?),
+        EvalGoals::InView | EvalGoals::Anywhere => None,
+    };
+    let goals = match goals {
+        EvalGoals::InView | EvalGoals::Edges => learning::Goals::InView,
+        EvalGoals::Anywhere => learning::Goals::Anywhere,
+    };
     let learning::HeldOut { report, other, .. } =
         learning::held_out(&policy, &world, episodes, seed, goals)?;
     // Time per control command of the pure-Rust runtime: encode + forward + scale.
@@ -241,7 +249,7 @@ pub fn eval(
         std::hint::black_box(policy.act(std::hint::black_box(&obs))?);
     }
     let per_command_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
-    Ok(serde_json::json!({
+    let mut json = serde_json::json!({
         "goals": goals.name(),
         "success_rate": report.success_rate,
         "collision_rate": report.collision_rate,
@@ -256,5 +264,107 @@ pub fn eval(
         "map": map.display().to_string(),
         "policy": policy_dir.display().to_string(),
         "seed": seed,
-    }))
+    });
+    if let (Some(edges), Some(out)) = (edges, json.as_object_mut()) {
+        out.extend(edges);
+    }
+    Ok(json)
+}
+
+/// Which missions `mentalsim eval` measures.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EvalGoals {
+    /// Held-out goals 2–10 m away in straight sight (the headline figures; `anywhere` beside).
+    InView,
+    /// Held-out goals 2–10 m away anywhere in the free region.
+    Anywhere,
+    /// Every edge of the map's roadmap, both directions, driven by the shielded policy as the
+    /// executor would (PRM-RL): `edge_success_rate`, `edges`, `edges_kept`,
+    /// `mean_edge_time_s`, beside the in-view figures.
+    Edges,
+}
+
+/// The policy on every edge of the map's geometric roadmap (n* samples, the plan endpoint's
+/// safety margin), as the policy-aware roadmap drives them.
+fn edge_eval(
+    world: &Arc<World>,
+    policy: &Policy,
+    seed: u64,
+    rollouts: u32,
+) -> anyhow::Result<serde_json::Map<String, serde_json::Value>> {
+    let cache = rehearsal::RoadmapCache::default();
+    let opts = rehearsal::PlanOptions::default();
+    let space = rehearsal::config_space(world, &cache, "eval", opts.safety_margin_m)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let params = planning::PrmParams {
+        samples: planning::optimal_samples(space.free_area_m2),
+        seed,
+        ..planning::PrmParams::default()
+    };
+    let (roadmap, _) = cache
+        .roadmap("eval", &space, &params)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let rollout = rehearsal::EdgeRolloutParams {
+        rollouts,
+        seed,
+        ..rehearsal::EdgeRolloutParams::default()
+    };
+    let policy = Arc::new(policy.clone());
+    let t = std::time::Instant::now();
+    let (_, report) = rehearsal::policy_roadmap(world, &roadmap, &policy, &rollout)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let wall_s = t.elapsed().as_secs_f64();
+    let undirected = report.edges.len() / 2;
+    // An edge is kept when the policy drives it in both directions.
+    let kept = report
+        .edges
+        .chunks(2)
+        .filter(|pair| {
+            pair.iter()
+                .all(|e| e.success_rate() >= rollout.keep_threshold)
+        })
+        .count();
+    let worst: Vec<serde_json::Value> = {
+        let mut dropped: Vec<&rehearsal::EdgeStat> = report.dropped().collect();
+        dropped.sort_by(|a, b| a.success_rate().total_cmp(&b.success_rate()));
+        dropped
+            .iter()
+            .take(20)
+            .map(|e| {
+                serde_json::json!({
+                    "from": e.from, "to": e.to, "length_m": e.length_m,
+                    "success_rate": e.success_rate(), "collisions": e.collisions,
+                })
+            })
+            .collect()
+    };
+    let mut out = serde_json::Map::new();
+    for (k, v) in [
+        (
+            "edge_success_rate",
+            serde_json::json!(report.edge_success_rate()),
+        ),
+        ("edges", serde_json::json!(undirected)),
+        ("edges_kept", serde_json::json!(kept)),
+        (
+            "edge_directions_kept",
+            serde_json::json!(report.kept().count()),
+        ),
+        (
+            "mean_edge_time_s",
+            serde_json::json!(report.mean_edge_time_s()),
+        ),
+        ("edge_rollouts", serde_json::json!(rollouts)),
+        (
+            "edge_keep_threshold",
+            serde_json::json!(rollout.keep_threshold),
+        ),
+        ("edge_steps", serde_json::json!(report.steps)),
+        ("edge_wall_s", serde_json::json!(wall_s)),
+        ("roadmap_nodes", serde_json::json!(roadmap.nodes().count())),
+        ("edges_dropped_worst", serde_json::Value::Array(worst)),
+    ] {
+        out.insert(k.to_owned(), v);
+    }
+    Ok(out)
 }

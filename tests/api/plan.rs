@@ -74,6 +74,10 @@ async fn a_plan_across_rooms_is_validated_in_the_simulation_and_reported() {
     let last = waypoints.last().unwrap();
     assert!((last["x"].as_f64().unwrap() - goal.0).abs() < 1e-6);
     assert!(!body["attempts"].as_array().unwrap().is_empty());
+    // One leg, validated by the controller the robot has.
+    assert_eq!(body["legs"].as_array().map(Vec::len), Some(1), "{body}");
+    assert_eq!(body["legs"][0]["controller"], "classical");
+    assert_eq!(body["attempts"][0]["leg"], 0);
     assert!(body["distance_m"].as_f64().unwrap() > 0.0);
     assert!(body["simulated_time_s"].as_f64().unwrap() > 0.0);
     assert!(body["min_clearance_m"].as_f64().unwrap() > 0.0);
@@ -314,5 +318,70 @@ async fn a_policy_exported_again_replaces_the_loaded_one() {
         // Another modification time for the next export, whatever the file system's clock.
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
+    app.stop().await;
+}
+
+/// A policy-aware roadmap (PRM-RL) is built in the background the first time a plan with a
+/// policy asks for it: `policy` answers 409 until it exists, `auto` plans on the geometric
+/// roadmap meanwhile, and both plan on it once built; the report says which roadmap.
+#[tokio::test]
+async fn the_policy_aware_roadmap_is_built_in_the_background_and_then_used() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let dir = app.data_dir.join("policies").join("seeker");
+    std::fs::create_dir_all(&dir).unwrap();
+    learning::policy::write_goal_seeking_policy(&dir, 23, json!({})).unwrap();
+    let request = |roadmap: &str| {
+        json!({
+            "robot": "R-001", "place": "F0", "policy": "seeker",
+            "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+            "goal": {"x": goal.0, "y": goal.1},
+            "options": {"seed": 3, "trajectory_stride": 0, "roadmap": roadmap}
+        })
+    };
+    // Geometric only: no build is started by it.
+    let (status, body) = plan(&app, &request("geometric")).await;
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["roadmap"]["kind"], "geometric", "{body}");
+    assert_eq!(body["legs"][0]["roadmap"], "geometric", "{body}");
+
+    // The first `policy` request starts the build and is refused while it runs.
+    let (status, body) = plan(&app, &request("policy")).await;
+    assert_eq!(status, 409, "{body}");
+    assert!(
+        body["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("being built"),
+        "{body}"
+    );
+    // `auto` meanwhile plans on the geometric roadmap (or on the policy-aware one if done).
+    let (status, body) = plan(&app, &request("auto")).await;
+    assert_eq!(status, 200, "{body}");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let body = loop {
+        let (status, body) = plan(&app, &request("policy")).await;
+        if status == 200 {
+            break body;
+        }
+        assert_eq!(status, 409, "{body}");
+        assert!(std::time::Instant::now() < deadline, "never built: {body}");
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+    };
+    assert_eq!(body["roadmap"]["kind"], "policy", "{body}");
+    assert_eq!(body["legs"][0]["roadmap"], "policy", "{body}");
+    assert_eq!(body["legs"][0]["controller"], "policy", "{body}");
+    let (status, body) = plan(&app, &request("auto")).await;
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["roadmap"]["kind"], "policy", "{body}");
+
+    // A choice that does not exist is named.
+    let (status, body) = plan(&app, &request("fastest")).await;
+    assert!(status == 400 || status == 422, "{status} {body}");
+    assert!(
+        body.to_string().contains("roadmap") || body.to_string().contains("fastest"),
+        "{body}"
+    );
     app.stop().await;
 }

@@ -139,12 +139,45 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
     assert_eq!(a["goals"], "anywhere");
     assert_eq!(a["success_rate"], e["goals_anywhere"]["success_rate"]);
     assert_eq!(a["goals_in_view"]["success_rate"], e["success_rate"]);
+
+    // Every roadmap edge of the other map, both directions, driven by the policy.
+    let edges = mentalsim()
+        .args([
+            "eval",
+            "--episodes",
+            "6",
+            "--goals",
+            "edges",
+            "--rollouts",
+            "2",
+        ])
+        .arg("--policy")
+        .arg(&out)
+        .arg("--map")
+        .arg(&other)
+        .output()
+        .unwrap();
+    assert!(
+        edges.status.success(),
+        "{}",
+        String::from_utf8_lossy(&edges.stderr)
+    );
+    let g: serde_json::Value = serde_json::from_slice(&edges.stdout).unwrap();
+    let n = g["edges"].as_u64().unwrap();
+    let kept = g["edges_kept"].as_u64().unwrap();
+    assert!(n > 10 && kept <= n, "{g}");
+    let rate = g["edge_success_rate"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&rate), "{g}");
+    assert_eq!(g["edge_rollouts"], 2);
+    assert!(g["edges_dropped_worst"].is_array(), "{g}");
+    // Beside the in-view figures of the same policy and missions.
+    assert_eq!(g["success_rate"], e["success_rate"]);
 }
 
 #[test]
 fn train_and_eval_refuse_bad_input_naming_it() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 6] = [
         (
             &["train", "--map", "/nonexistent/map.yaml", "--out"],
             "does not exist",
@@ -171,6 +204,19 @@ fn train_and_eval_refuse_bad_input_naming_it() {
         (
             &["eval", "--episodes", "0", "--map", "x.yaml", "--policy"],
             "--episodes",
+        ),
+        (
+            &[
+                "eval",
+                "--goals",
+                "edges",
+                "--rollouts",
+                "0",
+                "--map",
+                "x.yaml",
+                "--policy",
+            ],
+            "--rollouts",
         ),
     ];
     for (args, expected) in cases {

@@ -106,10 +106,18 @@ impl Default for NavigationBenchOptions {
 /// The methods, in table order. `hybrid_prm_rl` is what `POST /v1/plan` runs: the policy
 /// behind the collision shield (`rehearsal::Shield`); `hybrid_unshielded` is the paper's
 /// hybrid, the policy's commands sent to the wheels unchanged; `*_resampled` is the same with
-/// the roadmap re-sampled after a failed attempt.
-pub const METHODS: [&str; 6] = [
+/// the roadmap re-sampled after a failed attempt; `plan_endpoint` is exactly what `POST /v1/plan`
+/// answers: `hybrid_prm_rl_resampled`, then the classical follower (also re-sampled) for a leg
+/// the policy validated in no attempt. `hybrid_policy_roadmap*` are the shielded policy on the
+/// policy-aware roadmap (PRM-RL: the map's geometric roadmap with only the edges the policy
+/// drove in at least 90% of 10 rollouts per direction, weighted by length and risk), first
+/// attempt and with re-tries (same roadmap, new noise).
+pub const METHODS: [&str; 9] = [
+    "hybrid_policy_roadmap",
+    "hybrid_policy_roadmap_resampled",
     "hybrid_prm_rl",
     "hybrid_prm_rl_resampled",
+    "plan_endpoint",
     "hybrid_unshielded",
     "hybrid_unshielded_resampled",
     "pure_rl",
@@ -133,6 +141,8 @@ pub struct NavigationRow {
     pub time_s: f64,
     /// How the run ended, in words.
     pub reason: String,
+    /// `plan_endpoint` only: legs the classical follower validated because the policy did not.
+    pub fallback_legs: usize,
 }
 
 /// The mission chosen on one map.
@@ -184,6 +194,8 @@ pub struct NavigationBenchReport {
     pub skipped: Vec<(String, String)>,
     /// Plan latency per map and controller.
     pub latency: Vec<Latency>,
+    /// The policy on each map's roadmap edges (with a policy).
+    pub edges: Vec<PolicyEdges>,
     /// The policy used, if any.
     pub policy: Option<PathBuf>,
     /// `navigation.csv`.
@@ -214,6 +226,21 @@ impl NavigationBenchReport {
                     fmt_opt(st.success_time, "s"),
                 );
             }
+        }
+        if let Some(line) = fallback_line(&self.rows) {
+            s.push_str(&line);
+            s.push('\n');
+        }
+        for e in &self.edges {
+            let _ = writeln!(
+                s,
+                "policy on the roadmap edges of {}: {:.2}% of rollouts succeed, {} of {} edge directions kept, built in {:.1} s",
+                e.map,
+                100.0 * e.edge_success_rate,
+                e.kept,
+                e.directions,
+                e.build_s
+            );
         }
         for l in &self.latency {
             let _ = writeln!(
@@ -274,6 +301,7 @@ pub fn run_navigation_bench(
     let mut missions = Vec::new();
     let mut skipped = Vec::new();
     let mut latency = Vec::new();
+    let mut edges = Vec::new();
     for (yaml, name) in yamls.iter().zip(&names) {
         if opts.verbose {
             eprintln!("navigation: {name}");
@@ -322,12 +350,13 @@ pub fn run_navigation_bench(
         let out = run_map(&world, &cache, name, &mission, policy.as_ref(), &opts)?;
         rows.extend(out.rows);
         latency.extend(out.latency);
+        edges.extend(out.edges);
         missions.push(mission);
     }
 
     let csv_path = opts.out_dir.join("navigation.csv");
     std::fs::write(&csv_path, to_csv(&rows)).map_err(io_err(&csv_path))?;
-    let markdown = to_markdown(&opts, &missions, &rows, &latency, &skipped);
+    let markdown = to_markdown(&opts, &missions, &rows, &latency, &skipped, &edges);
     let markdown_path = opts.out_dir.join("navigation.md");
     std::fs::write(&markdown_path, &markdown).map_err(io_err(&markdown_path))?;
     Ok(NavigationBenchReport {
@@ -335,6 +364,7 @@ pub fn run_navigation_bench(
         missions,
         skipped,
         latency,
+        edges,
         policy: opts.policy.clone(),
         csv_path,
         markdown_path,
@@ -404,6 +434,26 @@ fn choose_mission(
 struct MapOutcome {
     rows: Vec<NavigationRow>,
     latency: Vec<Latency>,
+    edges: Option<PolicyEdges>,
+}
+
+/// The policy on one map's roadmap edges, and what building the policy-aware roadmap cost.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolicyEdges {
+    /// The map.
+    pub map: String,
+    /// Edge directions driven.
+    pub directions: usize,
+    /// Directions kept (success rate at least the threshold).
+    pub kept: usize,
+    /// Successful rollouts over all rollouts.
+    pub edge_success_rate: f64,
+    /// Rollouts per direction.
+    pub rollouts: u32,
+    /// Simulated control steps.
+    pub steps: u64,
+    /// Wall time of the rollouts and the reweighting, seconds.
+    pub build_s: f64,
 }
 
 fn run_map(
@@ -421,6 +471,48 @@ fn run_map(
     let mut rows = Vec::new();
     let mut validate_ms: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
     let mut build_ms = Vec::new();
+    // One policy-aware roadmap per map (on the first run's geometric roadmap): its rollouts are
+    // the expensive part, built once per (floor, policy) as the service would.
+    let policy_map = match policy {
+        Some(p) => {
+            let t = Instant::now();
+            let params = PrmParams {
+                samples: planning::optimal_samples(space.free_area_m2),
+                seed: opts.seed.wrapping_add(1000),
+                ..PrmParams::default()
+            };
+            let (geometric, _) = cache
+                .roadmap(name, &space, &params)
+                .map_err(|e| plan_err(name, &e))?;
+            let rollout = rehearsal::EdgeRolloutParams {
+                waypoint_timeout_s: opts.waypoint_timeout_s,
+                seed: opts.seed,
+                ..rehearsal::EdgeRolloutParams::default()
+            };
+            let (roadmap, report) = rehearsal::policy_roadmap(world, &geometric, p, &rollout)
+                .map_err(|e| plan_err(name, &e))?;
+            let edges = PolicyEdges {
+                map: name.to_owned(),
+                directions: report.edges.len(),
+                kept: report.kept().count(),
+                edge_success_rate: report.edge_success_rate(),
+                rollouts: rollout.rollouts,
+                steps: report.steps,
+                build_s: t.elapsed().as_secs_f64(),
+            };
+            if opts.verbose {
+                eprintln!(
+                    "  policy-aware roadmap: {} of {} edge directions kept, edge success {:.1}%, {:.1} s",
+                    edges.kept,
+                    edges.directions,
+                    100.0 * edges.edge_success_rate,
+                    edges.build_s
+                );
+            }
+            Some((roadmap, edges))
+        }
+        None => None,
+    };
     for run in 0..opts.runs {
         // Seeds far apart so the re-samples of one run never reuse another run's roadmap.
         let seed = opts.seed.wrapping_add(1000 * (run as u64 + 1));
@@ -472,6 +564,44 @@ fn run_map(
         validate_ms[0].push(elapsed);
         rows.push(row("hybrid_prm_rl", name, run, &first));
         rows.push(row("hybrid_prm_rl_resampled", name, run, &last));
+        rows.push(endpoint_row(world, cache, name, run, &request, policy)?);
+        if let Some((roadmap, _)) = &policy_map {
+            let mut controller = PolicyController::new(Arc::clone(policy));
+            let (first, last) = match rehearsal::validate_with_fallback(
+                world,
+                cache,
+                name,
+                &request,
+                &mut controller,
+                None,
+                Some(roadmap),
+            ) {
+                Ok(report) => first_last(name, report.attempts)?,
+                Err(PlanError::NotValidated { attempts }) => first_last(name, attempts)?,
+                // No kept edges join start and goal: a failure of the method, not of the bench.
+                Err(e @ (PlanError::Unreachable { .. } | PlanError::Map(_))) => {
+                    let failed = NavigationRow {
+                        method: "hybrid_policy_roadmap",
+                        map: name.to_owned(),
+                        run,
+                        success: false,
+                        distance_m: 0.0,
+                        time_s: 0.0,
+                        reason: e.to_string(),
+                        fallback_legs: 0,
+                    };
+                    rows.push(failed.clone());
+                    rows.push(NavigationRow {
+                        method: "hybrid_policy_roadmap_resampled",
+                        ..failed
+                    });
+                    continue;
+                }
+                Err(e) => return Err(plan_err(name, &e)),
+            };
+            rows.push(row("hybrid_policy_roadmap", name, run, &first));
+            rows.push(row("hybrid_policy_roadmap_resampled", name, run, &last));
+        }
         let mut unshielded = PolicyController::without_shield(Arc::clone(policy));
         let (first_u, last_u, _) = timed_validate(world, cache, name, &request, &mut unshielded)?;
         rows.push(row("hybrid_unshielded", name, run, &first_u));
@@ -503,6 +633,7 @@ fn run_map(
             distance_m: pure.distance_m,
             time_s: pure.time_s,
             reason: pure.reason,
+            fallback_legs: 0,
         });
         if opts.verbose {
             eprintln!(
@@ -533,7 +664,11 @@ fn run_map(
             samples: v.len(),
         });
     }
-    Ok(MapOutcome { rows, latency })
+    Ok(MapOutcome {
+        rows,
+        latency,
+        edges: policy_map.map(|(_, e)| e),
+    })
 }
 
 fn plan_err(name: &str, e: &PlanError) -> BenchError {
@@ -557,10 +692,74 @@ fn timed_validate(
         Err(PlanError::NotValidated { attempts }) => attempts,
         Err(e) => return Err(plan_err(name, &e)),
     };
+    let (first, last) = first_last(name, attempts)?;
+    Ok((first, last, elapsed))
+}
+
+/// The first and the last attempt of a validation.
+fn first_last(
+    name: &str,
+    attempts: Vec<AttemptReport>,
+) -> Result<(AttemptReport, AttemptReport), BenchError> {
     match (attempts.first(), attempts.last()) {
-        (Some(f), Some(l)) => Ok((f.clone(), l.clone(), elapsed)),
+        (Some(f), Some(l)) => Ok((f.clone(), l.clone())),
         _ => Err(BenchError::BadOption(format!("{name}: no attempt ran"))),
     }
+}
+
+/// What the plan endpoint answers for `request`: the policy, and the follower for legs the
+/// policy validated in no attempt.
+fn endpoint_row(
+    world: &Arc<World>,
+    cache: &RoadmapCache,
+    name: &str,
+    run: usize,
+    request: &PlanRequest,
+    policy: &Arc<Policy>,
+) -> Result<NavigationRow, BenchError> {
+    let mut controller = PolicyController::new(Arc::clone(policy));
+    let mut follower = ClassicalFollower::default();
+    let result = rehearsal::validate_with_fallback(
+        world,
+        cache,
+        name,
+        request,
+        &mut controller,
+        Some(&mut follower),
+        None,
+    );
+    Ok(match result {
+        Ok(report) => {
+            let fallback_legs = report
+                .legs
+                .iter()
+                .filter(|l| l.controller != report.controller)
+                .count();
+            NavigationRow {
+                method: "plan_endpoint",
+                map: name.to_owned(),
+                run,
+                success: true,
+                distance_m: report.distance_m,
+                time_s: report.simulated_time_s,
+                reason: format!(
+                    "validated; {fallback_legs} of {} legs by the classical follower",
+                    report.legs.len()
+                ),
+                fallback_legs,
+            }
+        }
+        Err(PlanError::NotValidated { attempts }) => {
+            let last = attempts
+                .last()
+                .ok_or_else(|| BenchError::BadOption(format!("{name}: no attempt ran")))?;
+            NavigationRow {
+                fallback_legs: 0,
+                ..row("plan_endpoint", name, run, last)
+            }
+        }
+        Err(e) => return Err(plan_err(name, &e)),
+    })
 }
 
 fn row(method: &'static str, map: &str, run: usize, a: &AttemptReport) -> NavigationRow {
@@ -572,6 +771,7 @@ fn row(method: &'static str, map: &str, run: usize, a: &AttemptReport) -> Naviga
         distance_m: a.distance_m,
         time_s: a.simulated_time_s,
         reason: a.reason.clone(),
+        fallback_legs: 0,
     }
 }
 
@@ -658,6 +858,24 @@ impl Stats {
     }
 }
 
+/// How often the plan endpoint needed the classical follower, when it ran.
+fn fallback_line(rows: &[NavigationRow]) -> Option<String> {
+    let endpoint: Vec<&NavigationRow> = rows
+        .iter()
+        .filter(|r| r.method == "plan_endpoint")
+        .collect();
+    if endpoint.is_empty() {
+        return None;
+    }
+    let with = endpoint.iter().filter(|r| r.fallback_legs > 0).count();
+    let legs: usize = endpoint.iter().map(|r| r.fallback_legs).sum();
+    Some(format!(
+        "plan_endpoint: the classical follower validated {legs} leg(s) the policy could not, in {with} of {} runs ({:.0}%)",
+        endpoint.len(),
+        100.0 * with as f64 / endpoint.len() as f64
+    ))
+}
+
 fn fmt_opt(v: Option<f64>, unit: &str) -> String {
     v.map_or_else(|| "—".to_owned(), |v| format!("{v:.2} {unit}"))
 }
@@ -693,6 +911,7 @@ fn to_markdown(
     rows: &[NavigationRow],
     latency: &[Latency],
     skipped: &[(String, String)],
+    edges: &[PolicyEdges],
 ) -> String {
     let mut s =
         String::from("# Long-range navigation (paper Table 3) in the mental simulation\n\n");
@@ -720,13 +939,16 @@ fn to_markdown(
     );
     let _ = write!(s, "{}", opts.max_attempts);
     s.push_str(
-        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `pure_rl` = the policy straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt. Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
+        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers: the same, then the classical follower (re-sampled too) when no policy attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt. Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
     );
     s.push_str("The paper's Table 3 (Gazebo, one building, ~140 m): Move Base 141.04 m / 123.31 s / 100%; Constrained Move Base 140.21 m / 125.19 s, failure 26.87 m / 60%; Pure RL failure 14.7 m / 0%; Hybrid PRM-RL 149.71 m / 160.45 s, failure 102.4 m / 90%.\n\n");
 
     s.push_str("## All maps\n\n");
     let all: Vec<&NavigationRow> = rows.iter().collect();
     table(&mut s, &all);
+    if let Some(line) = fallback_line(rows) {
+        let _ = writeln!(s, "\n{line}.");
+    }
 
     s.push_str("\n## Missions\n\n| Map | Start | Goal | Roadmap path (m) | Straight line (m) | Full length | Free area (m²) | World build (ms) |\n|---|---|---|---|---|---|---|---|\n");
     for m in missions {
@@ -744,6 +966,22 @@ fn to_markdown(
             m.free_area_m2,
             m.world_build_ms
         );
+    }
+
+    if !edges.is_empty() {
+        s.push_str("\n## The policy on the roadmap edges\n\nEvery edge of the map's geometric roadmap driven by the shielded policy, both directions, 10 rollouts each (start at rest, heading as if arriving over a neighbouring edge, noise on); kept where at least 90% succeed. Build = the rollouts and the reweighting, wall time on this machine's cores.\n\n| Map | Edge directions | Kept | Edge success rate | Simulated steps | Build (s) |\n|---|---|---|---|---|---|\n");
+        for e in edges {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.2}% | {} | {:.1} |",
+                e.map,
+                e.directions,
+                e.kept,
+                100.0 * e.edge_success_rate,
+                e.steps,
+                e.build_s
+            );
+        }
     }
 
     s.push_str("\n## Plan latency\n\nWall time of one `rehearsal::validate` call for the map's long mission (roadmap of the first attempt cached, as the service keeps it per map version; re-samples build theirs inside the call), and of building that roadmap once.\n\n| Map | Controller | p50 (ms) | p99 (ms) | Calls | Roadmap build p50 (ms) |\n|---|---|---|---|---|---|\n");
@@ -798,6 +1036,7 @@ mod tests {
             distance_m: d,
             time_s: 2.0 * d,
             reason: String::new(),
+            fallback_legs: 0,
         };
         let rows = [r(true, 10.0), r(true, 20.0), r(false, 4.0)];
         let st = Stats::of(rows.iter());

@@ -90,6 +90,22 @@ impl Csr {
         })
     }
 
+    /// The undirected graph with an edge wherever either direction has one (for connectivity:
+    /// a reweighted roadmap may keep an edge one way only).
+    pub fn symmetric_closure(&self) -> Csr {
+        let mut pairs: Vec<Edge> = (0..self.node_count() as u32)
+            .flat_map(|i| {
+                self.slots(i).map(move |k| {
+                    let j = self.targets[k];
+                    (i.min(j), i.max(j), self.weights[k], self.min_dist[k])
+                })
+            })
+            .collect();
+        pairs.sort_by_key(|e| (e.0, e.1));
+        pairs.dedup_by_key(|e| (e.0, e.1));
+        Csr::from_edges(self.node_count(), &pairs)
+    }
+
     /// The stored obstacle distance of edge a–b; NaN when unknown or when there is no such edge.
     pub fn edge_min_dist(&self, a: u32, b: u32) -> f32 {
         if a as usize >= self.node_count() || b as usize >= self.node_count() {
@@ -125,9 +141,14 @@ impl PartialOrd for Entry {
     }
 }
 
-/// Result of one search: node sequence from S to G (both virtual ids included) and its length.
+/// Result of one search: node sequence from S to G (both virtual ids included) and its cost (its
+/// length on a geometric roadmap; plans measure their length from the points).
 pub(crate) struct Found {
     pub nodes: Vec<u32>,
+    #[cfg_attr(
+        not(test),
+        allow(dead_code, reason = "the tests check optimality with it")
+    )]
     pub length: f64,
 }
 

@@ -24,7 +24,8 @@ use crate::cache::{RoadmapCache, SpaceEntry};
 use crate::controller::{ClassicalFollower, Controller, PolicyController};
 use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
 use crate::types::{
-    AttemptOutcome, AttemptReport, PlanOptions, PlanReport, PlanRequest, RoadmapInfo,
+    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PlanOptions, PlanReport, PlanRequest,
+    RoadmapChoice, RoadmapInfo, RoadmapKind,
 };
 
 /// Most goals one request may carry.
@@ -38,7 +39,9 @@ pub const MAX_WAYPOINT_TIMEOUT_S: f64 = 600.0;
 const START_ESCAPE_M: f64 = 1.0;
 
 /// Validates the plan of `request` in `world`: with `policy` (hybrid PRM-RL) when given, with
-/// the [`ClassicalFollower`] otherwise (the report says which).
+/// the [`ClassicalFollower`] otherwise. A leg the policy validates in no attempt is validated
+/// with the follower (robots carry both), so a plan is never worse than the follower's; the
+/// report says which controller validated each leg.
 ///
 /// `map_version` identifies the world's map for the roadmap cache: equal strings must mean equal
 /// maps (and objects).
@@ -50,12 +53,14 @@ pub fn validate(
     policy: Option<Arc<Policy>>,
 ) -> Result<PlanReport, PlanError> {
     match policy {
-        Some(p) => validate_with(
+        Some(p) => validate_with_fallback(
             world,
             roadmaps,
             map_version,
             request,
             &mut PolicyController::new(p),
+            Some(&mut ClassicalFollower::default()),
+            None,
         ),
         None => validate_with(
             world,
@@ -67,7 +72,7 @@ pub fn validate(
     }
 }
 
-/// [`validate`] with any controller.
+/// [`validate`] with any controller and no fallback: a leg no attempt validates fails the plan.
 pub fn validate_with(
     world: &Arc<World>,
     roadmaps: &RoadmapCache,
@@ -75,98 +80,302 @@ pub fn validate_with(
     request: &PlanRequest,
     controller: &mut dyn Controller,
 ) -> Result<PlanReport, PlanError> {
+    validate_with_fallback(
+        world,
+        roadmaps,
+        map_version,
+        request,
+        controller,
+        None,
+        None,
+    )
+}
+
+/// A controller ready to drive one world: attached, with the simulation settings it needs.
+struct Driver<'c> {
+    controller: &'c mut dyn Controller,
+    env: EnvConfig,
+    max_segment_m: f64,
+}
+
+impl<'c> Driver<'c> {
+    fn new(
+        world: &World,
+        opts: &PlanOptions,
+        controller: &'c mut dyn Controller,
+    ) -> Result<Self, PlanError> {
+        let beams = controller_beams(world, controller)?;
+        controller.attach(world, beams);
+        let mut env = env_config(beams, opts.noise);
+        if let Some(t) = controller.goal_tolerance() {
+            env.goal_tolerance = t;
+        }
+        let max_segment_m = max_segment(&env, opts);
+        Ok(Self {
+            controller,
+            env,
+            max_segment_m,
+        })
+    }
+}
+
+/// The validating run of one leg, with the roadmap and controller it was driven with.
+struct ValidatedLeg {
+    run: DriveRun,
+    controller: ControllerKind,
+    prm_path_length_m: f64,
+    roadmap: RoadmapInfo,
+}
+
+/// The plan of §4.2.2, validated leg by leg (start → goal 0 → goal 1 → …). Each leg gets up to
+/// `max_attempts` simulated runs with `controller`, each on a roadmap re-sampled with the next
+/// seed; a leg none of them validates gets as many runs with `fallback` (the plan endpoint
+/// gives the classical follower behind a policy: a plan is never worse than the follower's),
+/// and the report says which controller validated each leg. Each leg starts where the previous
+/// one's validating run ended. The roadmap seeds (`seed`, `seed + 1`, …) and simulation seeds
+/// are the same for every leg and controller, so a report is reproducible.
+///
+/// With `policy_roadmap` (a roadmap whose edges `controller` was seen to drive, built by
+/// [`crate::edges`] on the map's geometric roadmap), `controller` plans on it in every attempt
+/// (attempts then differ in the simulation's noise only) and never densifies it; the fallback
+/// plans on the geometric roadmaps. The report says which roadmap validated each leg.
+pub fn validate_with_fallback(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+    controller: &mut dyn Controller,
+    fallback: Option<&mut dyn Controller>,
+    policy_roadmap: Option<&Arc<Roadmap>>,
+) -> Result<PlanReport, PlanError> {
     let opts = &request.options;
     check_request(request)?;
-    let beams = controller_beams(world, controller)?;
-    controller.attach(world, beams);
+    let policy_roadmap = policy_roadmap.filter(|_| opts.roadmap != RoadmapChoice::Geometric);
+    let primary_kind = controller.kind();
+    let controller_description = controller.description();
+    let mut drivers = vec![Driver::new(world, opts, controller)?];
+    if let Some(f) = fallback {
+        drivers.push(Driver::new(world, opts, f)?);
+    }
     let inflation = planning::Inflation {
         robot_radius_m: world.spec().robot.footprint_radius,
         safety_margin_m: opts.safety_margin_m,
     };
     let space = roadmaps.config_space(map_version, world, inflation)?;
     let cs = &*space.cspace;
-    let mut env_config = env_config(beams, opts.noise);
-    if let Some(t) = controller.goal_tolerance() {
-        env_config.goal_tolerance = t;
-    }
-    let max_segment_m = max_segment(&env_config, opts);
     let start = request.start;
-    let entry = start_entry(world, cs, start, env_config.collision_clearance)?;
+    let clearance = drivers
+        .iter()
+        .map(|d| d.env.collision_clearance)
+        .fold(0.0, f64::max);
+    let entry = start_entry(world, cs, start, clearance)?;
     let goals = &request.goals;
     check_goals(cs, entry.unwrap_or(Point2::new(start.x, start.y)), goals)?;
-
     let samples = opts
         .samples
         .unwrap_or_else(|| planning::optimal_samples(space.free_area_m2));
+
+    let n_drivers = drivers.len();
     let mut attempts = Vec::new();
-    for attempt in 1..=opts.max_attempts {
-        let seed = opts.seed.wrapping_add(u64::from(attempt - 1));
-        let params = PrmParams {
-            samples,
-            seed,
-            ..PrmParams::default()
+    let mut validated: Vec<ValidatedLeg> = Vec::with_capacity(goals.len());
+    let mut pose = start;
+    for (leg, &goal) in goals.iter().enumerate() {
+        // Where the roadmap path of this leg starts: the start (or its way out of the margin),
+        // then the previous goal; the robot itself starts where the last leg left it.
+        let (from, leg_entry) = if leg == 0 {
+            (None, entry)
+        } else {
+            (Some(goals[leg - 1]), None)
         };
-        let (roadmap, cached) = roadmaps.roadmap(map_version, &space, &params)?;
-        let legs = plan_legs(&roadmap, opts, start, entry, goals, max_segment_m)?;
-        controller.start_attempt(attempt);
-        let replanner: &mut Replanner<'_> = &mut |from: Point2, goal: Point2| {
-            replan(&roadmap, opts, world, from, goal, max_segment_m)
+        let mut done = None;
+        'drivers: for (d, driver) in drivers.iter_mut().enumerate() {
+            let on_policy_roadmap = d == 0 && policy_roadmap.is_some();
+            let query = QueryOptions {
+                no_densify: on_policy_roadmap,
+                ..QueryOptions::default()
+            };
+            for attempt in 1..=opts.max_attempts {
+                let (roadmap, cached, seed, kind) = match policy_roadmap.filter(|_| d == 0) {
+                    Some(r) => (Arc::clone(r), true, r.params().seed, RoadmapKind::Policy),
+                    None => {
+                        let seed = opts.seed.wrapping_add(u64::from(attempt - 1));
+                        let params = PrmParams {
+                            samples,
+                            seed,
+                            ..PrmParams::default()
+                        };
+                        let (r, cached) = roadmaps.roadmap(map_version, &space, &params)?;
+                        (r, cached, seed, RoadmapKind::Geometric)
+                    }
+                };
+                let legs = plan_leg(
+                    &roadmap,
+                    opts,
+                    LegQuery {
+                        robot: pose,
+                        from,
+                        entry: leg_entry,
+                        goal,
+                        goal_index: leg,
+                        query,
+                    },
+                    driver.max_segment_m,
+                );
+                let legs = match legs {
+                    Ok(l) => l,
+                    // No kept edge of the policy-aware roadmap joins the leg: the fallback
+                    // plans it on the geometric roadmap; without one it is the answer.
+                    Err(PlanError::Unreachable { .. })
+                        if on_policy_roadmap
+                            && n_drivers > 1
+                            && opts.roadmap == RoadmapChoice::Auto =>
+                    {
+                        continue 'drivers;
+                    }
+                    Err(e) => return Err(e),
+                };
+                driver.controller.start_attempt(attempt);
+                let max_segment_m = driver.max_segment_m;
+                let replanner: &mut Replanner<'_> = &mut |p: Point2, g: Point2| {
+                    replan(&roadmap, opts, world, (p, g), max_segment_m, query)
+                };
+                let run = drive(
+                    world,
+                    &driver.env,
+                    pose,
+                    std::slice::from_ref(&legs.waypoints),
+                    &mut *driver.controller,
+                    DriveLimits {
+                        waypoint_timeout_s: opts.waypoint_timeout_s,
+                        max_replans: opts.max_replans,
+                        sim_seed: leg_seed(opts.seed, attempt, leg),
+                    },
+                    Some(replanner),
+                )?;
+                // A leg's run knows only its own goal: number it in the plan.
+                let goals_reached = if run.outcome == AttemptOutcome::Reached {
+                    leg + 1
+                } else {
+                    leg
+                };
+                attempts.push(AttemptReport {
+                    attempt,
+                    leg,
+                    controller: driver.controller.kind(),
+                    roadmap_seed: seed,
+                    outcome: run.outcome,
+                    reason: run.reason.clone(),
+                    simulated_time_s: run.time_s,
+                    distance_m: run.distance_m,
+                    min_clearance_m: run.min_clearance_m,
+                    replans: run.replans,
+                    waypoints_reached: validated.iter().map(|v| v.run.reached.len()).sum::<usize>()
+                        + run.reached.len(),
+                    goals_reached,
+                    prm_path_length_m: legs.length_m,
+                    end_pose: run.end_pose,
+                });
+                if run.outcome == AttemptOutcome::Reached {
+                    done = Some(ValidatedLeg {
+                        run,
+                        controller: driver.controller.kind(),
+                        prm_path_length_m: legs.length_m,
+                        roadmap: RoadmapInfo {
+                            samples: roadmap.params().samples,
+                            nodes: roadmap.nodes().count(),
+                            seed,
+                            inflation_m: inflation.total_m(),
+                            cached,
+                            kind,
+                        },
+                    });
+                    break 'drivers;
+                }
+            }
+        }
+        let Some(leg_run) = done else {
+            return Err(PlanError::NotValidated { attempts });
         };
-        let run = drive(
-            world,
-            &env_config,
-            start,
-            &legs.legs,
-            controller,
-            DriveLimits {
-                waypoint_timeout_s: opts.waypoint_timeout_s,
-                max_replans: opts.max_replans,
-                sim_seed: mix(opts.seed, u64::from(attempt)),
-            },
-            Some(replanner),
-        )?;
-        let report = AttemptReport {
-            attempt,
-            roadmap_seed: seed,
-            outcome: run.outcome,
-            reason: run.reason.clone(),
+        pose = leg_run.run.end_pose;
+        validated.push(leg_run);
+    }
+    let roadmap = validated[0].roadmap.clone();
+    Ok(assemble(
+        start,
+        primary_kind,
+        controller_description,
+        opts,
+        validated,
+        attempts,
+        roadmap,
+    ))
+}
+
+/// The simulation seed of one attempt on one leg: the first leg's are those of a one-leg plan.
+fn leg_seed(seed: u64, attempt: u32, leg: usize) -> u64 {
+    let s = mix(seed, u64::from(attempt));
+    if leg == 0 { s } else { mix(s, leg as u64) }
+}
+
+/// The plan's report from its validated legs.
+fn assemble(
+    start: Pose2,
+    controller: ControllerKind,
+    controller_description: String,
+    opts: &PlanOptions,
+    legs: Vec<ValidatedLeg>,
+    attempts: Vec<AttemptReport>,
+    roadmap: RoadmapInfo,
+) -> PlanReport {
+    let mut waypoints = Vec::new();
+    let mut goal_indices = Vec::new();
+    let mut trajectory: Vec<Pose2> = Vec::new();
+    let mut leg_reports = Vec::with_capacity(legs.len());
+    let (mut time_s, mut distance_m, mut prm_m) = (0.0, 0.0, 0.0);
+    let mut min_clearance_m = f64::INFINITY;
+    let mut replans = 0;
+    for (i, leg) in legs.into_iter().enumerate() {
+        let run = leg.run;
+        let offset = waypoints.len();
+        goal_indices.extend(run.goal_indices.iter().map(|g| g + offset));
+        waypoints.extend(run.reached);
+        // Each leg's trajectory starts where the last one ended: keep that pose once.
+        let skip = usize::from(!trajectory.is_empty());
+        trajectory.extend(run.trajectory.into_iter().skip(skip));
+        time_s += run.time_s;
+        distance_m += run.distance_m;
+        prm_m += leg.prm_path_length_m;
+        min_clearance_m = min_clearance_m.min(run.min_clearance_m);
+        replans += run.replans;
+        leg_reports.push(LegReport {
+            goal_index: i,
+            controller: leg.controller,
+            roadmap: leg.roadmap.kind,
+            attempts: attempts.iter().filter(|a| a.leg == i).count(),
+            roadmap_seed: leg.roadmap.seed,
             simulated_time_s: run.time_s,
             distance_m: run.distance_m,
             min_clearance_m: run.min_clearance_m,
             replans: run.replans,
-            waypoints_reached: run.reached.len(),
-            goals_reached: run.goal_indices.len(),
-            prm_path_length_m: legs.length_m,
-            end_pose: run.end_pose,
-        };
-        let reached = run.outcome == AttemptOutcome::Reached;
-        attempts.push(report);
-        if reached {
-            let waypoint_path_length_m = polyline_length(start, &run.reached);
-            return Ok(PlanReport {
-                waypoints: run.reached,
-                goal_indices: run.goal_indices,
-                controller: controller.kind(),
-                controller_description: controller.description(),
-                simulated_time_s: run.time_s,
-                distance_m: run.distance_m,
-                min_clearance_m: run.min_clearance_m,
-                prm_path_length_m: legs.length_m,
-                waypoint_path_length_m,
-                replans: run.replans,
-                trajectory: stride(&run.trajectory, opts.trajectory_stride),
-                roadmap: RoadmapInfo {
-                    samples,
-                    nodes: roadmap.nodes().count(),
-                    seed,
-                    inflation_m: inflation.total_m(),
-                    cached,
-                },
-                attempts,
-            });
-        }
+        });
     }
-    Err(PlanError::NotValidated { attempts })
+    let waypoint_path_length_m = polyline_length(start, &waypoints);
+    PlanReport {
+        waypoints,
+        goal_indices,
+        controller,
+        controller_description,
+        simulated_time_s: time_s,
+        distance_m,
+        min_clearance_m,
+        prm_path_length_m: prm_m,
+        waypoint_path_length_m,
+        replans,
+        trajectory: stride(&trajectory, opts.trajectory_stride),
+        roadmap,
+        legs: leg_reports,
+        attempts,
+    }
 }
 
 /// The beam count the controller needs, checked against the robot's laser.
@@ -386,7 +595,7 @@ fn max_segment(env: &EnvConfig, opts: &PlanOptions) -> f64 {
 
 /// `points` after `from`, with evenly spaced points inserted in every segment longer than
 /// `max_m`.
-fn subdivide(from: Point2, points: Vec<Point2>, max_m: f64) -> Vec<Point2> {
+pub(crate) fn subdivide(from: Point2, points: Vec<Point2>, max_m: f64) -> Vec<Point2> {
     let mut out = Vec::with_capacity(points.len());
     let mut prev = from;
     for p in points {
@@ -410,62 +619,65 @@ fn subdivide(from: Point2, points: Vec<Point2>, max_m: f64) -> Vec<Point2> {
     out
 }
 
-/// Waypoints of a whole mission: one leg per goal, each leg's waypoints after its start point,
-/// its last one the goal.
-struct Legs {
-    legs: Vec<Vec<Point2>>,
+/// What one leg plans from and to.
+struct LegQuery {
+    /// Where the robot stands.
+    robot: Pose2,
+    /// The previous goal, for every leg but the first (the robot stands within the goal
+    /// tolerance of it): the roadmap path starts there.
+    from: Option<Point2>,
+    /// For the first leg, the start's way out of the safety margin, if it needs one.
+    entry: Option<Point2>,
+    goal: Point2,
+    goal_index: usize,
+    /// How to search (a policy-aware roadmap is not densified: new edges would be undriven).
+    query: QueryOptions,
+}
+
+/// The waypoints of one leg after the robot's position, the last one its goal.
+struct LegPath {
+    waypoints: Vec<Point2>,
     length_m: f64,
 }
 
-fn plan_legs(
+fn plan_leg(
     roadmap: &Roadmap,
     opts: &PlanOptions,
-    start: Pose2,
-    entry: Option<Point2>,
-    goals: &[Point2],
+    q: LegQuery,
     max_segment_m: f64,
-) -> Result<Legs, PlanError> {
-    let s = Point2::new(start.x, start.y);
-    let mut from = entry.unwrap_or(s);
-    let mut length_m = entry.map_or(0.0, |e| e.distance(s));
-    let mut legs = Vec::with_capacity(goals.len());
-    for (i, &g) in goals.iter().enumerate() {
-        let which = if i == 0 {
-            Endpoint::Start
-        } else {
-            Endpoint::Goal(i - 1)
-        };
-        let mut plan = roadmap
-            .query(from, g, QueryOptions::default())
-            .map_err(|e| match e {
-                QueryError::Unreachable { .. } | QueryError::NotConnected => {
-                    PlanError::Unreachable {
-                        goal_index: i,
-                        goal: g,
-                        from: which,
-                    }
-                }
-                other => blocked_error(Endpoint::Goal(i), other),
-            })?;
-        if opts.shortcut {
-            plan = roadmap.shortcut(&plan);
-        }
-        length_m += plan.length_m;
-        let mut leg: Vec<Point2> = plan.waypoints.into_iter().skip(1).collect();
-        if i == 0
-            && let Some(e) = entry
-        {
-            leg.insert(0, e);
-        }
-        if leg.is_empty() {
-            // Start and goal coincide: the goal is still a waypoint to reach.
-            leg.push(g);
-        }
-        let leg_start = if i == 0 { s } else { from };
-        legs.push(subdivide(leg_start, leg, max_segment_m));
-        from = g;
+) -> Result<LegPath, PlanError> {
+    let s = Point2::new(q.robot.x, q.robot.y);
+    let origin = q.from.or(q.entry).unwrap_or(s);
+    let which = match q.goal_index {
+        0 => Endpoint::Start,
+        i => Endpoint::Goal(i - 1),
+    };
+    let mut plan = roadmap
+        .query(origin, q.goal, q.query)
+        .map_err(|e| match e {
+            QueryError::Unreachable { .. } | QueryError::NotConnected => PlanError::Unreachable {
+                goal_index: q.goal_index,
+                goal: q.goal,
+                from: which,
+            },
+            other => blocked_error(Endpoint::Goal(q.goal_index), other),
+        })?;
+    if opts.shortcut {
+        plan = roadmap.shortcut(&plan);
     }
-    Ok(Legs { legs, length_m })
+    let length_m = q.entry.map_or(0.0, |e| e.distance(s)) + plan.length_m;
+    let mut leg: Vec<Point2> = plan.waypoints.into_iter().skip(1).collect();
+    if let Some(e) = q.entry {
+        leg.insert(0, e);
+    }
+    if leg.is_empty() {
+        // Start and goal coincide: the goal is still a waypoint to reach.
+        leg.push(q.goal);
+    }
+    Ok(LegPath {
+        waypoints: subdivide(q.from.unwrap_or(s), leg, max_segment_m),
+        length_m,
+    })
 }
 
 /// A fresh roadmap path from where the robot stands to `goal`, or why there is none.
@@ -473,9 +685,9 @@ fn replan(
     roadmap: &Roadmap,
     opts: &PlanOptions,
     world: &World,
-    from: Point2,
-    goal: Point2,
+    (from, goal): (Point2, Point2),
     max_segment_m: f64,
+    query: QueryOptions,
 ) -> Result<Vec<Point2>, String> {
     let cs = roadmap.cspace();
     // A robot pushed closer to a wall than the margin first drives back into free space.
@@ -494,7 +706,7 @@ fn replan(
         Some(q)
     };
     let mut plan = roadmap
-        .query(entry.unwrap_or(from), goal, QueryOptions::default())
+        .query(entry.unwrap_or(from), goal, query)
         .map_err(|e| format!("replanning failed: {e}"))?;
     if opts.shortcut {
         plan = roadmap.shortcut(&plan);

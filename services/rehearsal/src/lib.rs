@@ -10,6 +10,8 @@
 //! - [`controller`]: the [`Controller`] trait, the policy behind its [`Shield`], and the
 //!   classical follower;
 //! - [`executor`]: roadmap query, waypoint timer, replanning, re-sampling on failure;
+//! - [`edges`]: every roadmap edge driven by a controller (PRM-RL): the per-edge success rate
+//!   and the costs of a policy-aware roadmap;
 //! - [`cache`]: roadmaps per (map version, robot inflation, parameters);
 //! - [`planning_grid`](mod@planning_grid): the planning grid of a built world.
 
@@ -24,6 +26,7 @@
 
 pub mod cache;
 pub mod controller;
+pub mod edges;
 pub mod error;
 pub mod executor;
 pub mod planning_grid;
@@ -31,12 +34,14 @@ pub mod types;
 
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
 pub use controller::{ClassicalFollower, Controller, FollowerParams, PolicyController, Shield};
+pub use edges::{EdgeReport, EdgeRolloutParams, EdgeStat, drive_edges, policy_roadmap};
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
     DriveLimits, DriveRun, Replanner, config_space, drive, env_config, validate, validate_with,
+    validate_with_fallback,
 };
 pub use planning_grid::planning_grid;
 pub use types::{
-    AttemptOutcome, AttemptReport, ControllerKind, PlanOptions, PlanReport, PlanRequest,
-    RoadmapInfo,
+    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PlanOptions, PlanReport, PlanRequest,
+    RoadmapChoice, RoadmapInfo, RoadmapKind,
 };

@@ -27,6 +27,21 @@ pub struct PlanOptions {
     pub noise: bool,
     /// Keep every n-th pose of the simulated trajectory in the report (default 1: all; 0: none).
     pub trajectory_stride: u32,
+    /// Which roadmap the policy plans on when a policy-aware one is given (default `Auto`).
+    pub roadmap: RoadmapChoice,
+}
+
+/// Which roadmap the policy plans on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum RoadmapChoice {
+    /// The policy-aware roadmap when there is one, else the geometric one; a leg no kept edge
+    /// joins is planned on the geometric roadmap by the fallback.
+    #[default]
+    Auto,
+    /// Only the policy-aware roadmap: a leg no kept edge joins is unreachable.
+    Policy,
+    /// Only the geometric roadmap.
+    Geometric,
 }
 
 impl Default for PlanOptions {
@@ -41,6 +56,7 @@ impl Default for PlanOptions {
             seed: 0,
             noise: true,
             trajectory_stride: 1,
+            roadmap: RoadmapChoice::Auto,
         }
     }
 }
@@ -102,8 +118,12 @@ impl AttemptOutcome {
 /// One simulated run of the plan on one roadmap.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AttemptReport {
-    /// 1-based.
+    /// 1-based, per leg and controller.
     pub attempt: u32,
+    /// The leg this attempt drove: 0 from the start to goal 0, `i` from goal `i - 1` to goal `i`.
+    pub leg: usize,
+    /// The controller that drove it.
+    pub controller: ControllerKind,
     /// Seed of the roadmap this attempt planned on.
     pub roadmap_seed: u64,
     /// How it ended.
@@ -118,9 +138,9 @@ pub struct AttemptReport {
     pub min_clearance_m: f64,
     /// Times the waypoint timer ran out and the planner replanned.
     pub replans: u32,
-    /// Waypoints reached.
+    /// Waypoints reached in the plan so far (earlier legs' validating runs included).
     pub waypoints_reached: usize,
-    /// Goals reached.
+    /// Goals reached in the plan so far.
     pub goals_reached: usize,
     /// Length of the roadmap path planned at the start of the attempt, metres.
     pub prm_path_length_m: f64,
@@ -136,28 +156,56 @@ pub struct PlanReport {
     pub waypoints: Vec<Point2>,
     /// Index into `waypoints` of each goal.
     pub goal_indices: Vec<usize>,
-    /// The controller that drove the simulated robot.
+    /// The controller the plan was asked of: the policy when the robot has one. Each leg says
+    /// which controller validated it ([`PlanReport::legs`]).
     pub controller: ControllerKind,
     /// What that controller is (a policy's training summary or the follower's rule).
     pub controller_description: String,
-    /// Every attempt, the successful last one included.
+    /// Each leg as validated, in order.
+    pub legs: Vec<LegReport>,
+    /// Every attempt of every leg, each leg's validating one included.
     pub attempts: Vec<AttemptReport>,
+    /// Simulated time of the validating runs of every leg, seconds.
+    pub simulated_time_s: f64,
+    /// Distance driven in the validating runs, metres.
+    pub distance_m: f64,
+    /// Smallest footprint clearance in the validating runs, metres.
+    pub min_clearance_m: f64,
+    /// Length of the roadmap path of each leg's validating run as first planned, summed, metres.
+    pub prm_path_length_m: f64,
+    /// Length of the returned waypoint polyline from the start, metres.
+    pub waypoint_path_length_m: f64,
+    /// Replans in the validating runs.
+    pub replans: u32,
+    /// Poses of the validating runs, leg after leg (every `trajectory_stride`-th, and the last).
+    pub trajectory: Vec<Pose2>,
+    /// The roadmap of the first leg's validating run.
+    pub roadmap: RoadmapInfo,
+}
+
+/// One leg of a validated plan: from the start (leg 0) or the previous goal to goal
+/// `goal_index`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LegReport {
+    /// The goal this leg ends at.
+    pub goal_index: usize,
+    /// The controller whose run validated the leg: the classical follower when the policy
+    /// validated it in no attempt.
+    pub controller: ControllerKind,
+    /// The roadmap the validating run planned on.
+    pub roadmap: RoadmapKind,
+    /// Attempts spent on the leg, every controller's, the validating one included.
+    pub attempts: usize,
+    /// Seed of the roadmap of the validating run.
+    pub roadmap_seed: u64,
     /// Simulated time of the validating run, seconds.
     pub simulated_time_s: f64,
     /// Distance driven in the validating run, metres.
     pub distance_m: f64,
     /// Smallest footprint clearance in the validating run, metres.
     pub min_clearance_m: f64,
-    /// Length of the roadmap path of the validating run as first planned, metres.
-    pub prm_path_length_m: f64,
-    /// Length of the returned waypoint polyline from the start, metres.
-    pub waypoint_path_length_m: f64,
     /// Replans in the validating run.
     pub replans: u32,
-    /// Poses of the validating run (every `trajectory_stride`-th, and the last).
-    pub trajectory: Vec<Pose2>,
-    /// The roadmap of the validating run.
-    pub roadmap: RoadmapInfo,
 }
 
 /// The roadmap a report planned on.
@@ -173,4 +221,26 @@ pub struct RoadmapInfo {
     pub inflation_m: f64,
     /// Whether the roadmap came from the cache.
     pub cached: bool,
+    /// Geometric, or policy-aware (edges the policy was seen to drive).
+    pub kind: RoadmapKind,
+}
+
+/// Which roadmap a run planned on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RoadmapKind {
+    /// The PRM built from free space alone.
+    Geometric,
+    /// The geometric roadmap's edges the policy drove in the mental simulation, weighted by
+    /// length and risk (PRM-RL).
+    Policy,
+}
+
+impl RoadmapKind {
+    /// `geometric` or `policy`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RoadmapKind::Geometric => "geometric",
+            RoadmapKind::Policy => "policy",
+        }
+    }
 }

@@ -13,6 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use rehearsal::{
     AttemptOutcome, BlockedReason, ClassicalFollower, Controller, ControllerKind, Endpoint,
     PlanError, PlanOptions, PlanReport, PlanRequest, RoadmapCache, validate, validate_with,
+    validate_with_fallback,
 };
 use sim::{Action, FloorMap, Observation, OccupancyGrid, Pose2, RobotSpec, World, WorldSpec};
 
@@ -263,6 +264,86 @@ fn no_attempt_validating_is_its_own_error_with_every_reason() {
     }
 }
 
+/// A "policy" that follows the path on its very first attempt and drives straight ahead on
+/// every later one: it validates the first leg and fails the second.
+struct FirstLegOnly {
+    attempts: u32,
+    follower: ClassicalFollower,
+}
+
+impl Controller for FirstLegOnly {
+    fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
+        if self.attempts == 1 {
+            self.follower.command(obs, pose, waypoint)
+        } else {
+            Action::new(0.8, 0.0)
+        }
+    }
+    fn kind(&self) -> ControllerKind {
+        ControllerKind::Policy
+    }
+    fn description(&self) -> String {
+        "good for one leg".into()
+    }
+    fn start_attempt(&mut self, _attempt: u32) {
+        self.attempts += 1;
+    }
+}
+
+#[test]
+fn a_leg_the_policy_cannot_validate_is_validated_with_the_follower() {
+    let world = room();
+    let cache = RoadmapCache::default();
+    let mut req = request(&[(7.0, 2.0), (3.0, 6.5)]);
+    req.options.max_attempts = 3;
+    let mut primary = FirstLegOnly {
+        attempts: 0,
+        follower: ClassicalFollower::default(),
+    };
+    let mut follower = ClassicalFollower::default();
+    let report = validate_with_fallback(
+        &world,
+        &cache,
+        "room-v1",
+        &req,
+        &mut primary,
+        Some(&mut follower),
+        None,
+    )
+    .expect("validated with the fallback");
+    assert_eq!(report.controller, ControllerKind::Policy);
+    let by: Vec<ControllerKind> = report.legs.iter().map(|l| l.controller).collect();
+    assert_eq!(by, [ControllerKind::Policy, ControllerKind::Classical]);
+    assert_eq!(report.legs[0].attempts, 1);
+    // Every policy attempt on the second leg failed before the follower drove it.
+    let second: Vec<_> = report.attempts.iter().filter(|a| a.leg == 1).collect();
+    assert_eq!(second.len(), report.legs[1].attempts);
+    assert!(second.len() > 3, "{second:?}");
+    for a in &second[..3] {
+        assert_eq!(a.controller, ControllerKind::Policy);
+        assert_ne!(a.outcome, AttemptOutcome::Reached, "{a:?}");
+    }
+    let last = second.last().expect("an attempt");
+    assert_eq!(
+        (last.controller, last.outcome),
+        (ControllerKind::Classical, AttemptOutcome::Reached)
+    );
+    assert_eq!(last.goals_reached, 2);
+    assert_eq!(report.goal_indices.len(), 2);
+    assert_sound(&world, &report, &req.goals);
+
+    // Without a fallback the same plan is not validated, and the error names the leg's attempts.
+    let mut primary = FirstLegOnly {
+        attempts: 0,
+        follower: ClassicalFollower::default(),
+    };
+    let e = validate_with(&world, &cache, "room-v1", &req, &mut primary).expect_err("fails");
+    let PlanError::NotValidated { attempts } = &e else {
+        panic!("{e:?}")
+    };
+    assert_eq!(attempts.iter().filter(|a| a.leg == 1).count(), 3);
+}
+
 /// Stands still for the first 16 s of its first attempt, then follows.
 struct LateStarter {
     steps: u32,
@@ -296,7 +377,13 @@ fn the_waypoint_timer_replans_from_where_the_robot_is() {
         follower: ClassicalFollower::default(),
     };
     let report = validate_with(&world, &cache, "room-v1", &req, &mut c).expect("validated");
-    assert_eq!(report.attempts.len(), 1);
+    // One attempt per leg: the timer replanned, nothing failed.
+    assert_eq!(report.attempts.len(), 2);
+    assert!(
+        report.legs.iter().all(|l| l.attempts == 1),
+        "{:?}",
+        report.legs
+    );
     assert_eq!(report.replans, 1);
     assert!(report.simulated_time_s > 15.0);
     assert_sound(&world, &report, &req.goals);

@@ -33,8 +33,8 @@ use crate::runner::JobError;
 
 pub use self::error::PlanErrorResponse;
 pub use self::types::{
-    AttemptOutcome, AttemptReport, ControllerKind, PlanOptions, PlanReport, PlanRequest, Point,
-    Pose, RoadmapInfo,
+    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PlanOptions, PlanReport, PlanRequest,
+    Point, Pose, RoadmapChoice, RoadmapInfo, RoadmapKind,
 };
 
 /// What a robot asks.
@@ -70,7 +70,8 @@ pub struct PlanApiResponse {
     pub floor: String,
     /// The policy that drove the simulated robot, if any.
     pub policy: Option<String>,
-    /// Why the classical follower was used, when it was.
+    /// Why the classical follower was used, when it was: no policy yet, or legs no attempt
+    /// with the policy validated.
     pub note: Option<String>,
     /// Wall-clock time of the whole request in this service, milliseconds.
     pub service_ms: f64,
@@ -85,6 +86,8 @@ pub struct PlanApiResponse {
 pub struct PlanApi {
     jobs: Arc<JobsApi>,
     roadmaps: RoadmapCache,
+    /// Policy-aware roadmaps (PRM-RL), built in the background on first use.
+    policy_roadmaps: Arc<PolicyRoadmaps>,
     /// Loaded policies by id, with the modification time of the weights they were read from
     /// (an export under the same id replaces the directory).
     policies: Mutex<HashMap<String, (std::time::SystemTime, Arc<learning::Policy>)>>,
@@ -105,6 +108,7 @@ impl PlanApi {
         Self {
             jobs,
             roadmaps: RoadmapCache::default(),
+            policy_roadmaps: Arc::default(),
             policies: Mutex::new(HashMap::new()),
         }
     }
@@ -164,6 +168,111 @@ pub fn rehearse(
 ) -> Result<PlanReport, PlanError> {
     let request = rehearsal::PlanRequest::from(request.clone());
     rehearsal::validate(world, roadmaps, map_version, &request, policy).map(PlanReport::from)
+}
+
+/// Which policy-aware roadmap: the floor state (map version, which changes with the floor and
+/// its objects), the policy and the weights file's modification time (an export under the same
+/// id is another policy), and the safety margin it was inflated by. A floor that changes is a
+/// new key: a roadmap built for an old state is never served for a new one.
+type PolicyRoadmapKey = (String, String, Option<std::time::SystemTime>, u64);
+
+/// A policy-aware roadmap, being built or built.
+#[derive(Clone)]
+enum PolicyRoadmapSlot {
+    Building,
+    Ready(Arc<planning::Roadmap>),
+    Failed(String),
+}
+
+/// Policy-aware roadmaps per key, built on a blocking thread the first time a plan asks for
+/// one; at most [`POLICY_ROADMAPS`] kept (the oldest states go first when full).
+#[derive(Default)]
+struct PolicyRoadmaps {
+    slots: Mutex<HashMap<PolicyRoadmapKey, PolicyRoadmapSlot>>,
+}
+
+/// Policy-aware roadmaps kept at most.
+const POLICY_ROADMAPS: usize = 16;
+
+impl PolicyRoadmaps {
+    /// The roadmap of `key` when built; otherwise starts building it (unless a build is under
+    /// way; a failed build is tried again) and answers why there is none yet.
+    fn get_or_start(
+        self: &Arc<Self>,
+        key: &PolicyRoadmapKey,
+        build: impl FnOnce() -> Result<Arc<planning::Roadmap>, String> + Send + 'static,
+    ) -> Result<Arc<planning::Roadmap>, String> {
+        let mut map = self.slots.lock().unwrap_or_else(PoisonError::into_inner);
+        let why = match map.get(key) {
+            Some(PolicyRoadmapSlot::Ready(r)) => return Ok(Arc::clone(r)),
+            Some(PolicyRoadmapSlot::Building) => return Err("it is being built".into()),
+            Some(PolicyRoadmapSlot::Failed(e)) => {
+                format!("its last build failed ({e}); it is being built again")
+            }
+            None => "it is being built".into(),
+        };
+        if map.len() >= POLICY_ROADMAPS {
+            map.retain(|_, v| matches!(v, PolicyRoadmapSlot::Building));
+        }
+        map.insert(key.clone(), PolicyRoadmapSlot::Building);
+        drop(map);
+        let key = key.clone();
+        let slots = Arc::clone(self);
+        tokio::task::spawn_blocking(move || {
+            let slot = match build() {
+                Ok(r) => PolicyRoadmapSlot::Ready(r),
+                Err(e) => {
+                    tracing::warn!(floor = %key.0, policy = %key.1, "policy-aware roadmap failed: {e}");
+                    PolicyRoadmapSlot::Failed(e)
+                }
+            };
+            slots
+                .slots
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .insert(key, slot);
+        });
+        Err(why)
+    }
+}
+
+/// Builds the policy-aware roadmap of `world` for `policy`: the geometric roadmap the plan
+/// endpoint's first attempt uses (n* samples, seed 0), every edge driven by the policy
+/// ([`rehearsal::edges`], default parameters: 10 rollouts per direction, kept at 90%).
+fn build_policy_roadmap(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    policy: &Arc<learning::Policy>,
+    safety_margin_m: f64,
+) -> Result<Arc<planning::Roadmap>, String> {
+    let space = rehearsal::config_space(world, roadmaps, map_version, safety_margin_m)
+        .map_err(|e| e.to_string())?;
+    let params = planning::PrmParams {
+        samples: planning::optimal_samples(space.free_area_m2),
+        seed: 0,
+        ..planning::PrmParams::default()
+    };
+    let (geometric, _) = roadmaps
+        .roadmap(map_version, &space, &params)
+        .map_err(|e| e.to_string())?;
+    let started = Instant::now();
+    let (roadmap, report) = rehearsal::policy_roadmap(
+        world,
+        &geometric,
+        policy,
+        &rehearsal::EdgeRolloutParams::default(),
+    )
+    .map_err(|e| e.to_string())?;
+    tracing::info!(
+        floor = map_version,
+        edges = report.edges.len(),
+        kept = report.kept().count(),
+        edge_success_rate = report.edge_success_rate(),
+        seconds = started.elapsed().as_secs_f64(),
+        "policy-aware roadmap built"
+    );
+    Ok(roadmap)
 }
 
 /// The route.
@@ -351,24 +460,98 @@ async fn plan(
     };
 
     let api2 = Arc::clone(&api);
+    let choice = req.options.roadmap;
     let request = PlanRequest {
         start: req.start,
         goals,
         options: req.options.clone(),
     };
     let (floor, robot) = (db.floor.clone(), db.robot.clone());
+    let weights_modified = policy_id
+        .as_deref()
+        .and_then(|id| api.jobs.env.policies.path(id))
+        .and_then(|dir| std::fs::metadata(dir.join(learning::policy::WEIGHTS_FILE)).ok())
+        .and_then(|m| m.modified().ok());
+    let runtime = tokio::runtime::Handle::current();
+    let policy_key = policy_id.clone().unwrap_or_default();
     let report = tokio::task::spawn_blocking(move || -> Result<PlanReport, ApiError> {
+        let _enter = runtime.enter();
         let world = db
             .world()
             .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
-        rehearse(&world, &api2.roadmaps, &db.version, &request, policy)
-            .map_err(|e| e.to_api_error())
+        let request = rehearsal::PlanRequest::from(request);
+        let Some(policy) = policy else {
+            return rehearsal::validate(&world, &api2.roadmaps, &db.version, &request, None)
+                .map(PlanReport::from)
+                .map_err(|e| e.to_api_error());
+        };
+        let policy_roadmap = match choice {
+            RoadmapChoice::Geometric => None,
+            RoadmapChoice::Auto | RoadmapChoice::Policy => {
+                let margin = request.options.safety_margin_m;
+                let key = (
+                    db.version.clone(),
+                    policy_key,
+                    weights_modified,
+                    margin.to_bits(),
+                );
+                let (w, p, api3) = (Arc::clone(&world), Arc::clone(&policy), Arc::clone(&api2));
+                let version = db.version.clone();
+                let got = api2.policy_roadmaps.get_or_start(&key, move || {
+                    build_policy_roadmap(&w, &api3.roadmaps, &version, &p, margin)
+                });
+                match got {
+                    Ok(r) => Some(r),
+                    Err(why) if choice == RoadmapChoice::Policy => {
+                        return Err(ApiError::new(
+                            ErrorCode::Conflict,
+                            format!("no policy-aware roadmap of this floor and policy yet: {why} (every edge driven by the policy); retry shortly, or ask for `options.roadmap`: `auto`"),
+                        ));
+                    }
+                    Err(_) => None,
+                }
+            }
+        };
+        let mut primary = rehearsal::PolicyController::new(policy);
+        let mut follower = rehearsal::ClassicalFollower::default();
+        rehearsal::validate_with_fallback(
+            &world,
+            &api2.roadmaps,
+            &db.version,
+            &request,
+            &mut primary,
+            Some(&mut follower),
+            policy_roadmap.as_ref(),
+        )
+        .map(PlanReport::from)
+        .map_err(|e| match e {
+            // Only the policy-aware roadmap was asked for, and no kept edge joins the leg.
+            PlanError::Unreachable { .. } if choice == RoadmapChoice::Policy => ApiError::new(
+                ErrorCode::Conflict,
+                format!("on the policy-aware roadmap: {e} (no edge the policy drives joins them; `options.roadmap`: `auto` falls back to the geometric roadmap)"),
+            )
+            .with_details(e.details()),
+            other => other.to_api_error(),
+        })
     })
     .await
     .map_err(|e| ApiError::internal(format!("plan task failed: {e}")))??;
-    let note = policy_id.is_none().then(|| {
-        "no trained policy for this robot yet: validated with the classical path follower (rotate towards the next waypoint, then drive with proportional heading correction)".to_owned()
-    });
+    let fallback_legs = report
+        .legs
+        .iter()
+        .filter(|l| l.controller != report.controller)
+        .count();
+    let note = if policy_id.is_none() {
+        Some("no trained policy for this robot yet: validated with the classical path follower (rotate towards the next waypoint, then drive with proportional heading correction)".to_owned())
+    } else if fallback_legs > 0 {
+        Some(format!(
+            "{} of {} legs validated with the classical path follower: no attempt with the policy validated them (see `legs`)",
+            fallback_legs,
+            report.legs.len()
+        ))
+    } else {
+        None
+    };
     Ok(Json(PlanApiResponse {
         robot,
         floor,

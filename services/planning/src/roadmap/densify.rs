@@ -175,7 +175,13 @@ impl Roadmap {
         let found = search.run(|_| true).ok_or(QueryError::NotConnected)?;
         let pts = self.points(&found.nodes, &positions, gs, gg);
         let mins = segment_mins(&graph, &found.nodes);
-        Ok(self.plan(&pts, &mins, found.length, added, search.expanded))
+        Ok(self.plan(
+            &pts,
+            &mins,
+            super::query::polyline_cells(&pts),
+            added,
+            search.expanded,
+        ))
     }
 }
 

@@ -214,6 +214,57 @@ impl Roadmap {
     pub fn edges(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
         self.graph.edges().map(|e| (e.0 as usize, e.1 as usize))
     }
+
+    /// The same nodes with each edge direction costing what `cost(from, to, length_m)` says, in
+    /// metres, and without the directions it answers `None` for: a policy-aware roadmap
+    /// (PRM-RL), whose edges are the ones a controller was seen to drive. A cost below the
+    /// length counts as the length, so A*'s straight-line heuristic stays admissible. Queries
+    /// on it should not densify (`QueryOptions::no_densify`): new edges would be undriven.
+    ///
+    /// # Errors
+    /// None in practice: the nodes are the ones this roadmap was built on.
+    pub fn reweighted(
+        &self,
+        mut cost: impl FnMut(usize, usize, f64) -> Option<f64>,
+    ) -> Result<Roadmap, BuildError> {
+        let res = self.cspace.resolution();
+        let n = self.graph.node_count();
+        let mut graph = Csr {
+            offsets: Vec::with_capacity(n + 1),
+            ..Csr::default()
+        };
+        graph.offsets.push(0);
+        for u in 0..n {
+            let slots = self.graph.offsets[u] as usize..self.graph.offsets[u + 1] as usize;
+            for slot in slots {
+                let v = self.graph.targets[slot];
+                let w = self.graph.weights[slot];
+                if let Some(c) = cost(u, v as usize, w * res) {
+                    graph.targets.push(v);
+                    graph.weights.push((c / res).max(w));
+                    graph.min_dist.push(self.graph.min_dist[slot]);
+                }
+            }
+            #[allow(
+                clippy::cast_possible_truncation,
+                reason = "a subset of the original slots, whose count fits in u32"
+            )]
+            graph.offsets.push(graph.targets.len() as u32);
+        }
+        let component = components(&graph.symmetric_closure());
+        Ok(Roadmap {
+            cspace: Arc::clone(&self.cspace),
+            params: self.params.clone(),
+            nodes: self.nodes.clone(),
+            component,
+            tree: kd_tree(&self.nodes)?,
+            stats: BuildStats {
+                edges: graph.edges().count(),
+                ..self.stats.clone()
+            },
+            graph,
+        })
+    }
 }
 
 /// A k-d tree over node positions (grid units).

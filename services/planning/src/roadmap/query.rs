@@ -103,7 +103,8 @@ impl Roadmap {
                 let pts = self.points(&path.nodes, &self.nodes, gs, gg);
                 let mins = segment_mins(&self.graph, &path.nodes);
                 let expanded = expanded + search.expanded;
-                return Some(self.plan(&pts, &mins, path.length, 0, expanded));
+                // The path's length, not its cost: a reweighted roadmap's weights are costs.
+                return Some(self.plan(&pts, &mins, polyline_cells(&pts), 0, expanded));
             }
             gl.retain(|l| l.0 != last);
             if gl.is_empty() {
@@ -253,4 +254,9 @@ impl Roadmap {
             expanded,
         }
     }
+}
+
+/// Length of a polyline in grid units.
+pub(super) fn polyline_cells(pts: &[[f64; 2]]) -> f64 {
+    pts.windows(2).map(|w| dist(w[0], w[1])).sum()
 }

@@ -95,6 +95,44 @@ pub struct PlanOptions {
     pub noise: bool,
     /// Keep every n-th pose of the simulated trajectory in the report (default 1: all; 0: none).
     pub trajectory_stride: u32,
+    /// Which roadmap the policy plans on: `auto` (default: the policy-aware roadmap of this
+    /// floor state and policy once it is built, else the geometric one; the report says which),
+    /// `policy` (only the policy-aware one: 409 while it is being built, or when no kept edge
+    /// joins a leg) or `geometric`.
+    pub roadmap: RoadmapChoice,
+}
+
+/// Which roadmap the policy plans on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RoadmapChoice {
+    /// The policy-aware roadmap when it exists, else the geometric one.
+    #[default]
+    Auto,
+    /// Only the policy-aware roadmap.
+    Policy,
+    /// Only the geometric roadmap.
+    Geometric,
+}
+
+impl From<RoadmapChoice> for rehearsal::RoadmapChoice {
+    fn from(c: RoadmapChoice) -> Self {
+        match c {
+            RoadmapChoice::Auto => rehearsal::RoadmapChoice::Auto,
+            RoadmapChoice::Policy => rehearsal::RoadmapChoice::Policy,
+            RoadmapChoice::Geometric => rehearsal::RoadmapChoice::Geometric,
+        }
+    }
+}
+
+impl From<rehearsal::RoadmapChoice> for RoadmapChoice {
+    fn from(c: rehearsal::RoadmapChoice) -> Self {
+        match c {
+            rehearsal::RoadmapChoice::Auto => RoadmapChoice::Auto,
+            rehearsal::RoadmapChoice::Policy => RoadmapChoice::Policy,
+            rehearsal::RoadmapChoice::Geometric => RoadmapChoice::Geometric,
+        }
+    }
 }
 
 impl Default for PlanOptions {
@@ -116,6 +154,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             seed,
             noise,
             trajectory_stride,
+            roadmap,
         } = o;
         Self {
             max_attempts,
@@ -127,6 +166,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             seed,
             noise,
             trajectory_stride,
+            roadmap: roadmap.into(),
         }
     }
 }
@@ -143,6 +183,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             seed,
             noise,
             trajectory_stride,
+            roadmap,
         } = o;
         Self {
             max_attempts,
@@ -154,6 +195,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             seed,
             noise,
             trajectory_stride,
+            roadmap: roadmap.into(),
         }
     }
 }
@@ -227,8 +269,12 @@ impl From<rehearsal::AttemptOutcome> for AttemptOutcome {
 /// One simulated run of the plan on one roadmap.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct AttemptReport {
-    /// 1-based.
+    /// 1-based, per leg and controller.
     pub attempt: u32,
+    /// The leg this attempt drove: 0 from the start to goal 0, `i` from goal `i - 1` to goal `i`.
+    pub leg: usize,
+    /// The controller that drove it.
+    pub controller: ControllerKind,
     /// Seed of the roadmap this attempt planned on.
     pub roadmap_seed: u64,
     /// How it ended.
@@ -243,9 +289,9 @@ pub struct AttemptReport {
     pub min_clearance_m: f64,
     /// Times the waypoint timer ran out and the planner replanned.
     pub replans: u32,
-    /// Waypoints reached.
+    /// Waypoints reached in the plan so far (earlier legs' validating runs included).
     pub waypoints_reached: usize,
-    /// Goals reached.
+    /// Goals reached in the plan so far.
     pub goals_reached: usize,
     /// Length of the roadmap path planned at the start of the attempt, metres.
     pub prm_path_length_m: f64,
@@ -257,6 +303,8 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
     fn from(a: rehearsal::AttemptReport) -> Self {
         let rehearsal::AttemptReport {
             attempt,
+            leg,
+            controller,
             roadmap_seed,
             outcome,
             reason,
@@ -271,6 +319,8 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
         } = a;
         Self {
             attempt,
+            leg,
+            controller: controller.into(),
             roadmap_seed,
             outcome: outcome.into(),
             reason,
@@ -294,27 +344,31 @@ pub struct PlanReport {
     pub waypoints: Vec<Point>,
     /// Index into `waypoints` of each goal.
     pub goal_indices: Vec<usize>,
-    /// The controller that drove the simulated robot.
+    /// The controller the plan was asked of: the policy when the robot has one. Each leg says
+    /// which controller validated it (`legs`).
     pub controller: ControllerKind,
     /// What that controller is (a policy's training summary or the follower's rule).
     pub controller_description: String,
-    /// Every attempt, the successful last one included.
+    /// Each leg as validated, in order: with the policy, or with the classical follower where
+    /// no attempt with the policy validated it (a plan is never worse than the follower's).
+    pub legs: Vec<LegReport>,
+    /// Every attempt of every leg, each leg's validating one included.
     pub attempts: Vec<AttemptReport>,
-    /// Simulated time of the validating run, seconds.
+    /// Simulated time of the validating runs of every leg, seconds.
     pub simulated_time_s: f64,
-    /// Distance driven in the validating run, metres.
+    /// Distance driven in the validating runs, metres.
     pub distance_m: f64,
-    /// Smallest footprint clearance in the validating run, metres.
+    /// Smallest footprint clearance in the validating runs, metres.
     pub min_clearance_m: f64,
-    /// Length of the roadmap path of the validating run as first planned, metres.
+    /// Length of the roadmap path of each leg's validating run as first planned, summed, metres.
     pub prm_path_length_m: f64,
     /// Length of the returned waypoint polyline from the start, metres.
     pub waypoint_path_length_m: f64,
-    /// Replans in the validating run.
+    /// Replans in the validating runs.
     pub replans: u32,
-    /// Poses of the validating run (every `trajectory_stride`-th, and the last).
+    /// Poses of the validating runs, leg after leg (every `trajectory_stride`-th, and the last).
     pub trajectory: Vec<Pose>,
-    /// The roadmap of the validating run.
+    /// The roadmap of the first leg's validating run.
     pub roadmap: RoadmapInfo,
 }
 
@@ -325,6 +379,7 @@ impl From<rehearsal::PlanReport> for PlanReport {
             goal_indices,
             controller,
             controller_description,
+            legs,
             attempts,
             simulated_time_s,
             distance_m,
@@ -340,6 +395,7 @@ impl From<rehearsal::PlanReport> for PlanReport {
             goal_indices,
             controller: controller.into(),
             controller_description,
+            legs: legs.into_iter().map(Into::into).collect(),
             attempts: attempts.into_iter().map(Into::into).collect(),
             simulated_time_s,
             distance_m,
@@ -349,6 +405,58 @@ impl From<rehearsal::PlanReport> for PlanReport {
             replans,
             trajectory: trajectory.into_iter().map(Into::into).collect(),
             roadmap: roadmap.into(),
+        }
+    }
+}
+
+/// One leg of a validated plan: from the start (leg 0) or the previous goal to goal
+/// `goal_index`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct LegReport {
+    /// The goal this leg ends at.
+    pub goal_index: usize,
+    /// The controller whose run validated the leg: `classical` when the policy validated it in
+    /// no attempt.
+    pub controller: ControllerKind,
+    /// The roadmap the validating run planned on.
+    pub roadmap: RoadmapKind,
+    /// Attempts spent on the leg, every controller's, the validating one included.
+    pub attempts: usize,
+    /// Seed of the roadmap of the validating run.
+    pub roadmap_seed: u64,
+    /// Simulated time of the validating run, seconds.
+    pub simulated_time_s: f64,
+    /// Distance driven in the validating run, metres.
+    pub distance_m: f64,
+    /// Smallest footprint clearance in the validating run, metres.
+    pub min_clearance_m: f64,
+    /// Replans in the validating run.
+    pub replans: u32,
+}
+
+impl From<rehearsal::LegReport> for LegReport {
+    fn from(l: rehearsal::LegReport) -> Self {
+        let rehearsal::LegReport {
+            goal_index,
+            controller,
+            roadmap,
+            attempts,
+            roadmap_seed,
+            simulated_time_s,
+            distance_m,
+            min_clearance_m,
+            replans,
+        } = l;
+        Self {
+            goal_index,
+            controller: controller.into(),
+            roadmap: roadmap.into(),
+            attempts,
+            roadmap_seed,
+            simulated_time_s,
+            distance_m,
+            min_clearance_m,
+            replans,
         }
     }
 }
@@ -366,6 +474,28 @@ pub struct RoadmapInfo {
     pub inflation_m: f64,
     /// Whether the roadmap came from the cache.
     pub cached: bool,
+    /// `geometric`, or `policy` (edges the policy was seen to drive).
+    pub kind: RoadmapKind,
+}
+
+/// Which roadmap a run planned on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RoadmapKind {
+    /// The PRM built from free space alone.
+    Geometric,
+    /// The geometric roadmap's edges the policy drove in the mental simulation, weighted by
+    /// length and risk (PRM-RL).
+    Policy,
+}
+
+impl From<rehearsal::RoadmapKind> for RoadmapKind {
+    fn from(k: rehearsal::RoadmapKind) -> Self {
+        match k {
+            rehearsal::RoadmapKind::Geometric => RoadmapKind::Geometric,
+            rehearsal::RoadmapKind::Policy => RoadmapKind::Policy,
+        }
+    }
 }
 
 impl From<rehearsal::RoadmapInfo> for RoadmapInfo {
@@ -376,6 +506,7 @@ impl From<rehearsal::RoadmapInfo> for RoadmapInfo {
             seed,
             inflation_m,
             cached,
+            kind,
         } = r;
         Self {
             samples,
@@ -383,6 +514,7 @@ impl From<rehearsal::RoadmapInfo> for RoadmapInfo {
             seed,
             inflation_m,
             cached,
+            kind: kind.into(),
         }
     }
 }

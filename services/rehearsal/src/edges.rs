@@ -1,0 +1,331 @@
+//! Roadmap edges driven by a controller in the mental simulation, as PRM-RL (Faust et al. 2018)
+//! decides which edges exist: every edge, in both directions, `rollouts` times, from the way the
+//! executor would arrive at its start. The result is the honest measure of a policy on a
+//! building (its per-edge success rate and the edges it cannot drive), and the weights of a
+//! policy-aware roadmap ([`EdgeReport::cost`]).
+//!
+//! How a rollout starts: at the edge's first node, at rest, heading as a robot arriving over
+//! one of the node's other edges would (rollout `k` takes the `k`-th of them in turn; a node
+//! with no other edge heads along the edge itself). Edges longer than the executor's longest
+//! straight stretch get the executor's intermediate waypoints, and each waypoint the
+//! executor's timer; no replanning (a rollout measures the edge, not the planner). Sensor and
+//! actuation noise as in a validation, seeded per (edge, direction, rollout), so a report is
+//! reproducible. Directed edges run in parallel on rayon's pool.
+
+use std::sync::Arc;
+
+use grid::seed::mix;
+use learning::Policy;
+use planning::{Point2, Roadmap};
+use rayon::prelude::*;
+use sim::{Pose2, World};
+
+use crate::controller::{Controller, PolicyController};
+use crate::error::{PlanError, invalid};
+use crate::executor::{DriveLimits, drive, env_config};
+use crate::types::AttemptOutcome;
+
+/// Most rollouts per edge and direction one request may ask for.
+pub const MAX_ROLLOUTS: u32 = 1000;
+
+/// How edges are driven and judged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgeRolloutParams {
+    /// Rollouts per edge and direction (PRM-RL's Monte Carlo estimate; default 10).
+    pub rollouts: u32,
+    /// Success rate an edge direction needs to be kept (default 0.9).
+    pub keep_threshold: f64,
+    /// The waypoint timer, simulated seconds (the executor's default, 15).
+    pub waypoint_timeout_s: f64,
+    /// Noise on observations and commands, as in a validation (default true).
+    pub noise: bool,
+    /// Seed of the rollouts' noise.
+    pub seed: u64,
+}
+
+impl Default for EdgeRolloutParams {
+    fn default() -> Self {
+        Self {
+            rollouts: 10,
+            keep_threshold: 0.9,
+            waypoint_timeout_s: 15.0,
+            noise: true,
+            seed: 0,
+        }
+    }
+}
+
+impl EdgeRolloutParams {
+    /// The parameters, or which one is out of range.
+    pub fn validate(&self) -> Result<(), PlanError> {
+        if !(1..=MAX_ROLLOUTS).contains(&self.rollouts) {
+            return Err(invalid(
+                "rollouts",
+                format!("must lie in [1, {MAX_ROLLOUTS}], got {}", self.rollouts),
+            ));
+        }
+        if !(self.keep_threshold.is_finite() && (0.0..=1.0).contains(&self.keep_threshold)) {
+            return Err(invalid(
+                "keep_threshold",
+                format!("must lie in [0, 1], got {}", self.keep_threshold),
+            ));
+        }
+        if !(self.waypoint_timeout_s.is_finite()
+            && self.waypoint_timeout_s > 0.0
+            && self.waypoint_timeout_s <= crate::executor::MAX_WAYPOINT_TIMEOUT_S)
+        {
+            return Err(invalid(
+                "waypoint_timeout_s",
+                format!(
+                    "must lie in (0, {}] simulated seconds, got {}",
+                    crate::executor::MAX_WAYPOINT_TIMEOUT_S,
+                    self.waypoint_timeout_s
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One edge direction as driven.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgeStat {
+    /// Node the rollouts started at (an index of `Roadmap::nodes`).
+    pub from: usize,
+    /// Node they drove to.
+    pub to: usize,
+    /// Straight-line length, metres.
+    pub length_m: f64,
+    /// Rollouts that reached `to` without a collision.
+    pub successes: u32,
+    /// Rollouts that ended in a collision.
+    pub collisions: u32,
+    /// Rollouts driven.
+    pub rollouts: u32,
+    /// Mean simulated time of the successful rollouts, seconds.
+    pub mean_time_s: Option<f64>,
+    /// Smallest footprint clearance over all rollouts, metres.
+    pub min_clearance_m: f64,
+}
+
+impl EdgeStat {
+    /// Share of rollouts that succeeded.
+    pub fn success_rate(&self) -> f64 {
+        if self.rollouts == 0 {
+            0.0
+        } else {
+            f64::from(self.successes) / f64::from(self.rollouts)
+        }
+    }
+
+    /// The success probability with a uniform prior (Laplace's rule: (s + 1) / (n + 2)), so an
+    /// edge that never failed in 10 rollouts is not certain, and one never tried is a coin.
+    pub fn success_estimate(&self) -> f64 {
+        (f64::from(self.successes) + 1.0) / (f64::from(self.rollouts) + 2.0)
+    }
+}
+
+/// Every edge direction of a roadmap driven by one controller.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgeReport {
+    /// Both directions of every roadmap edge, in `Roadmap::edges` order (forward, then back).
+    pub edges: Vec<EdgeStat>,
+    /// The parameters they were driven with.
+    pub params: EdgeRolloutParams,
+    /// Simulated control steps over all rollouts.
+    pub steps: u64,
+}
+
+impl EdgeReport {
+    /// Successful rollouts over all rollouts: the per-edge success rate of the controller.
+    pub fn edge_success_rate(&self) -> f64 {
+        let (s, n) = self.edges.iter().fold((0u64, 0u64), |(s, n), e| {
+            (s + u64::from(e.successes), n + u64::from(e.rollouts))
+        });
+        if n == 0 { 0.0 } else { s as f64 / n as f64 }
+    }
+
+    /// Edge directions whose success rate reaches the keep threshold.
+    pub fn kept(&self) -> impl Iterator<Item = &EdgeStat> + '_ {
+        self.edges
+            .iter()
+            .filter(|e| e.success_rate() >= self.params.keep_threshold)
+    }
+
+    /// Edge directions below the threshold: the ones the controller cannot drive.
+    pub fn dropped(&self) -> impl Iterator<Item = &EdgeStat> + '_ {
+        self.edges
+            .iter()
+            .filter(|e| e.success_rate() < self.params.keep_threshold)
+    }
+
+    /// Mean simulated time per successful edge rollout, seconds.
+    pub fn mean_edge_time_s(&self) -> Option<f64> {
+        let (t, n) = self
+            .edges
+            .iter()
+            .filter_map(|e| {
+                e.mean_time_s
+                    .map(|t| (t * f64::from(e.successes), e.successes))
+            })
+            .fold((0.0, 0u64), |(t, n), (et, es)| (t + et, n + u64::from(es)));
+        (n > 0).then(|| t / n as f64)
+    }
+
+    /// The cost of driving `from` → `to` on a policy-aware roadmap, metres: the edge's length
+    /// plus `risk_m` per unit of `-ln p` (p its estimated success probability), so the search
+    /// prefers the route the controller most likely finishes and pays `risk_m · ln 2` metres of
+    /// detour to halve a route's risk of failing. `None` for a direction below the keep
+    /// threshold, or one not in the report.
+    pub fn cost(&self, from: usize, to: usize, risk_m: f64) -> Option<f64> {
+        let e = self.edges.iter().find(|e| e.from == from && e.to == to)?;
+        (e.success_rate() >= self.params.keep_threshold)
+            .then(|| e.length_m + risk_m * -e.success_estimate().ln())
+    }
+}
+
+/// Drives both directions of every edge of `roadmap` with the controllers `make` returns (one
+/// per worker thread; each is attached to `world` first), as the module docs describe.
+pub fn drive_edges<C, F>(
+    world: &Arc<World>,
+    roadmap: &Roadmap,
+    make: F,
+    params: &EdgeRolloutParams,
+) -> Result<EdgeReport, PlanError>
+where
+    C: Controller,
+    F: Fn() -> C + Sync + Send,
+{
+    params.validate()?;
+    let nodes: Vec<Point2> = roadmap.nodes().collect();
+    let undirected: Vec<(usize, usize)> = roadmap.edges().collect();
+    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+    for &(a, b) in &undirected {
+        neighbours[a].push(b);
+        neighbours[b].push(a);
+    }
+    let directed: Vec<(usize, usize)> = undirected
+        .iter()
+        .flat_map(|&(a, b)| [(a, b), (b, a)])
+        .collect();
+    let probe = make();
+    let beams = probe.beams().unwrap_or(sim::EnvConfig::default().beams);
+    if world.spec().robot.laser.beam_angles(beams).is_none() {
+        return Err(invalid(
+            "policy",
+            format!(
+                "the controller reads {beams} laser beams but the robot's laser cannot give them"
+            ),
+        ));
+    }
+    let mut env = env_config(beams, params.noise);
+    env.record_trajectory = false;
+    if let Some(t) = probe.goal_tolerance() {
+        env.goal_tolerance = t;
+    }
+    drop(probe);
+    let max_segment_m = (0.5 * env.limits.linear_max * params.waypoint_timeout_s).max(0.5);
+    let results: Result<Vec<(EdgeStat, u64)>, PlanError> = directed
+        .par_iter()
+        .map_init(
+            || {
+                let mut c = make();
+                c.attach(world, beams);
+                c
+            },
+            |controller, &(a, b)| {
+                let (pa, pb) = (nodes[a], nodes[b]);
+                let waypoints = crate::executor::subdivide(pa, vec![pb], max_segment_m);
+                let others: Vec<usize> =
+                    neighbours[a].iter().copied().filter(|&w| w != b).collect();
+                let mut stat = EdgeStat {
+                    from: a,
+                    to: b,
+                    length_m: pa.distance(pb),
+                    successes: 0,
+                    collisions: 0,
+                    rollouts: params.rollouts,
+                    mean_time_s: None,
+                    min_clearance_m: f64::INFINITY,
+                };
+                let mut time_sum = 0.0;
+                let mut steps = 0u64;
+                for k in 0..params.rollouts {
+                    let yaw = if others.is_empty() {
+                        (pb.y - pa.y).atan2(pb.x - pa.x)
+                    } else {
+                        let w = nodes[others[k as usize % others.len()]];
+                        (pa.y - w.y).atan2(pa.x - w.x)
+                    };
+                    controller.start_attempt(k + 1);
+                    let edge_key = ((a as u64) << 32) | (b as u64 & 0xffff_ffff);
+                    let run = drive(
+                        world,
+                        &env,
+                        Pose2::new(pa.x, pa.y, yaw),
+                        std::slice::from_ref(&waypoints),
+                        controller,
+                        DriveLimits {
+                            waypoint_timeout_s: params.waypoint_timeout_s,
+                            max_replans: 0,
+                            sim_seed: mix(mix(params.seed, edge_key), u64::from(k)),
+                        },
+                        None,
+                    )?;
+                    #[allow(
+                        clippy::cast_possible_truncation,
+                        clippy::cast_sign_loss,
+                        reason = "simulated time over a positive control period: a small count"
+                    )]
+                    {
+                        steps += (run.time_s / env.control_period).round() as u64;
+                    }
+                    stat.min_clearance_m = stat.min_clearance_m.min(run.min_clearance_m);
+                    match run.outcome {
+                        AttemptOutcome::Reached => {
+                            stat.successes += 1;
+                            time_sum += run.time_s;
+                        }
+                        AttemptOutcome::Collision => stat.collisions += 1,
+                        AttemptOutcome::Stalled => {}
+                    }
+                }
+                stat.mean_time_s =
+                    (stat.successes > 0).then(|| time_sum / f64::from(stat.successes));
+                Ok((stat, steps))
+            },
+        )
+        .collect();
+    let results = results?;
+    let steps = results.iter().map(|r| r.1).sum();
+    Ok(EdgeReport {
+        edges: results.into_iter().map(|r| r.0).collect(),
+        params: *params,
+        steps,
+    })
+}
+
+/// Metres of detour a policy-aware roadmap's search pays per unit of `-ln p` of an edge
+/// ([`EdgeReport::cost`]): about 7 m to halve a route's risk of failing.
+pub const RISK_M: f64 = 10.0;
+
+/// The policy-aware roadmap of `roadmap` (PRM-RL): every edge driven by the shielded `policy`
+/// as [`drive_edges`] does, the directions below the keep threshold removed, the others
+/// weighted by length and risk ([`RISK_M`]). Plan on it with `QueryOptions::no_densify`.
+pub fn policy_roadmap(
+    world: &Arc<World>,
+    roadmap: &Roadmap,
+    policy: &Arc<Policy>,
+    params: &EdgeRolloutParams,
+) -> Result<(Arc<Roadmap>, EdgeReport), PlanError> {
+    let report = drive_edges(
+        world,
+        roadmap,
+        || PolicyController::new(Arc::clone(policy)),
+        params,
+    )?;
+    let reweighted = roadmap
+        .reweighted(|a, b, _| report.cost(a, b, RISK_M))
+        .map_err(|e| PlanError::Map(e.to_string()))?;
+    Ok((Arc::new(reweighted), report))
+}
