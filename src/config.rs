@@ -242,7 +242,11 @@ impl Config {
             figment = figment.merge(Toml::file_exact(file));
         }
         figment = figment
-            .merge(Env::prefixed("MENTALSIM_").filter(|key| !NOT_KEYS.contains(&key.as_str())))
+            .merge(Env::prefixed("MENTALSIM_").filter(|key| {
+                !NOT_KEYS
+                    .iter()
+                    .any(|k| key.as_str().eq_ignore_ascii_case(k))
+            }))
             .merge(Serialized::defaults(overrides).profile(figment::Profile::Default));
         Ok(figment)
     }
