@@ -55,15 +55,41 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.missions.len(), 1, "{:?}", report.skipped);
     let m = &report.missions[0];
     assert!(!m.full_length && m.prm_length_m > 5.0, "{m:?}");
-    // Six methods (both hybrids twice, pure RL, classical), two runs each.
-    assert_eq!(report.rows.len(), 12);
+    // Nine methods (the policy-aware roadmap, the shielded and unshielded hybrids, each first
+    // attempt and re-tried; the plan endpoint; pure RL; classical), two runs each.
+    assert_eq!(report.rows.len(), 18);
+    for method in bench::navigation::METHODS {
+        assert_eq!(
+            report.rows.iter().filter(|r| r.method == method).count(),
+            2,
+            "{method}"
+        );
+    }
+    // The plan endpoint is never worse than the classical follower.
+    let successes = |m: &str| {
+        report
+            .rows
+            .iter()
+            .filter(|r| r.method == m && r.success)
+            .count()
+    };
+    assert!(successes("plan_endpoint") >= successes("classical_prm"));
+    // The policy on the map's roadmap edges, with what building the roadmap cost.
+    assert_eq!(report.edges.len(), 1);
+    let e = &report.edges[0];
+    assert!(
+        e.directions > 0 && e.kept <= e.directions && e.build_s > 0.0,
+        "{e:?}"
+    );
+    assert!((0.0..=1.0).contains(&e.edge_success_rate));
+    assert!(report.markdown.contains("The policy on the roadmap edges"));
     let csv = std::fs::read_to_string(&report.csv_path).expect("csv");
     let mut lines = csv.lines();
     assert_eq!(
         lines.next(),
         Some("method,map,run,success,distance_m,time_s")
     );
-    assert_eq!(lines.count(), 12);
+    assert_eq!(lines.count(), 18);
     // The classical follower on the roadmap path reaches the goal.
     assert!(
         report
