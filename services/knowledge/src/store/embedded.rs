@@ -125,26 +125,7 @@ impl EmbeddedStore {
         graph: &GraphName,
         quads: &[Quad],
     ) -> Result<bool, StoreError> {
-        let storage = |e| self.storage(e);
-        let mut transaction = self.store.start_transaction().map_err(storage)?;
-        let created = match graph {
-            GraphName::NamedNode(g) => {
-                let existed = transaction.contains_named_graph(g).map_err(storage)?;
-                if existed {
-                    transaction.clear_graph(g).map_err(storage)?;
-                } else {
-                    transaction.insert_named_graph(g);
-                }
-                !existed
-            }
-            GraphName::DefaultGraph | GraphName::BlankNode(_) => {
-                transaction.clear_graph(graph.as_ref()).map_err(storage)?;
-                false
-            }
-        };
-        transaction.extend(quads);
-        transaction.commit().map_err(storage)?;
-        Ok(created)
+        self.write_graph(graph, quads, true)
     }
 
     /// Adds `quads` to `graph`, creating it if needed, in one transaction; returns whether it
@@ -154,16 +135,32 @@ impl EmbeddedStore {
         graph: &GraphName,
         quads: &[Quad],
     ) -> Result<bool, StoreError> {
+        self.write_graph(graph, quads, false)
+    }
+
+    /// Writes `quads` into `graph` in one transaction, emptying it first when `replace`, and
+    /// creating a named graph that does not exist; returns whether one was created.
+    fn write_graph(
+        &self,
+        graph: &GraphName,
+        quads: &[Quad],
+        replace: bool,
+    ) -> Result<bool, StoreError> {
         let storage = |e| self.storage(e);
         let mut transaction = self.store.start_transaction().map_err(storage)?;
         let created = match graph {
             GraphName::NamedNode(g) => {
                 let existed = transaction.contains_named_graph(g).map_err(storage)?;
-                transaction.insert_named_graph(g);
+                if !existed {
+                    transaction.insert_named_graph(g);
+                }
                 !existed
             }
             GraphName::DefaultGraph | GraphName::BlankNode(_) => false,
         };
+        if replace {
+            transaction.clear_graph(graph.as_ref()).map_err(storage)?;
+        }
         transaction.extend(quads);
         transaction.commit().map_err(storage)?;
         Ok(created)

@@ -9,6 +9,20 @@ use super::{EXTENT_TOLERANCE, Reader};
 use crate::model::{Colour, Physical, Pose3, Shape, Symbol};
 use crate::vocab as v;
 
+/// The XSD integer datatypes a count or a number may be written in.
+const INTEGER_TYPES: &[NamedNodeRef<'static>] = &[
+    xsd::INTEGER,
+    xsd::INT,
+    xsd::LONG,
+    xsd::SHORT,
+    xsd::NON_NEGATIVE_INTEGER,
+    xsd::POSITIVE_INTEGER,
+    xsd::NON_POSITIVE_INTEGER,
+    xsd::NEGATIVE_INTEGER,
+    xsd::UNSIGNED_INT,
+    xsd::UNSIGNED_LONG,
+];
+
 impl<'g> Reader<'g> {
     pub(super) fn objects(&self, s: &str, p: NamedNodeRef<'_>) -> Vec<TermRef<'g>> {
         let mut v: Vec<TermRef<'g>> = self
@@ -68,22 +82,11 @@ impl<'g> Reader<'g> {
 
     pub(super) fn number(&mut self, s: &str, p: NamedNodeRef<'_>, required: bool) -> Option<f64> {
         let (value, datatype) = self.literal(s, p, required)?;
-        let numeric = [
-            xsd::DECIMAL,
-            xsd::DOUBLE,
-            xsd::FLOAT,
-            xsd::INTEGER,
-            xsd::INT,
-            xsd::LONG,
-            xsd::SHORT,
-            xsd::NON_NEGATIVE_INTEGER,
-            xsd::POSITIVE_INTEGER,
-            xsd::NON_POSITIVE_INTEGER,
-            xsd::NEGATIVE_INTEGER,
-            xsd::UNSIGNED_INT,
-            xsd::UNSIGNED_LONG,
-        ];
-        let parsed = if numeric.iter().any(|d| d.as_str() == datatype) {
+        let numeric = [xsd::DECIMAL, xsd::DOUBLE, xsd::FLOAT]
+            .iter()
+            .chain(INTEGER_TYPES)
+            .any(|d| d.as_str() == datatype);
+        let parsed = if numeric {
             value.trim().parse::<f64>().ok()
         } else {
             None
@@ -147,19 +150,7 @@ impl<'g> Reader<'g> {
 
     pub(super) fn integer(&mut self, s: &str, p: NamedNodeRef<'_>, required: bool) -> Option<i64> {
         let (value, datatype) = self.literal(s, p, required)?;
-        let integer_types = [
-            xsd::INTEGER,
-            xsd::INT,
-            xsd::LONG,
-            xsd::SHORT,
-            xsd::NON_NEGATIVE_INTEGER,
-            xsd::POSITIVE_INTEGER,
-            xsd::NON_POSITIVE_INTEGER,
-            xsd::NEGATIVE_INTEGER,
-            xsd::UNSIGNED_INT,
-            xsd::UNSIGNED_LONG,
-        ];
-        let parsed = if integer_types.iter().any(|d| d.as_str() == datatype) {
+        let parsed = if INTEGER_TYPES.iter().any(|d| d.as_str() == datatype) {
             value.trim().trim_start_matches('+').parse::<i64>().ok()
         } else {
             None
