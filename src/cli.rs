@@ -230,6 +230,25 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 0.1)]
         safety_margin_m: f64,
     },
+    /// Per-edge success of policies on every roadmap edge of every map under a directory (both
+    /// directions, K rollouts each), the classical follower beside them with the same seeds
+    Edges {
+        /// Directory searched recursively for ROS map_server YAML files.
+        #[arg(long, default_value = "../shared/maps/ros")]
+        maps: PathBuf,
+        /// An exported policy (repeatable: several side by side).
+        #[arg(long = "policy")]
+        policies: Vec<PathBuf>,
+        /// Rollouts per edge direction.
+        #[arg(long, default_value_t = 10)]
+        rollouts: u32,
+        /// Seed of the roadmaps and rollouts.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        /// Where edges.csv and edges.md go.
+        #[arg(long, default_value = "bench-out/edges")]
+        out: PathBuf,
+    },
     /// POST /v1/plan latency of a running service under C concurrent robot clients.
     PlanLoad {
         /// The service's URL.
@@ -265,6 +284,9 @@ pub enum BenchCommand {
         /// Batch size.
         #[arg(long, default_value_t = 256)]
         batch_size: usize,
+        /// Hidden layer widths of actor and critics, comma-separated (the `fast` preset: 64,64).
+        #[arg(long, value_delimiter = ',', default_value = "256,256")]
+        hidden: Vec<usize>,
         /// Skip Stable-Baselines3.
         #[arg(long)]
         no_sb3: bool,
@@ -678,6 +700,22 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        BenchCommand::Edges {
+            maps,
+            policies,
+            rollouts,
+            seed,
+            out,
+        } => {
+            let md = crate::train::bench_edges(&maps, &policies, rollouts, seed, &out)?;
+            println!("{md}");
+            println!(
+                "wrote {} and {}",
+                out.join("edges.csv").display(),
+                out.join("edges.md").display()
+            );
+            Ok(())
+        }
         BenchCommand::PlanLoad {
             url,
             token,
@@ -705,12 +743,17 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             steps,
             threads,
             batch_size,
+            hidden,
             no_sb3,
         } => {
+            if hidden.is_empty() || hidden.contains(&0) {
+                anyhow::bail!("--hidden: at least one layer, no zero width");
+            }
             let options = bench::learner::LearnerBenchOptions {
                 steps,
                 threads,
                 batch_size,
+                hidden,
                 python: (!no_sb3).then(venv_python),
                 ..Default::default()
             };

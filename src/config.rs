@@ -436,7 +436,17 @@ impl Config {
             .unwrap_or_else(|| self.data_dir.join("policies"))
     }
 
-    /// Where training checkpoints go.
+    /// Where policy-aware roadmaps are stored: beside the policies, so that every process that
+    /// sees the policies sees them.
+    pub fn roadmaps_dir(&self) -> PathBuf {
+        let policies = self.policies_dir();
+        policies.parent().map_or_else(
+            || self.data_dir.join("policy-roadmaps"),
+            |p| p.join("policy-roadmaps"),
+        )
+    }
+
+    /// Where running trainings keep their checkpoints.
     pub fn checkpoints_dir(&self) -> PathBuf {
         self.checkpoints_dir
             .clone()

@@ -69,6 +69,8 @@ impl Components {
             knowledge: Arc::new(InProcessKnowledge::new(knowledge.clone())),
             checkpoints_dir: config.checkpoints_dir(),
             policies: PolicyStore::new(config.policies_dir()),
+            roadmaps: Arc::new(rehearsal::RoadmapCache::default()),
+            policy_roadmaps: worker::jobs::RoadmapStore::new(config.roadmaps_dir()),
             validator: Some(Arc::new(worker::plan_api::ExecutorValidator::new(
                 PolicyStore::new(config.policies_dir()),
             ))),

@@ -45,13 +45,22 @@ pub fn load_world(map: &Path, objects: usize, seed: u64) -> anyhow::Result<Arc<W
 /// What `mentalsim train` was asked.
 #[derive(Debug, clap::Args)]
 pub struct TrainArgs {
-    /// The ROS map_server YAML of the place to train in (and evaluate on).
+    /// A ROS map_server YAML to train in and evaluate on. Without it the held-out evaluation
+    /// runs on a generated floor training never saw (or, with `--generated 0`, on the first
+    /// map of `--maps`).
     #[arg(long)]
-    pub map: PathBuf,
-    /// Further maps whose simulations share the training environments (repeatable): one policy
-    /// for several buildings. Evaluation stays on `--map`.
+    pub map: Option<PathBuf>,
+    /// A directory of maps to train in: every map_server YAML under it, searched recursively
+    /// (repeatable).
+    #[arg(long = "maps", value_name = "DIR")]
+    pub maps_dirs: Vec<PathBuf>,
+    /// Further maps to train in (repeatable).
     #[arg(long = "extra-map")]
     pub extra_maps: Vec<PathBuf>,
+    /// Procedurally generated floors to train in (rooms, corridors, doors, narrow passages,
+    /// clutter), written to `OUT/floors/` as map_server files.
+    #[arg(long, default_value_t = 24)]
+    pub generated: usize,
     /// Wall-clock budget in minutes (counting earlier sessions of a resumed run).
     #[arg(long, default_value_t = 10.0)]
     pub minutes: f64,
@@ -134,17 +143,59 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<TrainSummary
         anyhow::bail!("--eval-episodes must be at least 1");
     }
     let config = train_config(args)?;
-    let world = load_world(&args.map, 0, config.seed)?;
-    let extra_worlds = args
-        .extra_maps
+    for map in args.map.iter().chain(&args.extra_maps) {
+        if !map.is_file() {
+            anyhow::bail!(
+                "the map {} does not exist (give a ROS map_server YAML file)",
+                map.display()
+            );
+        }
+    }
+    let mut train_maps = Vec::new();
+    for dir in &args.maps_dirs {
+        if !dir.is_dir() {
+            anyhow::bail!("--maps {} is not a directory", dir.display());
+        }
+        let found = bench::maps::find_yamls(dir)?;
+        if found.is_empty() {
+            anyhow::bail!("--maps {}: no map_server YAML under it", dir.display());
+        }
+        train_maps.extend(found);
+    }
+    train_maps.extend(args.extra_maps.iter().cloned());
+    // Generated floors: `generated` to train in, and one more that training never sees.
+    let floors = if args.generated > 0 {
+        write_floors(&args.out.join("floors"), args.generated + 1, config.seed)?
+    } else {
+        Vec::new()
+    };
+    let (eval_map, hold_out) = match (&args.map, floors.split_last()) {
+        (Some(map), _) => (map.clone(), false),
+        (None, Some((held_out, _))) => (held_out.clone(), true),
+        (None, None) => match train_maps.first() {
+            Some(first) => (first.clone(), false),
+            None => anyhow::bail!(
+                "nothing to train in: give --map, --maps DIR or --generated N (N > 0)"
+            ),
+        },
+    };
+    if let Some((_, trained)) = floors.split_last() {
+        train_maps.extend(trained.iter().cloned());
+    }
+    if !hold_out {
+        train_maps.retain(|m| *m != eval_map);
+    }
+    let world = load_world(&eval_map, 0, config.seed)?;
+    let extra_worlds = train_maps
         .iter()
         .map(|m| load_world(m, 0, config.seed))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let run = TrainRun {
         world,
         extra_worlds,
-        map: args.map.clone(),
-        extra_maps: args.extra_maps.clone(),
+        hold_out,
+        map: eval_map,
+        extra_maps: train_maps,
         config,
         out: args.out.clone(),
         minutes: args.minutes,
@@ -189,6 +240,27 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<TrainSummary
     let summary = learning::run::run(run, &mut on_progress);
     bar.finish_and_clear();
     Ok(summary?)
+}
+
+/// Writes `count` generated floors (`floor_000.png` + `.yaml`, …) into `dir`, the same ones
+/// for the same seed; returns their YAML paths.
+pub fn write_floors(dir: &Path, count: usize, seed: u64) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let params = sim::FloorParams::default();
+    (0..count)
+        .map(|i| {
+            let grid = sim::generate_floor(&params, sim::env_seed(seed ^ 0x0066_6c6f_6f72, i));
+            let image = format!("floor_{i:03}.png");
+            let meta = tosm::RosMapMeta::for_grid_png(&image, grid.resolution, grid.origin);
+            let png = grid.try_to_png()?;
+            std::fs::write(dir.join(&image), png)
+                .with_context(|| format!("cannot write {}", dir.join(&image).display()))?;
+            let yaml = dir.join(format!("floor_{i:03}.yaml"));
+            std::fs::write(&yaml, meta.to_yaml())
+                .with_context(|| format!("cannot write {}", yaml.display()))?;
+            Ok(yaml)
+        })
+        .collect()
 }
 
 /// Which held-out goals the headline figures of `eval.json` are about.
@@ -284,14 +356,9 @@ pub enum EvalGoals {
     Edges,
 }
 
-/// The policy on every edge of the map's geometric roadmap (n* samples, the plan endpoint's
-/// safety margin), as the policy-aware roadmap drives them.
-fn edge_eval(
-    world: &Arc<World>,
-    policy: &Policy,
-    seed: u64,
-    rollouts: u32,
-) -> anyhow::Result<serde_json::Map<String, serde_json::Value>> {
+/// The geometric roadmap of `world` the plan endpoint's first attempt uses (n* samples, its
+/// default safety margin), seeded with `seed`.
+fn eval_roadmap(world: &Arc<World>, seed: u64) -> anyhow::Result<Arc<planning::Roadmap>> {
     let cache = rehearsal::RoadmapCache::default();
     let opts = rehearsal::PlanOptions::default();
     let space = rehearsal::config_space(world, &cache, "eval", opts.safety_margin_m)
@@ -304,16 +371,63 @@ fn edge_eval(
     let (roadmap, _) = cache
         .roadmap("eval", &space, &params)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(roadmap)
+}
+
+/// Every edge of `roadmap`, both directions, driven `rollouts` times by the shielded `policy`
+/// (or by the classical follower when `None`), as the policy-aware roadmap drives them;
+/// returns the report and the wall-clock seconds.
+fn drive_roadmap(
+    world: &Arc<World>,
+    roadmap: &planning::Roadmap,
+    policy: Option<&Arc<Policy>>,
+    seed: u64,
+    rollouts: u32,
+) -> anyhow::Result<(rehearsal::EdgeReport, f64)> {
+    let params = rehearsal::EdgeRolloutParams {
+        rollouts,
+        seed,
+        ..rehearsal::EdgeRolloutParams::default()
+    };
+    let t = std::time::Instant::now();
+    let report = match policy {
+        Some(p) => rehearsal::drive_edges(
+            world,
+            roadmap,
+            || rehearsal::PolicyController::new(Arc::clone(p)),
+            &params,
+        ),
+        None => rehearsal::drive_edges(
+            world,
+            roadmap,
+            rehearsal::ClassicalFollower::default,
+            &params,
+        ),
+    }
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((report, t.elapsed().as_secs_f64()))
+}
+
+/// The policy on every edge of the map's geometric roadmap (n* samples, the plan endpoint's
+/// safety margin), as the policy-aware roadmap drives them, and the classical follower on the
+/// same edges with the same seeds beside it.
+fn edge_eval(
+    world: &Arc<World>,
+    policy: &Policy,
+    seed: u64,
+    rollouts: u32,
+) -> anyhow::Result<serde_json::Map<String, serde_json::Value>> {
+    let roadmap = eval_roadmap(world, seed)?;
     let rollout = rehearsal::EdgeRolloutParams {
         rollouts,
         seed,
         ..rehearsal::EdgeRolloutParams::default()
     };
     let policy = Arc::new(policy.clone());
-    let t = std::time::Instant::now();
-    let (_, report) = rehearsal::policy_roadmap(world, &roadmap, &policy, &rollout)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let wall_s = t.elapsed().as_secs_f64();
+    let (report, wall_s) = drive_roadmap(world, &roadmap, Some(&policy), seed, rollouts)?;
+    // The classical follower on the same edges, same rollouts and seeds: the baseline the
+    // policy must beat (time) and match (success).
+    let (follower, _) = drive_roadmap(world, &roadmap, None, seed, rollouts)?;
     let undirected = report.edges.len() / 2;
     // An edge is kept when the policy drives it in both directions.
     let kept = report
@@ -354,6 +468,23 @@ fn edge_eval(
             "mean_edge_time_s",
             serde_json::json!(report.mean_edge_time_s()),
         ),
+        (
+            "edge_near_miss_rate",
+            serde_json::json!(report.near_miss_rate()),
+        ),
+        (
+            "follower_edge_success_rate",
+            serde_json::json!(follower.edge_success_rate()),
+        ),
+        (
+            "follower_mean_edge_time_s",
+            serde_json::json!(follower.mean_edge_time_s()),
+        ),
+        (
+            "follower_edge_near_miss_rate",
+            serde_json::json!(follower.near_miss_rate()),
+        ),
+        ("near_miss_m", serde_json::json!(rehearsal::NEAR_MISS_M)),
         ("edge_rollouts", serde_json::json!(rollouts)),
         (
             "edge_keep_threshold",
@@ -367,4 +498,173 @@ fn edge_eval(
         out.insert(k.to_owned(), v);
     }
     Ok(out)
+}
+
+/// One row of `bench edges`: a controller on every roadmap edge of one map.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct EdgeBenchRow {
+    /// The map's short name.
+    pub map: String,
+    /// `follower`, or the policy directory's name.
+    pub controller: String,
+    /// Edge directions driven.
+    pub edge_directions: usize,
+    /// Rollouts per direction.
+    pub rollouts: u32,
+    /// Successful rollouts.
+    pub successes: u64,
+    /// Rollouts that ended in a collision (the rest of the failures ran out of time).
+    pub collisions: u64,
+    /// Share of rollouts that arrived.
+    pub edge_success_rate: f64,
+    /// Edge directions driven in at least 90% of rollouts.
+    pub kept: usize,
+    /// Mean simulated time of the arrivals, seconds.
+    pub mean_edge_time_s: Option<f64>,
+    /// Share of rollouts closer than 10 cm to an obstacle.
+    pub near_miss_rate: f64,
+    /// Wall-clock seconds of the rollouts.
+    pub wall_s: f64,
+}
+
+/// `mentalsim bench edges`: every policy and the classical follower on every roadmap edge of
+/// every map under `maps` (both directions, `rollouts` each, same seeds for all), per map and
+/// pooled; writes `edges.csv` and `edges.md` into `out` and returns the markdown.
+pub fn bench_edges(
+    maps: &Path,
+    policies: &[PathBuf],
+    rollouts: u32,
+    seed: u64,
+    out: &Path,
+) -> anyhow::Result<String> {
+    if rollouts == 0 {
+        anyhow::bail!("--rollouts must be at least 1");
+    }
+    let yamls = bench::maps::find_yamls(maps)
+        .with_context(|| format!("cannot list the maps under {}", maps.display()))?;
+    if yamls.is_empty() {
+        anyhow::bail!("no map_server YAML under {}", maps.display());
+    }
+    let loaded: Vec<(String, Arc<Policy>)> = policies
+        .iter()
+        .map(|dir| {
+            let name = dir.file_name().map_or_else(
+                || dir.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            Policy::load(dir)
+                .map(|p| (name, Arc::new(p)))
+                .with_context(|| format!("cannot load the policy in {}", dir.display()))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mut rows = Vec::new();
+    for yaml in &yamls {
+        let map = learning::run::map_name(yaml);
+        let world = load_world(yaml, 0, seed)?;
+        let roadmap = eval_roadmap(&world, seed)?;
+        let mut controllers: Vec<(String, Option<&Arc<Policy>>)> =
+            loaded.iter().map(|(n, p)| (n.clone(), Some(p))).collect();
+        controllers.push(("follower".into(), None));
+        for (name, policy) in controllers {
+            let (report, wall_s) = drive_roadmap(&world, &roadmap, policy, seed, rollouts)?;
+            let row = EdgeBenchRow {
+                map: map.clone(),
+                controller: name,
+                edge_directions: report.edges.len(),
+                rollouts,
+                successes: report.edges.iter().map(|e| u64::from(e.successes)).sum(),
+                collisions: report.edges.iter().map(|e| u64::from(e.collisions)).sum(),
+                edge_success_rate: report.edge_success_rate(),
+                kept: report.kept().count(),
+                mean_edge_time_s: report.mean_edge_time_s(),
+                near_miss_rate: report.near_miss_rate(),
+                wall_s,
+            };
+            eprintln!(
+                "{:<28} {:<16} edges {:>5} success {:>6.2}% time {:>5.2} s near misses {:>5.1}%",
+                row.map,
+                row.controller,
+                row.edge_directions,
+                row.edge_success_rate * 100.0,
+                row.mean_edge_time_s.unwrap_or(f64::NAN),
+                row.near_miss_rate * 100.0
+            );
+            rows.push(row);
+        }
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut csv = String::from(
+        "map,controller,edge_directions,rollouts,successes,collisions,edge_success_rate,kept,mean_edge_time_s,near_miss_rate,wall_s\n",
+    );
+    for r in &rows {
+        csv.push_str(&format!(
+            "{},{},{},{},{},{},{:.5},{},{},{:.5},{:.2}\n",
+            r.map,
+            r.controller,
+            r.edge_directions,
+            r.rollouts,
+            r.successes,
+            r.collisions,
+            r.edge_success_rate,
+            r.kept,
+            r.mean_edge_time_s
+                .map_or(String::new(), |t| format!("{t:.3}")),
+            r.near_miss_rate,
+            r.wall_s
+        ));
+    }
+    std::fs::write(out.join("edges.csv"), csv)?;
+    // Pooled over maps: rollouts weighted equally; times weighted by arrivals.
+    let mut names: Vec<String> = loaded.iter().map(|(n, _)| n.clone()).collect();
+    names.push("follower".into());
+    let mut md = format!(
+        "# Every roadmap edge, both directions, {rollouts} rollouts each (seed {seed})\n\n| map | controller | edge directions | success | collided | kept (≥ 90%) | mean edge time (s) | near misses (< 10 cm) |\n|---|---|---:|---:|---:|---:|---:|---:|\n"
+    );
+    for r in &rows {
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.2}% | {:.2}% | {} | {} | {:.1}% |\n",
+            r.map,
+            r.controller,
+            r.edge_directions,
+            r.edge_success_rate * 100.0,
+            r.collisions as f64 * 100.0
+                / (r.edge_directions as f64 * f64::from(r.rollouts)).max(1.0),
+            r.kept,
+            r.mean_edge_time_s.map_or("–".into(), |t| format!("{t:.2}")),
+            r.near_miss_rate * 100.0
+        ));
+    }
+    md.push_str("\n## Pooled over the maps\n\n| controller | rollouts | success | collided | mean edge time (s) | near misses | maps at ≥ 99.5% |\n|---|---:|---:|---:|---:|---:|---:|\n");
+    for name in &names {
+        let mine: Vec<&EdgeBenchRow> = rows.iter().filter(|r| &r.controller == name).collect();
+        let n: u64 = mine
+            .iter()
+            .map(|r| (r.edge_directions as u64) * u64::from(r.rollouts))
+            .sum();
+        let s: u64 = mine.iter().map(|r| r.successes).sum();
+        let collided: u64 = mine.iter().map(|r| r.collisions).sum();
+        let t: f64 = mine
+            .iter()
+            .filter_map(|r| r.mean_edge_time_s.map(|t| t * r.successes as f64))
+            .sum();
+        let near: f64 = mine
+            .iter()
+            .map(|r| r.near_miss_rate * (r.edge_directions as f64) * f64::from(r.rollouts))
+            .sum();
+        let good = mine.iter().filter(|r| r.edge_success_rate >= 0.995).count();
+        let rate = |x: f64| if n == 0 { 0.0 } else { x / n as f64 };
+        md.push_str(&format!(
+            "| {} | {} | {:.3}% | {:.3}% | {:.2} | {:.2}% | {}/{} |\n",
+            name,
+            n,
+            rate(s as f64) * 100.0,
+            rate(collided as f64) * 100.0,
+            if s == 0 { f64::NAN } else { t / s as f64 },
+            rate(near) * 100.0,
+            good,
+            mine.len()
+        ));
+    }
+    std::fs::write(out.join("edges.md"), &md)?;
+    Ok(md)
 }

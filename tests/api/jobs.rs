@@ -23,6 +23,9 @@ fn tiny_train(minutes: f64) -> Value {
                 "envs": 2,
                 "buffer_capacity": 20000,
                 "random_steps": 100,
+                "demo_steps": 500,
+                "bc_steps": 100,
+                "critic_warmup_steps": 100,
                 "eval_every": 1000000,
                 "eval_episodes": 3,
                 "checkpoint_every_s": 1.0
@@ -415,6 +418,21 @@ async fn bad_jobs_are_refused_with_distinct_errors_naming_what_is_wrong() {
             json!({"kind": "evaluate", "payload": {"policy": "missing", "place": "F0"}}),
             404,
             &["policy"],
+        ),
+        (
+            json!({"kind": "roadmap", "payload": {"policy": "missing", "place": "F0"}}),
+            404,
+            &["policy", "missing"],
+        ),
+        (
+            json!({"kind": "roadmap", "payload": {"policy": "missing", "place": "F0", "rollouts": 0}}),
+            422,
+            &["rollouts"],
+        ),
+        (
+            json!({"kind": "roadmap", "payload": {"policy": "missing", "place": "F0", "keep_threshold": 1.5}}),
+            422,
+            &["keep_threshold"],
         ),
         (
             json!({"kind": "validate", "payload": {"robot": "R-001", "place": "F0"}}),

@@ -321,11 +321,14 @@ async fn a_policy_exported_again_replaces_the_loaded_one() {
     app.stop().await;
 }
 
-/// A policy-aware roadmap (PRM-RL) is built in the background the first time a plan with a
-/// policy asks for it: `policy` answers 409 until it exists, `auto` plans on the geometric
-/// roadmap meanwhile, and both plan on it once built; the report says which roadmap.
-#[tokio::test]
-async fn the_policy_aware_roadmap_is_built_in_the_background_and_then_used() {
+/// A policy-aware roadmap (PRM-RL) is built by a durable `roadmap` job, enqueued the first time
+/// a plan with a policy asks for a floor state that has none: `policy` answers 409 naming the
+/// job until it is stored, `auto` plans on the geometric roadmap meanwhile, and both plan on it
+/// once built; the report says which roadmap. A floor that changes is a new state: its old
+/// roadmap is never served for it, and a new one is built. Jobs for unknown policies or floors
+/// are refused at submission.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_policy_aware_roadmap_is_built_by_a_job_and_then_used() {
     let app = spawn_app().await;
     let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
     let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
@@ -340,41 +343,102 @@ async fn the_policy_aware_roadmap_is_built_in_the_background_and_then_used() {
             "options": {"seed": 3, "trajectory_stride": 0, "roadmap": roadmap}
         })
     };
-    // Geometric only: no build is started by it.
+    let roadmap_jobs = || async {
+        app.request(Method::GET, "/v1/jobs?kind=roadmap&limit=50")
+            .send()
+            .await
+            .unwrap()
+            .json::<Vec<Value>>()
+            .await
+            .unwrap()
+    };
+    // Geometric only: no job is started by it.
     let (status, body) = plan(&app, &request("geometric")).await;
     assert_eq!(status, 200, "{body}");
     assert_eq!(body["roadmap"]["kind"], "geometric", "{body}");
     assert_eq!(body["legs"][0]["roadmap"], "geometric", "{body}");
+    assert!(roadmap_jobs().await.is_empty());
 
-    // The first `policy` request starts the build and is refused while it runs.
+    // The first `policy` request enqueues the job and is refused until it has run.
     let (status, body) = plan(&app, &request("policy")).await;
     assert_eq!(status, 409, "{body}");
-    assert!(
-        body["error"]["message"]
-            .as_str()
-            .unwrap()
-            .contains("being built"),
-        "{body}"
-    );
-    // `auto` meanwhile plans on the geometric roadmap (or on the policy-aware one if done).
+    let message = body["error"]["message"].as_str().unwrap().to_owned();
+    assert!(message.contains("`roadmap` job"), "{body}");
+    // `auto` meanwhile plans on the geometric roadmap (or on the policy-aware one if done),
+    // and does not enqueue a second job.
     let (status, body) = plan(&app, &request("auto")).await;
     assert_eq!(status, 200, "{body}");
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
-    let body = loop {
-        let (status, body) = plan(&app, &request("policy")).await;
-        if status == 200 {
-            break body;
+    let wait_for_policy_roadmap = || async {
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(180);
+        loop {
+            let (status, body) = plan(&app, &request("policy")).await;
+            if status == 200 {
+                break body;
+            }
+            assert_eq!(status, 409, "{body}");
+            assert!(std::time::Instant::now() < deadline, "never built: {body}");
+            tokio::time::sleep(std::time::Duration::from_millis(300)).await;
         }
-        assert_eq!(status, 409, "{body}");
-        assert!(std::time::Instant::now() < deadline, "never built: {body}");
-        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
     };
+    let body = wait_for_policy_roadmap().await;
     assert_eq!(body["roadmap"]["kind"], "policy", "{body}");
     assert_eq!(body["legs"][0]["roadmap"], "policy", "{body}");
     assert_eq!(body["legs"][0]["controller"], "policy", "{body}");
     let (status, body) = plan(&app, &request("auto")).await;
     assert_eq!(status, 200, "{body}");
     assert_eq!(body["roadmap"]["kind"], "policy", "{body}");
+    let jobs = roadmap_jobs().await;
+    assert_eq!(jobs.len(), 1, "one job for one floor state: {jobs:#?}");
+    assert_eq!(jobs[0]["state"], "succeeded", "{:#}", jobs[0]);
+    let result = &jobs[0]["result"];
+    assert!(
+        result["edge_success_rate"].as_f64().unwrap() > 0.0,
+        "{result}"
+    );
+    assert!(result["edge_directions"].as_u64().unwrap() >= 2, "{result}");
+    // Persisted: a file in the store beside the policies.
+    let stored = app.data_dir.join("policy-roadmaps");
+    assert_eq!(std::fs::read_dir(&stored).unwrap().count(), 1);
+
+    // The floor changes (an object is reported): the stored roadmap is for the old state and
+    // is not served; a second job builds the new state's.
+    app.report_box(
+        "F0",
+        "crate-1",
+        free_near(&app, centroid(&app, "F0-storage").await).await,
+        0.4,
+    )
+    .await;
+    let (status, body) = plan(&app, &request("policy")).await;
+    assert_eq!(status, 409, "the old state's roadmap was served: {body}");
+    let body = wait_for_policy_roadmap().await;
+    assert_eq!(body["roadmap"]["kind"], "policy", "{body}");
+    assert_eq!(roadmap_jobs().await.len(), 2);
+    assert_eq!(std::fs::read_dir(&stored).unwrap().count(), 2);
+
+    // Submitted by hand: unknown policies and floors are refused at once.
+    for (payload, status, word) in [
+        (
+            json!({"policy": "nope", "place": "F0", "robot": "R-001"}),
+            404,
+            "nope",
+        ),
+        (
+            json!({"policy": "seeker", "place": "F9", "robot": "R-001"}),
+            404,
+            "F9",
+        ),
+    ] {
+        let r = app
+            .request(Method::POST, "/v1/jobs")
+            .json(&json!({"kind": "roadmap", "payload": payload}))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status().as_u16(), status);
+        let body: Value = r.json().await.unwrap();
+        assert!(body.to_string().contains(word), "{body}");
+    }
 
     // A choice that does not exist is named.
     let (status, body) = plan(&app, &request("fastest")).await;

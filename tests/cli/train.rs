@@ -174,10 +174,109 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
     assert_eq!(g["success_rate"], e["success_rate"]);
 }
 
+/// Many buildings by default: generated floors (one held out for the evaluation) and every map
+/// under `--maps`, searched recursively.
+#[test]
+fn train_spreads_over_a_directory_of_maps_and_generated_floors() {
+    let Some(map) = shared_map("strands_tum_kitchen", "tum_kitchen.yaml") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let maps = dir.path().join("maps").join("nested").join("kitchen");
+    std::fs::create_dir_all(&maps).unwrap();
+    for file in ["tum_kitchen.yaml", "tum_kitchen.pgm"] {
+        std::fs::copy(map.with_file_name(file), maps.join(file)).unwrap();
+    }
+    let out = dir.path().join("run");
+    let config = dir.path().join("config.json");
+    std::fs::write(
+        &config,
+        r#"{"td3": {"hidden": [32, 32], "batch_size": 64}, "envs": 4, "demo_steps": 2000,
+            "bc_steps": 50, "eval_every": 400, "eval_episodes": 5, "max_episode_steps": 100}"#,
+    )
+    .unwrap();
+    let output = mentalsim()
+        .args([
+            "train",
+            "--minutes",
+            "0.05",
+            "--eval-episodes",
+            "5",
+            "--generated",
+            "2",
+        ])
+        .arg("--maps")
+        .arg(dir.path().join("maps"))
+        .arg("--out")
+        .arg(&out)
+        .arg("--config")
+        .arg(&config)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let eval = json(&out.join("eval.json"));
+    let trained: Vec<&str> = eval["extra_maps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m.as_str().unwrap())
+        .collect();
+    assert_eq!(trained.len(), 3, "{eval}");
+    assert!(
+        trained[0].ends_with("nested/kitchen/tum_kitchen.yaml"),
+        "{trained:?}"
+    );
+    assert!(trained[1].ends_with("floors/floor_000.yaml"), "{trained:?}");
+    // The held-out evaluation ran on a generated floor training never saw.
+    let held_out = eval["map"].as_str().unwrap();
+    assert!(held_out.ends_with("floors/floor_002.yaml"), "{eval}");
+    assert!(!trained.contains(&held_out));
+    for i in 0..3 {
+        for ext in ["png", "yaml"] {
+            assert!(out.join(format!("floors/floor_00{i}.{ext}")).is_file());
+        }
+    }
+    // The same seed generates the same floors.
+    let again = dir.path().join("again");
+    let output = mentalsim()
+        .args([
+            "train",
+            "--minutes",
+            "0.01",
+            "--eval-episodes",
+            "1",
+            "--generated",
+            "2",
+        ])
+        .arg("--out")
+        .arg(&again)
+        .arg("--config")
+        .arg(&config)
+        .output()
+        .unwrap();
+    assert!(output.status.success());
+    assert_eq!(
+        std::fs::read(out.join("floors/floor_001.png")).unwrap(),
+        std::fs::read(again.join("floors/floor_001.png")).unwrap()
+    );
+}
+
 #[test]
 fn train_and_eval_refuse_bad_input_naming_it() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 8] = [
+        (
+            &["train", "--maps", "/nonexistent/maps", "--out"],
+            "not a directory",
+        ),
+        (
+            &["train", "--generated", "0", "--out"],
+            "nothing to train in",
+        ),
         (
             &["train", "--map", "/nonexistent/map.yaml", "--out"],
             "does not exist",

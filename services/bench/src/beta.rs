@@ -202,6 +202,7 @@ fn train_one(
     let run = TrainRun {
         world: load_world(options, seed)?,
         extra_worlds: Vec::new(),
+        hold_out: false,
         map: options.map.clone(),
         extra_maps: Vec::new(),
         config,

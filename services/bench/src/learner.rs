@@ -106,6 +106,7 @@ pub fn run_learner_bench(opts: &LearnerBenchOptions) -> Result<LearnerBenchRepor
         buffer.push(
             &s,
             a,
+            a,
             rng.random::<f32>() - 0.5,
             &s2,
             rng.random::<f32>() < 0.02,

@@ -156,6 +156,16 @@ impl Scaling {
             angular: f64::from(output[1].clamp(-1.0, 1.0) * self.angular_max),
         }
     }
+
+    /// The network output that [`Scaling::command`] turns into `action` (clamped to the
+    /// limits): how a demonstrator's command is written in the actor's units.
+    #[allow(clippy::cast_possible_truncation, reason = "network outputs are f32")]
+    pub fn output_of(&self, action: Action) -> [f32; ACTION_DIM] {
+        [
+            ((action.linear / f64::from(self.linear_max)) as f32).clamp(0.0, 1.0),
+            ((action.angular / f64::from(self.angular_max)) as f32).clamp(-1.0, 1.0),
+        ]
+    }
 }
 
 #[cfg(test)]
@@ -212,5 +222,7 @@ mod tests {
         assert!((a.linear - 0.8).abs() < 1e-6 && (a.angular + 0.5).abs() < 1e-6);
         let a = s.command([2.0, 0.5]);
         assert!((a.linear - 0.8).abs() < 1e-6 && (a.angular - 0.25).abs() < 1e-6);
+        assert_eq!(s.output_of(a), [1.0, 0.5]);
+        assert_eq!(s.output_of(Action::new(-1.0, 9.0)), [0.0, 1.0]);
     }
 }

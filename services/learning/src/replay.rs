@@ -1,5 +1,7 @@
 //! The experience buffer of Algorithm 1 (line 6): a ring of transitions in flat `f32` arrays,
-//! sampled uniformly, and saved with a checkpoint so a resumed run keeps its experience.
+//! sampled uniformly, and saved with a checkpoint so a resumed run keeps its experience. Each
+//! transition also keeps the demonstrator's action in its state (the classical follower's, for
+//! the behaviour-cloning term of TD3+BC).
 
 use std::path::Path;
 
@@ -8,7 +10,7 @@ use rand::Rng;
 use crate::observation::ACTION_DIM;
 use crate::policy::{PolicyError, le_bytes, write_atomic};
 
-/// Transitions `(s, a, r, s', d)`.
+/// Transitions `(s, a, r, s', d)` and the demonstrator's action `a*` in `s`.
 #[derive(Clone, Debug)]
 pub struct ReplayBuffer {
     obs_dim: usize,
@@ -17,6 +19,7 @@ pub struct ReplayBuffer {
     next: usize,
     obs: Vec<f32>,
     actions: Vec<f32>,
+    experts: Vec<f32>,
     rewards: Vec<f32>,
     next_obs: Vec<f32>,
     dones: Vec<f32>,
@@ -31,6 +34,8 @@ pub struct Batch {
     pub obs: Vec<f32>,
     /// `size × 2`.
     pub actions: Vec<f32>,
+    /// `size × 2`: what the demonstrator would have done in `obs`.
+    pub experts: Vec<f32>,
     /// `size`.
     pub rewards: Vec<f32>,
     /// `size × obs_dim`.
@@ -49,6 +54,7 @@ impl ReplayBuffer {
             next: 0,
             obs: Vec::new(),
             actions: Vec::new(),
+            experts: Vec::new(),
             rewards: Vec::new(),
             next_obs: Vec::new(),
             dones: Vec::new(),
@@ -70,6 +76,7 @@ impl ReplayBuffer {
         &mut self,
         obs: &[f32],
         action: [f32; ACTION_DIM],
+        expert: [f32; ACTION_DIM],
         reward: f32,
         next_obs: &[f32],
         done: bool,
@@ -80,6 +87,7 @@ impl ReplayBuffer {
         if self.len < self.capacity {
             self.obs.extend_from_slice(obs);
             self.actions.extend_from_slice(&action);
+            self.experts.extend_from_slice(&expert);
             self.rewards.push(reward);
             self.next_obs.extend_from_slice(next_obs);
             self.dones.push(d);
@@ -89,6 +97,7 @@ impl ReplayBuffer {
             let od = self.obs_dim;
             self.obs[i * od..(i + 1) * od].copy_from_slice(obs);
             self.actions[i * ACTION_DIM..(i + 1) * ACTION_DIM].copy_from_slice(&action);
+            self.experts[i * ACTION_DIM..(i + 1) * ACTION_DIM].copy_from_slice(&expert);
             self.rewards[i] = reward;
             self.next_obs[i * od..(i + 1) * od].copy_from_slice(next_obs);
             self.dones[i] = d;
@@ -103,6 +112,7 @@ impl ReplayBuffer {
         batch.size = 0;
         batch.obs.clear();
         batch.actions.clear();
+        batch.experts.clear();
         batch.rewards.clear();
         batch.next_obs.clear();
         batch.dones.clear();
@@ -116,6 +126,9 @@ impl ReplayBuffer {
             batch
                 .actions
                 .extend_from_slice(&self.actions[i * ACTION_DIM..(i + 1) * ACTION_DIM]);
+            batch
+                .experts
+                .extend_from_slice(&self.experts[i * ACTION_DIM..(i + 1) * ACTION_DIM]);
             batch.rewards.push(self.rewards[i]);
             batch
                 .next_obs
@@ -127,12 +140,17 @@ impl ReplayBuffer {
     /// Writes the buffer to `path` (safetensors, with the ring position in its metadata).
     pub fn save(&self, path: &Path) -> Result<(), PolicyError> {
         let od = self.obs_dim;
-        let arrays: [(&str, Vec<usize>, Vec<u8>); 5] = [
+        let arrays: [(&str, Vec<usize>, Vec<u8>); 6] = [
             ("obs", vec![self.len, od], le_bytes(&self.obs)),
             (
                 "actions",
                 vec![self.len, ACTION_DIM],
                 le_bytes(&self.actions),
+            ),
+            (
+                "experts",
+                vec![self.len, ACTION_DIM],
+                le_bytes(&self.experts),
             ),
             ("rewards", vec![self.len], le_bytes(&self.rewards)),
             ("next_obs", vec![self.len, od], le_bytes(&self.next_obs)),
@@ -198,6 +216,7 @@ impl ReplayBuffer {
             next,
             obs: read("obs")?,
             actions: read("actions")?,
+            experts: read("experts")?,
             rewards,
             next_obs: read("next_obs")?,
             dones: read("dones")?,
@@ -205,6 +224,7 @@ impl ReplayBuffer {
         let consistent = buf.obs.len() == len * obs_dim
             && buf.next_obs.len() == len * obs_dim
             && buf.actions.len() == len * ACTION_DIM
+            && buf.experts.len() == len * ACTION_DIM
             && buf.dones.len() == len
             && len <= capacity
             && next < capacity.max(1);
@@ -225,7 +245,14 @@ mod tests {
         let mut b = ReplayBuffer::new(2, 3);
         for i in 0..5 {
             let v = i as f32;
-            b.push(&[v, v], [v, -v], v, &[v + 1.0, v + 1.0], i % 2 == 0);
+            b.push(
+                &[v, v],
+                [v, -v],
+                [-v, v],
+                v,
+                &[v + 1.0, v + 1.0],
+                i % 2 == 0,
+            );
         }
         assert_eq!(b.len(), 3);
         // 0 and 1 were overwritten by 3 and 4.
@@ -239,6 +266,7 @@ mod tests {
         assert_eq!((c.len, c.next, c.capacity), (b.len, b.next, b.capacity));
         assert_eq!(c.obs, b.obs);
         assert_eq!(c.dones, b.dones);
+        assert_eq!(c.experts, b.experts);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let mut batch = Batch::default();
         c.sample_into(&mut rng, 16, &mut batch);
@@ -247,6 +275,10 @@ mod tests {
             (32, 32, 16)
         );
         assert!(batch.rewards.iter().all(|r| [2.0, 3.0, 4.0].contains(r)));
+        // Each row's demonstrator action stays with its transition.
+        for (a, e) in batch.actions.chunks(2).zip(batch.experts.chunks(2)) {
+            assert_eq!((a[0], a[1]), (-e[0], -e[1]));
+        }
         std::fs::write(&path, b"not a buffer").expect("write");
         assert!(ReplayBuffer::load(&path).is_err());
     }

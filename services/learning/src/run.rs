@@ -26,6 +26,8 @@ pub struct TrainRun {
     pub world: Arc<World>,
     /// Further worlds that share the training environments (one policy for several places).
     pub extra_worlds: Vec<Arc<World>>,
+    /// Train in `extra_worlds` only: `world` is held out, seen only by the evaluations.
+    pub hold_out: bool,
     /// The map `world` was built from (recorded in `eval.json` and the policy, and named in
     /// the plot's title).
     pub map: PathBuf,
@@ -127,7 +129,11 @@ pub fn run(
     } else {
         Trainer::new(Arc::clone(&run.world), options)?
     };
-    let mut trainer = trainer.with_extra_worlds(run.extra_worlds.clone())?;
+    let mut trainer = if run.hold_out && !run.extra_worlds.is_empty() {
+        trainer.with_training_worlds(run.extra_worlds.clone())?
+    } else {
+        trainer.with_extra_worlds(run.extra_worlds.clone())?
+    };
     let budget = Budget {
         wall_s: Some(run.minutes * 60.0),
         env_steps: None,

@@ -314,6 +314,16 @@ impl Learner {
     /// One gradient step on `batch` (Algorithm 1, lines 8–17). `rng` draws the target policy
     /// smoothing noise, so the whole step is reproducible from the trainer's random state.
     pub fn update(&mut self, batch: &Batch, rng: &mut ChaCha8Rng) -> UpdateStats {
+        self.step(batch, rng, true)
+    }
+
+    /// A gradient step of the critics alone (the actor and the targets stay): after a warm
+    /// start, so that the critics learn the cloned policy's values before they steer it.
+    pub fn critic_update(&mut self, batch: &Batch, rng: &mut ChaCha8Rng) -> UpdateStats {
+        self.step(batch, rng, false)
+    }
+
+    fn step(&mut self, batch: &Batch, rng: &mut ChaCha8Rng, with_actor: bool) -> UpdateStats {
         let c = &self.config;
         let s = self.tensor(&batch.obs, self.obs_dim);
         let a = self.tensor(&batch.actions, ACTION_DIM);
@@ -358,7 +368,7 @@ impl Learner {
         };
 
         // Lines 13–16: every `policy_delay` steps, the actor ascends Eq. 18 and the targets move.
-        if self.updates.is_multiple_of(u64::from(c.policy_delay)) {
+        if with_actor && self.updates.is_multiple_of(u64::from(c.policy_delay)) {
             for p in &self.critic_params {
                 let _ = p.set_requires_grad(false);
             }
@@ -366,9 +376,22 @@ impl Learner {
             let q = self.q1.forward(&Tensor::cat(&[&s, &pi], 1));
             let linear = pi.narrow(1, 0, 1);
             let angular = pi.narrow(1, 1, 1);
-            let objective = q.mean(Kind::Float)
-                - (linear - 1.0).square().mean(Kind::Float) * (c.beta1 * c.reward_scale)
-                - angular.square().mean(Kind::Float) * (c.beta2 * c.reward_scale);
+            let regulariser = (linear - 1.0).square().mean(Kind::Float)
+                * (c.beta1 * c.reward_scale)
+                + angular.square().mean(Kind::Float) * (c.beta2 * c.reward_scale);
+            let objective = if c.bc_alpha > 0.0 {
+                // TD3+BC (Fujimoto & Gu 2021): λ·Q with λ = α / mean|Q| (so α means the same
+                // whatever the scale of the returns), minus the squared distance to the
+                // demonstrator's action in the same state.
+                let lambda =
+                    c.bc_alpha / (q.abs().mean(Kind::Float).detach().double_value(&[]) + 1e-6);
+                let experts = self.tensor(&batch.experts, ACTION_DIM);
+                q.mean(Kind::Float) * lambda
+                    - (&pi - experts).square().mean(Kind::Float)
+                    - regulariser
+            } else {
+                q.mean(Kind::Float) - regulariser
+            };
             let actor_loss = -objective;
             self.actor_opt.zero_grad();
             actor_loss.backward();
@@ -385,6 +408,30 @@ impl Learner {
             });
         }
         stats
+    }
+
+    /// One behaviour-cloning step of the actor alone: Adam on the mean squared distance between
+    /// its actions and the demonstrator's (`batch.experts`). Returns the loss. Used to warm-start
+    /// a policy from the classical follower before TD3 takes over.
+    pub fn clone_step(&mut self, batch: &Batch) -> f64 {
+        let s = self.tensor(&batch.obs, self.obs_dim);
+        let experts = self.tensor(&batch.experts, ACTION_DIM);
+        let pi = squash(&self.actor.forward(&s));
+        let loss = (pi - experts).square().mean(Kind::Float);
+        self.actor_opt.zero_grad();
+        loss.backward();
+        self.actor_opt.step();
+        loss.double_value(&[])
+    }
+
+    /// Makes the target networks copies of the networks (after a warm start, so that the
+    /// critics' targets use the cloned policy rather than the random initial one).
+    pub fn sync_targets(&mut self) {
+        tch::no_grad(|| {
+            for (t, s) in &mut self.polyak {
+                let _ = t.lerp_(s, 1.0);
+            }
+        });
     }
 
     /// The actor's linear layers as `(weight [out, in] row-major, bias)`, input layer first.

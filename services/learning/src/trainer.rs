@@ -156,6 +156,12 @@ pub struct Counters {
     /// Episodes finished when the curriculum last widened.
     #[serde(default)]
     pub curriculum_mark: u64,
+    /// Whether the behaviour-cloning warm start has run.
+    #[serde(default)]
+    pub warm_started: bool,
+    /// Final loss of the warm start (mean squared action error against the follower).
+    #[serde(default)]
+    pub bc_loss: Option<f64>,
 }
 
 /// A snapshot for progress bars and job progress.
@@ -237,8 +243,12 @@ pub struct Trainer {
     options: TrainOptions,
     env_config: EnvConfig,
     world: Arc<World>,
-    /// Further worlds the environments are spread over (evaluation stays in `world`).
-    extra_worlds: Vec<Arc<World>>,
+    /// The worlds training episodes run in (by default `world` alone; evaluation stays in
+    /// `world`). With more worlds than environments, an environment moves to a world drawn at
+    /// random whenever it starts an episode from rest.
+    train_worlds: Vec<Arc<World>>,
+    /// Episodes started from rest, for the seeds of environments moved to another world.
+    moves: u64,
     learner: Learner,
     buffer: ReplayBuffer,
     envs: Vec<NavEnv>,
@@ -309,8 +319,9 @@ impl Trainer {
             checkpoints_written: 0,
             learner,
             env_config,
+            train_worlds: vec![Arc::clone(&world)],
+            moves: 0,
             world,
-            extra_worlds: Vec::new(),
             options,
         };
         trainer.start_envs()?;
@@ -321,8 +332,20 @@ impl Trainer {
     /// world `i mod (1 + extra.len())`), so that one policy learns several buildings; the
     /// evaluations stay in the run's own world. Not part of the checkpoint: pass the same
     /// worlds again after [`Trainer::resume`].
-    pub fn with_extra_worlds(mut self, extra: Vec<Arc<World>>) -> Result<Trainer, TrainError> {
-        self.extra_worlds = extra;
+    pub fn with_extra_worlds(self, extra: Vec<Arc<World>>) -> Result<Trainer, TrainError> {
+        let mut worlds = vec![Arc::clone(&self.world)];
+        worlds.extend(extra);
+        self.with_training_worlds(worlds)
+    }
+
+    /// Trains in `worlds` only (the run's own world, where evaluations run, is then held out
+    /// unless it is among them). Not part of the checkpoint: pass the same worlds again after
+    /// [`Trainer::resume`].
+    pub fn with_training_worlds(mut self, worlds: Vec<Arc<World>>) -> Result<Trainer, TrainError> {
+        if worlds.is_empty() {
+            return Err(TrainError::Config("no world to train in".into()));
+        }
+        self.train_worlds = worlds;
         self.start_envs()?;
         Ok(self)
     }
@@ -373,13 +396,11 @@ impl Trainer {
         let c = &self.options.config;
         let dim = self.options.scaling.input_len();
         let base = c.seed ^ (u64::from(self.counters.sessions) << 32);
-        let worlds: Vec<&Arc<World>> = std::iter::once(&self.world)
-            .chain(&self.extra_worlds)
-            .collect();
+        let worlds = &self.train_worlds;
         self.envs = (0..c.envs)
             .map(|i| {
                 NavEnv::new(
-                    Arc::clone(worlds[i % worlds.len()]),
+                    Arc::clone(&worlds[i % worlds.len()]),
                     self.env_config.clone(),
                     sim::env_seed(base, i),
                 )
@@ -494,6 +515,8 @@ impl Trainer {
         let n = self.envs.len();
         let mut actions = vec![0.0f32; n * ACTION_DIM];
         let mut next = vec![0.0f32; dim];
+        let mut experts = vec![0.0f32; n * ACTION_DIM];
+        let follower = sim::FollowerParams::default();
         let mut batch = Batch::default();
         loop {
             self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
@@ -510,8 +533,26 @@ impl Trainer {
                     break;
                 }
             }
-            // Algorithm 1, line 4: act (uniformly at random while the buffer warms up).
-            if self.counters.env_steps < c.random_steps {
+            // The demonstrator's action in every environment's state: the classical follower
+            // on the straight segment to the goal (labels for the behaviour-cloning term).
+            for (e, env) in experts.chunks_exact_mut(ACTION_DIM).zip(&self.envs) {
+                e.copy_from_slice(&self.options.scaling.output_of(env.demonstration(&follower)));
+            }
+            let demonstrating = self.counters.env_steps < c.demo_steps;
+            // Algorithm 1, line 4: act (the noisy demonstrator first, when configured, then
+            // uniformly at random while the buffer warms up, then the actor with noise).
+            if demonstrating {
+                #[allow(clippy::cast_possible_truncation, reason = "noise is f32")]
+                for (k, (a, e)) in actions.iter_mut().zip(&experts).enumerate() {
+                    let z: f64 = self.rng.sample(StandardNormal);
+                    let v = e + (z * c.demo_noise) as f32;
+                    *a = if k % 2 == 0 {
+                        v.clamp(0.0, 1.0)
+                    } else {
+                        v.clamp(-1.0, 1.0)
+                    };
+                }
+            } else if self.counters.env_steps < c.demo_steps + c.random_steps {
                 for a in actions.chunks_exact_mut(ACTION_DIM) {
                     a[0] = self.rng.random::<f32>();
                     a[1] = self.rng.random::<f32>() * 2.0 - 1.0;
@@ -543,6 +584,7 @@ impl Trainer {
                 self.buffer.push(
                     &self.inputs[i * dim..(i + 1) * dim],
                     a,
+                    [experts[i * 2], experts[i * 2 + 1]],
                     (r.reward * c.td3.reward_scale) as f32,
                     &next,
                     terminal,
@@ -566,6 +608,7 @@ impl Trainer {
                     let obs = if chain {
                         self.envs[i].continue_random()?
                     } else {
+                        self.move_env(i)?;
                         self.envs[i].reset_random()?
                     };
                     self.options
@@ -575,6 +618,14 @@ impl Trainer {
                     self.inputs[i * dim..(i + 1) * dim].copy_from_slice(&next);
                 }
             }
+            if demonstrating {
+                // No gradient steps while demonstrating: the demonstrations are data for the
+                // warm start, gathered at the simulator's speed.
+                continue;
+            }
+            if !self.counters.warm_started && c.demo_steps > 0 && c.bc_steps > 0 {
+                self.warm_start(&mut batch);
+            }
             // Lines 8–17: gradient steps.
             if self.buffer.len() >= c.td3.batch_size {
                 {
@@ -583,7 +634,13 @@ impl Trainer {
                 while self.counters.update_debt >= 1.0 {
                     self.buffer
                         .sample_into(&mut self.rng, c.td3.batch_size, &mut batch);
-                    let _ = self.learner.update(&batch, &mut self.rng);
+                    if self.counters.grad_steps < c.critic_warmup_steps
+                        && self.counters.warm_started
+                    {
+                        let _ = self.learner.critic_update(&batch, &mut self.rng);
+                    } else {
+                        let _ = self.learner.update(&batch, &mut self.rng);
+                    }
                     self.counters.grad_steps += 1;
                     self.counters.update_debt -= 1.0;
                 }
@@ -603,6 +660,54 @@ impl Trainer {
         self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
         self.checkpoint()?;
         let _ = on_progress(&self.progress(&budget));
+        Ok(())
+    }
+
+    /// The warm start: `bc_steps` behaviour-cloning steps of the actor on the buffer (the
+    /// demonstrations so far), then the targets copied from the networks.
+    fn warm_start(&mut self, batch: &mut Batch) {
+        let c = &self.options.config;
+        let mut loss = None;
+        if self.buffer.len() >= c.td3.batch_size {
+            for _ in 0..c.bc_steps {
+                self.buffer
+                    .sample_into(&mut self.rng, c.td3.batch_size, batch);
+                loss = Some(self.learner.clone_step(batch));
+            }
+            self.learner.sync_targets();
+        }
+        self.counters.bc_loss = loss;
+        self.counters.warm_started = true;
+    }
+
+    /// With more training worlds than environments, moves environment `i` to a world drawn at
+    /// random before it starts an episode from rest.
+    fn move_env(&mut self, i: usize) -> Result<(), TrainError> {
+        let worlds = self.train_worlds.len();
+        if worlds <= self.envs.len() {
+            return Ok(());
+        }
+        let k = self.rng.random_range(0..worlds);
+        if Arc::ptr_eq(self.envs[i].world(), &self.train_worlds[k]) {
+            return Ok(());
+        }
+        self.moves += 1;
+        let base =
+            self.options.config.seed ^ (u64::from(self.counters.sessions) << 32) ^ 0x6d6f_7665;
+        #[allow(
+            clippy::cast_possible_truncation,
+            reason = "a seed index wraps harmlessly"
+        )]
+        let index = (self.moves as usize)
+            .wrapping_mul(self.envs.len())
+            .wrapping_add(i);
+        let mut env = NavEnv::new(
+            Arc::clone(&self.train_worlds[k]),
+            self.env_config.clone(),
+            sim::env_seed(base, index),
+        )?;
+        env.set_goal_distance(self.training_range())?;
+        self.envs[i] = env;
         Ok(())
     }
 

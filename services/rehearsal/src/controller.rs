@@ -2,10 +2,10 @@
 //! pure RL when the "waypoint" is the final goal) or a classical path follower. One trait, so
 //! every method runs through the same executor and is measured the same way.
 
-use std::f64::consts::PI;
 use std::sync::Arc;
 
 use learning::Policy;
+pub use sim::FollowerParams;
 use sim::{Action, Observation, Pose2, World};
 
 use crate::types::ControllerKind;
@@ -289,43 +289,6 @@ impl Shield {
     }
 }
 
-/// Settings of the classical follower.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FollowerParams {
-    /// Top linear speed, m/s (the paper's limit: 0.8).
-    pub linear_max: f64,
-    /// Top angular speed, rad/s (the paper's limit: 0.5).
-    pub angular_max: f64,
-    /// Heading error beyond which the robot turns on the spot, radians.
-    pub rotate_threshold: f64,
-    /// Proportional gain of the steering, (rad/s) per rad of heading error.
-    pub heading_gain: f64,
-    /// Slowest forward speed while driving, m/s.
-    pub linear_min: f64,
-    /// Distance ahead of the robot's projection on the segment that it steers to, metres.
-    pub lookahead_m: f64,
-    /// Within this distance of the waypoint the speed falls in proportion, metres.
-    pub slow_down_m: f64,
-    /// A waypoint is reached within this distance, metres: small, so the robot turns at the
-    /// roadmap's vertices rather than cutting corners by the policy's 0.3 m tolerance.
-    pub tolerance_m: f64,
-}
-
-impl Default for FollowerParams {
-    fn default() -> Self {
-        Self {
-            linear_max: 0.8,
-            angular_max: 0.5,
-            rotate_threshold: 0.35,
-            heading_gain: 2.0,
-            linear_min: 0.1,
-            lookahead_m: 0.4,
-            slow_down_m: 0.8,
-            tolerance_m: 0.05,
-        }
-    }
-}
-
 /// The classical path follower: rotate-then-go along the straight segments between waypoints,
 /// steering to a carrot on the segment (pure pursuit).
 ///
@@ -356,27 +319,10 @@ impl ClassicalFollower {
             to: None,
         }
     }
-
-    /// The point on the current segment the robot steers to.
-    fn carrot(&self, pose: Pose2) -> (f64, f64) {
-        let (Some(a), Some(b)) = (self.from, self.to) else {
-            return (pose.x, pose.y);
-        };
-        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-        let len = dx.hypot(dy);
-        if len < 1e-9 {
-            return b;
-        }
-        let (ux, uy) = (dx / len, dy / len);
-        let t = ((pose.x - a.0) * ux + (pose.y - a.1) * uy).clamp(0.0, len);
-        let s = (t + self.params.lookahead_m).min(len);
-        (a.0 + s * ux, a.1 + s * uy)
-    }
 }
 
 impl Controller for ClassicalFollower {
     fn command(&mut self, _obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
-        let p = self.params;
         if self.to != Some(waypoint) {
             // A new waypoint: the segment starts at the last one when the robot is there, else
             // (first waypoint, replanned path) where the robot stands.
@@ -387,23 +333,8 @@ impl Controller for ClassicalFollower {
             };
             self.to = Some(waypoint);
         }
-        let c = self.carrot(pose);
-        let d = (waypoint.0 - pose.x).hypot(waypoint.1 - pose.y);
-        let target = if (c.0 - pose.x).hypot(c.1 - pose.y) < 1e-6 {
-            waypoint
-        } else {
-            c
-        };
-        let bearing = (target.1 - pose.y).atan2(target.0 - pose.x);
-        let e = wrap(bearing - pose.yaw);
-        let angular = (p.heading_gain * e).clamp(-p.angular_max, p.angular_max);
-        if e.abs() > p.rotate_threshold {
-            return Action::new(0.0, angular);
-        }
-        let share = 1.0 - e.abs() / p.rotate_threshold;
-        let approach = (d / p.slow_down_m).min(1.0);
-        let linear = (p.linear_min + (p.linear_max - p.linear_min) * share) * approach;
-        Action::new(linear.max(p.linear_min.min(d)), angular)
+        let from = self.from.unwrap_or((pose.x, pose.y));
+        sim::follow(&self.params, from, waypoint, pose)
     }
 
     fn kind(&self) -> ControllerKind {
@@ -428,17 +359,6 @@ impl Controller for ClassicalFollower {
     }
 }
 
-/// An angle in (-π, π].
-fn wrap(a: f64) -> f64 {
-    let mut a = a % (2.0 * PI);
-    if a <= -PI {
-        a += 2.0 * PI;
-    } else if a > PI {
-        a -= 2.0 * PI;
-    }
-    a
-}
-
 #[cfg(test)]
 #[allow(
     clippy::cast_possible_truncation,
@@ -448,6 +368,7 @@ fn wrap(a: f64) -> f64 {
 )]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     fn obs() -> Observation {
         Observation {
@@ -579,7 +500,5 @@ mod tests {
         f.command(&obs(), Pose2::new(0.0, 0.0, 0.0), (4.0, 0.0));
         let back = f.command(&obs(), Pose2::new(1.0, 0.1, 0.0), (4.0, 0.0));
         assert!(back.angular < 0.0, "{back:?}");
-        assert!((wrap(3.0 * PI).abs() - PI).abs() < 1e-9);
-        assert!((wrap(-0.5) + 0.5).abs() < 1e-12);
     }
 }

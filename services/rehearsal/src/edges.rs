@@ -106,7 +106,12 @@ pub struct EdgeStat {
     pub mean_time_s: Option<f64>,
     /// Smallest footprint clearance over all rollouts, metres.
     pub min_clearance_m: f64,
+    /// Rollouts whose footprint came within [`NEAR_MISS_M`] of an obstacle (collisions too).
+    pub near_misses: u32,
 }
+
+/// A rollout whose footprint comes closer than this to an obstacle is a near miss, metres.
+pub const NEAR_MISS_M: f64 = 0.10;
 
 impl EdgeStat {
     /// Share of rollouts that succeeded.
@@ -143,6 +148,14 @@ impl EdgeReport {
             (s + u64::from(e.successes), n + u64::from(e.rollouts))
         });
         if n == 0 { 0.0 } else { s as f64 / n as f64 }
+    }
+
+    /// Share of all rollouts that were near misses ([`NEAR_MISS_M`]).
+    pub fn near_miss_rate(&self) -> f64 {
+        let (m, n) = self.edges.iter().fold((0u64, 0u64), |(m, n), e| {
+            (m + u64::from(e.near_misses), n + u64::from(e.rollouts))
+        });
+        if n == 0 { 0.0 } else { m as f64 / n as f64 }
     }
 
     /// Edge directions whose success rate reaches the keep threshold.
@@ -247,6 +260,7 @@ where
                     rollouts: params.rollouts,
                     mean_time_s: None,
                     min_clearance_m: f64::INFINITY,
+                    near_misses: 0,
                 };
                 let mut time_sum = 0.0;
                 let mut steps = 0u64;
@@ -281,6 +295,9 @@ where
                         steps += (run.time_s / env.control_period).round() as u64;
                     }
                     stat.min_clearance_m = stat.min_clearance_m.min(run.min_clearance_m);
+                    if run.min_clearance_m < NEAR_MISS_M {
+                        stat.near_misses += 1;
+                    }
                     match run.outcome {
                         AttemptOutcome::Reached => {
                             stat.successes += 1;
@@ -324,8 +341,16 @@ pub fn policy_roadmap(
         || PolicyController::new(Arc::clone(policy)),
         params,
     )?;
-    let reweighted = roadmap
+    let reweighted = reweight(roadmap, &report)?;
+    Ok((reweighted, report))
+}
+
+/// The policy-aware roadmap of `roadmap` from a report of its edges driven earlier (a stored
+/// one): the directions below the keep threshold removed, the others weighted by length and
+/// risk ([`RISK_M`]).
+pub fn reweight(roadmap: &Roadmap, report: &EdgeReport) -> Result<Arc<Roadmap>, PlanError> {
+    roadmap
         .reweighted(|a, b, _| report.cost(a, b, RISK_M))
-        .map_err(|e| PlanError::Map(e.to_string()))?;
-    Ok((Arc::new(reweighted), report))
+        .map(Arc::new)
+        .map_err(|e| PlanError::Map(e.to_string()))
 }

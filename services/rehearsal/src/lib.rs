@@ -34,7 +34,9 @@ pub mod types;
 
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
 pub use controller::{ClassicalFollower, Controller, FollowerParams, PolicyController, Shield};
-pub use edges::{EdgeReport, EdgeRolloutParams, EdgeStat, drive_edges, policy_roadmap};
+pub use edges::{
+    EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, drive_edges, policy_roadmap, reweight,
+};
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
     DriveLimits, DriveRun, Replanner, config_space, drive, env_config, validate, validate_with,

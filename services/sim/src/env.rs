@@ -304,6 +304,8 @@ pub struct NavEnv {
     rng: ChaCha8Rng,
     pose: Pose2,
     goal: (f64, f64),
+    /// Where the robot stood when it got the current goal (the demonstrator's segment start).
+    goal_from: (f64, f64),
     executed: Action,
     steps: u32,
     distance: f64,
@@ -340,6 +342,7 @@ impl NavEnv {
             rng: ChaCha8Rng::seed_from_u64(seed),
             pose: Pose2::new(0.0, 0.0, 0.0),
             goal: (0.0, 0.0),
+            goal_from: (0.0, 0.0),
             executed: Action::default(),
             steps: 0,
             distance: 0.0,
@@ -383,6 +386,12 @@ impl NavEnv {
     /// The goal.
     pub fn goal(&self) -> (f64, f64) {
         self.goal
+    }
+
+    /// What the classical follower would command now, driving the straight segment from where
+    /// the robot got its goal to the goal ([`crate::follow`]): the demonstrator of training.
+    pub fn demonstration(&self, params: &crate::FollowerParams) -> Action {
+        crate::follow(params, self.goal_from, self.goal, self.pose)
     }
 
     /// Poses of the current episode, when the configuration records them.
@@ -440,6 +449,7 @@ impl NavEnv {
             });
         }
         self.goal = goal;
+        self.goal_from = (self.pose.x, self.pose.y);
         self.distance = (goal.0 - self.pose.x).hypot(goal.1 - self.pose.y);
         self.refresh_field();
         if self.outcome == Outcome::ReachedGoal {
@@ -541,6 +551,7 @@ impl NavEnv {
     fn begin(&mut self, start: Pose2, goal: (f64, f64)) -> Observation {
         self.pose = start;
         self.goal = goal;
+        self.goal_from = (start.x, start.y);
         self.executed = Action::default();
         self.steps = 0;
         self.distance = (goal.0 - start.x).hypot(goal.1 - start.y);

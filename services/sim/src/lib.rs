@@ -27,6 +27,8 @@ pub mod batch;
 pub mod env;
 pub mod export;
 pub mod field;
+pub mod floors;
+pub mod follower;
 pub mod kinematics;
 pub mod library;
 pub mod parse;
@@ -40,6 +42,8 @@ pub use env::{
     StepResult,
 };
 pub use field::PathField;
+pub use floors::{FloorParams, generate_floor};
+pub use follower::{FollowerParams, follow};
 pub use kinematics::{Action, CommandLimits, DiffDrive};
 pub use library::{LibraryModel, Model};
 pub use parse::{parse_floor, parse_on_demand, parse_robot};

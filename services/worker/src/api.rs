@@ -32,9 +32,9 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
 /// The OpenAPI document of the jobs and policies API, generated from the handlers below.
 #[derive(OpenApi)]
 #[openapi(
-    info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate) in a durable queue, their progress as server-sent events, and the policies training exports."),
+    info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
     paths(create_job, list_jobs, get_job, cancel_job, job_events, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan),
-    components(schemas(NewJobRequest, JobView, TrainPayload, EvaluatePayload, ValidatePayload, PolicySummary, ErrorBody, ErrorDetail, crate::plan_api::PlanApiRequest, crate::plan_api::PlanApiResponse)),
+    components(schemas(NewJobRequest, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, crate::plan_api::PlanApiRequest, crate::plan_api::PlanApiResponse)),
     modifiers(&BearerAuth),
     security(("bearer" = []))
 )]
@@ -119,9 +119,10 @@ fn job_id(id: &str) -> Result<Uuid, ApiError> {
 #[derive(Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NewJobRequest {
-    /// `train`, `evaluate` or `validate`.
+    /// `train`, `evaluate`, `validate` or `roadmap`.
     kind: String,
-    /// The kind's parameters: see `TrainPayload`, `EvaluatePayload`, `ValidatePayload`.
+    /// The kind's parameters: see `TrainPayload`, `EvaluatePayload`, `ValidatePayload`,
+    /// `RoadmapPayload`.
     #[schema(value_type = Object)]
     payload: Value,
     /// Higher runs first [default: 0].
@@ -137,7 +138,7 @@ pub struct NewJobRequest {
 pub struct JobView {
     /// The job's id (UUIDv7).
     id: String,
-    /// `train`, `evaluate` or `validate`.
+    /// `train`, `evaluate`, `validate` or `roadmap`.
     kind: String,
     /// `queued`, `running`, `succeeded`, `failed` or `cancelled`.
     state: String,

@@ -26,9 +26,9 @@ use sim::World;
 use utoipa::ToSchema;
 
 use crate::api::JobsApi;
-use crate::jobs::PlanValidator;
 use crate::jobs::policies::PolicyStore;
 use crate::jobs::source::SourceError;
+use crate::jobs::{PlanValidator, RoadmapKey};
 use crate::runner::JobError;
 
 pub use self::error::PlanErrorResponse;
@@ -85,12 +85,21 @@ pub struct PlanApiResponse {
 /// the knowledge source.
 pub struct PlanApi {
     jobs: Arc<JobsApi>,
-    roadmaps: RoadmapCache,
-    /// Policy-aware roadmaps (PRM-RL), built in the background on first use.
-    policy_roadmaps: Arc<PolicyRoadmaps>,
+    /// Policy-aware roadmaps (PRM-RL) read from the store, applied to their geometric roadmaps.
+    policy_roadmaps: Mutex<HashMap<RoadmapKey, Arc<planning::Roadmap>>>,
+    /// The roadmap job enqueued per key by this process, so a burst of plans enqueues one.
+    roadmap_jobs: tokio::sync::Mutex<HashMap<RoadmapKey, uuid::Uuid>>,
     /// Loaded policies by id, with the modification time of the weights they were read from
-    /// (an export under the same id replaces the directory).
-    policies: Mutex<HashMap<String, (std::time::SystemTime, Arc<learning::Policy>)>>,
+    /// (an export under the same id replaces the directory) and the weights' fingerprint.
+    policies: Mutex<HashMap<String, (std::time::SystemTime, LoadedPolicy)>>,
+}
+
+/// A loaded policy and the FNV-1a fingerprint of its weights file (part of a stored roadmap's
+/// key).
+#[derive(Clone)]
+struct LoadedPolicy {
+    policy: Arc<learning::Policy>,
+    weights: u64,
 }
 
 impl std::fmt::Debug for PlanApi {
@@ -107,14 +116,63 @@ impl PlanApi {
     pub fn new(jobs: Arc<JobsApi>) -> Self {
         Self {
             jobs,
-            roadmaps: RoadmapCache::default(),
-            policy_roadmaps: Arc::default(),
+            policy_roadmaps: Mutex::new(HashMap::new()),
+            roadmap_jobs: tokio::sync::Mutex::new(HashMap::new()),
             policies: Mutex::new(HashMap::new()),
         }
     }
 
+    /// Geometric roadmaps by floor state (shared with roadmap jobs in this process).
+    fn roadmaps(&self) -> &RoadmapCache {
+        &self.jobs.env.roadmaps
+    }
+
+    /// The roadmap job building `key` (enqueued by this process and not finished), else a
+    /// new one.
+    async fn ensure_roadmap_job(
+        &self,
+        key: &RoadmapKey,
+        floor: &str,
+        robot: &str,
+        margin: f64,
+    ) -> Result<uuid::Uuid, ApiError> {
+        let queue = self.jobs.queue.get().await.map_err(|reason| {
+            ApiError::new(
+                ErrorCode::NotReady,
+                format!("the job database is not available: {reason}"),
+            )
+        })?;
+        let mut jobs = self.roadmap_jobs.lock().await;
+        if let Some(id) = jobs.get(key).copied() {
+            let pending = queue
+                .get(id)
+                .await
+                .ok()
+                .flatten()
+                .is_some_and(|j| !j.state.is_finished());
+            if pending {
+                return Ok(id);
+            }
+        }
+        let job = crate::queue::NewJob::new(
+            crate::jobs::JobKind::Roadmap,
+            crate::jobs::roadmap::payload(&key.policy, floor, robot, margin),
+        );
+        let id = queue.enqueue(job).await.map_err(|e| {
+            ApiError::new(
+                ErrorCode::NotReady,
+                format!("enqueueing the roadmap job: {e}"),
+            )
+        })?;
+        if jobs.len() >= POLICY_ROADMAPS {
+            jobs.clear();
+        }
+        jobs.insert(key.clone(), id);
+        Ok(id)
+    }
+
     /// The policy `id`, loaded again only when its weights file changed.
-    async fn policy(&self, id: &str) -> Result<Arc<learning::Policy>, ApiError> {
+    async fn policy(&self, id: &str) -> Result<LoadedPolicy, ApiError> {
         let dir = self
             .jobs
             .env
@@ -130,26 +188,35 @@ impl PlanApi {
             .unwrap_or_else(PoisonError::into_inner)
             .get(id)
             .filter(|(at, _)| Some(*at) == modified)
-            .map(|(_, p)| Arc::clone(p));
+            .map(|(_, p)| p.clone());
         if let Some(p) = cached {
             return Ok(p);
         }
-        let loaded = tokio::task::spawn_blocking(move || learning::Policy::load(&dir))
-            .await
-            .map_err(|e| ApiError::internal(format!("policy loader failed: {e}")))?
-            .map_err(|e| {
-                ApiError::new(
-                    ErrorCode::Unprocessable,
-                    format!("policy `{id}` cannot be loaded: {e}"),
-                )
-            })?;
-        let loaded = Arc::new(loaded);
+        let loaded = tokio::task::spawn_blocking(move || {
+            let weights = std::fs::read(dir.join(learning::policy::WEIGHTS_FILE))
+                .map(|b| grid::hash::fnv1a(&b))
+                .map_err(|e| e.to_string())?;
+            learning::Policy::load(&dir)
+                .map(|p| LoadedPolicy {
+                    policy: Arc::new(p),
+                    weights,
+                })
+                .map_err(|e| e.to_string())
+        })
+        .await
+        .map_err(|e| ApiError::internal(format!("policy loader failed: {e}")))?
+        .map_err(|e| {
+            ApiError::new(
+                ErrorCode::Unprocessable,
+                format!("policy `{id}` cannot be loaded: {e}"),
+            )
+        })?;
         let mut policies = self.policies.lock().unwrap_or_else(PoisonError::into_inner);
         if policies.len() >= LOADED_POLICIES {
             policies.clear();
         }
         if let Some(at) = modified {
-            policies.insert(id.to_owned(), (at, Arc::clone(&loaded)));
+            policies.insert(id.to_owned(), (at, loaded.clone()));
         }
         Ok(loaded)
     }
@@ -170,110 +237,8 @@ pub fn rehearse(
     rehearsal::validate(world, roadmaps, map_version, &request, policy).map(PlanReport::from)
 }
 
-/// Which policy-aware roadmap: the floor state (map version, which changes with the floor and
-/// its objects), the policy and the weights file's modification time (an export under the same
-/// id is another policy), and the safety margin it was inflated by. A floor that changes is a
-/// new key: a roadmap built for an old state is never served for a new one.
-type PolicyRoadmapKey = (String, String, Option<std::time::SystemTime>, u64);
-
-/// A policy-aware roadmap, being built or built.
-#[derive(Clone)]
-enum PolicyRoadmapSlot {
-    Building,
-    Ready(Arc<planning::Roadmap>),
-    Failed(String),
-}
-
-/// Policy-aware roadmaps per key, built on a blocking thread the first time a plan asks for
-/// one; at most [`POLICY_ROADMAPS`] kept (the oldest states go first when full).
-#[derive(Default)]
-struct PolicyRoadmaps {
-    slots: Mutex<HashMap<PolicyRoadmapKey, PolicyRoadmapSlot>>,
-}
-
-/// Policy-aware roadmaps kept at most.
+/// Policy-aware roadmaps kept applied in memory at most (and roadmap jobs remembered).
 const POLICY_ROADMAPS: usize = 16;
-
-impl PolicyRoadmaps {
-    /// The roadmap of `key` when built; otherwise starts building it (unless a build is under
-    /// way; a failed build is tried again) and answers why there is none yet.
-    fn get_or_start(
-        self: &Arc<Self>,
-        key: &PolicyRoadmapKey,
-        build: impl FnOnce() -> Result<Arc<planning::Roadmap>, String> + Send + 'static,
-    ) -> Result<Arc<planning::Roadmap>, String> {
-        let mut map = self.slots.lock().unwrap_or_else(PoisonError::into_inner);
-        let why = match map.get(key) {
-            Some(PolicyRoadmapSlot::Ready(r)) => return Ok(Arc::clone(r)),
-            Some(PolicyRoadmapSlot::Building) => return Err("it is being built".into()),
-            Some(PolicyRoadmapSlot::Failed(e)) => {
-                format!("its last build failed ({e}); it is being built again")
-            }
-            None => "it is being built".into(),
-        };
-        if map.len() >= POLICY_ROADMAPS {
-            map.retain(|_, v| matches!(v, PolicyRoadmapSlot::Building));
-        }
-        map.insert(key.clone(), PolicyRoadmapSlot::Building);
-        drop(map);
-        let key = key.clone();
-        let slots = Arc::clone(self);
-        tokio::task::spawn_blocking(move || {
-            let slot = match build() {
-                Ok(r) => PolicyRoadmapSlot::Ready(r),
-                Err(e) => {
-                    tracing::warn!(floor = %key.0, policy = %key.1, "policy-aware roadmap failed: {e}");
-                    PolicyRoadmapSlot::Failed(e)
-                }
-            };
-            slots
-                .slots
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .insert(key, slot);
-        });
-        Err(why)
-    }
-}
-
-/// Builds the policy-aware roadmap of `world` for `policy`: the geometric roadmap the plan
-/// endpoint's first attempt uses (n* samples, seed 0), every edge driven by the policy
-/// ([`rehearsal::edges`], default parameters: 10 rollouts per direction, kept at 90%).
-fn build_policy_roadmap(
-    world: &Arc<World>,
-    roadmaps: &RoadmapCache,
-    map_version: &str,
-    policy: &Arc<learning::Policy>,
-    safety_margin_m: f64,
-) -> Result<Arc<planning::Roadmap>, String> {
-    let space = rehearsal::config_space(world, roadmaps, map_version, safety_margin_m)
-        .map_err(|e| e.to_string())?;
-    let params = planning::PrmParams {
-        samples: planning::optimal_samples(space.free_area_m2),
-        seed: 0,
-        ..planning::PrmParams::default()
-    };
-    let (geometric, _) = roadmaps
-        .roadmap(map_version, &space, &params)
-        .map_err(|e| e.to_string())?;
-    let started = Instant::now();
-    let (roadmap, report) = rehearsal::policy_roadmap(
-        world,
-        &geometric,
-        policy,
-        &rehearsal::EdgeRolloutParams::default(),
-    )
-    .map_err(|e| e.to_string())?;
-    tracing::info!(
-        floor = map_version,
-        edges = report.edges.len(),
-        kept = report.kept().count(),
-        edge_success_rate = report.edge_success_rate(),
-        seconds = started.elapsed().as_secs_f64(),
-        "policy-aware roadmap built"
-    );
-    Ok(roadmap)
-}
 
 /// The route.
 pub fn router(state: Arc<PlanApi>) -> Router {
@@ -459,64 +424,119 @@ async fn plan(
         None => None,
     };
 
-    let api2 = Arc::clone(&api);
     let choice = req.options.roadmap;
+    // The policy-aware roadmap of this floor state and policy: stored by a `roadmap` job. When
+    // there is none yet, one is enqueued (a floor that changed is a new state, so it gets
+    // its own), and the plan goes on the geometric roadmap (`auto`) or is refused (`policy`).
+    let margin = req.options.safety_margin_m;
+    let roadmap_key = match (&policy_id, &policy, choice) {
+        (Some(id), Some(loaded), RoadmapChoice::Auto | RoadmapChoice::Policy) => {
+            let params = rehearsal::EdgeRolloutParams::default();
+            Some(RoadmapKey {
+                floor_state: db.version.clone(),
+                policy: id.clone(),
+                weights: loaded.weights,
+                margin_bits: margin.to_bits(),
+                rollouts: params.rollouts,
+                keep_bits: params.keep_threshold.to_bits(),
+            })
+        }
+        _ => None,
+    };
+    let stored = match &roadmap_key {
+        Some(key) => {
+            let in_memory = api
+                .policy_roadmaps
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .contains_key(key);
+            in_memory || api.jobs.env.policy_roadmaps.contains(key)
+        }
+        None => false,
+    };
+    if let Some(key) = roadmap_key.as_ref().filter(|_| !stored) {
+        let job = api
+            .ensure_roadmap_job(key, &db.floor, &db.robot, margin)
+            .await;
+        if choice == RoadmapChoice::Policy {
+            let why = match job {
+                Ok(id) => format!("the `roadmap` job {id} is building it"),
+                Err(e) => format!("no job could be enqueued to build it ({})", e.message()),
+            };
+            return Err(ApiError::new(
+                ErrorCode::Conflict,
+                format!(
+                    "no policy-aware roadmap of this floor state and policy yet: {why} (every edge driven by the policy); retry when it has finished, or ask for `options.roadmap`: `auto`"
+                ),
+            ));
+        }
+        if let Err(e) = job {
+            tracing::warn!(error = %e.message(), "enqueueing a roadmap job failed");
+        }
+    }
+
+    let api2 = Arc::clone(&api);
     let request = PlanRequest {
         start: req.start,
         goals,
         options: req.options.clone(),
     };
     let (floor, robot) = (db.floor.clone(), db.robot.clone());
-    let weights_modified = policy_id
-        .as_deref()
-        .and_then(|id| api.jobs.env.policies.path(id))
-        .and_then(|dir| std::fs::metadata(dir.join(learning::policy::WEIGHTS_FILE)).ok())
-        .and_then(|m| m.modified().ok());
-    let runtime = tokio::runtime::Handle::current();
-    let policy_key = policy_id.clone().unwrap_or_default();
     let report = tokio::task::spawn_blocking(move || -> Result<PlanReport, ApiError> {
-        let _enter = runtime.enter();
         let world = db
             .world()
             .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
         let request = rehearsal::PlanRequest::from(request);
-        let Some(policy) = policy else {
-            return rehearsal::validate(&world, &api2.roadmaps, &db.version, &request, None)
+        let Some(LoadedPolicy { policy, .. }) = policy else {
+            return rehearsal::validate(&world, api2.roadmaps(), &db.version, &request, None)
                 .map(PlanReport::from)
                 .map_err(|e| e.to_api_error());
         };
-        let policy_roadmap = match choice {
-            RoadmapChoice::Geometric => None,
-            RoadmapChoice::Auto | RoadmapChoice::Policy => {
-                let margin = request.options.safety_margin_m;
-                let key = (
-                    db.version.clone(),
-                    policy_key,
-                    weights_modified,
-                    margin.to_bits(),
-                );
-                let (w, p, api3) = (Arc::clone(&world), Arc::clone(&policy), Arc::clone(&api2));
-                let version = db.version.clone();
-                let got = api2.policy_roadmaps.get_or_start(&key, move || {
-                    build_policy_roadmap(&w, &api3.roadmaps, &version, &p, margin)
-                });
-                match got {
-                    Ok(r) => Some(r),
-                    Err(why) if choice == RoadmapChoice::Policy => {
-                        return Err(ApiError::new(
-                            ErrorCode::Conflict,
-                            format!("no policy-aware roadmap of this floor and policy yet: {why} (every edge driven by the policy); retry shortly, or ask for `options.roadmap`: `auto`"),
-                        ));
+        let policy_roadmap = match roadmap_key.filter(|_| stored) {
+            None => None,
+            Some(key) => {
+                let cached = api2
+                    .policy_roadmaps
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .get(&key)
+                    .cloned();
+                match cached {
+                    Some(r) => Some(r),
+                    None => {
+                        let loaded = crate::jobs::roadmap::load_policy_roadmap(
+                            &api2.jobs.env.policy_roadmaps,
+                            &key,
+                            &world,
+                            api2.roadmaps(),
+                        )
+                        .map_err(|m| ApiError::internal(format!("the stored policy-aware roadmap: {m}")))?;
+                        if let Some(r) = &loaded {
+                            let mut map = api2
+                                .policy_roadmaps
+                                .lock()
+                                .unwrap_or_else(PoisonError::into_inner);
+                            if map.len() >= POLICY_ROADMAPS {
+                                map.clear();
+                            }
+                            map.insert(key, Arc::clone(r));
+                        }
+                        loaded
                     }
-                    Err(_) => None,
                 }
             }
         };
+        if choice == RoadmapChoice::Policy && policy_roadmap.is_none() {
+            return Err(ApiError::new(
+                ErrorCode::Conflict,
+                "the stored policy-aware roadmap of this floor state and policy cannot be read; ask for `options.roadmap`: `auto`",
+            ));
+        }
         let mut primary = rehearsal::PolicyController::new(policy);
         let mut follower = rehearsal::ClassicalFollower::default();
         rehearsal::validate_with_fallback(
             &world,
-            &api2.roadmaps,
+            api2.roadmaps(),
             &db.version,
             &request,
             &mut primary,

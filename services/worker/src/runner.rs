@@ -186,6 +186,15 @@ impl JobContext {
         Ok(id)
     }
 
+    /// Enqueues a follow-up job (a policy's roadmap after its export, say).
+    pub async fn enqueue(&self, job: crate::queue::NewJob) -> Result<Uuid, JobError> {
+        self.inner
+            .queue
+            .enqueue(job)
+            .await
+            .map_err(|e| JobError::Retryable(format!("enqueueing a follow-up job: {e}")))
+    }
+
     /// Stores a checkpoint durably; a later attempt (on any worker) starts from it.
     pub async fn save_checkpoint(&self, checkpoint: &Checkpoint) -> Result<(), JobError> {
         let ack = self.written(

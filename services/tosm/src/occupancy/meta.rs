@@ -129,6 +129,23 @@ impl RosMapMeta {
         }
     }
 
+    /// The metadata as map_server's YAML (the keys [`RosMapMeta::parse_yaml`] reads, which
+    /// reads this back to equal values).
+    pub fn to_yaml(&self) -> String {
+        format!(
+            "image: {}\nresolution: {}\norigin: [{}, {}, {}]\nnegate: {}\noccupied_thresh: {}\nfree_thresh: {}\nmode: {}\n",
+            self.image,
+            self.resolution,
+            self.origin.x,
+            self.origin.y,
+            self.origin.yaw,
+            u8::from(self.negate),
+            self.occupied_thresh,
+            self.free_thresh,
+            self.mode
+        )
+    }
+
     /// Checks the values a caller may have built by hand (the parser already checks them).
     pub fn validate(&self) -> Result<(), RosMapError> {
         if !(self.resolution.is_finite() && self.resolution > 0.0) {

@@ -388,3 +388,14 @@ fn png_round_trip_keeps_every_state() {
             .is_empty()
     );
 }
+
+#[test]
+fn written_yaml_reads_back_to_equal_values() {
+    for m in [
+        meta(),
+        RosMapMeta::for_grid_png("floor.png", 0.025, Pose2::new(-12.5, 3.0, 0.25)),
+    ] {
+        let back = RosMapMeta::parse_yaml(&m.to_yaml()).expect("own yaml parses");
+        assert_eq!(back, m);
+    }
+}

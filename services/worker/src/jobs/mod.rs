@@ -8,6 +8,7 @@
 
 pub mod evaluate;
 pub mod policies;
+pub mod roadmap;
 pub mod source;
 pub mod train;
 pub mod validate;
@@ -21,6 +22,7 @@ use serde_json::Value;
 use crate::runner::{JobError, Worker};
 pub use evaluate::{EvaluateHandler, EvaluatePayload};
 pub use policies::{PolicyStore, PolicySummary};
+pub use roadmap::{RoadmapHandler, RoadmapKey, RoadmapPayload, RoadmapStore};
 pub use source::{FloorDatabase, HttpKnowledge, InProcessKnowledge, KnowledgeSource, SourceError};
 pub use train::{TrainHandler, TrainPayload};
 pub use validate::{PlanValidator, ValidateHandler, ValidatePayload};
@@ -36,11 +38,18 @@ pub enum JobKind {
     Evaluate,
     /// A plan tried in the mental simulation.
     Validate,
+    /// A floor's policy-aware roadmap: every roadmap edge driven by a policy (PRM-RL).
+    Roadmap,
 }
 
 impl JobKind {
     /// Every kind, in the order error messages list them.
-    pub const ALL: [JobKind; 3] = [JobKind::Train, JobKind::Evaluate, JobKind::Validate];
+    pub const ALL: [JobKind; 4] = [
+        JobKind::Train,
+        JobKind::Evaluate,
+        JobKind::Validate,
+        JobKind::Roadmap,
+    ];
 
     /// The name stored in the queue and used by the API.
     pub fn as_str(self) -> &'static str {
@@ -48,6 +57,7 @@ impl JobKind {
             JobKind::Train => "train",
             JobKind::Evaluate => "evaluate",
             JobKind::Validate => "validate",
+            JobKind::Roadmap => "roadmap",
         }
     }
 }
@@ -93,6 +103,10 @@ pub struct JobEnv {
     pub checkpoints_dir: PathBuf,
     /// Exported policies.
     pub policies: PolicyStore,
+    /// Geometric roadmaps by floor state, shared by plans and roadmap jobs in this process.
+    pub roadmaps: Arc<rehearsal::RoadmapCache>,
+    /// Stored policy-aware roadmaps.
+    pub policy_roadmaps: RoadmapStore,
     /// The plan validator behind `validate` jobs, when this build has one.
     pub validator: Option<Arc<dyn PlanValidator>>,
 }
@@ -116,6 +130,7 @@ impl JobEnv {
                 JobKind::Train => worker.register(kind, TrainHandler::new(self.clone())),
                 JobKind::Evaluate => worker.register(kind, EvaluateHandler::new(self.clone())),
                 JobKind::Validate => worker.register(kind, ValidateHandler::new(self.clone())),
+                JobKind::Roadmap => worker.register(kind, RoadmapHandler::new(self.clone())),
             })
     }
 
@@ -145,6 +160,12 @@ impl JobEnv {
                 };
                 validator.check(payload).map_err(PayloadError::Invalid)?;
                 self.check_floor(&p.place, &p.robot).await?;
+            }
+            JobKind::Roadmap => {
+                let p: RoadmapPayload = parse(payload)?;
+                p.check()?;
+                let robot = roadmap::roadmap_robot(self, &p)?;
+                self.check_floor(&p.place, &robot).await?;
             }
         }
         Ok(payload.clone())

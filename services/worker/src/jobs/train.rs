@@ -213,9 +213,26 @@ impl JobHandler for TrainHandler {
             .await
             .map_err(|e| JobError::Retryable(format!("the training thread failed: {e}")))?;
         match finished {
-            Ok(Finished::Done(result)) => {
+            Ok(Finished::Done(mut result)) => {
                 // The job will not resume: its checkpoint is no longer needed.
                 let _ = std::fs::remove_dir_all(&out_dir);
+                // The new policy's roadmap of the floor it was trained on, in the background,
+                // so that the first plan with it finds it built.
+                let follow_up = crate::queue::NewJob::new(
+                    super::JobKind::Roadmap,
+                    super::roadmap::payload(
+                        &ctx.id().to_string(),
+                        &payload.place,
+                        &payload.robot,
+                        rehearsal::PlanOptions::default().safety_margin_m,
+                    ),
+                );
+                match ctx.enqueue(follow_up).await {
+                    Ok(id) => result["roadmap_job"] = json!(id.to_string()),
+                    Err(e) => {
+                        tracing::warn!(job = %ctx.id(), error = %e, "enqueueing the policy's roadmap job failed");
+                    }
+                }
                 Ok(result)
             }
             Ok(Finished::Stopped) => {
