@@ -39,7 +39,7 @@ use rehearsal::{
     AttemptOutcome, AttemptReport, ClassicalFollower, Controller, DriveLimits, PlanError,
     PlanOptions, PlanRequest, PolicyController, RoadmapCache,
 };
-use sim::{Pose2, World};
+use sim::{Action, Pose2, World};
 
 use crate::error::BenchError;
 use crate::maps::{find_yamls, map_names};
@@ -621,6 +621,7 @@ fn run_map(
                 waypoint_timeout_s: timeout,
                 max_replans: 0,
                 sim_seed: mix(seed, 0x0707),
+                initial_velocity: Action::default(),
             },
             None,
         )

@@ -4,9 +4,11 @@
 //! building (its per-edge success rate and the edges it cannot drive), and the weights of a
 //! policy-aware roadmap ([`EdgeReport::cost`]).
 //!
-//! How a rollout starts: at the edge's first node, at rest, heading as a robot arriving over
-//! one of the node's other edges would (rollout `k` takes the `k`-th of them in turn; a node
-//! with no other edge heads along the edge itself). Edges longer than the executor's longest
+//! How a rollout starts: at the edge's first node, heading as a robot arriving over one of the
+//! node's other edges would (rollout `k` takes the `k`-th of them in turn; a node with no other
+//! edge heads along the edge itself), at rest in even rollouts (a plan's first waypoint) and,
+//! in odd ones, still moving along that heading at `arrival_speed_share` of the top speed (the
+//! executor hands the next waypoint over without stopping). Edges longer than the executor's longest
 //! straight stretch get the executor's intermediate waypoints, and each waypoint the
 //! executor's timer; no replanning (a rollout measures the edge, not the planner). Sensor and
 //! actuation noise as in a validation, seeded per (edge, direction, rollout), so a report is
@@ -18,7 +20,7 @@ use grid::seed::mix;
 use learning::Policy;
 use planning::{Point2, Roadmap};
 use rayon::prelude::*;
-use sim::{Pose2, World};
+use sim::{Action, Pose2, World};
 
 use crate::controller::{Controller, PolicyController};
 use crate::error::{PlanError, invalid};
@@ -41,6 +43,9 @@ pub struct EdgeRolloutParams {
     pub noise: bool,
     /// Seed of the rollouts' noise.
     pub seed: u64,
+    /// Linear speed of the odd rollouts at the start, as a share of the top speed (0: every
+    /// rollout from rest; default 0.5).
+    pub arrival_speed_share: f64,
 }
 
 impl Default for EdgeRolloutParams {
@@ -51,6 +56,7 @@ impl Default for EdgeRolloutParams {
             waypoint_timeout_s: 15.0,
             noise: true,
             seed: 0,
+            arrival_speed_share: 0.5,
         }
     }
 }
@@ -62,6 +68,14 @@ impl EdgeRolloutParams {
             return Err(invalid(
                 "rollouts",
                 format!("must lie in [1, {MAX_ROLLOUTS}], got {}", self.rollouts),
+            ));
+        }
+        if !(self.arrival_speed_share.is_finite()
+            && (0.0..=1.0).contains(&self.arrival_speed_share))
+        {
+            return Err(invalid(
+                "arrival_speed_share",
+                format!("must lie in [0, 1], got {}", self.arrival_speed_share),
             ));
         }
         if !(self.keep_threshold.is_finite() && (0.0..=1.0).contains(&self.keep_threshold)) {
@@ -238,6 +252,7 @@ where
     }
     drop(probe);
     let max_segment_m = (0.5 * env.limits.linear_max * params.waypoint_timeout_s).max(0.5);
+    let arrival_speed = params.arrival_speed_share * env.limits.linear_max;
     let results: Result<Vec<(EdgeStat, u64)>, PlanError> = directed
         .par_iter()
         .map_init(
@@ -283,6 +298,11 @@ where
                             waypoint_timeout_s: params.waypoint_timeout_s,
                             max_replans: 0,
                             sim_seed: mix(mix(params.seed, edge_key), u64::from(k)),
+                            initial_velocity: if k % 2 == 1 && !others.is_empty() {
+                                Action::new(arrival_speed, 0.0)
+                            } else {
+                                Action::default()
+                            },
                         },
                         None,
                     )?;

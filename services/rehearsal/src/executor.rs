@@ -18,7 +18,7 @@ use std::sync::Arc;
 use grid::seed::mix;
 use learning::Policy;
 use planning::{ConfigSpace, Point2, PrmParams, QueryError, QueryOptions, Roadmap};
-use sim::{EnvConfig, NavEnv, NoiseConfig, Outcome, Pose2, World};
+use sim::{Action, EnvConfig, NavEnv, NoiseConfig, Outcome, Pose2, World};
 
 use crate::cache::{RoadmapCache, SpaceEntry};
 use crate::controller::{ClassicalFollower, Controller, PolicyController};
@@ -249,6 +249,7 @@ pub fn validate_with_fallback(
                         waypoint_timeout_s: opts.waypoint_timeout_s,
                         max_replans: opts.max_replans,
                         sim_seed: leg_seed(opts.seed, attempt, leg),
+                        initial_velocity: Action::default(),
                     },
                     Some(replanner),
                 )?;
@@ -728,6 +729,8 @@ pub struct DriveLimits {
     pub max_replans: u32,
     /// Seed of the simulation's noise.
     pub sim_seed: u64,
+    /// The robot's velocity at the start (zero: at rest), as a previous drive left it.
+    pub initial_velocity: Action,
 }
 
 /// Replans from the robot's position to a goal: the remaining waypoints of the leg, or why not.
@@ -792,6 +795,9 @@ pub fn drive(
     let mut obs = env
         .reset(start, (current.0.x, current.0.y))
         .map_err(|e| env_error(Endpoint::Start, e))?;
+    if limits.initial_velocity != Action::default() {
+        obs = env.set_velocity(limits.initial_velocity);
+    }
     let dt = env_config.control_period;
     #[allow(
         clippy::cast_possible_truncation,

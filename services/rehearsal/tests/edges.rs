@@ -75,6 +75,13 @@ fn the_follower_drives_the_edges_and_a_bad_controller_loses_them() {
     // The same parameters give the same report.
     let again = drive_edges(&world, &map, ClassicalFollower::default, &params).expect("driven");
     assert_eq!(again, good);
+    // Odd rollouts start moving, as the executor hands a waypoint over: all from rest differs.
+    let from_rest = EdgeRolloutParams {
+        arrival_speed_share: 0.0,
+        ..params
+    };
+    let rest = drive_edges(&world, &map, ClassicalFollower::default, &from_rest).expect("driven");
+    assert_ne!(rest.mean_edge_time_s(), good.mean_edge_time_s());
 
     let bad = drive_edges(
         &world,
@@ -166,6 +173,13 @@ fn bad_rollout_parameters_are_refused_by_name() {
                 ..EdgeRolloutParams::default()
             },
             "waypoint_timeout_s",
+        ),
+        (
+            EdgeRolloutParams {
+                arrival_speed_share: 1.5,
+                ..EdgeRolloutParams::default()
+            },
+            "arrival_speed_share",
         ),
     ] {
         let e =

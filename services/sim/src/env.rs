@@ -460,6 +460,15 @@ impl NavEnv {
         Ok(obs)
     }
 
+    /// Sets the robot's velocity (clamped to the command limits) as if it were already moving,
+    /// as a previous drive would leave it; returns the observation with that odometry.
+    pub fn set_velocity(&mut self, velocity: Action) -> Observation {
+        self.executed = self.config.limits.clamp(velocity);
+        let obs = self.observe();
+        self.remember(&obs);
+        obs
+    }
+
     /// Starts an episode at a random start with a random goal, both in the world's free region,
     /// the goal at a distance within the configured range.
     pub fn reset_random(&mut self) -> Result<Observation, EnvError> {
