@@ -180,6 +180,44 @@ fn url_encode(s: &str) -> String {
 
 #[tokio::test]
 async fn bad_maps_are_4xx_naming_the_problem() {
+    /// A PNG declaring `w` × `h` grey pixels with no pixel data: signature, IHDR, an empty
+    /// IDAT, IEND.
+    fn png_header(w: u32, h: u32) -> Vec<u8> {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut c = 0xffff_ffffu32;
+            for &b in bytes {
+                c ^= u32::from(b);
+                for _ in 0..8 {
+                    c = if c & 1 == 1 {
+                        0xedb8_8320 ^ (c >> 1)
+                    } else {
+                        c >> 1
+                    };
+                }
+            }
+            !c
+        }
+        let chunk = |kind: &[u8], data: &[u8]| {
+            let mut v = (data.len() as u32).to_be_bytes().to_vec();
+            let mut body = kind.to_vec();
+            body.extend_from_slice(data);
+            v.extend_from_slice(&body);
+            v.extend_from_slice(&crc32(&body).to_be_bytes());
+            v
+        };
+        let mut ihdr = w.to_be_bytes().to_vec();
+        ihdr.extend_from_slice(&h.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        png.extend(chunk(b"IHDR", &ihdr));
+        // An empty zlib stream: the pixels are not there, only the declared size.
+        png.extend(chunk(
+            b"IDAT",
+            &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01],
+        ));
+        png.extend(chunk(b"IEND", &[]));
+        png
+    }
     let app = spawn_app().await;
     let good_yaml = "image: m.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
     let pgm = |w: usize, h: usize| {
@@ -207,6 +245,18 @@ async fn bad_maps_are_4xx_naming_the_problem() {
             "image",
         ),
         ("missing image", good_yaml.to_owned(), Vec::new(), "image"),
+        (
+            "overflowing resolution",
+            good_yaml.replace("0.05", "1.0e306"),
+            pgm(8, 8),
+            "resolution",
+        ),
+        (
+            "origin far away",
+            good_yaml.replace("[0.0, 0.0, 0.0]", "[1.0e300, 0.0, 0.0]"),
+            pgm(8, 8),
+            "origin",
+        ),
     ];
     for (what, yaml, image, needle) in cases {
         let response = import(&app, "bad", &yaml, image).await;
@@ -215,6 +265,33 @@ async fn bad_maps_are_4xx_naming_the_problem() {
         assert!(status.is_client_error(), "{what}: {status} {body}");
         let message = body["error"]["message"].as_str().unwrap().to_lowercase();
         assert!(message.contains(needle), "{what}: {message}");
+    }
+    // Decompression bombs: a few bytes declaring 23,000 × 23,000 pixels are refused from
+    // the header, before any pixel is decoded (413, naming the budget).
+    let pgm_bomb = b"P5\n23000 23000\n255\n\xfe\xfe".to_vec();
+    for (what, yaml, image) in [
+        ("PGM", good_yaml.to_owned(), pgm_bomb),
+        (
+            "PNG",
+            good_yaml.replace("m.pgm", "m.png"),
+            png_header(23_000, 23_000),
+        ),
+    ] {
+        let started = std::time::Instant::now();
+        let response = import(&app, "bomb", &yaml, image).await;
+        let status = response.status();
+        let body: Value = response.json().await.unwrap();
+        assert_eq!(status, 413, "{what}: {body}");
+        let message = body["error"]["message"].as_str().unwrap();
+        assert!(
+            message.contains("23000x23000") && message.contains("pixels"),
+            "{message}"
+        );
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(5),
+            "{what} took {:?}",
+            started.elapsed()
+        );
     }
     // A form without the image field at all.
     let form = reqwest::multipart::Form::new()

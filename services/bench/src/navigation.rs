@@ -970,7 +970,7 @@ fn to_markdown(
     }
 
     if !edges.is_empty() {
-        s.push_str("\n## The policy on the roadmap edges\n\nEvery edge of the map's geometric roadmap driven by the shielded policy, both directions, 10 rollouts each (start at rest, heading as if arriving over a neighbouring edge, noise on); kept where at least 90% succeed. Build = the rollouts and the reweighting, wall time on this machine's cores.\n\n| Map | Edge directions | Kept | Edge success rate | Simulated steps | Build (s) |\n|---|---|---|---|---|---|\n");
+        s.push_str("\n## The policy on the roadmap edges\n\nEvery edge of the map's geometric roadmap driven by the shielded policy, both directions, 10 rollouts each (heading as if arriving over a neighbouring edge, at rest in even rollouts and at half the top speed in odd ones, noise on); kept where at least 90% succeed. Build = the rollouts and the reweighting, wall time on this machine's cores.\n\n| Map | Edge directions | Kept | Edge success rate | Simulated steps | Build (s) |\n|---|---|---|---|---|---|\n");
         for e in edges {
             let _ = writeln!(
                 s,

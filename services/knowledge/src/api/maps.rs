@@ -39,6 +39,10 @@ impl From<ImportError> for ApiError {
     fn from(e: ImportError) -> Self {
         match e {
             ImportError::Store(e) => ApiError::from(e),
+            e @ ImportError::Map {
+                source: tosm::RosMapError::TooManyPixels { .. },
+                ..
+            } => ApiError::new(ErrorCode::PayloadTooLarge, e.to_string()),
             e if e.is_client_error() => ApiError::new(ErrorCode::Unprocessable, e.to_string()),
             e => ApiError::internal(e),
         }
@@ -47,7 +51,7 @@ impl From<ImportError> for ApiError {
 
 /// Imports a ROS map_server map as a floor. Multipart form: `yaml` (the map's YAML), `image`
 /// (its PGM or PNG), `name` (lower-case letters, digits, `-`, `_`). Engineers only.
-#[utoipa::path(post, path = "/v1/maps", request_body(content_type = "multipart/form-data", content = String, description = "fields: name, yaml, image"), responses((status = 201, body = ImportedMap), (status = 400, body = ErrorBody), (status = 422, body = ErrorBody)))]
+#[utoipa::path(post, path = "/v1/maps", request_body(content_type = "multipart/form-data", content = String, description = "fields: name, yaml, image"), responses((status = 201, body = ImportedMap), (status = 400, body = ErrorBody), (status = 413, description = "The image declares more pixels than a map may have (64 megapixels), refused before decoding", body = ErrorBody), (status = 422, body = ErrorBody)))]
 pub(super) async fn import_map(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,

@@ -32,13 +32,13 @@ pub enum RosMapError {
         found: String,
     },
     /// The resolution is zero, negative, infinite or NaN.
-    #[error("map resolution must be a finite number of metres per pixel > 0, found {value}")]
+    #[error("map resolution must be a number of metres per pixel in (0, 100], found {value}")]
     InvalidResolution {
         /// The value found.
         value: f64,
     },
     /// A coordinate of the origin is infinite or NaN.
-    #[error("map origin must be three finite numbers [x, y, yaw], found {found}")]
+    #[error("map origin must be [x, y, yaw], finite, x and y within 1e7 m, found {found}")]
     InvalidOrigin {
         /// The origin found.
         found: String,
@@ -78,6 +78,18 @@ pub enum RosMapError {
         format: &'static str,
         /// The decoder's message.
         message: String,
+    },
+    /// The image's header declares more pixels than a map may have: refused before decoding.
+    #[error(
+        "map image declares {width}x{height} pixels, more than the {max_pixels} a map may have"
+    )]
+    TooManyPixels {
+        /// Declared width.
+        width: u32,
+        /// Declared height.
+        height: u32,
+        /// The budget.
+        max_pixels: u64,
     },
     /// The image decoded to zero pixels.
     #[error("map image is {width}x{height} pixels; a map needs at least one pixel")]

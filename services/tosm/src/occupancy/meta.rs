@@ -4,6 +4,12 @@ use yaml_rust2::{Yaml, YamlLoader};
 
 use super::{CANONICAL_FREE_THRESH, CANONICAL_OCCUPIED_THRESH, Pose2, RosMapError};
 
+/// Coarsest resolution a map may have, metres per pixel: beyond it a cell is larger than any
+/// room and the numbers only overflow what uses them.
+pub const MAX_RESOLUTION_M: f64 = 100.0;
+/// Farthest a map's origin may lie from the frame's origin, metres (in x and y).
+pub const MAX_ORIGIN_M: f64 = 1e7;
+
 /// The contents of a `map_server` YAML file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RosMapMeta {
@@ -54,7 +60,7 @@ impl RosMapMeta {
             other => return Err(wrong_type("image", "a non-empty file name", other)),
         };
         let resolution = number(doc, "resolution")?;
-        if !(resolution.is_finite() && resolution > 0.0) {
+        if !(resolution.is_finite() && resolution > 0.0 && resolution <= MAX_RESOLUTION_M) {
             return Err(RosMapError::InvalidResolution { value: resolution });
         }
         let origin = match required(doc, "origin")? {
@@ -69,7 +75,9 @@ impl RosMapMeta {
                         )
                     })?;
                 }
-                if xyz.iter().any(|v| !v.is_finite()) {
+                if xyz.iter().any(|v| !v.is_finite())
+                    || xyz[..2].iter().any(|v| v.abs() > MAX_ORIGIN_M)
+                {
                     return Err(RosMapError::InvalidOrigin {
                         found: format!("[{}, {}, {}]", xyz[0], xyz[1], xyz[2]),
                     });
@@ -148,13 +156,19 @@ impl RosMapMeta {
 
     /// Checks the values a caller may have built by hand (the parser already checks them).
     pub fn validate(&self) -> Result<(), RosMapError> {
-        if !(self.resolution.is_finite() && self.resolution > 0.0) {
+        if !(self.resolution.is_finite()
+            && self.resolution > 0.0
+            && self.resolution <= MAX_RESOLUTION_M)
+        {
             return Err(RosMapError::InvalidResolution {
                 value: self.resolution,
             });
         }
         let o = self.origin;
-        if !(o.x.is_finite() && o.y.is_finite() && o.yaw.is_finite()) {
+        if !(o.x.is_finite() && o.y.is_finite() && o.yaw.is_finite())
+            || o.x.abs() > MAX_ORIGIN_M
+            || o.y.abs() > MAX_ORIGIN_M
+        {
             return Err(RosMapError::InvalidOrigin {
                 found: format!("[{}, {}, {}]", o.x, o.y, o.yaw),
             });

@@ -33,7 +33,7 @@ mod meta;
 mod tests;
 
 pub use error::RosMapError;
-pub use meta::RosMapMeta;
+pub use meta::{MAX_ORIGIN_M, MAX_RESOLUTION_M, RosMapMeta};
 
 /// The state of one grid cell, as ROS navigation sees it.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
@@ -70,6 +70,10 @@ pub const PNG_FREE: u8 = 254;
 pub const PNG_OCCUPIED: u8 = 0;
 /// The grey value `to_png` writes for an unknown cell.
 pub const PNG_UNKNOWN: u8 = 205;
+/// Most pixels a map image may have (64 megapixels: 400 m × 400 m at 5 cm). The grid, its
+/// distance transforms and the world built on it take tens of bytes per cell.
+pub const MAX_MAP_PIXELS: u64 = 64 * 1024 * 1024;
+
 /// The `free_thresh` under which `to_png`'s images decode back to the same cells.
 pub const CANONICAL_FREE_THRESH: f64 = 0.196;
 /// The `occupied_thresh` under which `to_png`'s images decode back to the same cells.
@@ -150,8 +154,20 @@ impl OccupancyGrid {
             format: format_name,
             message: e.to_string(),
         };
+        // The header's size first: a small file may declare a huge image (a decompression
+        // bomb), refused before anything is allocated for its pixels.
+        let (dw, dh) = ImageReader::with_format(Cursor::new(image), format)
+            .into_dimensions()
+            .map_err(bad)?;
+        if u64::from(dw) * u64::from(dh) > MAX_MAP_PIXELS {
+            return Err(RosMapError::TooManyPixels {
+                width: dw,
+                height: dh,
+                max_pixels: MAX_MAP_PIXELS,
+            });
+        }
         let mut reader = ImageReader::with_format(Cursor::new(image), format);
-        // The default limits (512 MiB of allocation) keep a hostile header from exhausting memory.
+        // The default limits (512 MiB of allocation) stay as a second line.
         reader.limits(image::Limits::default());
         let decoded = reader.decode().map_err(bad)?;
         let (w, h) = (decoded.width(), decoded.height());

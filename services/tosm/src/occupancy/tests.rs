@@ -399,3 +399,29 @@ fn written_yaml_reads_back_to_equal_values() {
         assert_eq!(back, m);
     }
 }
+
+#[test]
+fn values_that_overflow_and_images_that_declare_too_many_pixels_are_refused() {
+    assert!(matches!(
+        parse_err(&with_line("resolution", "resolution: 1.0e306")),
+        RosMapError::InvalidResolution { .. }
+    ));
+    assert!(matches!(
+        parse_err(&with_line("origin", "origin: [1.0e300, 0.0, 0.0]")),
+        RosMapError::InvalidOrigin { .. }
+    ));
+    // Header only: 20,000 × 20,000 pixels declared in a few bytes.
+    let bomb = b"P5\n20000 20000\n255\n\xfe".to_vec();
+    let err = OccupancyGrid::from_ros_map_server(&meta(), &bomb).expect_err("refused");
+    assert!(
+        matches!(
+            err,
+            RosMapError::TooManyPixels {
+                width: 20000,
+                height: 20000,
+                ..
+            }
+        ),
+        "{err:?}"
+    );
+}
