@@ -160,6 +160,11 @@ pub struct TrainConfig {
     pub bc_steps: u64,
     /// Gradient steps of the critics alone after the warm start, before the actor moves.
     pub critic_warmup_steps: u64,
+    /// Export the actor of the best periodic evaluation (success rate, then mean time) rather
+    /// than the last one: TD3's policy can get worse with more training, and a longer run must
+    /// not export a worse policy than it had. Snapshots live in memory: a resumed run chooses
+    /// among those of its last session and its final actor.
+    pub export_best: bool,
     /// Train only on goals the robot can drive to in a straight line (`sim::EnvConfig::
     /// goals_in_view`): the waypoints of a roadmap plan, which is what the policy drives
     /// between. False also draws goals behind walls, reachable only by detours the laser
@@ -196,6 +201,7 @@ impl Default for TrainConfig {
             demo_noise: 0.3,
             bc_steps: 0,
             critic_warmup_steps: 0,
+            export_best: false,
         }
     }
 }
@@ -228,6 +234,7 @@ impl TrainConfig {
             demo_noise: 0.3,
             bc_steps: 10_000,
             critic_warmup_steps: 5_000,
+            export_best: true,
             ..Self::default()
         }
     }

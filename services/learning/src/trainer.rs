@@ -260,6 +260,32 @@ pub struct Trainer {
     evals: Vec<EvalRecord>,
     missions: Vec<Mission>,
     checkpoints_written: u64,
+    /// The actor of the best periodic evaluation of this session: (success rate, mean time to
+    /// goal, env steps, layers).
+    best: Option<BestActor>,
+}
+
+/// A snapshot of the actor at an evaluation.
+#[derive(Clone, Debug)]
+struct BestActor {
+    success_rate: f64,
+    mean_time_s: f64,
+    env_steps: u64,
+    layers: Vec<(Vec<f32>, Vec<f32>)>,
+}
+
+impl BestActor {
+    /// Whether an evaluation with these figures beats this snapshot.
+    fn beaten_by(&self, success_rate: f64, mean_time_s: f64) -> bool {
+        success_rate > self.success_rate
+            || (success_rate == self.success_rate && mean_time_s < self.mean_time_s)
+    }
+
+    /// Whether this snapshot beats an evaluation with these figures.
+    fn beats(&self, success_rate: f64, mean_time_s: f64) -> bool {
+        self.success_rate > success_rate
+            || (self.success_rate == success_rate && self.mean_time_s < mean_time_s)
+    }
 }
 
 impl std::fmt::Debug for Trainer {
@@ -317,6 +343,7 @@ impl Trainer {
             evals: Vec::new(),
             missions,
             checkpoints_written: 0,
+            best: None,
             learner,
             env_config,
             train_worlds: vec![Arc::clone(&world)],
@@ -714,6 +741,24 @@ impl Trainer {
     /// Evaluates the current actor on the fixed mission set and records the result.
     pub fn evaluate_and_record(&mut self, wall_s: f64) -> Result<EvalReport, TrainError> {
         let report = self.evaluate(&self.missions)?;
+        let time = if report.mean_time_to_goal_s.is_finite() {
+            report.mean_time_to_goal_s
+        } else {
+            f64::INFINITY
+        };
+        if self.options.config.export_best
+            && self
+                .best
+                .as_ref()
+                .is_none_or(|b| b.beaten_by(report.success_rate, time))
+        {
+            self.best = Some(BestActor {
+                success_rate: report.success_rate,
+                mean_time_s: time,
+                env_steps: self.counters.env_steps,
+                layers: self.learner.actor_layers(),
+            });
+        }
         self.evals.push(EvalRecord {
             env_steps: self.counters.env_steps,
             wall_s,
@@ -785,6 +830,37 @@ impl Trainer {
     /// Writes the exported policy (`policy.safetensors`, `policy.json`) into `dir`, with a
     /// training summary in its metadata.
     pub fn export(&self, dir: &Path, summary: serde_json::Value) -> Result<(), TrainError> {
+        // The final actor competes with the best snapshot on the same missions.
+        let (layers, exported) = match &self.best {
+            Some(best) => {
+                let last = self.evaluate(&self.missions)?;
+                let last_time = if last.mean_time_to_goal_s.is_finite() {
+                    last.mean_time_to_goal_s
+                } else {
+                    f64::INFINITY
+                };
+                if !best.beats(last.success_rate, last_time) || best.layers.is_empty() {
+                    (
+                        self.learner.actor_layers(),
+                        serde_json::json!({"actor": "final"}),
+                    )
+                } else {
+                    (
+                        best.layers.clone(),
+                        serde_json::json!({
+                            "actor": "best evaluation",
+                            "env_steps": best.env_steps,
+                            "success_rate": best.success_rate,
+                            "final_success_rate": last.success_rate,
+                        }),
+                    )
+                }
+            }
+            None => (
+                self.learner.actor_layers(),
+                serde_json::json!({"actor": "final"}),
+            ),
+        };
         let meta = PolicyMetadata::new(
             self.options.scaling,
             self.options.config.td3.hidden.clone(),
@@ -793,10 +869,11 @@ impl Trainer {
                 "config": self.options.config,
                 "counters": self.counters,
                 "last_eval": self.evals.last(),
+                "exported": exported,
                 "summary": summary,
             }),
         );
-        write_policy(dir, &meta, &self.learner.actor_layers())?;
+        write_policy(dir, &meta, &layers)?;
         Ok(())
     }
 }

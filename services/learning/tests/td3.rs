@@ -504,3 +504,66 @@ fn behaviour_cloning_and_the_td3_bc_term_pull_the_actor_to_the_demonstrator() {
         "with the BC term {with_bc:?}, without {without:?}"
     );
 }
+
+/// With `export_best`, the exported actor is the best evaluated one: the best periodic
+/// evaluation's, unless the final actor does at least as well on the same missions.
+#[test]
+fn the_exported_actor_is_the_best_evaluated_one() {
+    let world = room();
+    let dir = tempfile::tempdir().unwrap();
+    let mut options = small_options(dir.path());
+    options.config.export_best = true;
+    let mut trainer = Trainer::new(world, options).unwrap();
+    trainer
+        .run(
+            Budget {
+                env_steps: Some(5000),
+                ..Budget::default()
+            },
+            &mut |_| true,
+        )
+        .unwrap();
+    let evals: Vec<f64> = trainer
+        .evals()
+        .iter()
+        .map(|e| e.report.success_rate)
+        .collect();
+    assert!(evals.len() >= 4, "{evals:?}");
+    let export = dir.path().join("policy");
+    trainer.export(&export, serde_json::json!({})).unwrap();
+    let policy = Policy::load(&export).unwrap();
+    let exported = &policy.metadata().training["exported"];
+    let best = evals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    match exported["actor"].as_str().unwrap() {
+        "best evaluation" => {
+            assert_eq!(
+                exported["success_rate"].as_f64().unwrap(),
+                best,
+                "{exported}"
+            );
+            assert!(
+                exported["final_success_rate"].as_f64().unwrap() <= best,
+                "{exported}"
+            );
+        }
+        "final" => {}
+        other => panic!("exported {other}"),
+    }
+    // Without it, the final actor.
+    let mut options = small_options(dir.path());
+    options.config.export_best = false;
+    options.out_dir = dir.path().join("plain");
+    let mut trainer = Trainer::new(room(), options).unwrap();
+    trainer
+        .run(
+            Budget {
+                env_steps: Some(1500),
+                ..Budget::default()
+            },
+            &mut |_| true,
+        )
+        .unwrap();
+    trainer.export(&export, serde_json::json!({})).unwrap();
+    let policy = Policy::load(&export).unwrap();
+    assert_eq!(policy.metadata().training["exported"]["actor"], "final");
+}
