@@ -302,7 +302,7 @@ fn bad_images_are_rejected() {
     // A huge header with no data must not allocate gigabytes or panic.
     let huge = b"P5\n100000 100000\n255\n".to_vec();
     let err = OccupancyGrid::from_ros_map_server(&meta(), &huge).expect_err("huge");
-    assert!(matches!(err, RosMapError::BadImage { .. }), "{err:?}");
+    assert!(matches!(err, RosMapError::TooManyPixels { .. }), "{err:?}");
     let zero = b"P5\n0 0\n255\n".to_vec();
     let err = OccupancyGrid::from_ros_map_server(&meta(), &zero).expect_err("zero");
     assert!(
