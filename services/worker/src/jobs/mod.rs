@@ -279,7 +279,7 @@ mod tests {
         let e = "dance".parse::<JobKind>().unwrap_err();
         assert_eq!(
             e.to_string(),
-            "unknown job kind \"dance\": expected one of train, evaluate, validate"
+            "unknown job kind \"dance\": expected one of train, evaluate, validate, roadmap"
         );
     }
 
