@@ -388,6 +388,25 @@ async fn bad_jobs_are_refused_with_distinct_errors_naming_what_is_wrong() {
             &["minutes"],
         ),
         (
+            train(json!({"robot": "R-001", "place": "F0", "minutes": 1.0e9})),
+            422,
+            &["minutes", "at most"],
+        ),
+        (
+            train(
+                json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"envs": 1_000_000_000u64}}),
+            ),
+            422,
+            &["envs", "at most"],
+        ),
+        (
+            train(
+                json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"buffer_capacity": 1u64 << 40}}),
+            ),
+            422,
+            &["buffer_capacity", "at most"],
+        ),
+        (
             train(
                 json!({"robot": "R-001", "place": "F0", "minutes": 1, "config": {"td3": {"tau": 0}}}),
             ),

@@ -348,8 +348,73 @@ impl TrainConfig {
             (nonneg(t.bc_alpha), "td3.bc_alpha must not be negative"),
             (nonneg(self.demo_noise), "demo_noise must not be negative"),
         ];
-        match checks.iter().find(|(ok, _)| !ok) {
-            Some((_, msg)) => Err((*msg).to_owned()),
+        if let Some((_, msg)) = checks.iter().find(|(ok, _)| !ok) {
+            return Err((*msg).to_owned());
+        }
+        self.check_upper_bounds()
+    }
+
+    /// Every count and size below a bound, so that a configuration cannot ask for more memory
+    /// or time than a machine has (a job's configuration comes from a client).
+    fn check_upper_bounds(&self) -> Result<(), String> {
+        let t = &self.td3;
+        let counts: [(&str, u64, u64); 13] = [
+            ("td3.hidden (layers)", t.hidden.len() as u64, 8),
+            (
+                "td3.hidden (width)",
+                t.hidden.iter().copied().max().unwrap_or(0) as u64,
+                4096,
+            ),
+            ("td3.batch_size", t.batch_size as u64, 65_536),
+            ("td3.policy_delay", u64::from(t.policy_delay), 1000),
+            ("envs", self.envs as u64, 1024),
+            ("buffer_capacity", self.buffer_capacity as u64, 10_000_000),
+            ("random_steps", self.random_steps, 100_000_000),
+            ("eval_every", self.eval_every, 100_000_000),
+            ("eval_episodes", self.eval_episodes as u64, 10_000),
+            ("threads", self.threads as u64, 256),
+            (
+                "max_episode_steps",
+                u64::from(self.max_episode_steps),
+                1_000_000,
+            ),
+            ("demo_steps", self.demo_steps, 100_000_000),
+            (
+                "bc_steps + critic_warmup_steps",
+                self.bc_steps.saturating_add(self.critic_warmup_steps),
+                10_000_000,
+            ),
+        ];
+        if let Some((name, value, max)) = counts.iter().find(|(_, v, max)| v > max) {
+            return Err(format!("{name} must be at most {max}, got {value}"));
+        }
+        let reals: [(&str, f64, f64); 11] = [
+            ("td3.actor_lr", t.actor_lr, 1.0),
+            ("td3.critic_lr", t.critic_lr, 1.0),
+            ("td3.policy_noise", t.policy_noise, 10.0),
+            ("td3.noise_clip", t.noise_clip, 10.0),
+            ("td3.exploration_noise", t.exploration_noise, 10.0),
+            ("td3.beta1", t.beta1, 1e6),
+            ("td3.beta2", t.beta2, 1e6),
+            ("td3.reward_scale", t.reward_scale, 1e6),
+            ("td3.bc_alpha", t.bc_alpha, 1e6),
+            ("updates_per_step", self.updates_per_step, 64.0),
+            ("goal_distance (max)", self.goal_distance.1, 1000.0),
+        ];
+        if let Some((name, value, max)) = reals.iter().find(|(_, v, max)| *v > *max) {
+            return Err(format!("{name} must be at most {max}, got {value}"));
+        }
+        let more: [(&str, f64, f64); 4] = [
+            ("checkpoint_every_s", self.checkpoint_every_s, 86_400.0),
+            ("time_cost", self.time_cost, 1e6),
+            ("heading_reward", self.heading_reward.abs(), 1e6),
+            ("demo_noise", self.demo_noise, 10.0),
+        ];
+        match more
+            .iter()
+            .find(|(_, v, max)| !(v.is_finite() && *v <= *max))
+        {
+            Some((name, value, max)) => Err(format!("{name} must be at most {max}, got {value}")),
             None => Ok(()),
         }
     }
@@ -383,6 +448,33 @@ mod tests {
             vec![64, 64],
             "the preset's other td3 values stay"
         );
+        for (json, field) in [
+            (serde_json::json!({"envs": 1_000_000_000u64}), "envs"),
+            (
+                serde_json::json!({"buffer_capacity": 1u64 << 40}),
+                "buffer_capacity",
+            ),
+            (
+                serde_json::json!({"td3": {"hidden": [1_000_000]}}),
+                "td3.hidden",
+            ),
+            (
+                serde_json::json!({"td3": {"batch_size": 100_000}}),
+                "td3.batch_size",
+            ),
+            (
+                serde_json::json!({"updates_per_step": 1e9}),
+                "updates_per_step",
+            ),
+            (
+                serde_json::json!({"heading_reward": 1e300}),
+                "heading_reward",
+            ),
+        ] {
+            let c = fast.with_json(json).expect("parses");
+            let err = c.validate().unwrap_err();
+            assert!(err.contains(field) && err.contains("at most"), "{err}");
+        }
         let err = fast
             .with_json(serde_json::json!({"td3": {"gama": 0.9}}))
             .unwrap_err();

@@ -21,6 +21,9 @@ use super::{JobEnv, PayloadError, to_json};
 use crate::queue::Checkpoint;
 use crate::runner::{JobContext, JobError, JobHandler, StopReason};
 
+/// Longest training a job may ask for, minutes (a week).
+pub const MAX_MINUTES: f64 = 10_080.0;
+
 /// Progress is written at most this often.
 pub const PROGRESS_EVERY: Duration = Duration::from_secs(2);
 
@@ -47,9 +50,9 @@ pub struct TrainPayload {
 impl TrainPayload {
     /// Values in range, the configuration valid.
     pub fn check(&self) -> Result<(), PayloadError> {
-        if !(self.minutes.is_finite() && self.minutes > 0.0) {
+        if !(self.minutes.is_finite() && self.minutes > 0.0 && self.minutes <= MAX_MINUTES) {
             return Err(PayloadError::Invalid(format!(
-                "payload.minutes: must be a positive number, got {}",
+                "payload.minutes: must be a positive number of minutes, at most {MAX_MINUTES} (a week), got {}",
                 self.minutes
             )));
         }
