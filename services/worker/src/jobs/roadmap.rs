@@ -204,6 +204,33 @@ impl From<&EdgeStat> for StoredEdge {
     }
 }
 
+impl From<&StoredEdge> for EdgeStat {
+    fn from(e: &StoredEdge) -> Self {
+        let StoredEdge {
+            from,
+            to,
+            length_m,
+            successes,
+            collisions,
+            rollouts,
+            mean_time_s,
+            min_clearance_m,
+            near_misses,
+        } = *e;
+        EdgeStat {
+            from,
+            to,
+            length_m,
+            successes,
+            collisions,
+            rollouts,
+            mean_time_s,
+            min_clearance_m,
+            near_misses,
+        }
+    }
+}
+
 /// A stored policy-aware roadmap: its key, the fingerprint of the geometric roadmap's nodes it
 /// applies to, and every edge direction's rollouts.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -226,21 +253,7 @@ impl StoredRoadmap {
     /// The report [`rehearsal::reweight`] applies.
     pub fn report(&self) -> EdgeReport {
         EdgeReport {
-            edges: self
-                .edges
-                .iter()
-                .map(|e| EdgeStat {
-                    from: e.from,
-                    to: e.to,
-                    length_m: e.length_m,
-                    successes: e.successes,
-                    collisions: e.collisions,
-                    rollouts: e.rollouts,
-                    mean_time_s: e.mean_time_s,
-                    min_clearance_m: e.min_clearance_m,
-                    near_misses: e.near_misses,
-                })
-                .collect(),
+            edges: self.edges.iter().map(EdgeStat::from).collect(),
             params: EdgeRolloutParams {
                 rollouts: self.key.rollouts,
                 keep_threshold: f64::from_bits(self.key.keep_bits),
