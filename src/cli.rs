@@ -395,6 +395,10 @@ fn serve_command(config_file: Option<PathBuf>, overrides: Overrides, worker: boo
     crate::telemetry::init(&config);
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .enable_all()
+        // Parsers and the SPARQL evaluator recurse per nesting level: room for what the
+        // lexical limits let through (protocol::complexity), with a wide margin. Only the
+        // pages a thread touches are committed.
+        .thread_stack_size(8 * 1024 * 1024)
         .build()
     {
         Ok(rt) => rt,
@@ -403,6 +407,14 @@ fn serve_command(config_file: Option<PathBuf>, overrides: Overrides, worker: boo
             return ExitCode::FAILURE;
         }
     };
+    if std::env::var_os(FAULT_STUCK_TASK).is_some() {
+        tracing::warn!("{FAULT_STUCK_TASK} is set: a blocking task that never ends is running");
+        runtime.spawn_blocking(|| {
+            loop {
+                std::thread::park();
+            }
+        });
+    }
     let run = async move {
         if worker {
             run_worker(config).await
@@ -410,7 +422,12 @@ fn serve_command(config_file: Option<PathBuf>, overrides: Overrides, worker: boo
             serve(config).await
         }
     };
-    match runtime.block_on(run) {
+    let result = runtime.block_on(run);
+    // The grace period is over (requests, jobs) and the stores are closed. A blocking task that
+    // is still running (a computation that ignores cancellation) must not keep the process
+    // alive: the runtime waits for it only briefly.
+    runtime.shutdown_timeout(RUNTIME_SHUTDOWN);
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!(error = %e, "mentalsim serve failed");
@@ -419,6 +436,13 @@ fn serve_command(config_file: Option<PathBuf>, overrides: Overrides, worker: boo
         }
     }
 }
+
+/// How long the runtime waits for blocking tasks still running once serving has stopped.
+const RUNTIME_SHUTDOWN: std::time::Duration = std::time::Duration::from_millis(500);
+
+/// Fault injection for tests: when set, `serve` and `worker` start a blocking task that never
+/// ends, to prove that stopping stops anyway.
+const FAULT_STUCK_TASK: &str = "MENTALSIM_FAULT_STUCK_TASK";
 
 fn import_map(
     yaml: &std::path::Path,

@@ -55,8 +55,19 @@ pub struct Config {
     pub database_url: Option<String>,
     /// Time from request to response head, in seconds.
     pub request_timeout_s: f64,
-    /// Largest request body, in bytes (map imports carry images: keep it generous).
+    /// Largest request body of a map import, a Graph Store write or a SPARQL update by an
+    /// engineer, in bytes (map imports carry images: keep it generous).
     pub body_limit_bytes: usize,
+    /// Largest body of every other request (a plan, a query, an object report), in bytes.
+    pub small_body_limit_bytes: usize,
+    /// Requests handled at once, probes excepted; beyond it requests are answered 503 with
+    /// `Retry-After` instead of queueing.
+    pub max_in_flight: usize,
+    /// Open connections at most; further ones wait in the accept queue.
+    pub max_connections: usize,
+    /// Time a client has to send a request's headers (and the idle timeout of a kept-alive
+    /// connection), in seconds.
+    pub header_read_timeout_s: f64,
     /// Time running work gets to finish after SIGINT/SIGTERM, in seconds.
     pub shutdown_grace_s: f64,
     /// Log format.
@@ -67,6 +78,11 @@ pub struct Config {
     pub query_deadline_s: f64,
     /// Largest CONSTRUCT/DESCRIBE answer, in triples; larger answers are refused, not cut.
     pub max_construct_triples: usize,
+    /// Largest serialized SPARQL or Graph Store answer to an engineer, in bytes; a larger one
+    /// is refused with 507 as soon as it passes the cap, never cut or held whole.
+    pub max_result_bytes: usize,
+    /// The same cap for robot tokens.
+    pub robot_max_result_bytes: usize,
     /// Bearer tokens. With none, `serve` creates an engineer token in `<data_dir>/admin.token`.
     pub tokens: Vec<TokenConfig>,
     /// A SPARQL 1.1 store to keep the knowledge graph in instead of the embedded one: its
@@ -110,11 +126,17 @@ impl Default for Config {
             database_url: None,
             request_timeout_s: 120.0,
             body_limit_bytes: 64 * 1024 * 1024,
+            small_body_limit_bytes: 1024 * 1024,
+            max_in_flight: 512,
+            max_connections: 1024,
+            header_read_timeout_s: 10.0,
             shutdown_grace_s: 30.0,
             log_format: LogFormat::Text,
             log_filter: "info".to_owned(),
             query_deadline_s: 30.0,
             max_construct_triples: 5_000_000,
+            max_result_bytes: 256 * 1024 * 1024,
+            robot_max_result_bytes: 16 * 1024 * 1024,
             tokens: Vec::new(),
             store_url: None,
             store_update_url: None,
@@ -206,6 +228,8 @@ fn describe(error: &figment::Error) -> String {
 /// endpoint). A shell that sets them must still be able to run `serve`.
 const NOT_KEYS: &[&str] = &[
     "config",
+    "bin",
+    "fault_stuck_task",
     "url",
     "token",
     "venv",
@@ -278,6 +302,7 @@ impl Config {
         positive("request_timeout_s", self.request_timeout_s)?;
         positive("shutdown_grace_s", self.shutdown_grace_s)?;
         positive("query_deadline_s", self.query_deadline_s)?;
+        positive("header_read_timeout_s", self.header_read_timeout_s)?;
         if self.request_timeout_s < self.query_deadline_s {
             return Err(ConfigError::Invalid {
                 key: "request_timeout_s",
@@ -301,12 +326,21 @@ impl Config {
                 });
             }
         }
-        if self.body_limit_bytes < 1024 {
-            return Err(ConfigError::Invalid {
-                key: "body_limit_bytes",
-                problem: format!("must be at least 1024, got {}", self.body_limit_bytes),
-                source_name: source("body_limit_bytes"),
-            });
+        for (key, value, least) in [
+            ("body_limit_bytes", self.body_limit_bytes, 1024),
+            ("small_body_limit_bytes", self.small_body_limit_bytes, 1024),
+            ("max_in_flight", self.max_in_flight, 1),
+            ("max_connections", self.max_connections, 1),
+            ("max_result_bytes", self.max_result_bytes, 1024),
+            ("robot_max_result_bytes", self.robot_max_result_bytes, 1024),
+        ] {
+            if value < least {
+                return Err(ConfigError::Invalid {
+                    key,
+                    problem: format!("must be at least {least}, got {value}"),
+                    source_name: source(key),
+                });
+            }
         }
         if self.data_dir.as_os_str().is_empty() {
             return Err(ConfigError::Invalid {
@@ -503,11 +537,44 @@ impl Config {
         Duration::from_secs_f64(self.request_timeout_s)
     }
 
+    /// The connection limits of the HTTP server.
+    pub fn serve_limits(&self) -> edge::serve::ServeLimits {
+        edge::serve::ServeLimits {
+            header_read_timeout: Duration::from_secs_f64(self.header_read_timeout_s),
+            max_connections: self.max_connections,
+        }
+    }
+
+    /// What is decided from a request's head (see `edge::guard`): `tokens`, the probes that
+    /// need none, the routes that may carry large bodies, requests in flight.
+    pub fn guard(&self, tokens: edge::Tokens) -> std::sync::Arc<edge::guard::Guard> {
+        use axum::http::Method;
+        edge::guard::Guard::new(edge::guard::GuardConfig {
+            tokens,
+            public_routes: vec!["/healthz", "/readyz", "/metrics"],
+            large_body_routes: vec![
+                (Method::POST, "/v1/maps"),
+                (Method::POST, "/sparql"),
+                (Method::PUT, "/store"),
+                (Method::POST, "/store"),
+                (Method::PUT, "/store/{*graph}"),
+                (Method::POST, "/store/{*graph}"),
+            ],
+            large_body: self.body_limit_bytes,
+            small_body: self.small_body_limit_bytes.min(self.body_limit_bytes),
+            max_in_flight: self.max_in_flight,
+            retry_after_s: 1,
+        })
+    }
+
     /// The SPARQL limits.
     pub fn query_limits(&self) -> knowledge::QueryLimits {
         knowledge::QueryLimits {
             deadline: Duration::from_secs_f64(self.query_deadline_s),
             max_construct_triples: self.max_construct_triples,
+            max_result_bytes: self.max_result_bytes,
+            robot_max_result_bytes: self.robot_max_result_bytes,
+            max_query_bytes: self.small_body_limit_bytes,
         }
     }
 

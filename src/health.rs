@@ -50,7 +50,15 @@ pub(crate) async fn metrics() -> impl IntoResponse {
 /// Ready when the data directory takes writes, the graph store answers a query, and the job
 /// database answers with every migration applied. Each check reports separately; a failing one
 /// says why, and the answer is 503.
-async fn readyz(State(components): State<Arc<Components>>) -> Response {
+async fn readyz(
+    State(components): State<Arc<Components>>,
+    headers: axum::http::HeaderMap,
+) -> Response {
+    let full = components
+        .knowledge()
+        .tokens
+        .require(&headers, edge::Role::Engineer)
+        .is_ok();
     let data_dir = writable(components.data_dir()).await;
     let store = match components.store().await {
         Ok(store) => {
@@ -68,7 +76,7 @@ async fn readyz(State(components): State<Arc<Components>>) -> Response {
         .with("data_dir", data_dir)
         .with("graph_store", store)
         .with("job_database", jobs)
-        .into_response()
+        .respond(full)
 }
 
 /// What a check looked at, shown whether it passed or not.
@@ -86,6 +94,9 @@ pub enum Detail {
 }
 
 /// One readiness check: whether it passed, what it looked at, and why it failed.
+///
+/// What it looked at and the full reason (paths, URLs, errors) are shown to engineers only;
+/// anyone else (a load balancer's probe) sees the check's name and a short `summary`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Check {
     /// It passed.
@@ -96,6 +107,9 @@ pub struct Check {
     /// Why it failed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
+    /// Why it failed, in words that name no path, URL or credential.
+    #[serde(skip)]
+    pub summary: &'static str,
 }
 
 impl Check {
@@ -105,23 +119,22 @@ impl Check {
             ok: true,
             detail: None,
             reason: None,
+            summary: "",
         }
     }
 
-    /// A check that failed, and why.
+    /// A check that failed, and why (summarised as "unavailable").
     pub fn fail(reason: impl Into<String>) -> Self {
+        Self::fail_as("unavailable", reason)
+    }
+
+    /// A check that failed: `summary` for anyone, `reason` for engineers and the log.
+    pub fn fail_as(summary: &'static str, reason: impl Into<String>) -> Self {
         Self {
             ok: false,
             detail: None,
             reason: Some(reason.into()),
-        }
-    }
-
-    /// Passed on `Ok`, failed with the reason on `Err`.
-    pub fn from_result(result: Result<(), String>) -> Self {
-        match result {
-            Ok(()) => Self::pass(),
-            Err(reason) => Self::fail(reason),
+            summary,
         }
     }
 
@@ -129,6 +142,18 @@ impl Check {
     pub fn with(mut self, detail: Detail) -> Self {
         self.detail = Some(detail);
         self
+    }
+
+    /// What anyone may see: whether it passed, its summary, and counts (never paths or URLs).
+    fn public(&self) -> serde_json::Value {
+        let mut value = json!({ "ok": self.ok });
+        if let Some(Detail::Migrations(n)) = self.detail {
+            value["migrations"] = json!(n);
+        }
+        if !self.ok {
+            value["reason"] = json!(self.summary);
+        }
+        value
     }
 }
 
@@ -161,20 +186,44 @@ impl Readiness {
     }
 }
 
-impl IntoResponse for Readiness {
-    /// 200 when every check passed, else 503 naming each failing check and its reason.
-    fn into_response(self) -> Response {
-        if self.is_ready() {
-            let body = json!({ "status": "ready", "checks": self.checks });
-            (StatusCode::OK, Json(body)).into_response()
-        } else {
-            let body = json!({
-                "status": "not_ready",
-                "reason": self.reason(),
-                "checks": self.checks,
-            });
-            (StatusCode::SERVICE_UNAVAILABLE, Json(body)).into_response()
+impl Readiness {
+    /// 200 when every check passed, else 503 naming each failing check and why: in full
+    /// (paths, URLs, errors) when `full`, for an engineer, else by summary only. A failure is
+    /// logged in full either way.
+    pub fn respond(self, full: bool) -> Response {
+        let ready = self.is_ready();
+        if !ready {
+            tracing::warn!(reason = %self.reason(), "not ready");
         }
+        let (status, label) = if ready {
+            (StatusCode::OK, "ready")
+        } else {
+            (StatusCode::SERVICE_UNAVAILABLE, "not_ready")
+        };
+        let mut body = if full {
+            json!({ "status": label, "checks": self.checks })
+        } else {
+            let checks: serde_json::Map<String, serde_json::Value> = self
+                .checks
+                .iter()
+                .map(|(name, c)| ((*name).to_owned(), c.public()))
+                .collect();
+            json!({ "status": label, "checks": checks })
+        };
+        if !ready {
+            body["reason"] = json!(if full { self.reason() } else { self.summary() });
+        }
+        (status, Json(body)).into_response()
+    }
+
+    /// The failing checks, `name: summary` joined by `; `.
+    fn summary(&self) -> String {
+        self.checks
+            .iter()
+            .filter(|(_, c)| !c.ok)
+            .map(|(name, c)| format!("{name}: {}", c.summary))
+            .collect::<Vec<_>>()
+            .join("; ")
     }
 }
 
@@ -185,25 +234,34 @@ pub(crate) async fn job_database(db: Result<&JobDatabase, String>) -> Check {
             Ok(s) if s.applied_migrations == s.expected_migrations => {
                 Check::pass().with(Detail::Migrations(s.applied_migrations))
             }
-            Ok(s) => Check::fail(format!(
-                "{} of {} migrations applied",
-                s.applied_migrations, s.expected_migrations
-            )),
+            Ok(s) => Check::fail_as(
+                "migrations pending",
+                format!(
+                    "{} of {} migrations applied",
+                    s.applied_migrations, s.expected_migrations
+                ),
+            ),
             Err(e) => Check::fail(e.to_string()),
         },
         Err(reason) => Check::fail(reason),
     }
 }
 
-/// `dir` takes writes: a probe file (named after this process, as several workers may share
-/// the directory) is created, synced and removed — the only reliable way to know (permissions,
-/// read-only mounts, a full disk, a path that is not a directory).
+/// `dir` takes writes: a probe file (named after this process and probe, as several workers
+/// and concurrent probes may share the directory) is created, synced and removed — the only
+/// reliable way to know (permissions, read-only mounts, a full disk, a path that is not a
+/// directory).
 pub(crate) async fn writable(dir: &Path) -> Check {
+    static PROBES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let probe_number = PROBES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let path = dir.to_owned();
     let result = tokio::task::spawn_blocking(move || -> std::io::Result<()> {
         use std::io::Write;
         std::fs::create_dir_all(&path)?;
-        let probe = path.join(format!(".readyz-probe-{}", std::process::id()));
+        let probe = path.join(format!(
+            ".readyz-probe-{}-{probe_number}",
+            std::process::id()
+        ));
         let mut file = std::fs::File::create(&probe)?;
         file.write_all(b"ok")?;
         file.sync_all()?;
@@ -212,8 +270,8 @@ pub(crate) async fn writable(dir: &Path) -> Check {
     .await;
     let check = match result {
         Ok(Ok(())) => Check::pass(),
-        Ok(Err(e)) => Check::fail(format!("not writable: {e}")),
-        Err(e) => Check::fail(format!("write probe failed: {e}")),
+        Ok(Err(e)) => Check::fail_as("not writable", format!("not writable: {e}")),
+        Err(e) => Check::fail_as("not writable", format!("write probe failed: {e}")),
     };
     check.with(Detail::Path(dir.to_owned()))
 }

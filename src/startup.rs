@@ -203,17 +203,25 @@ impl Application {
         ));
         let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
         let on_shutdown = stopping.clone();
-        let serve = axum::serve(self.listener, self.router).with_graceful_shutdown(async move {
-            shutdown.await;
-            tracing::info!("shutting down: no new connections; finishing requests in flight");
-            // Workers stop claiming and checkpoint; event streams end.
-            on_shutdown.cancel();
-            let _ = stopping_tx.send(());
-        });
-        let serve = async move { serve.await };
+        let serve = edge::serve::serve(
+            self.listener,
+            self.router,
+            self.config.serve_limits(),
+            async move {
+                shutdown.await;
+                tracing::info!("shutting down: no new connections; finishing requests in flight");
+                // Workers stop claiming and checkpoint; event streams end.
+                on_shutdown.cancel();
+                let _ = stopping_tx.send(());
+            },
+        );
+        let serve = async move {
+            serve.await;
+            anyhow::Ok(())
+        };
         tokio::pin!(serve);
         let served = tokio::select! {
-            result = &mut serve => result.map_err(anyhow::Error::from),
+            result = &mut serve => result,
             () = async {
                 let _ = stopping_rx.await;
                 tokio::time::sleep(grace).await;
@@ -244,6 +252,7 @@ impl Application {
 /// Both services and the health routes on one router, wrapped in the shared middleware stack.
 fn router(config: &Config, components: Arc<Components>, stopping: CancellationToken) -> Router {
     let knowledge = components.knowledge().clone();
+    let guard = config.guard(knowledge.tokens.clone());
     let jobs = Arc::new(worker::api::JobsApi {
         queue: components.queue().clone(),
         tokens: knowledge.tokens.clone(),
@@ -260,12 +269,13 @@ fn router(config: &Config, components: Arc<Components>, stopping: CancellationTo
         .merge(knowledge::api::router(knowledge.clone()))
         .merge(knowledge::protocol::router(knowledge))
         .fallback(edge::middleware::not_found);
-    edge::middleware::stack(
+    edge::middleware::stack_guarded(
         app,
         edge::middleware::Limits {
             request_timeout: config.request_timeout(),
             body_limit: config.body_limit_bytes,
         },
+        Some(guard),
     )
 }
 

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::State;
-use axum::response::{IntoResponse, Response};
+use axum::response::Response;
 use axum::routing::get;
 use axum::{Json, Router};
 use serde_json::json;
@@ -23,7 +23,8 @@ use crate::health::{self, Check, Detail, Readiness};
 struct Shared {
     queue: Arc<LazyQueue>,
     knowledge: HttpKnowledge,
-    checkpoints_dir: PathBuf,
+    /// Every directory a job writes in, by the name of its readiness check.
+    writes: Vec<(&'static str, PathBuf)>,
 }
 
 /// A bound worker process, ready to run.
@@ -70,7 +71,11 @@ impl WorkerProcess {
         let shared = Arc::new(Shared {
             queue,
             knowledge,
-            checkpoints_dir: config.checkpoints_dir(),
+            writes: vec![
+                ("checkpoints_dir", config.checkpoints_dir()),
+                ("policies_dir", config.policies_dir()),
+                ("roadmaps_dir", config.roadmaps_dir()),
+            ],
         });
         let router = Router::new()
             .route("/healthz", get(healthz))
@@ -118,11 +123,12 @@ impl WorkerProcess {
             stopping.clone(),
         ));
         let on_shutdown = stopping.clone();
-        let server = tokio::spawn(
-            axum::serve(self.listener, self.router)
-                .with_graceful_shutdown(async move { on_shutdown.cancelled().await })
-                .into_future(),
-        );
+        let server = tokio::spawn(edge::serve::serve(
+            self.listener,
+            self.router,
+            self.config.serve_limits(),
+            async move { on_shutdown.cancelled().await },
+        ));
         shutdown.await;
         tracing::info!(
             "shutting down: no new jobs; running jobs checkpoint and go back to the queue"
@@ -148,15 +154,21 @@ async fn healthz() -> Json<serde_json::Value> {
 }
 
 /// Ready when the job database answers with every migration applied, the knowledge service
-/// is ready, and the checkpoint directory takes writes.
+/// is ready and accepts the worker's token, and every directory jobs write in (checkpoints,
+/// policies, policy-aware roadmaps) takes writes. Probes see which check failed, never a path
+/// or URL; the log has the full reason.
 async fn readyz(State(shared): State<Arc<Shared>>) -> Response {
     let jobs = health::job_database(shared.queue.get().await.map(Queue::database)).await;
-    let knowledge = Check::from_result(shared.knowledge.ready().await)
-        .with(Detail::Url(shared.knowledge.base().to_owned()));
-    let checkpoints = health::writable(&shared.checkpoints_dir).await;
-    Readiness::default()
+    let knowledge = match shared.knowledge.ready().await {
+        Ok(()) => Check::pass(),
+        Err((summary, reason)) => Check::fail_as(summary, reason),
+    }
+    .with(Detail::Url(shared.knowledge.base().to_owned()));
+    let mut readiness = Readiness::default()
         .with("job_database", jobs)
-        .with("knowledge", knowledge)
-        .with("checkpoints_dir", checkpoints)
-        .into_response()
+        .with("knowledge", knowledge);
+    for (name, dir) in &shared.writes {
+        readiness = readiness.with(name, health::writable(dir).await);
+    }
+    readiness.respond(false)
 }

@@ -96,7 +96,13 @@ async fn metrics_count_requests_by_matched_route() {
 #[tokio::test]
 async fn unknown_route_is_a_json_404_with_a_request_id() {
     let app = spawn_app().await;
-    let response = app.get("/v1/nothing-here").await;
+    // Without a token, not even which routes exist is answered.
+    assert_eq!(app.get("/v1/nothing-here").await.status(), 401);
+    let response = app
+        .request(reqwest::Method::GET, "/v1/nothing-here")
+        .send()
+        .await
+        .unwrap();
     assert_eq!(response.status(), 404);
     assert!(response.headers().contains_key("x-request-id"));
     let body: serde_json::Value = response.json().await.unwrap();

@@ -5,6 +5,7 @@
     reason = "a test that cannot set itself up should fail loudly"
 )]
 
+mod bounds;
 mod health;
 mod helpers;
 mod jobs;

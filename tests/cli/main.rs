@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
+mod bounds;
 mod train;
 mod worker;
 
@@ -56,10 +57,17 @@ fn bad_flag_value_stops_startup() {
 }
 
 fn assert_graceful_stop_on(signal: Signal) {
+    assert_stops_on(signal, &[], Duration::from_secs(20));
+}
+
+/// Starts `serve` with `env`, sends `signal` once it is ready, and asserts a clean exit within
+/// `within`.
+fn assert_stops_on(signal: Signal, env: &[(&str, &str)], within: Duration) {
     let dir = tempfile::tempdir().unwrap();
     let mut child = mentalsim()
         .args(["serve", "--bind", "127.0.0.1:0", "--data-dir"])
         .arg(dir.path().join("data"))
+        .envs(env.iter().copied())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -88,7 +96,7 @@ fn assert_graceful_stop_on(signal: Signal) {
     assert!(body.contains("\"ready\""), "{body}");
 
     kill(Pid::from_raw(i32::try_from(child.id()).unwrap()), signal).unwrap();
-    let deadline = Instant::now() + Duration::from_secs(20);
+    let deadline = Instant::now() + within;
     loop {
         if let Some(status) = child.try_wait().unwrap() {
             assert!(status.success(), "exit status after {signal}: {status}");
@@ -96,7 +104,7 @@ fn assert_graceful_stop_on(signal: Signal) {
         }
         assert!(
             Instant::now() < deadline,
-            "did not stop within 20 s of {signal}"
+            "did not stop within {within:?} of {signal}"
         );
         std::thread::sleep(Duration::from_millis(50));
     }
@@ -107,6 +115,20 @@ fn assert_graceful_stop_on(signal: Signal) {
 #[test]
 fn sigterm_stops_the_server_gracefully() {
     assert_graceful_stop_on(Signal::SIGTERM);
+}
+
+/// A blocking task that never ends (started on purpose by the fault-injection variable) does
+/// not keep the process alive past the grace period.
+#[test]
+fn sigterm_stops_the_server_even_with_a_stuck_blocking_task() {
+    assert_stops_on(
+        Signal::SIGTERM,
+        &[
+            ("MENTALSIM_FAULT_STUCK_TASK", "1"),
+            ("MENTALSIM_SHUTDOWN_GRACE_S", "1"),
+        ],
+        Duration::from_secs(4),
+    );
 }
 
 #[test]

@@ -527,6 +527,7 @@ fn run_map(
                 trajectory_stride: 0,
                 ..PlanOptions::default()
             },
+            stop: rehearsal::Stop::default(),
         };
         // The roadmap of the first attempt, built outside the timed call (the service builds it
         // once per map version and seed).
@@ -622,6 +623,7 @@ fn run_map(
                 max_replans: 0,
                 sim_seed: mix(seed, 0x0707),
                 initial_velocity: Action::default(),
+                stop: rehearsal::Stop::default(),
             },
             None,
         )

@@ -9,7 +9,10 @@ use serde::Serialize;
 ///
 /// Every code maps to exactly one HTTP status in [`ErrorCode::status`], and that match has no
 /// catch-all arm, so adding a code forces a decision about its status.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, utoipa::ToSchema)]
+#[schema(
+    description = "A stable, machine-readable error code: clients match on these strings, which never change."
+)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorCode {
     /// The request is malformed: a parameter is missing, ill-typed or out of range.
@@ -40,6 +43,10 @@ pub enum ErrorCode {
     Unprocessable,
     /// The service is starting or a backing store is unavailable; retry later.
     NotReady,
+    /// The service is at its limit of requests in flight; retry after the `Retry-After` seconds.
+    Overloaded,
+    /// This client sent more requests of a kind than its rate allows; retry later.
+    TooManyRequests,
     /// A backing service (e.g. a remote SPARQL store) answered with an error of its own.
     BadGateway,
     /// A fault inside the service. Details are logged, never sent.
@@ -62,7 +69,8 @@ impl ErrorCode {
             ErrorCode::ResultTooLarge => StatusCode::INSUFFICIENT_STORAGE,
             ErrorCode::Conflict => StatusCode::CONFLICT,
             ErrorCode::Unprocessable => StatusCode::UNPROCESSABLE_ENTITY,
-            ErrorCode::NotReady => StatusCode::SERVICE_UNAVAILABLE,
+            ErrorCode::NotReady | ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
+            ErrorCode::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
             ErrorCode::BadGateway => StatusCode::BAD_GATEWAY,
             ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
         }
@@ -85,6 +93,8 @@ impl ErrorCode {
             ErrorCode::Conflict => "conflict",
             ErrorCode::Unprocessable => "unprocessable",
             ErrorCode::NotReady => "not_ready",
+            ErrorCode::Overloaded => "overloaded",
+            ErrorCode::TooManyRequests => "too_many_requests",
             ErrorCode::BadGateway => "bad_gateway",
             ErrorCode::Internal => "internal",
         }
@@ -124,9 +134,57 @@ pub struct ErrorBody {
 #[derive(Serialize, utoipa::ToSchema)]
 pub struct ErrorDetail {
     /// Stable machine-readable code, e.g. `bad_request`, `not_found`, `unprocessable`.
+    #[schema(value_type = ErrorCode)]
     code: String,
     /// What is wrong, for people.
     message: String,
+    /// Structured details when the error has some (e.g. the problems found, the attempts of a
+    /// plan that could not be validated).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    details: Option<serde_json::Value>,
+}
+
+/// The error answers every authenticated operation may give, as reusable OpenAPI responses
+/// (`#/components/responses/...`): name them in an operation's `responses(...)` with
+/// `(status = 401, response = edge::error::responses::Unauthorized)` and list them in the
+/// document's `components(responses(...))`.
+pub mod responses {
+    use super::ErrorBody;
+
+    /// No valid bearer token (`unauthorized`): the `Authorization` header is missing, is not
+    /// `Bearer <token>`, or names no configured token. Answered before the request's body is
+    /// read.
+    #[derive(utoipa::ToResponse)]
+    pub struct Unauthorized(pub ErrorBody);
+
+    /// The token is valid but its role may not do this (`forbidden`): engineers may do
+    /// everything; robots read, and use the robot operations (on-demand databases, object
+    /// reports, plans).
+    #[derive(utoipa::ToResponse)]
+    pub struct Forbidden(pub ErrorBody);
+
+    /// The request body is larger than the operation takes from this token's role
+    /// (`payload_too_large`; refused at once when `Content-Length` says so): map imports take
+    /// up to `body_limit_bytes` (64 MiB by default) from engineers, every other body up to
+    /// `small_body_limit_bytes` (1 MiB by default).
+    #[derive(utoipa::ToResponse)]
+    pub struct PayloadTooLarge(pub ErrorBody);
+
+    /// The body was not sent as JSON (`unsupported_media_type`): send
+    /// `Content-Type: application/json`.
+    #[derive(utoipa::ToResponse)]
+    pub struct UnsupportedMediaType(pub ErrorBody);
+
+    /// The service cannot take the request now; retry later. It is at its limit of requests in
+    /// flight (`overloaded`, with `Retry-After`), starting or without a backing store
+    /// (`not_ready`), or the request did not finish within the configured request timeout
+    /// (`timeout`).
+    #[derive(utoipa::ToResponse)]
+    #[response(headers(
+        ("Retry-After" = u32, description = "Seconds to wait before retrying (with `overloaded`).")
+    ))]
+    pub struct ServiceUnavailable(pub ErrorBody);
 }
 
 impl ApiError {
@@ -215,6 +273,8 @@ mod tests {
             ErrorCode::Conflict,
             ErrorCode::Unprocessable,
             ErrorCode::NotReady,
+            ErrorCode::Overloaded,
+            ErrorCode::TooManyRequests,
             ErrorCode::BadGateway,
             ErrorCode::Internal,
         ] {

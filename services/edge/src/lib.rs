@@ -17,8 +17,10 @@
 
 pub mod auth;
 pub mod error;
+pub mod guard;
 pub mod metrics;
 pub mod middleware;
+pub mod serve;
 
 pub use auth::{BearerAuth, Principal, Role, Tokens};
 pub use error::{ApiError, ErrorBody, ErrorCode, ErrorDetail};

@@ -31,12 +31,32 @@ pub struct Limits {
 
 /// Wraps a router in the shared stack. Layers are listed innermost first.
 pub fn stack(router: Router, limits: Limits) -> Router {
+    stack_guarded(router, limits, None)
+}
+
+/// [`stack`] with the [`Guard`](crate::guard::Guard): requests in flight, authentication and
+/// per-route body limits decided from the request head, before any body is read.
+pub fn stack_guarded(
+    router: Router,
+    limits: Limits,
+    guard: Option<std::sync::Arc<crate::guard::Guard>>,
+) -> Router {
     // Install the recorder before the first request is counted, not at the first scrape.
     crate::metrics::handle();
+    let router = router.layer(CatchPanicLayer::custom(panic_response));
+    // The guard sets each request's body limit itself (by route and role).
+    let router = match guard {
+        Some(guard) => router
+            .layer(RequestBodyLimitLayer::new(limits.body_limit))
+            .layer(axum::middleware::from_fn_with_state(
+                guard,
+                crate::guard::guard,
+            )),
+        None => router
+            .layer(DefaultBodyLimit::max(limits.body_limit))
+            .layer(RequestBodyLimitLayer::new(limits.body_limit)),
+    };
     router
-        .layer(CatchPanicLayer::custom(panic_response))
-        .layer(DefaultBodyLimit::max(limits.body_limit))
-        .layer(RequestBodyLimitLayer::new(limits.body_limit))
         .layer(TimeoutLayer::with_status_code(
             StatusCode::SERVICE_UNAVAILABLE,
             limits.request_timeout,

@@ -115,6 +115,19 @@ pub enum OnDemandError {
     /// The place is on no floor (a building, or a place outside every floor).
     #[error("{0} is on no floor: only floors and the places on them have a world")]
     NoFloor(String),
+    /// Following `tosm:isDirectlyInsideOf` up from a place comes back to a place already
+    /// passed: an engineer's mistake in the graph.
+    #[error(
+        "the tosm:isDirectlyInsideOf chain of {place} loops: {}; a place cannot be inside \
+         itself, fix the graph over SPARQL",
+        cycle.join(" → ")
+    )]
+    Cycle {
+        /// Where the walk started.
+        place: String,
+        /// The places of the loop, the first repeated at the end.
+        cycle: Vec<String>,
+    },
     /// Reading the store failed.
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -125,6 +138,30 @@ impl OnDemandError {
     pub fn is_client_error(&self) -> bool {
         !matches!(self, OnDemandError::Store(_))
     }
+}
+
+/// `start` and the places it is inside of, innermost first, found by `lookup` (IRI → place);
+/// the walk ends at a place with no (known) container. A chain that comes back to a place it
+/// passed is an error naming the loop, so no walk over the graph can spin.
+pub fn containers<'a>(
+    lookup: impl Fn(&str) -> Option<&'a Place>,
+    start: &'a Place,
+) -> Result<Vec<&'a Place>, OnDemandError> {
+    let mut chain: Vec<&'a Place> = vec![start];
+    let mut cursor = start.parent.as_deref().and_then(&lookup);
+    while let Some(p) = cursor {
+        if let Some(at) = chain.iter().position(|q| q.iri == p.iri) {
+            let mut cycle: Vec<String> = chain[at..].iter().map(|q| q.iri.clone()).collect();
+            cycle.push(p.iri.clone());
+            return Err(OnDemandError::Cycle {
+                place: start.iri.clone(),
+                cycle,
+            });
+        }
+        chain.push(p);
+        cursor = p.parent.as_deref().and_then(&lookup);
+    }
+    Ok(chain)
 }
 
 /// Reads asserted triples out of the store (every graph but the inferred one): the embedded
@@ -320,16 +357,15 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
     let mut included: BTreeSet<String> = BTreeSet::new();
     let mut floors: Vec<String> = Vec::new();
     for place in &route {
-        let mut cursor = Some(place.clone());
-        while let Some(iri) = cursor {
-            if !included.insert(iri.clone()) {
-                break;
+        let Some(start) = index.get(place.as_str()) else {
+            included.insert(place.clone());
+            continue;
+        };
+        for p in containers(|iri| index.get(iri).copied(), start)? {
+            included.insert(p.iri.clone());
+            if p.kind == PlaceKind::Floor && !floors.contains(&p.iri) {
+                floors.push(p.iri.clone());
             }
-            let p = index.get(iri.as_str());
-            if p.is_some_and(|p| p.kind == PlaceKind::Floor) && !floors.contains(&iri) {
-                floors.push(iri.clone());
-            }
-            cursor = p.and_then(|p| p.parent.clone());
         }
     }
 
@@ -423,12 +459,8 @@ pub fn floor_database(
         .filter(|p| on_floor(&index, p, floor))
         .map(|p| p.iri.clone())
         .collect();
-    let mut cursor = Some(floor_place.iri.clone());
-    while let Some(iri) = cursor {
-        if !included.insert(iri.clone()) {
-            break;
-        }
-        cursor = index.get(iri.as_str()).and_then(|p| p.parent.clone());
+    for p in containers(|iri| index.get(iri).copied(), floor_place)? {
+        included.insert(p.iri.clone());
     }
     let route: Vec<String> = included.iter().cloned().collect();
     let triples = assemble(&reader, &included, &robot)?;
@@ -449,22 +481,12 @@ pub fn floor_of(places: &[Place], place: &str) -> Result<String, OnDemandError> 
             which: "place".to_owned(),
             name: place.to_owned(),
         })?;
-    let mut cursor = Some(start);
-    let mut steps = 0;
-    while let Some(p) = cursor {
-        if p.kind == PlaceKind::Floor {
-            return Ok(p.iri.clone());
-        }
-        steps += 1;
-        if steps > places.len() {
-            break;
-        }
-        cursor = p
-            .parent
-            .as_deref()
-            .and_then(|parent| places.iter().find(|q| q.iri == parent));
-    }
-    Err(OnDemandError::NoFloor(start.iri.clone()))
+    let index: HashMap<&str, &Place> = places.iter().map(|p| (p.iri.as_str(), p)).collect();
+    containers(|iri| index.get(iri).copied(), start)?
+        .into_iter()
+        .find(|p| p.kind == PlaceKind::Floor)
+        .map(|p| p.iri.clone())
+        .ok_or_else(|| OnDemandError::NoFloor(start.iri.clone()))
 }
 
 /// [`floor_database`] of the floor `place` (IRI or identifier) is on: what a mental

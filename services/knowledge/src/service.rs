@@ -20,6 +20,23 @@ pub struct QueryLimits {
     /// Largest number of triples a CONSTRUCT/DESCRIBE may return; beyond it the answer is an
     /// error, never a truncated graph.
     pub max_construct_triples: usize,
+    /// Largest serialized SPARQL or Graph Store answer to an engineer, bytes; past it the
+    /// answer is refused (507) as soon as it crosses the cap, never cut or held whole.
+    pub max_result_bytes: usize,
+    /// The same cap for robots.
+    pub robot_max_result_bytes: usize,
+    /// Longest SPARQL query text, bytes (updates are bounded by the request body limit).
+    pub max_query_bytes: usize,
+}
+
+impl QueryLimits {
+    /// The answer cap of a caller with `role`.
+    pub fn result_bytes(&self, role: edge::Role) -> usize {
+        match role {
+            edge::Role::Engineer => self.max_result_bytes,
+            edge::Role::Robot => self.robot_max_result_bytes,
+        }
+    }
 }
 
 impl Default for QueryLimits {
@@ -27,6 +44,9 @@ impl Default for QueryLimits {
         Self {
             deadline: Duration::from_secs(30),
             max_construct_triples: 5_000_000,
+            max_result_bytes: 256 * 1024 * 1024,
+            robot_max_result_bytes: 16 * 1024 * 1024,
+            max_query_bytes: 1024 * 1024,
         }
     }
 }

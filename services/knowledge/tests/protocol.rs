@@ -440,6 +440,7 @@ async fn a_query_past_its_deadline_is_stopped_with_an_error_status() {
     let app = slow_app(QueryLimits {
         deadline: Duration::from_millis(500),
         max_construct_triples: 1000,
+        ..QueryLimits::default()
     })
     .await;
     let started = Instant::now();
@@ -484,6 +485,7 @@ async fn construct_and_graph_reads_over_the_cap_are_errors_not_truncated() {
     let app = slow_app(QueryLimits {
         deadline: Duration::from_secs(20),
         max_construct_triples: 999,
+        ..QueryLimits::default()
     })
     .await;
     let (status, code, message) =

@@ -63,6 +63,9 @@ pub enum ConfigSpaceError {
 /// Roadmap parameters that cannot work.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BuildError {
+    /// The caller asked the build to stop.
+    #[error("the roadmap build was stopped")]
+    Stopped,
     /// n = 0.
     #[error("the number of samples n must be at least 1")]
     ZeroSamples,

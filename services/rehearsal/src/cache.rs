@@ -179,6 +179,17 @@ impl RoadmapCache {
         space: &SpaceEntry,
         params: &PrmParams,
     ) -> Result<(Arc<Roadmap>, bool), PlanError> {
+        self.roadmap_until(map_version, space, params, &grid::Stop::never())
+    }
+
+    /// [`RoadmapCache::roadmap`], whose build on a miss stops once `stop` is requested.
+    pub fn roadmap_until(
+        &self,
+        map_version: &str,
+        space: &SpaceEntry,
+        params: &PrmParams,
+        stop: &grid::Stop,
+    ) -> Result<(Arc<Roadmap>, bool), PlanError> {
         let key = MapKey {
             map_version: map_version.to_owned(),
             key: RoadmapKey::new(
@@ -195,10 +206,12 @@ impl RoadmapCache {
             }
             inner.misses += 1;
         }
-        let roadmap = Roadmap::build(Arc::clone(&space.cspace), params).map_err(|e| match e {
-            planning::BuildError::NoFreeSpace { .. } => PlanError::Map(e.to_string()),
-            other => invalid("options.samples", other.to_string()),
-        })?;
+        let roadmap =
+            Roadmap::build_until(Arc::clone(&space.cspace), params, stop).map_err(|e| match e {
+                planning::BuildError::Stopped => PlanError::Stopped,
+                planning::BuildError::NoFreeSpace { .. } => PlanError::Map(e.to_string()),
+                other => invalid("options.samples", other.to_string()),
+            })?;
         let roadmap = Arc::new(roadmap);
         self.lock().roadmaps.insert(key, Arc::clone(&roadmap));
         Ok((roadmap, false))

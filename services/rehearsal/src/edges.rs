@@ -303,6 +303,7 @@ where
                             } else {
                                 Action::default()
                             },
+                            stop: grid::Stop::never(),
                         },
                         None,
                     )?;

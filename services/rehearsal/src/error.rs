@@ -108,6 +108,9 @@ pub enum PlanError {
     /// The world cannot be planned on at all (no free space for this robot, a grid too large).
     #[error("the map cannot be planned on: {0}")]
     Map(String),
+    /// The caller asked the work to stop (its request timed out or its client went away).
+    #[error("the plan's validation was stopped before it finished")]
+    Stopped,
 }
 
 fn summary(attempts: &[AttemptReport]) -> String {

@@ -195,6 +195,9 @@ pub fn validate_with_fallback(
                 ..QueryOptions::default()
             };
             for attempt in 1..=opts.max_attempts {
+                if request.stop.requested() {
+                    return Err(PlanError::Stopped);
+                }
                 let (roadmap, cached, seed, kind) = match policy_roadmap.filter(|_| d == 0) {
                     Some(r) => (Arc::clone(r), true, r.params().seed, RoadmapKind::Policy),
                     None => {
@@ -204,7 +207,8 @@ pub fn validate_with_fallback(
                             seed,
                             ..PrmParams::default()
                         };
-                        let (r, cached) = roadmaps.roadmap(map_version, &space, &params)?;
+                        let (r, cached) =
+                            roadmaps.roadmap_until(map_version, &space, &params, &request.stop)?;
                         (r, cached, seed, RoadmapKind::Geometric)
                     }
                 };
@@ -250,6 +254,7 @@ pub fn validate_with_fallback(
                         max_replans: opts.max_replans,
                         sim_seed: leg_seed(opts.seed, attempt, leg),
                         initial_velocity: Action::default(),
+                        stop: request.stop.clone(),
                     },
                     Some(replanner),
                 )?;
@@ -721,7 +726,7 @@ fn replan(
 }
 
 /// Bounds of one simulated drive.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct DriveLimits {
     /// Simulated seconds per waypoint before replanning (or, without a replanner, failing).
     pub waypoint_timeout_s: f64,
@@ -731,6 +736,9 @@ pub struct DriveLimits {
     pub sim_seed: u64,
     /// The robot's velocity at the start (zero: at rest), as a previous drive left it.
     pub initial_velocity: Action,
+    /// Polled every few simulated steps: once requested, the drive ends with
+    /// [`PlanError::Stopped`].
+    pub stop: grid::Stop,
 }
 
 /// Replans from the robot's position to a goal: the remaining waypoints of the leg, or why not.
@@ -812,6 +820,9 @@ pub fn drive(
     let mut goal_indices = Vec::new();
     let mut time_s;
     let (outcome, reason) = loop {
+        if steps_on_waypoint.is_multiple_of(64) && limits.stop.requested() {
+            return Err(PlanError::Stopped);
+        }
         let action = controller.command(&obs, env.pose(), (current.0.x, current.0.y));
         let step = env.step(action);
         time_s = step.info.time_s;

@@ -47,3 +47,5 @@ pub use types::{
     AttemptOutcome, AttemptReport, ControllerKind, LegReport, PlanOptions, PlanReport, PlanRequest,
     RoadmapChoice, RoadmapInfo, RoadmapKind,
 };
+
+pub use grid::{Stop, StopOnDrop};

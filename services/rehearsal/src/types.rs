@@ -70,6 +70,9 @@ pub struct PlanRequest {
     pub goals: Vec<Point2>,
     /// Validation settings.
     pub options: PlanOptions,
+    /// Polled between attempts, while roadmaps are built and while the simulated robot drives:
+    /// once requested, the validation ends with [`crate::PlanError::Stopped`].
+    pub stop: grid::Stop,
 }
 
 /// Which controller drove the simulated robot.

@@ -31,6 +31,7 @@ fn request(goals: &[(f64, f64)]) -> PlanRequest {
         start: Pose2::new(2.0, 2.0, 0.0),
         goals: goals.iter().map(|&(x, y)| Point2::new(x, y)).collect(),
         options: PlanOptions::default(),
+        stop: rehearsal::Stop::default(),
     }
 }
 
@@ -462,6 +463,7 @@ fn a_real_map_validates_a_multi_goal_plan() {
         start: Pose2::new(points[0].x, points[0].y, 1.0),
         goals: points[1..].to_vec(),
         options: PlanOptions::default(),
+        stop: rehearsal::Stop::default(),
     };
     let report = validate(&world, &cache, "aws_small_house", &req, None).expect("validated");
     assert_sound(&world, &report, &req.goals);

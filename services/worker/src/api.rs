@@ -34,7 +34,10 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
 #[openapi(
     info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
     paths(create_job, list_jobs, get_job, cancel_job, job_events, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan),
-    components(schemas(NewJobRequest, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, crate::plan_api::PlanApiRequest, crate::plan_api::PlanApiResponse)),
+    components(
+        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, ErrorCode, crate::plan_api::types::PlanApiRequestDoc, crate::plan_api::PlanApiResponse),
+        responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
+    ),
     modifiers(&BearerAuth),
     security(("bearer" = []))
 )]
@@ -115,15 +118,15 @@ fn job_id(id: &str) -> Result<Uuid, ApiError> {
     Uuid::parse_str(id).map_err(|_| ApiError::not_found(format!("no job has id {id:?}")))
 }
 
-/// A job to create.
-#[derive(Debug, Deserialize, ToSchema)]
+/// A job to create. The OpenAPI document describes it as [`NewJobDoc`]: the payload's schema
+/// follows the kind.
+#[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NewJobRequest {
     /// `train`, `evaluate`, `validate` or `roadmap`.
     kind: String,
     /// The kind's parameters: see `TrainPayload`, `EvaluatePayload`, `ValidatePayload`,
     /// `RoadmapPayload`.
-    #[schema(value_type = Object)]
     payload: Value,
     /// Higher runs first [default: 0].
     #[serde(default)]
@@ -131,6 +134,70 @@ pub struct NewJobRequest {
     /// Attempts before the job fails for good [default: 3].
     #[serde(default)]
     max_attempts: Option<u32>,
+}
+
+/// [`NewJobRequest`] as the OpenAPI document describes it: one form per kind. Documentation
+/// only: the handler reads [`NewJobRequest`] (an unknown kind is 400, a payload that does not
+/// fit its kind 422).
+#[derive(ToSchema)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+#[schema(
+    as = NewJobRequest,
+    description = "A job to create: its `kind`, and a `payload` of that kind's schema."
+)]
+#[allow(
+    dead_code,
+    reason = "documentation only: the handler reads `NewJobRequest`"
+)]
+enum NewJobDoc {
+    /// Trains a policy for a robot on a floor.
+    #[serde(deny_unknown_fields)]
+    Train {
+        /// The job's parameters.
+        payload: TrainPayload,
+        /// Higher runs first [default: 0].
+        #[schema(minimum = -2147483648, maximum = 2147483647)]
+        priority: Option<i32>,
+        /// Attempts before the job fails for good, 1-100 [default: 3].
+        #[schema(minimum = 1, maximum = 100)]
+        max_attempts: Option<u32>,
+    },
+    /// Evaluates a policy on a floor.
+    #[serde(deny_unknown_fields)]
+    Evaluate {
+        /// The job's parameters.
+        payload: EvaluatePayload,
+        /// Higher runs first [default: 0].
+        #[schema(minimum = -2147483648, maximum = 2147483647)]
+        priority: Option<i32>,
+        /// Attempts before the job fails for good, 1-100 [default: 3].
+        #[schema(minimum = 1, maximum = 100)]
+        max_attempts: Option<u32>,
+    },
+    /// Validates a plan in the mental simulation: the payload is a `POST /v1/plan` request.
+    #[serde(deny_unknown_fields)]
+    Validate {
+        /// The plan, as `POST /v1/plan` takes it.
+        payload: crate::plan_api::types::PlanApiRequestDoc,
+        /// Higher runs first [default: 0].
+        #[schema(minimum = -2147483648, maximum = 2147483647)]
+        priority: Option<i32>,
+        /// Attempts before the job fails for good, 1-100 [default: 3].
+        #[schema(minimum = 1, maximum = 100)]
+        max_attempts: Option<u32>,
+    },
+    /// Builds the policy-aware roadmap of a floor and a policy.
+    #[serde(deny_unknown_fields)]
+    Roadmap {
+        /// The job's parameters.
+        payload: crate::jobs::RoadmapPayload,
+        /// Higher runs first [default: 0].
+        #[schema(minimum = -2147483648, maximum = 2147483647)]
+        priority: Option<i32>,
+        /// Attempts before the job fails for good, 1-100 [default: 3].
+        #[schema(minimum = 1, maximum = 100)]
+        max_attempts: Option<u32>,
+    },
 }
 
 /// A job as the API shows it.
@@ -209,9 +276,16 @@ impl From<&Job> for JobView {
 
 /// Creates a job. The payload is checked now: an unknown kind is 400; a malformed payload or a
 /// value out of range is 422 naming the field; an unknown robot, place or policy is 404.
-#[utoipa::path(post, path = "/v1/jobs", request_body = NewJobRequest, responses(
+#[utoipa::path(post, path = "/v1/jobs", request_body = NewJobDoc, responses(
     (status = 201, body = JobView, headers(("location" = String, description = "the job's URL"))),
-    (status = 400, body = ErrorBody), (status = 403, body = ErrorBody), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody), (status = 503, body = ErrorBody)))]
+    (status = 400, description = "The body is not JSON, or the kind is unknown.", body = ErrorBody),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 403, response = edge::error::responses::Forbidden),
+    (status = 404, description = "The payload names a robot, place or policy that does not exist.", body = ErrorBody),
+    (status = 413, response = edge::error::responses::PayloadTooLarge),
+    (status = 415, response = edge::error::responses::UnsupportedMediaType),
+    (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type), or a value is out of range (the message names the field).", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn create_job(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -251,16 +325,27 @@ async fn create_job(
 /// Filters of the job list.
 #[derive(Debug, Deserialize, utoipa::IntoParams)]
 pub struct ListQuery {
-    /// Only jobs in this state.
+    /// Only jobs in this state: `queued`, `running`, `succeeded`, `failed` or `cancelled`
+    /// (empty: any).
+    #[param(
+        nullable = false,
+        pattern = "^(queued|running|succeeded|failed|cancelled)?$"
+    )]
     state: Option<String>,
-    /// Only jobs of this kind.
+    /// Only jobs of this kind (`train`, `evaluate`, `validate`, `roadmap`; empty: any).
+    #[param(nullable = false)]
     kind: Option<String>,
-    /// At most this many [default: 50, at most 1000].
+    /// At most this many, 1-1000 [default: 50].
+    #[param(nullable = false, minimum = 1, maximum = 1000)]
     limit: Option<u32>,
 }
 
 /// Jobs, newest first.
-#[utoipa::path(get, path = "/v1/jobs", params(ListQuery), responses((status = 200, body = [JobView]), (status = 400, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/jobs", params(ListQuery), responses(
+    (status = 200, body = [JobView]),
+    (status = 400, description = "An unknown state, or a limit that is not an integer in 1-1000.", body = ErrorBody),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn list_jobs(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -292,7 +377,11 @@ async fn list_jobs(
 }
 
 /// One job: state, kind, payload, attempts, progress, result, error, timestamps.
-#[utoipa::path(get, path = "/v1/jobs/{id}", params(("id" = String, Path)), responses((status = 200, body = JobView), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/jobs/{id}", params(("id" = String, Path, format = "uuid", description = "The job's id (a UUID; anything else is 404).")), responses(
+    (status = 200, body = JobView),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No job has this id.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn get_job(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -312,8 +401,13 @@ async fn get_job(
 
 /// Asks a job to stop: a queued job is cancelled at once; a running one stops at its next
 /// progress report or heartbeat (a training checkpoints first) and ends `cancelled`.
-#[utoipa::path(post, path = "/v1/jobs/{id}/cancel", params(("id" = String, Path)), responses(
-    (status = 202, body = JobView), (status = 403, body = ErrorBody), (status = 404, body = ErrorBody), (status = 409, body = ErrorBody)))]
+#[utoipa::path(post, path = "/v1/jobs/{id}/cancel", params(("id" = String, Path, format = "uuid", description = "The job's id (a UUID; anything else is 404).")), responses(
+    (status = 202, body = JobView),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 403, response = edge::error::responses::Forbidden),
+    (status = 404, description = "No job has this id.", body = ErrorBody),
+    (status = 409, description = "The job has already finished.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn cancel_job(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -349,7 +443,9 @@ async fn cancel_job(
 /// Where an event stream starts.
 #[derive(Debug, Deserialize, utoipa::IntoParams)]
 pub struct EventsQuery {
-    /// Replay events with ids greater than this (the `Last-Event-ID` header wins).
+    /// Replay events with ids greater than this event id, an integer (the `Last-Event-ID`
+    /// header wins) [default: 0, every event]. Anything but an integer is 400.
+    #[param(nullable = false)]
     after: Option<i64>,
 }
 
@@ -358,8 +454,16 @@ pub struct EventsQuery {
 /// its `event` the kind (`state`, `progress`, `checkpoint`, `cancel_requested`) and its `data`
 /// JSON (`{"kind", "data", "created"}`). The stream ends once the job has finished and its
 /// last event was sent.
-#[utoipa::path(get, path = "/v1/jobs/{id}/events", params(("id" = String, Path), EventsQuery), responses(
-    (status = 200, content_type = "text/event-stream", body = String), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/jobs/{id}/events", params(
+        ("id" = String, Path, format = "uuid", description = "The job's id (a UUID; anything else is 404)."),
+        EventsQuery,
+        ("Last-Event-ID" = Option<i64>, Header, nullable = false, description = "Resume after this event id (an integer; anything else is 400); wins over `after`.")),
+    responses(
+    (status = 200, content_type = "text/event-stream", body = String),
+    (status = 400, description = "`after` or `Last-Event-ID` is not an integer.", body = ErrorBody),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No job has this id.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn job_events(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -480,7 +584,10 @@ fn policy_path(api: &JobsApi, id: &str) -> Result<std::path::PathBuf, ApiError> 
 }
 
 /// Exported policies, newest first: id, robot, place, creation time and evaluation summary.
-#[utoipa::path(get, path = "/v1/policies", responses((status = 200, body = [PolicySummary])))]
+#[utoipa::path(get, path = "/v1/policies", responses(
+    (status = 200, body = [PolicySummary]),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn list_policies(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -494,7 +601,11 @@ async fn list_policies(
 }
 
 /// One policy: its summary and its full metadata (`policy.json`: scaling, network, training).
-#[utoipa::path(get, path = "/v1/policies/{id}", params(("id" = String, Path)), responses((status = 200, body = Object), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/policies/{id}", params(("id" = String, Path, pattern = "^[A-Za-z0-9_-]{1,128}$", description = "The policy's id: 1-128 letters, digits, `-` and `_` (anything else is 404).")), responses(
+    (status = 200, body = Object),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No policy has this id.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn get_policy(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -542,7 +653,11 @@ async fn download(
 }
 
 /// The policy's weights (safetensors).
-#[utoipa::path(get, path = "/v1/policies/{id}/policy.safetensors", params(("id" = String, Path)), responses((status = 200, content_type = "application/octet-stream", body = Vec<u8>), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/policies/{id}/policy.safetensors", params(("id" = String, Path, pattern = "^[A-Za-z0-9_-]{1,128}$", description = "The policy's id: 1-128 letters, digits, `-` and `_` (anything else is 404).")), responses(
+    (status = 200, content_type = "application/octet-stream", body = Vec<u8>),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No policy has this id.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn policy_weights(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,
@@ -553,7 +668,11 @@ async fn policy_weights(
 }
 
 /// The policy's metadata file (`learning::Policy::from_bytes` takes it with the weights).
-#[utoipa::path(get, path = "/v1/policies/{id}/policy.json", params(("id" = String, Path)), responses((status = 200, content_type = "application/json", body = Object), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/policies/{id}/policy.json", params(("id" = String, Path, pattern = "^[A-Za-z0-9_-]{1,128}$", description = "The policy's id: 1-128 letters, digits, `-` and `_` (anything else is 404).")), responses(
+    (status = 200, content_type = "application/json", body = Object),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No policy has this id.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn policy_metadata(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,

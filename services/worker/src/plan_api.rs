@@ -237,6 +237,23 @@ pub fn rehearse(
     rehearsal::validate(world, roadmaps, map_version, &request, policy).map(PlanReport::from)
 }
 
+/// Counts a rehearsal in the `plan_rehearsals_running` gauge while it lives: what `/metrics`
+/// shows of plans still computing (a stopped request's rehearsal leaves within milliseconds).
+struct Rehearsing;
+
+impl Rehearsing {
+    fn start() -> Self {
+        metrics::gauge!("plan_rehearsals_running").increment(1.0);
+        Self
+    }
+}
+
+impl Drop for Rehearsing {
+    fn drop(&mut self) {
+        metrics::gauge!("plan_rehearsals_running").decrement(1.0);
+    }
+}
+
 /// Policy-aware roadmaps kept applied in memory at most (and roadmap jobs remembered).
 const POLICY_ROADMAPS: usize = 16;
 
@@ -374,13 +391,18 @@ impl PlanValidator for ExecutorValidator {
 #[utoipa::path(
     post,
     path = "/v1/plan",
-    request_body = PlanApiRequest,
+    request_body(content = types::PlanApiRequestDoc, description = "One goal (`goal`) or a non-empty sequence of goals (`goals`, at most 1000), never both; every option within its bounds."),
     responses(
         (status = 200, description = "Waypoints validated in the mental simulation", body = PlanApiResponse),
-        (status = 400, description = "Malformed request (a coordinate that is not a number, no goals, an option out of range)"),
-        (status = 404, description = "Unknown robot, place or policy"),
-        (status = 409, description = "No attempt could validate the plan (the attempts are in the details)"),
-        (status = 422, description = "Start or goal inside an obstacle, outside the map, or unreachable from the start"),
+        (status = 400, description = "Malformed request: the body is not JSON, neither or both of `goal` and `goals`, too many goals, an option out of range", body = edge::ErrorBody),
+        (status = 401, response = edge::error::responses::Unauthorized),
+        (status = 403, response = edge::error::responses::Forbidden),
+        (status = 404, description = "Unknown robot, place or policy", body = edge::ErrorBody),
+        (status = 409, description = "No attempt could validate the plan (the attempts are in the details), or `options.roadmap` is `policy` and the policy-aware roadmap is not built yet or joins no leg", body = edge::ErrorBody),
+        (status = 413, response = edge::error::responses::PayloadTooLarge),
+        (status = 415, response = edge::error::responses::UnsupportedMediaType),
+        (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type); the start or a goal is inside an obstacle, outside the map, or unreachable from the start; the place is on no floor; the map or the policy cannot be used", body = edge::ErrorBody),
+        (status = 503, response = edge::error::responses::ServiceUnavailable),
     ),
     security(("bearer" = []))
 )]
@@ -482,11 +504,17 @@ async fn plan(
         options: req.options.clone(),
     };
     let (floor, robot) = (db.floor.clone(), db.robot.clone());
+    // When this handler's future is dropped (the request timed out, the client hung up), the
+    // rehearsal on the blocking thread sees the stop at its next check and ends.
+    let stop = rehearsal::Stop::new();
+    let _stop_on_drop = rehearsal::StopOnDrop(stop.clone());
     let report = tokio::task::spawn_blocking(move || -> Result<PlanReport, ApiError> {
+        let _running = Rehearsing::start();
         let world = db
             .world()
             .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
-        let request = rehearsal::PlanRequest::from(request);
+        let mut request = rehearsal::PlanRequest::from(request);
+        request.stop = stop;
         let Some(LoadedPolicy { policy, .. }) = policy else {
             return rehearsal::validate(&world, api2.roadmaps(), &db.version, &request, None)
                 .map(PlanReport::from)

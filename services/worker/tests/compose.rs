@@ -52,3 +52,32 @@ fn compose_file_validates() {
         );
     }
 }
+
+/// Docker creates a volume's mount point as root when the image lacks it, and the non-root
+/// user then cannot write there: every `/data/...` directory `compose.yaml` mounts must be
+/// created, owned by the user, in `docker/Dockerfile`.
+#[test]
+fn every_mounted_data_directory_exists_in_the_image() {
+    let docker = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docker");
+    let compose = std::fs::read_to_string(docker.join("compose.yaml")).unwrap();
+    let dockerfile = std::fs::read_to_string(docker.join("Dockerfile")).unwrap();
+    let created: Vec<&str> = dockerfile
+        .lines()
+        .filter(|l| l.contains("install -d -o mentalsim -g mentalsim"))
+        .flat_map(str::split_whitespace)
+        .filter(|w| w.starts_with("/data/"))
+        .collect();
+    let mounted: Vec<&str> = compose
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("- "))
+        .filter_map(|v| v.split(':').nth(1))
+        .filter(|target| target.starts_with("/data/"))
+        .collect();
+    assert!(mounted.contains(&"/data/policies"), "{mounted:?}");
+    for target in mounted {
+        assert!(
+            created.contains(&target),
+            "compose.yaml mounts {target} but the Dockerfile creates only {created:?}"
+        );
+    }
+}

@@ -49,9 +49,43 @@ impl From<ImportError> for ApiError {
     }
 }
 
+/// The multipart form of a map import as the OpenAPI document describes it. Documentation
+/// only: [`import_map`] reads the parts itself.
+#[derive(ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(description = "A ROS map_server map: these three parts, and no other.")]
+#[allow(
+    dead_code,
+    reason = "documentation only: the handler reads the multipart parts itself"
+)]
+pub(super) struct MapUpload {
+    /// The floor's name: its `tosm:identifier` and the last segment of its IRI and of its
+    /// graph's. 1-64 characters of a-z, 0-9, `-` and `_`; importing a name again replaces
+    /// that floor.
+    #[schema(pattern = "^[a-z0-9_-]{1,64}$")]
+    name: String,
+    /// The map_server YAML, UTF-8: `resolution`, `origin`, `occupied_thresh`, `free_thresh`,
+    /// `negate` and `image` (the image is the `image` part, whatever name the YAML gives it).
+    yaml: String,
+    /// The image: a PGM or PNG of at most 64 megapixels, with at least one free cell under
+    /// the YAML's thresholds.
+    #[schema(value_type = String, format = Binary)]
+    image: Vec<u8>,
+}
+
 /// Imports a ROS map_server map as a floor. Multipart form: `yaml` (the map's YAML), `image`
 /// (its PGM or PNG), `name` (lower-case letters, digits, `-`, `_`). Engineers only.
-#[utoipa::path(post, path = "/v1/maps", request_body(content_type = "multipart/form-data", content = String, description = "fields: name, yaml, image"), responses((status = 201, body = ImportedMap), (status = 400, body = ErrorBody), (status = 413, description = "The image declares more pixels than a map may have (64 megapixels), refused before decoding", body = ErrorBody), (status = 422, body = ErrorBody)))]
+#[utoipa::path(post, path = "/v1/maps",
+    request_body(content_type = "multipart/form-data", content = MapUpload, description = "The parts `name`, `yaml` and `image`; any other part is refused (400)."),
+    responses(
+        (status = 201, body = ImportedMap, headers(("location" = String, description = "The new floor's IRI."))),
+        (status = 400, description = "The body is not a multipart form, a part is missing or unknown, or `yaml` is not UTF-8.", body = ErrorBody),
+        (status = 401, response = edge::error::responses::Unauthorized),
+        (status = 403, response = edge::error::responses::Forbidden),
+        (status = 413, description = "The body is larger than an engineer's map import may be (`body_limit_bytes`, 64 MiB by default; a robot's token gets 403 or this at its smaller limit), or the image declares more pixels than a map may have (64 megapixels), refused before decoding.", body = ErrorBody),
+        (status = 422, description = "The name breaks its rule, or the map does not make a floor: the YAML does not parse or has values out of range, the image does not decode or has no free cell.", body = ErrorBody),
+        (status = 503, response = edge::error::responses::ServiceUnavailable),
+    ))]
 pub(super) async fn import_map(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,

@@ -20,12 +20,12 @@ use utoipa::OpenApi;
 
 // The handlers' OpenAPI descriptions, named without their module: utoipa makes a handler's
 // module path its tag, and the document has none.
-use self::maps::{__path_import_map, ImportedMap};
+use self::maps::{__path_import_map, ImportedMap, MapUpload};
 use self::objects::{
     __path_report_object, ColourInput, ObjectReport, PoseInput, ReportedObject, ShapeInput,
 };
 use self::on_demand::{
-    __path_floor_on_demand_database, __path_on_demand_database, OnDemandRequest, WaypointInput,
+    __path_floor_on_demand_database, __path_on_demand_database, OnDemandRequest, WaypointDoc,
 };
 use self::places::{
     __path_get_place, __path_list_places, __path_place_map, __path_world_sdf, PlaceView,
@@ -38,7 +38,10 @@ use crate::service::Knowledge;
 #[openapi(
     info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
     paths(list_places, get_place, place_map, world_sdf, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database, floor_on_demand_database),
-    components(schemas(PlaceView, RobotView, ImportedMap, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointInput, ErrorBody, ErrorDetail)),
+    components(
+        schemas(PlaceView, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
+        responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
+    ),
     modifiers(&BearerAuth),
     security(("bearer" = []))
 )]

@@ -23,10 +23,14 @@ use crate::service::Knowledge;
 #[derive(Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PoseInput {
+    /// x, metres.
     x: f64,
+    /// y, metres.
     y: f64,
+    /// Height of the object's centre above the floor, metres [default: half its height].
     #[serde(default)]
     z: Option<f64>,
+    /// Heading, radians, counter-clockwise from +x [default: 0].
     #[serde(default)]
     yaw: f64,
 }
@@ -36,24 +40,35 @@ pub struct PoseInput {
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum ShapeInput {
     /// A box.
+    // Every property is required, so `max_properties` (with `type`) is the schema's
+    // `deny_unknown_fields`.
+    #[schema(max_properties = 4)]
     Box {
-        /// Extent along x.
+        /// Extent along x, > 0.
+        #[schema(exclusive_minimum = 0)]
         length: f64,
-        /// Extent along y.
+        /// Extent along y, > 0.
+        #[schema(exclusive_minimum = 0)]
         width: f64,
-        /// Extent along z.
+        /// Extent along z, > 0.
+        #[schema(exclusive_minimum = 0)]
         height: f64,
     },
     /// An upright cylinder.
+    #[schema(max_properties = 3)]
     Cylinder {
-        /// Diameter.
+        /// Diameter, > 0.
+        #[schema(exclusive_minimum = 0)]
         diameter: f64,
-        /// Height.
+        /// Height, > 0.
+        #[schema(exclusive_minimum = 0)]
         height: f64,
     },
     /// A sphere.
+    #[schema(max_properties = 2)]
     Sphere {
-        /// Diameter.
+        /// Diameter, > 0.
+        #[schema(exclusive_minimum = 0)]
         diameter: f64,
     },
 }
@@ -62,10 +77,18 @@ pub enum ShapeInput {
 #[derive(Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ColourInput {
+    /// Red, in [0, 1].
+    #[schema(minimum = 0, maximum = 1)]
     r: f64,
+    /// Green, in [0, 1].
+    #[schema(minimum = 0, maximum = 1)]
     g: f64,
+    /// Blue, in [0, 1].
+    #[schema(minimum = 0, maximum = 1)]
     b: f64,
+    /// Opacity, in [0, 1] [default: 1].
     #[serde(default = "one")]
+    #[schema(minimum = 0, maximum = 1, default = 1.0)]
     a: f64,
 }
 
@@ -78,13 +101,22 @@ fn one() -> f64 {
 #[serde(deny_unknown_fields)]
 pub struct ObjectReport {
     /// A stable id for the object within the place; reporting the same id again updates it.
-    /// Lower-case letters, digits, `-`, `_`. Generated when absent.
+    /// 1-64 lower-case letters, digits, `-`, `_` (400 otherwise). Generated when absent.
     #[serde(default)]
+    #[schema(pattern = "^[a-z0-9_-]{1,64}$")]
     id: Option<String>,
-    /// The TOSM class: a local name such as `VendingMachine`, `Table`, or a full class IRI.
+    /// The TOSM class: an object class's local name (`Door`, `Table`, `Chair`, `Shelf`,
+    /// `Cabinet`, `Sofa`, `Bin`, `VendingMachine` or `Object`) or its full IRI, or the IRI of
+    /// a class from another vocabulary (stated a `tosm:Object` too). The pattern admits
+    /// such IRIs without query, fragment or percent-escapes; the service takes any valid IRI
+    /// that names no other TOSM term.
+    #[schema(
+        pattern = "^(?:(?:https://mentalsim\\.dev/ontology/tosm#)?(?:Door|Table|Chair|Shelf|Cabinet|Sofa|Bin|VendingMachine|Object)|[a-z][a-z0-9+.-]*://[A-Za-z0-9._~-]+(?:/[A-Za-z0-9._~!$&'()*+,;=:@-]*)*)$"
+    )]
     class: String,
-    /// A name for people.
+    /// A name for people, not blank [default: the class and the id].
     #[serde(default)]
+    #[schema(pattern = "[^\\s\\u0085]")]
     name: Option<String>,
     /// Where it is. `z` defaults to resting on the floor.
     pose: PoseInput,
@@ -93,8 +125,9 @@ pub struct ObjectReport {
     /// Its colour, when seen.
     #[serde(default)]
     colour: Option<ColourInput>,
-    /// Mass in kg, when known.
+    /// Mass in kg, > 0, when known.
     #[serde(default)]
+    #[schema(exclusive_minimum = 0)]
     mass_kg: Option<f64>,
 }
 
@@ -115,7 +148,21 @@ pub struct ReportedObject {
 
 /// Adds or updates an object a robot perceived; the next on-demand database of a mission
 /// through this place includes it. Robots and engineers.
-#[utoipa::path(post, path = "/v1/places/{id}/objects", params(("id" = String, Path)), request_body = ObjectReport, responses((status = 201, body = ReportedObject), (status = 200, body = ReportedObject), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody)))]
+#[utoipa::path(post, path = "/v1/places/{id}/objects",
+    params(("id" = String, Path, min_length = 1, description = "The place: a floor, room, corridor or hall (IRI or tosm:identifier).")),
+    request_body = ObjectReport,
+    responses(
+        (status = 201, description = "A new object was stored.", body = ReportedObject),
+        (status = 200, description = "An earlier report of the same id was replaced.", body = ReportedObject),
+        (status = 400, description = "The body is not JSON, or the object id breaks its rule.", body = ErrorBody),
+        (status = 401, response = edge::error::responses::Unauthorized),
+        (status = 403, response = edge::error::responses::Forbidden),
+        (status = 404, description = "No place has this IRI or identifier.", body = ErrorBody),
+        (status = 413, response = edge::error::responses::PayloadTooLarge),
+        (status = 415, response = edge::error::responses::UnsupportedMediaType),
+        (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type), the place is a building, the class is no object class, or a value is out of range.", body = ErrorBody),
+        (status = 503, response = edge::error::responses::ServiceUnavailable),
+    ))]
 pub(super) async fn report_object(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,

@@ -18,8 +18,9 @@ use super::task::blocking;
 use crate::on_demand::{self, Mission, OnDemandError, Waypoint};
 use crate::service::Knowledge;
 
-/// A waypoint: a place (IRI or identifier), or a point on a floor.
-#[derive(Deserialize, ToSchema)]
+/// A waypoint: a place (IRI or identifier), or a point on a floor. The OpenAPI document
+/// describes it as [`WaypointDoc`]: one of the two forms.
+#[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WaypointInput {
     /// A place's IRI or identifier.
@@ -36,6 +37,40 @@ pub struct WaypointInput {
     floor: Option<String>,
 }
 
+/// [`WaypointInput`] as the OpenAPI document describes it: one of its two forms. Documentation
+/// only: the handler reads [`WaypointInput`] and answers 400 to any other combination.
+#[derive(ToSchema)]
+#[serde(untagged)]
+#[schema(
+    as = WaypointInput,
+    description = "A waypoint: a place (IRI or identifier), or a point on a floor (`x` and `y`, with an optional `floor`); never both."
+)]
+#[allow(
+    dead_code,
+    reason = "documentation only: the handler reads `WaypointInput`"
+)]
+pub(super) enum WaypointDoc {
+    /// A place (room, corridor, hall, floor...): the waypoint is in it.
+    #[serde(deny_unknown_fields)]
+    Place {
+        /// The place's IRI or identifier.
+        place: String,
+        /// Ignored with `place`.
+        floor: Option<String>,
+    },
+    /// A point on a floor, in the floor frame.
+    #[serde(deny_unknown_fields)]
+    Point {
+        /// x in metres.
+        x: f64,
+        /// y in metres.
+        y: f64,
+        /// The floor the point is on (IRI or identifier); needed only when floors overlap
+        /// there.
+        floor: Option<String>,
+    },
+}
+
 /// A mission for which to build an on-demand database.
 #[derive(Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -43,8 +78,10 @@ pub struct OnDemandRequest {
     /// The robot's IRI or identifier.
     robot: String,
     /// Where the robot starts.
+    #[schema(value_type = WaypointDoc)]
     start: WaypointInput,
     /// Where it must go, in order (at least one).
+    #[schema(value_type = Vec<WaypointDoc>, min_items = 1)]
     goals: Vec<WaypointInput>,
 }
 
@@ -77,9 +114,8 @@ impl From<OnDemandError> for ApiError {
             OnDemandError::OutsideEveryPlace { .. }
             | OnDemandError::NoFloor(_)
             | OnDemandError::AmbiguousFloor { .. }
-            | OnDemandError::NotConnected { .. } => {
-                ApiError::new(ErrorCode::Unprocessable, e.to_string())
-            }
+            | OnDemandError::NotConnected { .. }
+            | OnDemandError::Cycle { .. } => ApiError::new(ErrorCode::Unprocessable, e.to_string()),
             OnDemandError::Store(_) => ApiError::internal(e),
         }
     }
@@ -89,8 +125,20 @@ impl From<OnDemandError> for ApiError {
 /// boundaries, the objects in them, and the robot — as Turtle (default), N-Triples or JSON-LD
 /// by `Accept`. `X-Triple-Count` gives its size; `X-Route` the places crossed.
 #[utoipa::path(post, path = "/v1/on-demand", request_body = OnDemandRequest, responses(
-    (status = 200, description = "the subset", content_type = "text/turtle", body = String),
-    (status = 400, body = ErrorBody), (status = 404, body = ErrorBody), (status = 406, body = ErrorBody), (status = 422, body = ErrorBody)))]
+    (status = 200, description = "The subset, in the format `Accept` asks for (Turtle by default).",
+        content((String = "text/turtle"), (String = "application/n-triples"), (serde_json::Value = "application/ld+json")),
+        headers(
+            ("x-triple-count" = u64, description = "Triples in the subset."),
+            ("x-route" = String, description = "The IRIs of the places the route crosses, in order, separated by spaces."))),
+    (status = 400, description = "The body is not JSON, a waypoint gives neither `place` nor `x` and `y` (or both), or there is no goal.", body = ErrorBody),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 403, response = edge::error::responses::Forbidden),
+    (status = 404, description = "No robot, place or floor has the IRI or identifier given.", body = ErrorBody),
+    (status = 406, description = "`Accept` names none of `text/turtle`, `application/n-triples`, `application/ld+json` (or `application/json`).", body = ErrorBody),
+    (status = 413, response = edge::error::responses::PayloadTooLarge),
+    (status = 415, response = edge::error::responses::UnsupportedMediaType),
+    (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type), or the mission is impossible: a point outside every place or on several overlapping floors, a place on no floor, places not connected.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn on_demand_database(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
@@ -130,10 +178,25 @@ pub(super) async fn on_demand_database(
 /// N-Triples or JSON-LD by `Accept`; `X-Floor` and `X-Robot` give the IRIs of the floor and
 /// the robot, `X-Triple-Count` its size. The `ETag` names the graph's state: a request with
 /// `If-None-Match` set to it is answered 304 without a body while nothing was written since.
-#[utoipa::path(get, path = "/v1/places/{id}/on-demand", params(("id" = String, Path, description = "a floor or a place on one: IRI or tosm:identifier"), WorldQuery), responses(
-    (status = 200, description = "the subset", content_type = "text/turtle", body = String),
-    (status = 304, description = "unchanged since the `If-None-Match` tag"),
-    (status = 404, body = ErrorBody), (status = 406, body = ErrorBody), (status = 422, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/places/{id}/on-demand", params(
+        ("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier."),
+        WorldQuery,
+        ("If-None-Match" = Option<String>, Header, nullable = false, description = "An `ETag` of an earlier answer: 304 while the graph is unchanged.")),
+    responses(
+    (status = 200, description = "The floor's database, in the format `Accept` asks for (Turtle by default).",
+        content((String = "text/turtle"), (String = "application/n-triples"), (serde_json::Value = "application/ld+json")),
+        headers(
+            ("etag" = String, description = "The graph's state and the format; absent when the graph changed while it was read."),
+            ("x-triple-count" = u64, description = "Triples in the database."),
+            ("x-floor" = String, description = "The floor's IRI."),
+            ("x-robot" = String, description = "The robot's IRI."))),
+    (status = 304, description = "Unchanged since the `If-None-Match` tag.", headers(("etag" = String))),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 403, response = edge::error::responses::Forbidden),
+    (status = 404, description = "No place has this IRI or identifier, or no robot the `robot` given (or none at all).", body = ErrorBody),
+    (status = 406, description = "`Accept` names none of `text/turtle`, `application/n-triples`, `application/ld+json` (or `application/json`).", body = ErrorBody),
+    (status = 422, description = "The place is on no floor (a building, or a place outside every floor): only floors and the places on them have a database.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn floor_on_demand_database(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,

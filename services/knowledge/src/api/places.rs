@@ -92,7 +92,10 @@ pub(super) fn find_place(places: &[Place], id: &str) -> Result<usize, ApiError> 
 }
 
 /// Every place, buildings to rooms.
-#[utoipa::path(get, path = "/v1/places", responses((status = 200, body = [PlaceView]), (status = 401, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/places", responses(
+    (status = 200, body = [PlaceView]),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn list_places(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
@@ -107,7 +110,11 @@ pub(super) async fn list_places(
 }
 
 /// One place, by IRI (percent-encoded) or identifier.
-#[utoipa::path(get, path = "/v1/places/{id}", params(("id" = String, Path, description = "IRI or tosm:identifier")), responses((status = 200, body = PlaceView), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/places/{id}", params(("id" = String, Path, min_length = 1, description = "IRI or tosm:identifier")), responses(
+    (status = 200, body = PlaceView),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No place has this IRI or identifier.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn get_place(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
@@ -124,7 +131,11 @@ pub(super) async fn get_place(
 }
 
 /// A floor's occupancy grid as a PNG (free 254, occupied 0, unknown 205; top row first).
-#[utoipa::path(get, path = "/v1/places/{id}/map.png", params(("id" = String, Path)), responses((status = 200, content_type = "image/png", body = Vec<u8>), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/places/{id}/map.png", params(("id" = String, Path, min_length = 1, description = "A floor: IRI or tosm:identifier.")), responses(
+    (status = 200, content_type = "image/png", body = Vec<u8>),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No place has this IRI or identifier, or it has no metric map (only floors do).", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn place_map(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
@@ -149,14 +160,21 @@ pub(super) async fn place_map(
 /// Which robot to place in an exported world.
 #[derive(Deserialize, utoipa::IntoParams)]
 pub struct WorldQuery {
-    /// The robot's IRI or identifier [default: the first robot in the store].
+    /// The robot's IRI or identifier [default: the first robot in the store]. An unknown one
+    /// (an empty one included) is 404.
+    #[param(nullable = false)]
     pub(super) robot: Option<String>,
 }
 
 /// The SDF 1.9 world of a floor (or of the floor a place is on), generated from the graph alone
 /// by the simulation parser: walls from the metric map, library models, and placeholders of
 /// their stated shape and colour. Gazebo loads it as it is.
-#[utoipa::path(get, path = "/v1/places/{id}/world.sdf", params(("id" = String, Path), WorldQuery), responses((status = 200, content_type = "application/xml", body = String), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/places/{id}/world.sdf", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier."), WorldQuery), responses(
+    (status = 200, content_type = "application/xml", body = String),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No place has this IRI or identifier, or no robot the `robot` given (or none at all).", body = ErrorBody),
+    (status = 422, description = "The place is on no floor (a building, or a place outside every floor): only floors and the places on them have a world; or the stored knowledge does not make a world.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn world_sdf(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
@@ -168,16 +186,9 @@ pub(super) async fn world_sdf(
         let store = k.store()?;
         let places = on_demand::all_places(&store)?;
         let place = &places[find_place(&places, &id)?];
-        let mut floor = Some(place);
-        while let Some(p) = floor {
-            if p.kind == PlaceKind::Floor {
-                break;
-            }
-            floor = p
-                .parent
-                .as_deref()
-                .and_then(|parent| places.iter().find(|q| q.iri == parent));
-        }
+        let floor = on_demand::containers(|iri| places.iter().find(|q| q.iri == iri), place)?
+            .into_iter()
+            .find(|p| p.kind == PlaceKind::Floor);
         let floor = floor.ok_or_else(|| {
             ApiError::new(
                 ErrorCode::Unprocessable,

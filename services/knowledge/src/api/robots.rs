@@ -19,7 +19,12 @@ use crate::store::KnowledgeStore;
 
 /// The URDF of a robot, generated from its TOSM description: links, joints, wheels, laser
 /// and camera sensors. `check_urdf` and ROS load it as it is.
-#[utoipa::path(get, path = "/v1/robots/{id}/robot.urdf", params(("id" = String, Path)), responses((status = 200, content_type = "application/xml", body = String), (status = 404, body = ErrorBody), (status = 422, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/robots/{id}/robot.urdf", params(("id" = String, Path, min_length = 1, description = "IRI or tosm:identifier")), responses(
+    (status = 200, content_type = "application/xml", body = String),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No robot has this IRI or identifier.", body = ErrorBody),
+    (status = 422, description = "The robot's description does not make a simulated robot.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn robot_urdf(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
@@ -109,7 +114,10 @@ impl From<&tosm::Robot> for RobotView {
 }
 
 /// Every robot model.
-#[utoipa::path(get, path = "/v1/robots", responses((status = 200, body = [RobotView])))]
+#[utoipa::path(get, path = "/v1/robots", responses(
+    (status = 200, body = [RobotView]),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn list_robots(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
@@ -123,7 +131,11 @@ pub(super) async fn list_robots(
 }
 
 /// One robot, by IRI or identifier.
-#[utoipa::path(get, path = "/v1/robots/{id}", params(("id" = String, Path)), responses((status = 200, body = RobotView), (status = 404, body = ErrorBody)))]
+#[utoipa::path(get, path = "/v1/robots/{id}", params(("id" = String, Path, min_length = 1, description = "IRI or tosm:identifier")), responses(
+    (status = 200, body = RobotView),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No robot has this IRI or identifier.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn get_robot(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,

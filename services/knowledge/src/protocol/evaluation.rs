@@ -32,6 +32,12 @@ pub(crate) enum EvaluationError {
         /// The cap.
         limit: usize,
     },
+    /// The serialized answer grew past the byte cap of the caller's role.
+    #[error("the answer is larger than {limit} bytes")]
+    TooManyBytes {
+        /// The cap.
+        limit: usize,
+    },
     /// The operation cannot be evaluated as written (e.g. an unsupported SERVICE or LOAD).
     #[error("{0}")]
     Invalid(String),
@@ -123,6 +129,48 @@ impl ProtocolDataset {
     }
 }
 
+/// A buffer that refuses to grow past `cap` bytes: serializers write into it, and the first
+/// write past the cap fails with [`CapExceeded`], so an answer is never held whole beyond it.
+pub(crate) struct CappedBuffer {
+    pub(crate) bytes: Vec<u8>,
+    cap: usize,
+}
+
+impl CappedBuffer {
+    pub(crate) fn new(cap: usize) -> Self {
+        Self {
+            bytes: Vec::new(),
+            cap,
+        }
+    }
+}
+
+impl std::io::Write for CappedBuffer {
+    fn write(&mut self, data: &[u8]) -> std::io::Result<usize> {
+        if self.bytes.len().saturating_add(data.len()) > self.cap {
+            return Err(std::io::Error::other(CapExceeded(self.cap)));
+        }
+        self.bytes.extend_from_slice(data);
+        Ok(data.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// The error a [`CappedBuffer`] fails with past its cap.
+#[derive(Debug, thiserror::Error)]
+#[error("the answer is larger than {0} bytes")]
+pub(crate) struct CapExceeded(pub(crate) usize);
+
+/// The cap, when `e` is a [`CappedBuffer`]'s refusal.
+pub(crate) fn cap_exceeded(e: &std::io::Error) -> Option<usize> {
+    e.get_ref()
+        .and_then(|inner| inner.downcast_ref::<CapExceeded>())
+        .map(|c| c.0)
+}
+
 /// Evaluates `query` and serializes its whole answer in `format`, which must fit the query
 /// form: a results format for SELECT and ASK, an RDF format for CONSTRUCT and DESCRIBE.
 /// Blocking.
@@ -132,6 +180,7 @@ pub(crate) fn run_query(
     dataset: Option<&ProtocolDataset>,
     format: Format,
     max_triples: usize,
+    max_bytes: usize,
     token: CancellationToken,
 ) -> Result<Vec<u8>, EvaluationError> {
     let mut prepared = SparqlEvaluator::new()
@@ -144,13 +193,17 @@ pub(crate) fn run_query(
     match (results, format) {
         (QueryResults::Boolean(value), Format::Results(format)) => {
             QueryResultsSerializer::from_format(format)
-                .serialize_boolean_to_writer(Vec::new(), value)
+                .serialize_boolean_to_writer(CappedBuffer::new(max_bytes), value)
+                .map(|b| b.bytes)
                 .map_err(|e| unserializable(format.name(), e))
         }
         (QueryResults::Solutions(solutions), Format::Results(format)) => {
             let unserializable = |e| unserializable(format.name(), e);
             let mut serializer = QueryResultsSerializer::from_format(format)
-                .serialize_solutions_to_writer(Vec::new(), solutions.variables().to_vec())
+                .serialize_solutions_to_writer(
+                    CappedBuffer::new(max_bytes),
+                    solutions.variables().to_vec(),
+                )
                 .map_err(unserializable)?;
             for solution in solutions {
                 // Oxigraph checks its token when it reads the store, not while it combines
@@ -162,11 +215,12 @@ pub(crate) fn run_query(
                     .serialize(&solution.map_err(query_error)?)
                     .map_err(unserializable)?;
             }
-            serializer.finish().map_err(unserializable)
+            serializer.finish().map(|b| b.bytes).map_err(unserializable)
         }
         (QueryResults::Graph(triples), Format::Rdf(format)) => {
             let unserializable = |e| unserializable(format.name(), e);
-            let mut serializer = RdfSerializer::from_format(format).for_writer(Vec::new());
+            let mut serializer =
+                RdfSerializer::from_format(format).for_writer(CappedBuffer::new(max_bytes));
             let mut count = 0_usize;
             for triple in triples {
                 if token.is_cancelled() {
@@ -181,7 +235,7 @@ pub(crate) fn run_query(
                     .serialize_triple(&triple)
                     .map_err(unserializable)?;
             }
-            serializer.finish().map_err(unserializable)
+            serializer.finish().map(|b| b.bytes).map_err(unserializable)
         }
         (_, _) => Err(EvaluationError::Invalid(
             "the negotiated format does not fit the query form".to_owned(),
@@ -230,6 +284,7 @@ pub(crate) async fn run_query_remote(
     dataset: Option<&ProtocolDataset>,
     format: Format,
     max_triples: usize,
+    max_bytes: usize,
 ) -> Result<Vec<u8>, EvaluationError> {
     let params = dataset
         .map(|d| d.params("default-graph-uri", "named-graph-uri"))
@@ -246,10 +301,13 @@ pub(crate) async fn run_query_remote(
                 .as_deref()
                 .and_then(QueryResultsFormat::from_media_type);
             if got == Some(wanted) {
+                if body.len() > max_bytes {
+                    return Err(EvaluationError::TooManyBytes { limit: max_bytes });
+                }
                 return Ok(body.to_vec());
             }
             let got = got.ok_or_else(|| unexpected(remote, content_type.as_deref()))?;
-            transcode_results(&body, got, wanted)
+            transcode_results(&body, got, wanted, max_bytes)
         }
         Format::Rdf(wanted) => {
             let accept = "application/n-triples, text/turtle;q=0.9, application/rdf+xml;q=0.5, \
@@ -259,7 +317,8 @@ pub(crate) async fn run_query_remote(
                 .as_deref()
                 .and_then(RdfFormat::from_media_type)
                 .ok_or_else(|| unexpected(remote, content_type.as_deref()))?;
-            let mut serializer = RdfSerializer::from_format(wanted).for_writer(Vec::new());
+            let mut serializer =
+                RdfSerializer::from_format(wanted).for_writer(CappedBuffer::new(max_bytes));
             for (count, triple) in RdfParser::from_format(got).for_slice(&body).enumerate() {
                 if count >= max_triples {
                     return Err(EvaluationError::TooLarge { limit: max_triples });
@@ -276,6 +335,7 @@ pub(crate) async fn run_query_remote(
             }
             serializer
                 .finish()
+                .map(|b| b.bytes)
                 .map_err(|e| unserializable(wanted.name(), e))
         }
     }
@@ -293,6 +353,7 @@ fn transcode_results(
     body: &[u8],
     from: QueryResultsFormat,
     to: QueryResultsFormat,
+    max_bytes: usize,
 ) -> Result<Vec<u8>, EvaluationError> {
     let unreadable = |e: &dyn std::fmt::Display| {
         EvaluationError::Storage(format!("the remote store's results do not parse: {e}"))
@@ -303,18 +364,22 @@ fn transcode_results(
         .map_err(|e| unreadable(&e))?
     {
         SliceQueryResultsParserOutput::Boolean(value) => QueryResultsSerializer::from_format(to)
-            .serialize_boolean_to_writer(Vec::new(), value)
+            .serialize_boolean_to_writer(CappedBuffer::new(max_bytes), value)
+            .map(|b| b.bytes)
             .map_err(unserializable),
         SliceQueryResultsParserOutput::Solutions(solutions) => {
             let mut serializer = QueryResultsSerializer::from_format(to)
-                .serialize_solutions_to_writer(Vec::new(), solutions.variables().to_vec())
+                .serialize_solutions_to_writer(
+                    CappedBuffer::new(max_bytes),
+                    solutions.variables().to_vec(),
+                )
                 .map_err(unserializable)?;
             for solution in solutions {
                 serializer
                     .serialize(&solution.map_err(|e| unreadable(&e))?)
                     .map_err(unserializable)?;
             }
-            serializer.finish().map_err(unserializable)
+            serializer.finish().map(|b| b.bytes).map_err(unserializable)
         }
     }
 }
@@ -343,6 +408,9 @@ fn query_error(e: QueryEvaluationError) -> EvaluationError {
 }
 
 fn unserializable(format: &'static str, e: std::io::Error) -> EvaluationError {
+    if let Some(limit) = cap_exceeded(&e) {
+        return EvaluationError::TooManyBytes { limit };
+    }
     EvaluationError::Unserializable {
         format,
         message: e.to_string(),

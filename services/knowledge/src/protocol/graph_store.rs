@@ -100,11 +100,18 @@ pub(super) async fn direct(
     .await
 }
 
-fn authorize(knowledge: &Knowledge, method: &Method, headers: &HeaderMap) -> Result<(), ApiError> {
+fn authorize(
+    knowledge: &Knowledge,
+    method: &Method,
+    headers: &HeaderMap,
+) -> Result<Role, ApiError> {
     if method == Method::GET || method == Method::HEAD {
-        knowledge.tokens.authenticate(headers).map(drop)
+        knowledge.tokens.authenticate(headers).map(|p| p.role)
     } else {
-        knowledge.tokens.require(headers, Role::Engineer).map(drop)
+        knowledge
+            .tokens
+            .require(headers, Role::Engineer)
+            .map(|p| p.role)
     }
 }
 
@@ -159,6 +166,7 @@ async fn read(
         }
     };
     let limits = knowledge.limits;
+    let max_bytes = limits.result_bytes(knowledge.tokens.authenticate(headers)?.role);
     let deadline = Deadline::start(knowledge.reads(), limits.deadline);
     let (token, exceeded) = (deadline.token(), deadline.exceeded());
     let body = deadline
@@ -178,7 +186,7 @@ async fn read(
                 &store,
                 &target,
                 format,
-                limits.max_construct_triples,
+                (limits.max_construct_triples, max_bytes),
                 &token,
             )
             .map_err(|e| match e {
@@ -188,6 +196,13 @@ async fn read(
                     format!(
                         "the graph has more than {limit} triples, the configured cap; read \
                              it in parts with SPARQL (LIMIT/OFFSET)"
+                    ),
+                ),
+                Dump::TooManyBytes(limit) => ApiError::new(
+                    ErrorCode::ResultTooLarge,
+                    format!(
+                        "the graph serializes to more than {limit} bytes, the cap of this \
+                         token's role; read it in parts with SPARQL (LIMIT/OFFSET)"
                     ),
                 ),
                 Dump::Store(e) => ApiError::from(e),
@@ -211,6 +226,7 @@ async fn read(
 enum Dump {
     Cancelled,
     TooLarge(usize),
+    TooManyBytes(usize),
     Store(crate::StoreError),
     Failed(String),
 }
@@ -220,7 +236,7 @@ fn serialize(
     store: &KnowledgeStore,
     target: &Target,
     format: RdfFormat,
-    max_triples: usize,
+    (max_triples, max_bytes): (usize, usize),
     token: &CancellationToken,
 ) -> Result<Vec<u8>, Dump> {
     match (store.embedded(), store.remote_store()) {
@@ -229,7 +245,7 @@ fn serialize(
                 Some(graph) => embedded.quads_for_pattern(None, None, None, Some(graph.as_ref())),
                 None => embedded.iter(),
             };
-            write_quads(quads, target, format, max_triples, token)
+            write_quads(quads, target, format, (max_triples, max_bytes), token)
         }
         (None, Some(remote)) => {
             // One more than the cap tells whether the cap is exceeded.
@@ -243,7 +259,7 @@ fn serialize(
                 quads.into_iter().map(Ok::<Quad, std::convert::Infallible>),
                 target,
                 format,
-                max_triples,
+                (max_triples, max_bytes),
                 token,
             )
         }
@@ -255,11 +271,15 @@ fn write_quads<E: std::fmt::Display>(
     quads: impl Iterator<Item = Result<Quad, E>>,
     target: &Target,
     format: RdfFormat,
-    max_triples: usize,
+    (max_triples, max_bytes): (usize, usize),
     token: &CancellationToken,
 ) -> Result<Vec<u8>, Dump> {
-    let failed = |e: &dyn std::fmt::Display| Dump::Failed(e.to_string());
-    let mut serializer = RdfSerializer::from_format(format).for_writer(Vec::new());
+    let failed = |e: &std::io::Error| match super::evaluation::cap_exceeded(e) {
+        Some(limit) => Dump::TooManyBytes(limit),
+        None => Dump::Failed(e.to_string()),
+    };
+    let mut serializer = RdfSerializer::from_format(format)
+        .for_writer(super::evaluation::CappedBuffer::new(max_bytes));
     for (count, quad) in quads.enumerate() {
         // Checking an atomic per quad is cheap next to serializing it.
         if token.is_cancelled() {
@@ -268,7 +288,7 @@ fn write_quads<E: std::fmt::Display>(
         if count >= max_triples {
             return Err(Dump::TooLarge(max_triples));
         }
-        let quad = quad.map_err(|e| failed(&e))?;
+        let quad = quad.map_err(|e| Dump::Failed(e.to_string()))?;
         match target {
             Target::Store => serializer.serialize_quad(&quad),
             Target::Default | Target::Named(_) => {
@@ -277,7 +297,7 @@ fn write_quads<E: std::fmt::Display>(
         }
         .map_err(|e| failed(&e))?;
     }
-    serializer.finish().map_err(|e| failed(&e))
+    serializer.finish().map(|b| b.bytes).map_err(|e| failed(&e))
 }
 
 /// One RDF document of a request body.
@@ -354,6 +374,10 @@ async fn documents(headers: &HeaderMap, body: Bytes) -> Result<Vec<Document>, Ap
 fn parse(documents: &[Document], graph: &GraphName, base: &str) -> Result<Vec<Quad>, ApiError> {
     let mut quads = Vec::new();
     for document in documents {
+        // The JSON-LD parser recurses per nesting level: refuse what would overflow its stack.
+        if matches!(document.format, RdfFormat::JsonLd { .. }) {
+            super::complexity::check_json(&document.bytes).map_err(ApiError::bad_request)?;
+        }
         let parser = RdfParser::from_format(document.format)
             .rename_blank_nodes()
             .without_named_graphs()

@@ -8,6 +8,7 @@
 //! serialized completely before the response starts, so a query that is cut short, by its
 //! deadline or by the CONSTRUCT cap, is always an error status, never a truncated 200 body.
 
+mod complexity;
 mod evaluation;
 mod graph_store;
 pub(crate) mod inline;

@@ -28,7 +28,7 @@ pub(super) async fn get(
     uri: Uri,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    knowledge.tokens.authenticate(&headers)?;
+    let role = knowledge.tokens.authenticate(&headers)?.role;
     let params = Params::of_uri(&uri)?;
     if params.contains("update") {
         return Ok(method_not_allowed(
@@ -38,7 +38,7 @@ pub(super) async fn get(
     }
     let endpoint = format!("{}{}", request_origin(&uri, &headers), uri.path());
     match params.at_most_one("query")? {
-        Some(query) => answer_query(knowledge, &endpoint, query, &params, &headers).await,
+        Some(query) => answer_query(knowledge, &endpoint, query, &params, &headers, role).await,
         None => super::service_description::answer(&endpoint, &params, &headers),
     }
 }
@@ -50,7 +50,7 @@ pub(super) async fn post(
     headers: HeaderMap,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    knowledge.tokens.authenticate(&headers)?;
+    let role = knowledge.tokens.authenticate(&headers)?.role;
     let mut params = Params::of_uri(&uri)?;
     let endpoint = format!("{}{}", request_origin(&uri, &headers), uri.path());
     let Some((media_type, utf8)) = body_media_type(&headers) else {
@@ -70,7 +70,7 @@ pub(super) async fn post(
             params = all;
             match (params.at_most_one("query")?, params.at_most_one("update")?) {
                 (Some(query), None) => {
-                    answer_query(knowledge, &endpoint, query, &params, &headers).await
+                    answer_query(knowledge, &endpoint, query, &params, &headers, role).await
                 }
                 (None, Some(update)) => {
                     apply_update(knowledge, &endpoint, update, &params, &headers).await
@@ -92,7 +92,7 @@ pub(super) async fn post(
             let text = std::str::from_utf8(&body)
                 .map_err(|e| ApiError::bad_request(format!("the body is not UTF-8: {e}")))?;
             if media_type == SPARQL_QUERY {
-                answer_query(knowledge, &endpoint, text, &params, &headers).await
+                answer_query(knowledge, &endpoint, text, &params, &headers, role).await
             } else {
                 apply_update(knowledge, &endpoint, text, &params, &headers).await
             }
@@ -117,7 +117,20 @@ async fn answer_query(
     text: &str,
     params: &Params,
     headers: &HeaderMap,
+    role: Role,
 ) -> Result<Response, ApiError> {
+    let max_query = knowledge.limits.max_query_bytes;
+    if text.len() > max_query {
+        return Err(ApiError::new(
+            ErrorCode::PayloadTooLarge,
+            format!(
+                "the query is {} bytes; queries are limited to {max_query} (data belongs in an \
+                 update or a Graph Store write)",
+                text.len()
+            ),
+        ));
+    }
+    super::complexity::check_sparql(text).map_err(|m| ApiError::new(ErrorCode::InvalidQuery, m))?;
     let query = parser(endpoint)?.parse_query(text).map_err(|e| {
         ApiError::new(
             ErrorCode::InvalidQuery,
@@ -145,6 +158,7 @@ async fn answer_query(
     let content_type = negotiation::content_type(format);
     let dataset = protocol_dataset(params, "default-graph-uri", "named-graph-uri")?;
     let limits = knowledge.limits;
+    let max_bytes = limits.result_bytes(role);
     let deadline = Deadline::start(knowledge.reads(), limits.deadline);
     let exceeded = deadline.exceeded();
     let store = knowledge.store_async().await?;
@@ -156,6 +170,7 @@ async fn answer_query(
             dataset.as_ref(),
             format,
             limits.max_construct_triples,
+            max_bytes,
         );
         match tokio::time::timeout(limits.deadline, forwarded).await {
             Err(_elapsed) => return Err(exceeded),
@@ -163,7 +178,7 @@ async fn answer_query(
         }
     } else {
         // Same text, dataset and format: the same cost as last time, most likely.
-        let key = inline::key(&[text, content_type, &format!("{dataset:?}")]);
+        let key = inline::key(&[text, content_type, &format!("{dataset:?}{max_bytes}")]);
         deadline
             .read_remembered(key, move |token| {
                 let Some(embedded) = store.embedded() else {
@@ -175,6 +190,7 @@ async fn answer_query(
                     dataset.as_ref(),
                     format,
                     limits.max_construct_triples,
+                    max_bytes,
                     token,
                 )
                 .map_err(|e| evaluation_error(e, &exceeded))
@@ -199,6 +215,7 @@ async fn apply_update(
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
     knowledge.tokens.require(headers, Role::Engineer)?;
+    super::complexity::check_sparql(text).map_err(|m| ApiError::new(ErrorCode::InvalidQuery, m))?;
     let update = parser(endpoint)?.parse_update(text).map_err(|e| {
         ApiError::new(
             ErrorCode::InvalidQuery,
@@ -297,6 +314,13 @@ pub(super) fn evaluation_error(e: EvaluationError, exceeded: &ApiError) -> ApiEr
             format!(
                 "the result has more than {limit} triples, the configured cap; narrow the query \
                  or add a LIMIT"
+            ),
+        ),
+        EvaluationError::TooManyBytes { limit } => ApiError::new(
+            ErrorCode::ResultTooLarge,
+            format!(
+                "the answer is larger than {limit} bytes, the cap of this token's role; narrow \
+                 the query or page it with LIMIT/OFFSET"
             ),
         ),
         EvaluationError::Invalid(message) => ApiError::new(ErrorCode::InvalidQuery, message),

@@ -139,6 +139,7 @@ async fn a_client_that_hangs_up_stops_its_query() {
     let limits = QueryLimits {
         deadline: Duration::from_secs(120),
         max_construct_triples: 10,
+        ..QueryLimits::default()
     };
     let knowledge = Arc::new(Knowledge::new(store, Tokens::open(), limits));
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
@@ -181,6 +182,7 @@ async fn a_query_run_in_place_still_stops_at_its_deadline() {
     let limits = QueryLimits {
         deadline: Duration::from_millis(300),
         max_construct_triples: 10,
+        ..QueryLimits::default()
     };
     let knowledge = Arc::new(Knowledge::new(store.clone(), Tokens::open(), limits));
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();

@@ -63,6 +63,7 @@ impl Default for Options {
             limits: QueryLimits {
                 deadline: Duration::from_secs(20),
                 max_construct_triples: 100_000,
+                ..QueryLimits::default()
             },
         }
     }

@@ -26,6 +26,16 @@ impl Roadmap {
     /// re-drawn. Beyond the paper, `repair_share` of the n samples go to visibility repair:
     /// a few extra edge tests between nearby components, then connector and guard samples.
     pub fn build(cspace: Arc<ConfigSpace>, params: &PrmParams) -> Result<Self, BuildError> {
+        Self::build_until(cspace, params, &grid::Stop::never())
+    }
+
+    /// [`Roadmap::build`], polling `stop` every few dozen samples: [`BuildError::Stopped`]
+    /// once it is requested.
+    pub fn build_until(
+        cspace: Arc<ConfigSpace>,
+        params: &PrmParams,
+        stop: &grid::Stop,
+    ) -> Result<Self, BuildError> {
         params.validate()?;
         if cspace.free_cells().is_empty() {
             return Err(BuildError::NoFreeSpace {
@@ -56,7 +66,10 @@ impl Roadmap {
         let mut pending: Vec<u32> = (0..nodes.len() as u32).collect();
         for round in 0..=RESAMPLE_ROUNDS {
             let tree = kd_tree(&nodes)?;
-            for &i in &pending {
+            for (n, &i) in pending.iter().enumerate() {
+                if n.is_multiple_of(32) && stop.requested() {
+                    return Err(BuildError::Stopped);
+                }
                 let p = nodes[i as usize];
                 let near = tree
                     .query(&p)

@@ -225,13 +225,49 @@ impl HttpKnowledge {
         &self.base
     }
 
-    /// `GET {base}/readyz` answers 200.
-    pub async fn ready(&self) -> Result<(), String> {
+    /// `GET {base}/readyz` answers 200, and the service accepts this worker's token (a
+    /// worker without one would claim jobs only to fail each with a 401). The error is a
+    /// summary naming no URL or credential, and the full reason.
+    pub async fn ready(&self) -> Result<(), (&'static str, String)> {
         let url = format!("{}/readyz", self.base);
         match self.client.get(&url).send().await {
+            Ok(r) if r.status().is_success() => {}
+            Ok(r) => {
+                return Err((
+                    "the knowledge service is not ready",
+                    format!("{url} answered {}", r.status()),
+                ));
+            }
+            Err(e) => {
+                return Err((
+                    "the knowledge service cannot be reached",
+                    format!("cannot reach {url}: {e}"),
+                ));
+            }
+        }
+        let Some(token) = &self.token else {
+            return Err((
+                "no knowledge token configured",
+                "no token for the knowledge service: set knowledge_token or knowledge_token_file"
+                    .to_owned(),
+            ));
+        };
+        // The service description: the cheapest answer that needs a valid token.
+        let url = format!("{}/sparql", self.base);
+        match self.client.get(&url).bearer_auth(token).send().await {
             Ok(r) if r.status().is_success() => Ok(()),
-            Ok(r) => Err(format!("{url} answered {}", r.status())),
-            Err(e) => Err(format!("cannot reach {url}: {e}")),
+            Ok(r) if r.status() == reqwest::StatusCode::UNAUTHORIZED => Err((
+                "the knowledge service rejects the worker's token",
+                format!("{url} answered 401 to the configured knowledge token"),
+            )),
+            Ok(r) => Err((
+                "the knowledge service is not ready",
+                format!("{url} answered {}", r.status()),
+            )),
+            Err(e) => Err((
+                "the knowledge service cannot be reached",
+                format!("cannot reach {url}: {e}"),
+            )),
         }
     }
 }

@@ -50,6 +50,7 @@ impl PlanErrorResponse for PlanError {
             PlanError::Unreachable { .. } => "unreachable",
             PlanError::NotValidated { .. } => "not_validated",
             PlanError::Map(_) => "map_unusable",
+            PlanError::Stopped => "stopped",
         }
     }
 
@@ -60,6 +61,7 @@ impl PlanErrorResponse for PlanError {
                 ErrorCode::Unprocessable
             }
             PlanError::NotValidated { .. } => ErrorCode::Conflict,
+            PlanError::Stopped => ErrorCode::Timeout,
         }
     }
 
@@ -98,6 +100,7 @@ impl PlanErrorResponse for PlanError {
                 json!({ "attempts": attempts })
             }
             PlanError::Map(message) => json!({ "message": message }),
+            PlanError::Stopped => json!({}),
         };
         if let Some(o) = d.as_object_mut() {
             o.insert("reason".into(), self.reason().into());

@@ -75,19 +75,27 @@ impl From<Pose> for sim::Pose2 {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlanOptions {
-    /// Simulated runs at most, each on a roadmap re-sampled with a new seed (default 5).
+    /// Simulated runs at most, each on a roadmap re-sampled with a new seed, 1-50 (default 5).
+    #[schema(minimum = 1, maximum = 50)]
     pub max_attempts: u32,
     /// The waypoint timer of the paper's §4.2.2: simulated seconds to reach one waypoint before
-    /// the planner replans from where the robot is (default 15).
+    /// the planner replans from where the robot is, in (0, 600] (default 15).
+    #[schema(exclusive_minimum = 0, maximum = 600)]
     pub waypoint_timeout_s: f64,
-    /// Replans allowed within one attempt before it counts as stalled (default 5).
+    /// Replans allowed within one attempt before it counts as stalled, at most 1000
+    /// (default 5).
+    #[schema(maximum = 1000)]
     pub max_replans: u32,
     /// Remove detours from the roadmap path (each waypoint joined to the farthest one in
     /// straight sight). The paper's planner does not; default false.
     pub shortcut: bool,
-    /// Clearance kept beyond the robot's radius when sampling the roadmap, metres (default 0.1).
+    /// Clearance kept beyond the robot's radius when sampling the roadmap, metres, in [0, 5]
+    /// (default 0.1).
+    #[schema(minimum = 0, maximum = 5)]
     pub safety_margin_m: f64,
-    /// PRM samples n; `null` for the paper's n* = ceil(0.05 · free area + 84) (Eq. 19).
+    /// PRM samples n, 1-10 000 000 (`planning::MAX_SAMPLES`); `null` for the paper's
+    /// n* = ceil(0.05 · free area + 84) (Eq. 19).
+    #[schema(minimum = 1, maximum = 10_000_000)]
     pub samples: Option<usize>,
     /// Seed of the roadmaps and the simulation: the same request gives the same report.
     pub seed: u64,
@@ -200,6 +208,58 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
     }
 }
 
+/// [`PlanApiRequest`](super::PlanApiRequest) as the OpenAPI document describes it: one of its
+/// two forms, `goal` or `goals`. Documentation only: the handler reads
+/// [`PlanApiRequest`](super::PlanApiRequest), whose fields these repeat (keep them in step),
+/// and answers 400 to a request with neither or both.
+#[derive(ToSchema)]
+#[serde(untagged)]
+#[schema(
+    as = PlanApiRequest,
+    description = "What a robot asks: its pose on a floor, and one goal (`goal`) or a non-empty sequence of goals (`goals`, at most 1000), never both."
+)]
+#[allow(
+    dead_code,
+    reason = "documentation only: the handler reads `PlanApiRequest`"
+)]
+pub enum PlanApiRequestDoc {
+    /// One goal.
+    #[serde(deny_unknown_fields)]
+    Goal {
+        /// The robot: identifier or IRI.
+        robot: String,
+        /// Where the robot is: its floor, or a place on that floor (identifier or IRI).
+        place: String,
+        /// The robot's pose on that floor (map frame).
+        start: Pose,
+        /// The goal.
+        goal: Point,
+        /// Validation settings.
+        #[serde(default)]
+        options: PlanOptions,
+        /// The policy to drive with [default: the robot's newest trained policy].
+        policy: Option<String>,
+    },
+    /// Goals visited in order.
+    #[serde(deny_unknown_fields)]
+    Goals {
+        /// The robot: identifier or IRI.
+        robot: String,
+        /// Where the robot is: its floor, or a place on that floor (identifier or IRI).
+        place: String,
+        /// The robot's pose on that floor (map frame).
+        start: Pose,
+        /// The goals, visited in order: 1-1000 (`rehearsal::MAX_GOALS`).
+        #[schema(min_items = 1, max_items = 1000)]
+        goals: Vec<Point>,
+        /// Validation settings.
+        #[serde(default)]
+        options: PlanOptions,
+        /// The policy to drive with [default: the robot's newest trained policy].
+        policy: Option<String>,
+    },
+}
+
 /// What to plan: from the robot's pose through one goal or a sequence of goals.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -219,6 +279,7 @@ impl From<PlanRequest> for rehearsal::PlanRequest {
             start: r.start.into(),
             goals: r.goals.into_iter().map(Into::into).collect(),
             options: r.options.into(),
+            stop: rehearsal::Stop::default(),
         }
     }
 }
