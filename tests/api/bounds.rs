@@ -13,6 +13,7 @@ use crate::helpers::{TestApp, spawn_app_with};
 
 const ENGINEER: &str = "engineer-token-for-bounds";
 const ROBOT: &str = "robot-token-for-bounds-0";
+const OTHER_ROBOT: &str = "robot-token-for-bounds-2";
 
 async fn app_with(edit: impl FnOnce(&mut Config)) -> TestApp {
     let temp = tempfile::tempdir().unwrap();
@@ -29,6 +30,11 @@ async fn app_with(edit: impl FnOnce(&mut Config)) -> TestApp {
                 TokenConfig {
                     token: ROBOT.to_owned(),
                     name: "robot-1".to_owned(),
+                    role: edge::Role::Robot,
+                },
+                TokenConfig {
+                    token: OTHER_ROBOT.to_owned(),
+                    name: "robot-2".to_owned(),
                     role: edge::Role::Robot,
                 },
             ];
@@ -409,5 +415,127 @@ async fn a_loop_of_places_is_a_422_naming_it_on_every_walk() {
     )
     .await;
     assert!(started.elapsed() < Duration::from_secs(10));
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn robots_may_not_federate_queries_with_service() {
+    let app = app_with(|_| {}).await;
+    let query = "SELECT * WHERE { SERVICE <http://169.254.169.254/latest/> { ?s ?p ?o } }";
+    let refused = app
+        .client
+        .post(format!("{}/sparql", app.address))
+        .bearer_auth(ROBOT)
+        .header("content-type", "application/sparql-query")
+        .body(query)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(refused.status(), 403);
+    // The word in a literal is no SERVICE clause.
+    let fine = app
+        .client
+        .post(format!("{}/sparql", app.address))
+        .bearer_auth(ROBOT)
+        .header("content-type", "application/sparql-query")
+        .header("accept", "application/sparql-results+json")
+        .body("ASK { ?s ?p \"SERVICE\" }")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(fine.status(), 200);
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn deep_nesting_is_refused_and_the_service_lives_on() {
+    let app = app_with(|_| {}).await;
+    let deep = format!("SELECT * WHERE {}{}", "{".repeat(5000), "}".repeat(5000));
+    let refused = app
+        .client
+        .post(format!("{}/sparql", app.address))
+        .bearer_auth(ROBOT)
+        .header("content-type", "application/sparql-query")
+        .body(deep)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(refused.status(), 400);
+    let body: serde_json::Value = refused.json().await.unwrap();
+    assert!(
+        body["error"]["message"].as_str().unwrap().contains("deep"),
+        "{body}"
+    );
+    let jsonld = format!("{}{}", "[".repeat(5000), "]".repeat(5000));
+    let refused = app
+        .client
+        .put(format!("{}/store?graph=urn:x:deep", app.address))
+        .bearer_auth(ENGINEER)
+        .header("content-type", "application/ld+json")
+        .body(jsonld)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(refused.status(), 400);
+    assert_eq!(app.get("/healthz").await.status(), 200);
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn robots_change_only_their_own_objects_with_known_classes_at_a_bounded_rate() {
+    let app = app_with(|_| {}).await;
+    let report = |token: &'static str, id: &str, class: &str, place: &str| {
+        app.client
+            .post(format!("{}/v1/places/{place}/objects", app.address))
+            .bearer_auth(token)
+            .json(&serde_json::json!({
+                "id": id, "class": class,
+                "pose": {"x": 1.0, "y": 1.0, "yaw": 0.0},
+                "shape": {"type": "box", "length": 0.5, "width": 0.5, "height": 0.5}
+            }))
+            .send()
+    };
+    let first = report(ROBOT, "crate-1", "Table", "F0-office")
+        .await
+        .unwrap();
+    assert_eq!(first.status(), 201, "{}", first.text().await.unwrap());
+    let other = report(OTHER_ROBOT, "crate-1", "Table", "F0-office")
+        .await
+        .unwrap();
+    assert_eq!(other.status(), 403, "{}", other.text().await.unwrap());
+    let again = report(ROBOT, "crate-1", "Chair", "F0-office")
+        .await
+        .unwrap();
+    assert_eq!(again.status(), 200, "{}", again.text().await.unwrap());
+    // An engineer may correct any object.
+    let fixed = report(ENGINEER, "crate-1", "Table", "F0-office")
+        .await
+        .unwrap();
+    assert_eq!(fixed.status(), 200, "{}", fixed.text().await.unwrap());
+    // Classes come from the ontology.
+    let invented = report(ROBOT, "thing-1", "http://example.org/Anything", "F0-office")
+        .await
+        .unwrap();
+    assert_eq!(invented.status(), 422, "{}", invented.text().await.unwrap());
+    // A burst beyond the allowance is refused with Retry-After (reports to an unknown place
+    // cost the allowance too, and nothing else).
+    let mut limited = None;
+    for _ in 0..150 {
+        let r = report(OTHER_ROBOT, "x", "Table", "no-such-place")
+            .await
+            .unwrap();
+        if r.status() == 429 {
+            limited = Some(r);
+            break;
+        }
+        assert_eq!(r.status(), 404);
+    }
+    let limited = limited.expect("no 429 within 150 reports");
+    assert!(limited.headers().contains_key("retry-after"));
+    // The other robot is not affected.
+    let mine = report(ROBOT, "crate-2", "Table", "F0-office")
+        .await
+        .unwrap();
+    assert_eq!(mine.status(), 201, "{}", mine.text().await.unwrap());
     app.stop().await;
 }

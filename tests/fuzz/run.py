@@ -432,8 +432,14 @@ def run_schemathesis(service, doc, role, args, out, rep, failures) -> None:
         sys.executable, "-m", "schemathesis.cli", "run", str(ROOT / "openapi" / f"{doc}.json"),
         "--url", service.url,
         "--header", f"Authorization: Bearer {TOKENS[role]}",
-        # Every check schemathesis has (max_response_time stays off: no limit is given).
+        # Every check schemathesis has (max_response_time stays off: no limit is given), but
+        # positive_data_acceptance: it asks every schema-valid request to succeed, and some
+        # refusals depend on the stored data, which no schema can state (the bundled building
+        # B-001 has no floor, so no world: 422, documented). What the issue asks of every
+        # answer (no 5xx, status, content type, headers and body as documented, invalid input
+        # refused) is all checked.
         "--checks", "all",
+        "--exclude-checks", "positive_data_acceptance",
         "--max-examples", str(args.max_examples),
         "--seed", str(args.seed),
         # One worker and no example database: the same seed draws the same requests.

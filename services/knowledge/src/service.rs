@@ -4,6 +4,7 @@
 //! Everything a service remembers lives here, per instance: two services in one process (the
 //! in-process tests start many) share nothing.
 
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
@@ -53,6 +54,11 @@ impl Default for QueryLimits {
 
 type Opener = Box<dyn Fn() -> Result<KnowledgeStore, StoreError> + Send + Sync>;
 
+/// Object reports one robot may make per second, on average.
+pub const REPORTS_PER_SECOND: f64 = 20.0;
+/// Object reports one robot may make at once.
+pub const REPORT_BURST: f64 = 100.0;
+
 /// Everything a knowledge handler needs. Shared behind an `Arc`.
 ///
 /// The store may open late: when the data directory is unusable at start, handlers answer
@@ -67,6 +73,8 @@ pub struct Knowledge {
     refresh_lock: Mutex<()>,
     /// What this service's SPARQL reads cost last time, which run in place, and its watchdog.
     reads: Arc<ReadState>,
+    /// Object reports per robot: a token bucket by principal name (bounded by the tokens).
+    reports: Mutex<HashMap<String, (f64, std::time::Instant)>>,
 }
 
 impl std::fmt::Debug for Knowledge {
@@ -109,6 +117,26 @@ impl Knowledge {
             limits,
             refresh_lock: Mutex::new(()),
             reads: Arc::new(ReadState::new()),
+            reports: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// Takes one object report from `robot`'s allowance ([`REPORTS_PER_SECOND`], bursts of
+    /// [`REPORT_BURST`]); `Err` with the seconds until the next one is allowed.
+    pub fn take_report(&self, robot: &str) -> Result<(), f64> {
+        let now = std::time::Instant::now();
+        let mut buckets = self.reports.lock().unwrap_or_else(PoisonError::into_inner);
+        let (tokens, at) = buckets
+            .entry(robot.to_owned())
+            .or_insert((REPORT_BURST, now));
+        *tokens = (*tokens + now.duration_since(*at).as_secs_f64() * REPORTS_PER_SECOND)
+            .min(REPORT_BURST);
+        *at = now;
+        if *tokens >= 1.0 {
+            *tokens -= 1.0;
+            Ok(())
+        } else {
+            Err((1.0 - *tokens) / REPORTS_PER_SECOND)
         }
     }
 

@@ -170,6 +170,29 @@ pub(super) async fn report_object(
     Json(report): Json<ObjectReport>,
 ) -> Result<Response, ApiError> {
     let principal = k.tokens.require(&headers, Role::Robot)?;
+    let is_robot = principal.role == Role::Robot;
+    if is_robot && let Err(wait_s) = k.take_report(&principal.name) {
+        let mut response = ApiError::new(
+            ErrorCode::TooManyRequests,
+            format!(
+                "{} sent more than {} object reports in a burst ({} per second on average); retry in {wait_s:.1} s",
+                principal.name,
+                crate::service::REPORT_BURST,
+                crate::service::REPORTS_PER_SECOND
+            ),
+        )
+        .into_response();
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "a wait of at most a few seconds, rounded up"
+        )]
+        let retry = wait_s.ceil().max(1.0) as u64;
+        response
+            .headers_mut()
+            .insert(axum::http::header::RETRY_AFTER, retry.into());
+        return Ok(response);
+    }
     blocking(move || {
         let store = k.store()?;
         let places = on_demand::all_places(&store)?;
@@ -201,6 +224,9 @@ pub(super) async fn report_object(
             None => uuid_slug(),
         };
         let object = to_object(&place, &slug, &report, &principal.name)?;
+        if is_robot {
+            check_robot_report(&store, &object)?;
+        }
         let triples = tosm::object_to_triples(&object).map_err(|p| {
             ApiError::new(ErrorCode::Unprocessable, p.to_string())
                 .with_details(serde_json::json!({ "problems": p.to_string() }))
@@ -235,6 +261,56 @@ pub(super) async fn report_object(
             .into_response())
     })
     .await
+}
+
+/// What a robot may not do with a report: change an object another agent reported, or type it
+/// with a class the ontology does not know as an object class.
+fn check_robot_report(
+    store: &crate::KnowledgeStore,
+    object: &tosm::Object,
+) -> Result<(), ApiError> {
+    // Every IRI below goes into a query: each must be one (no `>` or space can break out).
+    let iri = |text: &str, what: &str| {
+        NamedNode::new(text)
+            .map_err(|e| ApiError::new(ErrorCode::Unprocessable, format!("{what} <{text}>: {e}")))
+    };
+    let reporter = iri(
+        object.reported_by.as_deref().unwrap_or_default(),
+        "reporter",
+    )?;
+    let subject = iri(&object.iri, "object")?;
+    let taken = store.ask(&format!(
+        "ASK {{ GRAPH <{PERCEIVED_GRAPH}> {{ {subject} {} ?by FILTER(?by != {reporter}) }} }}",
+        tosm::vocab::REPORTED_BY,
+    ))?;
+    if taken {
+        return Err(ApiError::new(
+            ErrorCode::Forbidden,
+            format!(
+                "{} was reported by another agent: a robot changes only the objects it reported \
+                 (choose another id, or ask an engineer)",
+                object.iri
+            ),
+        ));
+    }
+    if object.class == tosm::ObjectClass::Other && !object.class_iri.starts_with(tosm::vocab::NS) {
+        let class = iri(&object.class_iri, "class")?;
+        let known = store.ask(&format!(
+            "ASK {{ GRAPH ?g {{ {class} <http://www.w3.org/2000/01/rdf-schema#subClassOf>+ {} }} }}",
+            tosm::vocab::OBJECT
+        ))?;
+        if !known {
+            return Err(ApiError::new(
+                ErrorCode::Unprocessable,
+                format!(
+                    "class <{}> is not an object class of the ontology: robots report TOSM \
+                     classes or classes an engineer declared a subclass of tosm:Object",
+                    object.class_iri
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn uuid_slug() -> String {

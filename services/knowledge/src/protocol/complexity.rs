@@ -95,6 +95,54 @@ pub(crate) fn check_sparql(text: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// Whether `keyword` (ASCII, compared case-insensitively) occurs in SPARQL `text` as a word of
+/// its own, outside strings, IRIs, comments and prefixed names.
+pub(crate) fn has_keyword(text: &str, keyword: &str) -> bool {
+    let b = text.as_bytes();
+    let word = |c: u8| c.is_ascii_alphanumeric() || c == b'_' || c == b':' || c == b'-';
+    let mut i = 0;
+    while i < b.len() {
+        match b[i] {
+            b'#' => {
+                while i < b.len() && b[i] != b'\n' {
+                    i += 1;
+                }
+            }
+            b'"' | b'\'' => {
+                i = skip_string(b, i);
+                continue;
+            }
+            b'<' => {
+                if let Some(end) = iri_end(b, i) {
+                    i = end + 1;
+                    continue;
+                }
+            }
+            b'?' | b'$' => {
+                // A variable's name is no keyword.
+                i += 1;
+                while i < b.len() && word(b[i]) {
+                    i += 1;
+                }
+                continue;
+            }
+            c if word(c) => {
+                let start = i;
+                while i < b.len() && word(b[i]) {
+                    i += 1;
+                }
+                if text[start..i].eq_ignore_ascii_case(keyword) {
+                    return true;
+                }
+                continue;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    false
+}
+
 /// Refuses JSON (JSON-LD) nested deeper than [`MAX_DEPTH`].
 pub(crate) fn check_json(bytes: &[u8]) -> Result<(), String> {
     let (mut i, mut depth) = (0, 0_usize);
@@ -187,6 +235,21 @@ mod tests {
         // Brackets inside strings and IRIs do not count.
         let quoted = format!("ASK {{ ?s ?p \"{}\" }}", "{".repeat(5000));
         assert_eq!(check_sparql(&quoted), Ok(()));
+    }
+
+    #[test]
+    fn service_is_found_as_a_keyword_only() {
+        assert!(has_keyword(
+            "SELECT * WHERE { service <http://evil/> { ?s ?p ?o } }",
+            "SERVICE"
+        ));
+        for q in [
+            "SELECT * WHERE { ?s ?p \"SERVICE\" }",
+            "SELECT * WHERE { ?s <http://x/SERVICE> ?o } # SERVICE",
+            "SELECT ?service WHERE { ?s ex:SERVICE ?service }",
+        ] {
+            assert!(!has_keyword(q, "SERVICE"), "{q}");
+        }
     }
 
     #[test]

@@ -131,6 +131,14 @@ async fn answer_query(
         ));
     }
     super::complexity::check_sparql(text).map_err(|m| ApiError::new(ErrorCode::InvalidQuery, m))?;
+    // SERVICE makes the store call out to any URL (a remote store would): not for robots.
+    if role == Role::Robot && super::complexity::has_keyword(text, "SERVICE") {
+        return Err(ApiError::new(
+            ErrorCode::Forbidden,
+            "robot tokens may not use SERVICE (federated queries call other endpoints); ask \
+             an engineer",
+        ));
+    }
     let query = parser(endpoint)?.parse_query(text).map_err(|e| {
         ApiError::new(
             ErrorCode::InvalidQuery,

@@ -68,18 +68,23 @@ impl EmbeddedStore {
 
     /// Runs a trivial query through the whole stack (parser, evaluator, RocksDB iterator).
     pub(crate) fn check(&self) -> Result<(), StoreError> {
+        self.ask("ASK { ?s ?p ?o }").map(drop)
+    }
+
+    /// Evaluates an ASK query. Blocking.
+    pub(crate) fn ask(&self, query: &str) -> Result<bool, StoreError> {
         let query_error = |message: String| StoreError::Query {
             location: self.location.clone(),
-            message: format!("health query failed: {message}"),
+            message: format!("query failed: {message}"),
         };
         let results = oxigraph::sparql::SparqlEvaluator::new()
-            .parse_query("ASK { ?s ?p ?o }")
+            .parse_query(query)
             .map_err(|e| query_error(e.to_string()))?
             .on_store(&self.store)
             .execute()
             .map_err(|e| query_error(e.to_string()))?;
         match results {
-            oxigraph::sparql::QueryResults::Boolean(_) => Ok(()),
+            oxigraph::sparql::QueryResults::Boolean(b) => Ok(b),
             _ => Err(query_error("ASK did not answer a boolean".to_owned())),
         }
     }

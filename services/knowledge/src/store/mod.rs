@@ -121,6 +121,14 @@ impl KnowledgeStore {
         }
     }
 
+    /// Evaluates an ASK query (over every graph: use `GRAPH`). Blocking.
+    pub fn ask(&self, query: &str) -> Result<bool, StoreError> {
+        match &self.backend {
+            Backend::Embedded(store) => store.ask(query),
+            Backend::Remote(remote) => remote.ask(query),
+        }
+    }
+
     /// Where the store lives: its directory, `:memory:`, or the remote's query endpoint.
     pub fn location(&self) -> &str {
         match &self.backend {

@@ -76,6 +76,9 @@ struct Snapshot {
 
 /// A remote SPARQL 1.1 store.
 pub struct RemoteStore {
+    /// The endpoints as shown in logs and errors: user info replaced by `***`.
+    query_display: String,
+    update_display: String,
     query_url: String,
     update_url: String,
     timeout: Duration,
@@ -91,8 +94,8 @@ pub struct RemoteStore {
 impl std::fmt::Debug for RemoteStore {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RemoteStore")
-            .field("query_url", &self.query_url)
-            .field("update_url", &self.update_url)
+            .field("query_url", &redact(&self.query_url))
+            .field("update_url", &redact(&self.update_url))
             .finish_non_exhaustive()
     }
 }
@@ -106,8 +109,9 @@ impl RemoteStore {
     /// A client for the remote. Must be called inside a tokio runtime.
     pub fn new(config: RemoteConfig) -> Result<Self, StoreError> {
         let (query_url, update_url) = config.endpoints();
+        let (query_display, update_display) = (redact(&query_url), redact(&update_url));
         let fail = |message: String| StoreError::Query {
-            location: query_url.clone(),
+            location: query_display.clone(),
             message,
         };
         let runtime = tokio::runtime::Handle::try_current()
@@ -121,6 +125,8 @@ impl RemoteStore {
         Ok(Self {
             query_url,
             update_url,
+            query_display,
+            update_display,
             timeout: config.timeout,
             client,
             runtime,
@@ -135,17 +141,20 @@ impl RemoteStore {
         self.serial.load(std::sync::atomic::Ordering::SeqCst)
     }
 
-    /// The query endpoint.
+    /// The query endpoint, as shown in logs and errors (credentials replaced by `***`).
     pub fn query_url(&self) -> &str {
-        &self.query_url
+        &self.query_display
     }
 
-    /// The update endpoint.
+    /// The update endpoint, as shown (credentials replaced by `***`).
     pub fn update_url(&self) -> &str {
-        &self.update_url
+        &self.update_display
     }
 
-    fn transport_error(&self, url: &str, e: &reqwest::Error) -> StoreError {
+    fn transport_error(&self, url: &str, e: reqwest::Error) -> StoreError {
+        let url = &redact(url);
+        // reqwest's message would repeat the URL, credentials and all.
+        let e = &e.without_url();
         if e.is_timeout() {
             StoreError::TimedOut {
                 url: url.to_owned(),
@@ -175,7 +184,7 @@ impl RemoteStore {
         let response = request
             .send()
             .await
-            .map_err(|e| self.transport_error(url, &e))?;
+            .map_err(|e| self.transport_error(url, e))?;
         let status = response.status();
         let content_type = response
             .headers()
@@ -185,12 +194,12 @@ impl RemoteStore {
         let body = response
             .bytes()
             .await
-            .map_err(|e| self.transport_error(url, &e))?;
+            .map_err(|e| self.transport_error(url, e))?;
         if !status.is_success() {
             let text = String::from_utf8_lossy(&body);
             let message: String = text.trim().chars().take(500).collect();
             return Err(StoreError::Remote {
-                url: url.to_owned(),
+                url: redact(url),
                 status: status.as_u16(),
                 message,
             });
@@ -355,7 +364,7 @@ impl RemoteStore {
 
     fn bad_answer(&self, message: impl Into<String>) -> StoreError {
         StoreError::Query {
-            location: self.query_url.clone(),
+            location: self.query_display.clone(),
             message: message.into(),
         }
     }
@@ -483,7 +492,7 @@ impl RemoteStore {
         version: Option<String>,
     ) -> Result<Store, StoreError> {
         let storage = |source| StoreError::Storage {
-            location: self.query_url.clone(),
+            location: self.query_display.clone(),
             source,
         };
         let store = Store::new().map_err(storage)?;
@@ -623,5 +632,31 @@ mod tests {
             .filter(|q| q.as_ref().unwrap().object.is_blank_node())
             .count();
         assert_eq!(blank_links, 1);
+    }
+}
+
+/// `url` with any user name and password replaced by `***`, for logs and error messages.
+pub fn redact(url: &str) -> String {
+    match reqwest::Url::parse(url) {
+        Ok(mut u) if !u.username().is_empty() || u.password().is_some() => {
+            let _ = u.set_username("***");
+            let _ = u.set_password(None);
+            u.to_string()
+        }
+        Ok(_) => url.to_owned(),
+        Err(_) => "(an unparsable URL)".to_owned(),
+    }
+}
+
+#[cfg(test)]
+mod redaction_tests {
+    #[test]
+    fn credentials_never_reach_the_shown_url() {
+        let shown = super::redact("http://alice:s3cret@store.example:7878/query");
+        assert_eq!(shown, "http://***@store.example:7878/query");
+        assert_eq!(
+            super::redact("http://store:7878/query"),
+            "http://store:7878/query"
+        );
     }
 }
