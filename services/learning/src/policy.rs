@@ -381,7 +381,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         f.write_all(bytes)?;
         f.sync_all()?;
     }
-    std::fs::rename(&tmp, path)
+    std::fs::rename(&tmp, path)?;
+    // The rename itself is durable once the directory's entries are.
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => sync_path(dir),
+        _ => Ok(()),
+    }
+}
+
+/// Makes `path` (a file or a directory) durable: its data, or its entries (a rename in it).
+pub fn sync_path(path: &Path) -> std::io::Result<()> {
+    std::fs::File::open(path)?.sync_all()
 }
 
 #[cfg(test)]

@@ -263,7 +263,43 @@ pub struct Trainer {
     /// The actor of the best periodic evaluation of this session: (success rate, mean time to
     /// goal, env steps, layers).
     best: Option<BestActor>,
+    /// Asked right before a written checkpoint replaces the previous one; an error leaves the
+    /// previous one in place (a job that lost its lease must not overwrite its successor's).
+    install_guard: Option<InstallGuard>,
 }
+
+/// See [`Trainer::set_install_guard`].
+pub type InstallGuard = Box<dyn FnMut() -> Result<(), String> + Send>;
+
+/// A name for this process's and trainer's staging directories, so two writers of one
+/// checkpoint directory never share one.
+fn writer_tag() -> String {
+    static WRITERS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = WRITERS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    format!("{}-{n}", std::process::id())
+}
+
+/// The newest complete checkpoint set aside by an install that did not finish
+/// (`checkpoint.old-<writer>`), if any.
+fn previous_checkpoint(out_dir: &Path) -> Option<PathBuf> {
+    std::fs::read_dir(out_dir)
+        .ok()?
+        .filter_map(Result::ok)
+        .filter(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .starts_with("checkpoint.old")
+        })
+        .map(|e| e.path())
+        .filter(|d| d.join("state.json").is_file())
+        .max_by_key(|d| {
+            std::fs::metadata(d.join("state.json"))
+                .and_then(|m| m.modified())
+                .ok()
+        })
+}
+
+use crate::policy::sync_path;
 
 /// A snapshot of the actor at an evaluation.
 #[derive(Clone, Debug)]
@@ -343,6 +379,7 @@ impl Trainer {
             evals: Vec::new(),
             missions,
             checkpoints_written: 0,
+            install_guard: None,
             best: None,
             learner,
             env_config,
@@ -380,7 +417,7 @@ impl Trainer {
     /// Whether `out_dir` holds a checkpoint to resume from.
     pub fn has_checkpoint(out_dir: &Path) -> bool {
         out_dir.join(CHECKPOINT_DIR).join("state.json").is_file()
-            || out_dir.join("checkpoint.old").join("state.json").is_file()
+            || previous_checkpoint(out_dir).is_some()
     }
 
     /// Continues the run checkpointed in `options.out_dir`. Its configuration comes from the
@@ -388,8 +425,10 @@ impl Trainer {
     pub fn resume(world: Arc<World>, options: TrainOptions) -> Result<Trainer, TrainError> {
         let mut dir = options.out_dir.join(CHECKPOINT_DIR);
         if !dir.join("state.json").is_file() {
-            // A crash between the two renames of `checkpoint` leaves the previous one here.
-            dir = options.out_dir.join("checkpoint.old");
+            // A crash between the two renames of `checkpoint` leaves the previous one aside.
+            if let Some(previous) = previous_checkpoint(&options.out_dir) {
+                dir = previous;
+            }
         }
         let bad = |message: String| TrainError::Checkpoint {
             path: dir.clone(),
@@ -783,10 +822,11 @@ impl Trainer {
     /// counters, the random state and the logs. The directory is replaced as a whole, so a crash
     /// leaves the previous checkpoint or the new one.
     pub fn checkpoint(&mut self) -> Result<(), TrainError> {
-        let out = &self.options.out_dir;
+        let out = &self.options.out_dir.clone();
         let final_dir = out.join(CHECKPOINT_DIR);
-        let new_dir = out.join("checkpoint.new");
-        let old_dir = out.join("checkpoint.old");
+        let tag = writer_tag();
+        let new_dir = out.join(format!("checkpoint.new-{tag}"));
+        let old_dir = out.join(format!("checkpoint.old-{tag}"));
         let io = |path: &Path| {
             let path = path.to_path_buf();
             move |e: std::io::Error| TrainError::Checkpoint {
@@ -813,18 +853,36 @@ impl Trainer {
             message: e.to_string(),
         })?;
         write_atomic(&new_dir.join("state.json"), &json).map_err(io(&new_dir))?;
-        if old_dir.exists() {
-            std::fs::remove_dir_all(&old_dir).map_err(io(&old_dir))?;
+        // Durable before it is installed: every file, then the directory's entries.
+        for file in ["learner.safetensors", "replay.safetensors", "state.json"] {
+            sync_path(&new_dir.join(file)).map_err(io(&new_dir))?;
+        }
+        sync_path(&new_dir).map_err(io(&new_dir))?;
+        if let Some(guard) = self.install_guard.as_mut()
+            && let Err(why) = guard()
+        {
+            let _ = std::fs::remove_dir_all(&new_dir);
+            return Err(TrainError::Checkpoint {
+                path: final_dir,
+                message: format!("not installed: {why}"),
+            });
         }
         if final_dir.exists() {
             std::fs::rename(&final_dir, &old_dir).map_err(io(&final_dir))?;
         }
         std::fs::rename(&new_dir, &final_dir).map_err(io(&final_dir))?;
+        sync_path(out).map_err(io(out))?;
         if old_dir.exists() {
             std::fs::remove_dir_all(&old_dir).map_err(io(&old_dir))?;
         }
         self.checkpoints_written += 1;
         Ok(())
+    }
+
+    /// Sets what is asked right before each checkpoint replaces the previous one (a job's
+    /// lease check); its error keeps the previous checkpoint and fails the checkpoint.
+    pub fn set_install_guard(&mut self, guard: InstallGuard) {
+        self.install_guard = Some(guard);
     }
 
     /// Writes the exported policy (`policy.safetensors`, `policy.json`) into `dir`, with a

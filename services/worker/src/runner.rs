@@ -85,17 +85,20 @@ struct ContextInner {
     queue: Queue,
     job: Job,
     lease: Lease,
+    /// How long a renewal extends the lease.
+    lease_len: Duration,
     token: CancellationToken,
     reason: OnceLock<StopReason>,
 }
 
 impl JobContext {
-    fn new(queue: Queue, claimed: Claimed) -> Self {
+    fn new(queue: Queue, claimed: Claimed, lease_len: Duration) -> Self {
         Self {
             inner: Arc::new(ContextInner {
                 queue,
                 job: claimed.job,
                 lease: claimed.lease,
+                lease_len,
                 token: CancellationToken::new(),
                 reason: OnceLock::new(),
             }),
@@ -184,6 +187,25 @@ impl JobContext {
             self.stop(StopReason::CancelRequested);
         }
         Ok(id)
+    }
+
+    /// Renews the lease under its fencing token, from a blocking thread of the runtime: `Ok`
+    /// means this attempt owns the job for at least one more lease period, so a file installed
+    /// right after (a checkpoint, an exported policy) cannot race another worker's. A lost
+    /// lease stops the job.
+    pub fn fence_blocking(&self) -> Result<(), JobError> {
+        let handle = tokio::runtime::Handle::try_current()
+            .map_err(|e| JobError::Retryable(format!("no runtime to renew the lease on: {e}")))?;
+        let renewed = handle.block_on(
+            self.inner
+                .queue
+                .heartbeat(&self.inner.lease, self.inner.lease_len),
+        );
+        let ack = self.written(renewed)?;
+        if ack.cancel_requested {
+            self.stop(StopReason::CancelRequested);
+        }
+        Ok(())
     }
 
     /// Enqueues a follow-up job (a policy's roadmap after its export, say).
@@ -546,6 +568,9 @@ async fn heartbeat_loop(
     let mut ticks = tokio::time::interval_at(tokio::time::Instant::now() + period, period);
     ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut shutdown_seen = false;
+    // Past one lease period without a renewal another worker may own the job: stop it then,
+    // even when the queue cannot say so (the database is unreachable).
+    let mut renewed = tokio::time::Instant::now();
     loop {
         tokio::select! {
             biased;
@@ -557,12 +582,18 @@ async fn heartbeat_loop(
             }
             _ = ticks.tick() => match queue.heartbeat(ctx.lease(), config.lease).await {
                 Ok(ack) => {
+                    renewed = tokio::time::Instant::now();
                     if ack.cancel_requested {
                         ctx.stop(StopReason::CancelRequested);
                     }
                 }
                 Err(QueueError::LeaseLost { .. }) => {
                     tracing::warn!(job = %ctx.id(), "lease lost; stopping the handler");
+                    ctx.stop(StopReason::LeaseLost);
+                    return;
+                }
+                Err(e) if renewed.elapsed() + period >= config.lease => {
+                    tracing::warn!(job = %ctx.id(), error = %e, "the lease cannot be renewed within its period; stopping the handler");
                     ctx.stop(StopReason::LeaseLost);
                     return;
                 }
@@ -579,7 +610,7 @@ async fn run_job(
     config: WorkerConfig,
     shutdown: CancellationToken,
 ) -> Outcome {
-    let ctx = JobContext::new(queue.clone(), claimed);
+    let ctx = JobContext::new(queue.clone(), claimed, config.lease);
     let lease = ctx.lease().clone();
     let done = CancellationToken::new();
     let heartbeat = tokio::spawn(heartbeat_loop(

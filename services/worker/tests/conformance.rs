@@ -62,6 +62,7 @@ conformance!(
     runner_cancel_request_stops_the_handler,
     runner_shutdown_releases_and_another_worker_resumes,
     runner_stops_a_handler_whose_lease_was_taken,
+    a_handler_that_lost_its_lease_cannot_install_files,
 );
 
 fn is_lease_lost<T: std::fmt::Debug>(r: Result<T, QueueError>) -> bool {
@@ -909,5 +910,67 @@ async fn runner_stops_a_handler_whose_lease_was_taken(f: Fixture) {
     assert_eq!(job.state, JobState::Running);
     assert_eq!(job.lease_owner.as_deref(), Some("thief"));
     assert_eq!(job.lease_token, thief.lease.token);
+    q.complete(&thief.lease, &json!("thief's")).await.unwrap();
+}
+
+/// A handler installs its files (a checkpoint, an exported policy) only after
+/// `fence_blocking` renewed its lease: once another worker took the job, the fence refuses, so
+/// two workers can never both install one job's files.
+async fn a_handler_that_lost_its_lease_cannot_install_files(f: Fixture) {
+    let q = f.system_queue();
+    let id = q.enqueue(NewJob::new("install", json!({}))).await.unwrap();
+    let taken = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let fences: Arc<std::sync::Mutex<Vec<bool>>> = Arc::default();
+    let handler = {
+        let (taken, fences) = (taken.clone(), fences.clone());
+        handler_fn(move |ctx: JobContext| {
+            let (taken, fences) = (taken.clone(), fences.clone());
+            async move {
+                tokio::task::spawn_blocking(move || {
+                    // Owned: the fence holds.
+                    fences.lock().unwrap().push(ctx.fence_blocking().is_ok());
+                    while !taken.load(std::sync::atomic::Ordering::SeqCst) {
+                        std::thread::sleep(Duration::from_millis(5));
+                    }
+                    // Taken over: the fence refuses, and the job stops.
+                    let fenced = ctx.fence_blocking();
+                    fences.lock().unwrap().push(fenced.is_ok());
+                    assert!(ctx.is_stopping());
+                    Err::<serde_json::Value, _>(ctx.stopped())
+                })
+                .await
+                .unwrap()
+            }
+        })
+    };
+    let config = WorkerConfig {
+        concurrency: 1,
+        ..fast_config("slow")
+    };
+    let worker = Worker::new(q.clone(), config).register("install", handler);
+    let shutdown = CancellationToken::new();
+    let run = tokio::spawn(worker.run(shutdown.clone()));
+    wait_until("the first fence", || {
+        let fences = fences.clone();
+        async move { !fences.lock().unwrap().is_empty() }
+    })
+    .await;
+    let thief = loop {
+        assert!(q.expire_lease(id).await.unwrap());
+        if let Some(thief) = q.claim("thief", &["install"], LEASE).await.unwrap() {
+            break thief;
+        }
+    };
+    taken.store(true, std::sync::atomic::Ordering::SeqCst);
+    wait_until("the second fence", || {
+        let fences = fences.clone();
+        async move { fences.lock().unwrap().len() == 2 }
+    })
+    .await;
+    assert_eq!(*fences.lock().unwrap(), vec![true, false]);
+    shutdown.cancel();
+    run.await.unwrap();
+    let job = q.get(id).await.unwrap().unwrap();
+    assert_eq!(job.lease_owner.as_deref(), Some("thief"));
     q.complete(&thief.lease, &json!("thief's")).await.unwrap();
 }

@@ -64,20 +64,30 @@ impl PolicyStore {
         valid_id(id).then(|| self.dir.join(id))
     }
 
-    /// A fresh staging directory for policy `id`, next to where it will be installed.
-    pub fn staging(&self, id: &str) -> PathBuf {
-        self.dir.join(format!(".{id}.staging"))
+    /// A fresh staging directory for policy `id`, next to where it will be installed, of one
+    /// job attempt (two attempts never share one).
+    pub fn staging(&self, id: &str, attempt: u32) -> PathBuf {
+        self.dir.join(format!(".{id}.staging-{attempt}"))
     }
 
-    /// Moves a staged policy into place, replacing an earlier export of the same id.
+    /// Moves a staged policy into place, replacing an earlier export of the same id. The
+    /// files and the directory entries are made durable first, the rename after.
     pub fn install(&self, id: &str, staged: &Path) -> std::io::Result<PathBuf> {
         let target = self
             .path(id)
             .ok_or_else(|| std::io::Error::other(format!("invalid policy id {id:?}")))?;
+        for entry in std::fs::read_dir(staged)? {
+            let path = entry?.path();
+            if path.is_file() {
+                learning::policy::sync_path(&path)?;
+            }
+        }
+        learning::policy::sync_path(staged)?;
         if target.exists() {
             std::fs::remove_dir_all(&target)?;
         }
         std::fs::rename(staged, &target)?;
+        learning::policy::sync_path(&self.dir)?;
         Ok(target)
     }
 

@@ -290,6 +290,12 @@ fn train_blocking(
     } else {
         Trainer::new(Arc::clone(&world), options).map_err(fatal)?
     };
+    // A checkpoint replaces the previous one only under a freshly renewed lease: a worker that
+    // lost the job cannot overwrite what its successor wrote.
+    let fence = ctx.clone();
+    trainer.set_install_guard(Box::new(move || {
+        fence.fence_blocking().map_err(|e| e.to_string())
+    }));
     let mut last_sent: Option<Instant> = None;
     let mut checkpoints = 0u64;
     let mut on_progress = |p: &Progress| {
@@ -317,7 +323,8 @@ fn train_blocking(
 
     // Export, then evaluate the exported policy with the pure-Rust runtime robots embed, on
     // held-out missions drawn from a seed training never used.
-    let staged = env.policies.staging(&policy_id);
+    // Staged under this attempt's own name; installed only under a renewed lease.
+    let staged = env.policies.staging(&policy_id, ctx.attempt());
     let io = |what: &str, e: std::io::Error| JobError::Retryable(format!("{what}: {e}"));
     if staged.exists() {
         std::fs::remove_dir_all(&staged).map_err(|e| io("clearing the staging directory", e))?;
@@ -347,6 +354,7 @@ fn train_blocking(
     trainer
         .export(&staged, summary.clone())
         .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
+    ctx.fence_blocking()?;
     env.policies
         .install(&policy_id, &staged)
         .map_err(|e| io("installing the policy", e))?;
