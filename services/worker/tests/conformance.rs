@@ -920,7 +920,7 @@ async fn a_handler_that_lost_its_lease_cannot_install_files(f: Fixture) {
     let q = f.system_queue();
     let id = q.enqueue(NewJob::new("install", json!({}))).await.unwrap();
     let taken = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let fences: Arc<std::sync::Mutex<Vec<bool>>> = Arc::default();
+    let fences: Arc<Mutex<Vec<bool>>> = Arc::default();
     let handler = {
         let (taken, fences) = (taken.clone(), fences.clone());
         handler_fn(move |ctx: JobContext| {
@@ -936,7 +936,7 @@ async fn a_handler_that_lost_its_lease_cannot_install_files(f: Fixture) {
                     let fenced = ctx.fence_blocking();
                     fences.lock().unwrap().push(fenced.is_ok());
                     assert!(ctx.is_stopping());
-                    Err::<serde_json::Value, _>(ctx.stopped())
+                    Err::<Value, _>(ctx.stopped())
                 })
                 .await
                 .unwrap()

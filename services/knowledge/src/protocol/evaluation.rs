@@ -345,7 +345,7 @@ fn unexpected(remote: &RemoteStore, content_type: Option<&str>) -> EvaluationErr
     EvaluationError::Storage(format!(
         "the remote store at {} answered the media type {content_type:?}, which the service \
          cannot read",
-        remote.query_url()
+        remote.shown_query_url()
     ))
 }
 

@@ -133,7 +133,7 @@ impl KnowledgeStore {
     pub fn location(&self) -> &str {
         match &self.backend {
             Backend::Embedded(store) => store.location(),
-            Backend::Remote(remote) => remote.query_url(),
+            Backend::Remote(remote) => remote.shown_query_url(),
         }
     }
 

@@ -142,12 +142,12 @@ impl RemoteStore {
     }
 
     /// The query endpoint, as shown in logs and errors (credentials replaced by `***`).
-    pub fn query_url(&self) -> &str {
+    pub fn shown_query_url(&self) -> &str {
         &self.query_display
     }
 
     /// The update endpoint, as shown (credentials replaced by `***`).
-    pub fn update_url(&self) -> &str {
+    pub fn shown_update_url(&self) -> &str {
         &self.update_display
     }
 
