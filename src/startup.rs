@@ -42,6 +42,9 @@ impl Components {
             if knowledge::bundled::load_if_empty(&store)? {
                 tracing::info!(path = %store_dir.display(), "loaded the bundled ontology, robot and sample building");
             }
+            // A process killed between a write and the rebuild of the entailments after it
+            // left the inferred graph behind the asserted ones: rebuild it before serving.
+            knowledge::inference::refresh(&store)?;
             Ok(store)
         };
         // A remote store is "open" once it answers; until then every use tries again.
@@ -52,6 +55,7 @@ impl Components {
                 if knowledge::bundled::load_if_empty(&store)? {
                     tracing::info!(url = %store.location(), "loaded the bundled ontology, robot and sample building into the remote store");
                 }
+                knowledge::inference::refresh(&store)?;
                 Ok(store)
             }
         });

@@ -182,8 +182,18 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
         !app.data_dir.join("oxigraph").exists(),
         "no embedded store is opened"
     );
+    // Where the store is shows to an engineer only.
     let ready: Value = app.get("/readyz").await.json().await.unwrap();
     assert_eq!(ready["status"], "ready", "{ready}");
+    assert!(ready["checks"]["graph_store"].get("location").is_none());
+    let ready: Value = app
+        .request(Method::GET, "/readyz")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
     assert_eq!(
         ready["checks"]["graph_store"]["location"],
         format!("{}/query", remote.url)
@@ -426,6 +436,18 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
     let not_ready = app.get("/readyz").await;
     assert_eq!(not_ready.status(), 503);
     let body: Value = not_ready.json().await.unwrap();
+    let reason = body["reason"].as_str().unwrap();
+    // A probe learns which component, not where it is; an engineer learns both.
+    assert!(reason.contains("graph_store"), "{reason}");
+    assert!(!reason.contains(&remote.url), "{reason}");
+    let body: Value = app
+        .request(Method::GET, "/readyz")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
     let reason = body["reason"].as_str().unwrap();
     assert!(reason.contains(&remote.url), "{reason}");
     let down = sparql_select(&app, "SELECT * WHERE { ?s ?p ?o } LIMIT 1").await;

@@ -14,6 +14,7 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
 mod bounds;
+mod faults;
 mod train;
 mod worker;
 
