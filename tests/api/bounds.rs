@@ -517,6 +517,16 @@ async fn robots_change_only_their_own_objects_with_known_classes_at_a_bounded_ra
         .await
         .unwrap();
     assert_eq!(invented.status(), 422, "{}", invented.text().await.unwrap());
+    // Found by the fuzzer: an invented term in the TOSM namespace is no class either.
+    let invented = report(
+        ROBOT,
+        "thing-2",
+        "https://mentalsim.dev/ontology/tosm#Sofa*",
+        "F0-office",
+    )
+    .await
+    .unwrap();
+    assert_eq!(invented.status(), 422, "{}", invented.text().await.unwrap());
     // A burst beyond the allowance is refused with Retry-After (reports to an unknown place
     // cost the allowance too, and nothing else).
     let mut limited = None;

@@ -293,7 +293,8 @@ fn check_robot_report(
             ),
         ));
     }
-    if object.class == tosm::ObjectClass::Other && !object.class_iri.starts_with(tosm::vocab::NS) {
+    if object.class == tosm::ObjectClass::Other && object.class_iri != tosm::vocab::OBJECT.as_str()
+    {
         let class = iri(&object.class_iri, "class")?;
         let known = store.ask(&format!(
             "ASK {{ GRAPH ?g {{ {class} <http://www.w3.org/2000/01/rdf-schema#subClassOf>+ {} }} }}",
