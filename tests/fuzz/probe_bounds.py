@@ -103,13 +103,14 @@ def auth(token: str) -> dict:
     return {"Authorization": f"Bearer {token}"}
 
 
-def probe_uploads(s: Server) -> str:
+def probe_uploads(s: Server, method: str = "POST", path: str = "/v1/maps",
+                  content_type: str = "multipart/form-data; boundary=x") -> str:
     body = b"x" * (60 * 1024 * 1024)
 
     def one(_):
         try:
-            return httpx.post(s.url + "/v1/maps", content=body, timeout=120,
-                              headers={"Content-Type": "multipart/form-data; boundary=x"}).status_code
+            return httpx.request(method, s.url + path, content=body, timeout=120,
+                                 headers={"Content-Type": content_type}).status_code
         except httpx.HTTPError as e:
             return type(e).__name__
 
@@ -203,7 +204,11 @@ def main() -> None:
         bomb_path.write_bytes(png(23000, 23000))
     bomb = bomb_path.read_bytes()
     probes = {
-        "8 concurrent 60 MB uploads, no token": probe_uploads,
+        "8 concurrent 60 MB map uploads, no token": probe_uploads,
+        "8 concurrent 60 MB Graph Store PUTs, no token":
+            lambda s: probe_uploads(s, "PUT", "/store?graph=urn:x:g", "text/turtle"),
+        "8 concurrent 60 MB SPARQL POSTs, no token":
+            lambda s: probe_uploads(s, "POST", "/sparql", "application/sparql-query"),
         "robot's cross-product SELECT": probe_cross_product,
         f"{len(bomb) // 1024} kB PNG declaring 23,000 x 23,000 px as a map": lambda s: probe_bomb(s, bomb),
         "map YAML with resolution 1.0e306": probe_resolution,
