@@ -549,3 +549,30 @@ async fn robots_change_only_their_own_objects_with_known_classes_at_a_bounded_ra
     assert_eq!(mine.status(), 201, "{}", mine.text().await.unwrap());
     app.stop().await;
 }
+
+#[tokio::test]
+async fn updates_to_the_inferred_graph_are_refused_as_the_graph_store_refuses_them() {
+    let app = app_with(|_| {}).await;
+    let update = |text: &'static str| {
+        app.client
+            .post(format!("{}/sparql", app.address))
+            .bearer_auth(ENGINEER)
+            .header("content-type", "application/sparql-update")
+            .body(text)
+            .send()
+    };
+    let refused = update(
+        "INSERT DATA { GRAPH <https://mentalsim.dev/graph/inferred> { <urn:x:a> <urn:x:b> <urn:x:c> } }",
+    )
+    .await
+    .unwrap();
+    assert_eq!(refused.status(), 409, "{}", refused.text().await.unwrap());
+    // Reading it in WHERE while writing elsewhere is fine.
+    let fine = update(
+        "INSERT { GRAPH <urn:x:copy> { ?s a ?c } } WHERE { GRAPH <https://mentalsim.dev/graph/inferred> { ?s a ?c } FILTER(false) }",
+    )
+    .await
+    .unwrap();
+    assert_eq!(fine.status(), 204, "{}", fine.text().await.unwrap());
+    app.stop().await;
+}

@@ -230,6 +230,16 @@ async fn apply_update(
             format!("the update does not parse: {e}"),
         )
     })?;
+    if writes_inferred(&update) {
+        return Err(ApiError::new(
+            ErrorCode::Conflict,
+            format!(
+                "<{}> is rebuilt by the service after every write: an update to it would be \
+                 lost at once; write the asserted graphs instead",
+                crate::graphs::INFERRED_GRAPH
+            ),
+        ));
+    }
     let dataset = protocol_dataset(params, "using-graph-uri", "using-named-graph-uri")?;
     let names_its_own_dataset = update.operations.iter().any(|operation| {
         matches!(
@@ -277,6 +287,28 @@ async fn apply_update(
         })
         .await?;
     Ok(StatusCode::NO_CONTENT.into_response())
+}
+
+/// Whether `update` names the inferred graph as one it writes (reading it in WHERE is fine).
+fn writes_inferred(update: &spargebra::Update) -> bool {
+    use spargebra::algebra::GraphTarget;
+    use spargebra::term::{GraphName, GraphNamePattern};
+    let inferred = |n: &NamedNode| n.as_str() == crate::graphs::INFERRED_GRAPH;
+    let name = |g: &GraphName| matches!(g, GraphName::NamedNode(n) if inferred(n));
+    let pattern = |g: &GraphNamePattern| matches!(g, GraphNamePattern::NamedNode(n) if inferred(n));
+    update.operations.iter().any(|operation| match operation {
+        GraphUpdateOperation::InsertData { data } => data.iter().any(|q| name(&q.graph_name)),
+        GraphUpdateOperation::DeleteData { data } => data.iter().any(|q| name(&q.graph_name)),
+        GraphUpdateOperation::DeleteInsert { delete, insert, .. } => {
+            delete.iter().any(|q| pattern(&q.graph_name))
+                || insert.iter().any(|q| pattern(&q.graph_name))
+        }
+        GraphUpdateOperation::Load { destination, .. } => name(destination),
+        GraphUpdateOperation::Clear { graph, .. } | GraphUpdateOperation::Drop { graph, .. } => {
+            matches!(graph, GraphTarget::NamedNode(n) if inferred(n))
+        }
+        GraphUpdateOperation::Create { graph, .. } => inferred(graph),
+    })
 }
 
 /// The parser for operations sent to `endpoint`, which is also their base IRI (the protocol
