@@ -263,6 +263,8 @@ fn router(config: &Config, components: Arc<Components>, stopping: CancellationTo
         env: components.job_env().clone(),
         shutdown: stopping,
         event_poll: std::time::Duration::from_millis(250),
+        // Each stream polls the job database every 250 ms; the pool is the heartbeats' too.
+        streams: Arc::new(worker::api::StreamLimits::new(64, 8)),
     });
     let app = Router::new()
         .merge(crate::health::router(components))

@@ -576,3 +576,59 @@ async fn updates_to_the_inferred_graph_are_refused_as_the_graph_store_refuses_th
     assert_eq!(fine.status(), 204, "{}", fine.text().await.unwrap());
     app.stop().await;
 }
+
+#[tokio::test]
+async fn event_streams_are_limited_per_token() {
+    let app = app_with(|c| c.worker_concurrency = 0).await;
+    let created = app
+        .client
+        .post(format!("{}/v1/jobs", app.address))
+        .bearer_auth(ENGINEER)
+        .json(&serde_json::json!({
+            "kind": "train",
+            "payload": {"robot": "R-001", "place": "F0", "minutes": 1}
+        }))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(created.status(), 201, "{}", created.text().await.unwrap());
+    let job: serde_json::Value = created.json().await.unwrap();
+    let url = format!(
+        "{}/v1/jobs/{}/events",
+        app.address,
+        job["id"].as_str().unwrap()
+    );
+    let open = || app.client.get(&url).bearer_auth(ROBOT).send();
+    let mut streams = Vec::new();
+    for _ in 0..8 {
+        let stream = open().await.unwrap();
+        assert_eq!(stream.status(), 200);
+        streams.push(stream);
+    }
+    let refused = open().await.unwrap();
+    assert_eq!(refused.status(), 429, "{}", refused.text().await.unwrap());
+    // Another token still gets one.
+    let other = app
+        .client
+        .get(&url)
+        .bearer_auth(OTHER_ROBOT)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(other.status(), 200);
+    // A closed stream gives its place back.
+    drop(streams.pop());
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let again = open().await.unwrap();
+        if again.status() == 200 {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the closed stream's place never came back"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    app.stop().await;
+}

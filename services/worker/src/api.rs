@@ -4,6 +4,7 @@
 //! Engineers create and cancel jobs; any valid token (robot or engineer) reads. Wire types live
 //! here and are converted from the queue's types.
 
+use std::collections::HashMap;
 use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Duration;
@@ -55,6 +56,81 @@ pub struct JobsApi {
     pub shutdown: CancellationToken,
     /// How often an event stream polls for new events.
     pub event_poll: Duration,
+    /// Event streams open at once, in all and per token: each polls the job database, whose
+    /// pool the running jobs' heartbeats need.
+    pub streams: Arc<StreamLimits>,
+}
+
+/// Caps on open event streams.
+#[derive(Debug)]
+pub struct StreamLimits {
+    /// Streams open at once in all.
+    pub total: usize,
+    /// Streams open at once per token holder.
+    pub per_principal: usize,
+    open: std::sync::Mutex<HashMap<String, usize>>,
+}
+
+impl StreamLimits {
+    /// At most `total` streams, `per_principal` of them by one token holder.
+    pub fn new(total: usize, per_principal: usize) -> Self {
+        Self {
+            total,
+            per_principal,
+            open: std::sync::Mutex::default(),
+        }
+    }
+
+    /// A place for one more stream of `who`, held until the stream ends.
+    fn open(self: &Arc<Self>, who: &str) -> Result<StreamPermit, ApiError> {
+        let mut open = self
+            .open
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let all: usize = open.values().sum();
+        let mine = open.get(who).copied().unwrap_or(0);
+        if all >= self.total {
+            return Err(ApiError::new(
+                ErrorCode::Overloaded,
+                format!("{all} event streams are open, the service's limit; retry later"),
+            ));
+        }
+        if mine >= self.per_principal {
+            return Err(ApiError::new(
+                ErrorCode::TooManyRequests,
+                format!(
+                    "{who} has {mine} event streams open, the limit per token; close one first"
+                ),
+            ));
+        }
+        *open.entry(who.to_owned()).or_insert(0) += 1;
+        Ok(StreamPermit {
+            limits: Arc::clone(self),
+            who: who.to_owned(),
+        })
+    }
+}
+
+/// One open stream's place; given back when the stream is dropped.
+struct StreamPermit {
+    limits: Arc<StreamLimits>,
+    who: String,
+}
+
+impl Drop for StreamPermit {
+    fn drop(&mut self) {
+        let mut open = self
+            .limits
+            .open
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some(n) = open.get_mut(&self.who) {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                open.remove(&self.who);
+            }
+        }
+    }
 }
 
 impl std::fmt::Debug for JobsApi {
@@ -470,7 +546,7 @@ async fn job_events(
     Path(id): Path<String>,
     Query(query): Query<EventsQuery>,
 ) -> Result<Response, ApiError> {
-    api.tokens.authenticate(&headers)?;
+    let principal = api.tokens.authenticate(&headers)?;
     let id = job_id(&id)?;
     let last_event_id = match headers.get("last-event-id") {
         Some(v) => Some(
@@ -491,13 +567,16 @@ async fn job_events(
         .await
         .map_err(queue_error)?
         .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
-    let stream = event_stream(api, id, after);
+    let permit = api.streams.open(&principal.name)?;
+    let stream = event_stream(api, id, after, permit);
     Ok(Sse::new(stream)
         .keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
         .into_response())
 }
 
 struct Cursor {
+    /// Held while the stream lives.
+    _permit: StreamPermit,
     api: Arc<JobsApi>,
     job: Uuid,
     after: i64,
@@ -522,8 +601,10 @@ fn event_stream(
     api: Arc<JobsApi>,
     job: Uuid,
     after: i64,
+    permit: StreamPermit,
 ) -> impl futures_util::Stream<Item = Result<Event, Infallible>> + Send {
     let cursor = Cursor {
+        _permit: permit,
         api,
         job,
         after,
