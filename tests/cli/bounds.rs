@@ -2,40 +2,15 @@
 //! up stops rehearsing (its own process's `plan_rehearsals_running` gauge), and a worker that
 //! the knowledge service would refuse is not ready.
 
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::net::TcpStream;
-use std::process::{Child, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
 use super::mentalsim;
-
-/// Kills the children when dropped (a failed assertion must not leave servers behind).
-struct Children(Vec<Child>);
-
-impl Drop for Children {
-    fn drop(&mut self) {
-        for child in &mut self.0 {
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-    }
-}
-
-/// The first `http://` URL the child prints.
-fn printed_url(child: &mut Child) -> String {
-    let mut reader = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    for _ in 0..10 {
-        line.clear();
-        reader.read_line(&mut line).unwrap();
-        if let Some(url) = line.split_whitespace().find(|w| w.starts_with("http://")) {
-            return url.to_owned();
-        }
-    }
-    panic!("no URL printed; last line: {line}");
-}
+use super::worker::{Killer as Children, printed_url};
 
 /// `mentalsim serve` on a fresh data directory: its URL and admin token.
 fn serve(dir: &std::path::Path, children: &mut Children) -> (String, String) {

@@ -14,7 +14,7 @@ use serde_json::{Value, json};
 use super::mentalsim;
 
 /// Reads the child's stdout until a line with an `http://` URL, and returns that URL.
-fn printed_url(child: &mut Child) -> String {
+pub(super) fn printed_url(child: &mut Child) -> String {
     let stdout = child.stdout.take().unwrap();
     let mut reader = BufReader::new(stdout);
     let mut line = String::new();
@@ -45,7 +45,8 @@ fn stop(child: &mut Child, what: &str) {
     }
 }
 
-struct Killer(Vec<Child>);
+/// Kills the children when dropped (a failed assertion must not leave servers behind).
+pub(super) struct Killer(pub(super) Vec<Child>);
 
 impl Drop for Killer {
     fn drop(&mut self) {
