@@ -65,6 +65,10 @@ pub struct Config {
     pub max_in_flight: usize,
     /// Open connections at most; further ones wait in the accept queue.
     pub max_connections: usize,
+    /// Free space kept on the data directory's disk, bytes: writes that would eat into it
+    /// (imports, Graph Store writes, updates, object reports, training checkpoints) are
+    /// refused with 507 `storage_full` or deferred, so that state changes still fit. 0: none.
+    pub min_free_bytes: u64,
     /// Time a client has to send a request's headers (and the idle timeout of a kept-alive
     /// connection), in seconds.
     pub header_read_timeout_s: f64,
@@ -129,6 +133,7 @@ impl Default for Config {
             small_body_limit_bytes: 1024 * 1024,
             max_in_flight: 512,
             max_connections: 1024,
+            min_free_bytes: 64 * 1024 * 1024,
             header_read_timeout_s: 10.0,
             shutdown_grace_s: 30.0,
             log_format: LogFormat::Text,
@@ -535,6 +540,11 @@ impl Config {
     /// The request timeout as a duration.
     pub fn request_timeout(&self) -> Duration {
         Duration::from_secs_f64(self.request_timeout_s)
+    }
+
+    /// The free-space reserve of the data directory's disk.
+    pub fn disk_watch(&self) -> edge::disk::DiskWatch {
+        edge::disk::DiskWatch::new(&self.data_dir, self.min_free_bytes)
     }
 
     /// The connection limits of the HTTP server.

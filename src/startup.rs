@@ -64,11 +64,10 @@ impl Components {
             Some(remote) => Box::new(remote),
             None => Box::new(embedded),
         };
-        let knowledge = Arc::new(Knowledge::lazy(
-            opener,
-            crate::tokens::load(config),
-            config.query_limits(),
-        ));
+        let knowledge = Arc::new(
+            Knowledge::lazy(opener, crate::tokens::load(config), config.query_limits())
+                .with_disk(config.disk_watch()),
+        );
         let job_env = Arc::new(JobEnv {
             knowledge: Arc::new(InProcessKnowledge::new(knowledge.clone())),
             checkpoints_dir: config.checkpoints_dir(),
@@ -78,6 +77,10 @@ impl Components {
             validator: Some(Arc::new(worker::plan_api::ExecutorValidator::new(
                 PolicyStore::new(config.policies_dir()),
             ))),
+            disk: Some(edge::disk::DiskWatch::new(
+                config.checkpoints_dir(),
+                config.min_free_bytes,
+            )),
         });
         Self {
             data_dir: config.data_dir.clone(),

@@ -67,6 +67,10 @@ impl WorkerProcess {
             validator: Some(Arc::new(worker::plan_api::ExecutorValidator::new(
                 PolicyStore::new(config.policies_dir()),
             ))),
+            disk: Some(edge::disk::DiskWatch::new(
+                config.checkpoints_dir(),
+                config.min_free_bytes,
+            )),
         });
         let shared = Arc::new(Shared {
             queue,

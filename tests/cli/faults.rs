@@ -1,7 +1,9 @@
 //! Faults on the real binary: `mentalsim serve` killed (SIGKILL) in the middle of concurrent
 //! Graph Store writes and object reports. After a restart on the same data directory every
 //! write that was acknowledged with 2xx is there, and the inferred graph is what the asserted
-//! graphs entail (the same as after a fresh rebuild).
+//! graphs entail (the same as after a fresh rebuild). And the data directory's disk filled up
+//! (a small tmpfs mounted for the test) during writes and during a training: clear 507s, a
+//! store that reopens intact, a training that goes back to the queue and resumes.
 
 use std::collections::BTreeSet;
 use std::io::{BufRead, BufReader};
@@ -9,6 +11,9 @@ use std::path::Path;
 use std::process::{Child, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+
+use ::reqwest::blocking::Client;
+use serde_json::{Value, json};
 
 use super::mentalsim;
 
@@ -26,10 +31,14 @@ impl Drop for Killed {
 }
 
 fn start(data: &Path) -> (Killed, String, String) {
+    start_with(data, &[("MENTALSIM_WORKER_CONCURRENCY", "0")])
+}
+
+fn start_with(data: &Path, env: &[(&str, &str)]) -> (Killed, String, String) {
     let mut child = mentalsim()
         .args(["serve", "--bind", "127.0.0.1:0", "--data-dir"])
         .arg(data)
-        .env("MENTALSIM_WORKER_CONCURRENCY", "0")
+        .envs(env.iter().copied())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -156,7 +165,7 @@ fn acknowledged_writes_survive_sigkill_and_inference_matches_the_asserted_graphs
             let ask = format!(
                 "ASK {{ GRAPH ?g {{ ?o <https://mentalsim.dev/ontology/tosm#identifier> \"{id}\" }} }}"
             );
-            let answer: serde_json::Value = client
+            let answer: Value = client
                 .post(format!("{url}/sparql"))
                 .bearer_auth(&token)
                 .header("content-type", "application/sparql-query")
@@ -197,4 +206,289 @@ fn acknowledged_writes_survive_sigkill_and_inference_matches_the_asserted_graphs
         "{} of 200 writes acknowledged before SIGKILL; all present after restart",
         acknowledged.len()
     );
+}
+
+/// A small tmpfs mounted for one test; unmounted when dropped.
+struct Tmpfs(std::path::PathBuf);
+
+impl Tmpfs {
+    /// Mounts a tmpfs of `mib` MiB in a fresh directory, or says why it cannot.
+    fn mount(mib: u32) -> Result<(tempfile::TempDir, Self), String> {
+        let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
+        let status = std::process::Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={mib}m"), "tmpfs"])
+            .arg(dir.path())
+            .stderr(Stdio::null())
+            .status()
+            .map_err(|e| format!("`mount` cannot run: {e}"))?;
+        if !status.success() {
+            return Err("`mount -t tmpfs` failed (it needs root or CAP_SYS_ADMIN)".to_owned());
+        }
+        let path = dir.path().to_path_buf();
+        Ok((dir, Self(path)))
+    }
+
+    /// Fills the filesystem until `leave` bytes are free (a real file of zeros, not a sparse
+    /// one), or empties it again with `None`.
+    fn fill(&self, leave: Option<u64>) {
+        let filler = self.0.join("filler");
+        let _ = std::fs::remove_file(&filler);
+        let Some(leave) = leave else { return };
+        let available = edge::disk::available_bytes(&self.0).unwrap();
+        let mut left = available.saturating_sub(leave);
+        let mut file = std::fs::File::create(&filler).unwrap();
+        let chunk = vec![0u8; 1 << 20];
+        while left > 0 {
+            let n = usize::try_from(left.min(chunk.len() as u64)).unwrap();
+            std::io::Write::write_all(&mut file, &chunk[..n]).unwrap();
+            left -= n as u64;
+        }
+        file.sync_all().unwrap();
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount")
+            .arg("-l")
+            .arg(&self.0)
+            .status();
+    }
+}
+
+fn sparql_update(client: &Client, url: &str, token: &str, update: &str) -> (u16, Value) {
+    let r = client
+        .post(format!("{url}/sparql"))
+        .bearer_auth(token)
+        .header("content-type", "application/sparql-update")
+        .body(update.to_owned())
+        .send()
+        .unwrap();
+    let status = r.status().as_u16();
+    (status, r.json().unwrap_or(Value::Null))
+}
+
+fn count(client: &Client, url: &str, token: &str, graph: &str) -> u64 {
+    let answer: Value = client
+        .post(format!("{url}/sparql"))
+        .bearer_auth(token)
+        .header("content-type", "application/sparql-query")
+        .header("accept", "application/sparql-results+json")
+        .body(format!(
+            "SELECT (COUNT(*) AS ?n) WHERE {{ GRAPH <{graph}> {{ ?s ?p ?o }} }}"
+        ))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    answer["results"]["bindings"][0]["n"]["value"]
+        .as_str()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count of {graph}: {answer}"))
+}
+
+fn import_map(client: &Client, url: &str, token: &str, name: &str) -> (u16, Value) {
+    // A 200 × 200 floor: an empty room inside a wall.
+    let mut pgm = b"P5\n200 200\n255\n".to_vec();
+    pgm.extend((0..200 * 200).map(|i| {
+        let (x, y) = (i % 200, i / 200);
+        if x < 2 || y < 2 || x > 197 || y > 197 {
+            0
+        } else {
+            254
+        }
+    }));
+    let form = ::reqwest::blocking::multipart::Form::new()
+        .text("name", name.to_owned())
+        .text(
+            "yaml",
+            "image: room.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n\
+             occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+        )
+        .part(
+            "image",
+            ::reqwest::blocking::multipart::Part::bytes(pgm).file_name("room.pgm"),
+        );
+    let r = client
+        .post(format!("{url}/v1/maps"))
+        .bearer_auth(token)
+        .multipart(form)
+        .send()
+        .unwrap();
+    let status = r.status().as_u16();
+    (status, r.json().unwrap_or(Value::Null))
+}
+
+fn job(client: &Client, url: &str, token: &str, id: &str) -> Value {
+    client
+        .get(format!("{url}/v1/jobs/{id}"))
+        .bearer_auth(token)
+        .send()
+        .unwrap()
+        .json()
+        .unwrap()
+}
+
+fn wait_job(
+    client: &Client,
+    url: &str,
+    token: &str,
+    id: &str,
+    within: Duration,
+    done: impl Fn(&Value) -> bool,
+) -> Value {
+    let deadline = Instant::now() + within;
+    loop {
+        let j = job(client, url, token, id);
+        if done(&j) {
+            return j;
+        }
+        assert!(Instant::now() < deadline, "job never got there: {j:#}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn a_full_disk_gets_clear_errors_keeps_the_store_intact_and_training_resumes_when_space_returns() {
+    let (_dir, disk) = match Tmpfs::mount(160) {
+        Ok(mounted) => mounted,
+        Err(why) => {
+            fixtures::missing(format!("a small tmpfs for the disk-full test: {why}"));
+            return;
+        }
+    };
+    let data = disk.0.join("data");
+    let client = Client::builder()
+        .timeout(Duration::from_secs(30))
+        .build()
+        .unwrap();
+    let mut rows = String::new();
+    let triples = |n: usize| {
+        let body: String = (0..n)
+            .map(|i| format!("<urn:x:s{i}> <urn:x:p> \"{}\" .\n", "x".repeat(40)))
+            .collect();
+        format!("INSERT DATA {{ GRAPH <urn:x:full> {{ {body} }} }}")
+    };
+
+    // 1. No reserve: writes run into the full disk itself (RocksDB's log append fails).
+    {
+        let (_server, url, token) = start_with(
+            &data,
+            &[
+                ("MENTALSIM_WORKER_CONCURRENCY", "0"),
+                ("MENTALSIM_MIN_FREE_BYTES", "0"),
+            ],
+        );
+        assert_eq!(import_map(&client, &url, &token, "before").0, 201);
+        disk.fill(Some(96 * 1024));
+        let update = triples(900); // 57 kB: passes the free-space check, not RocksDB's log
+        let (status, body) = sparql_update(&client, &url, &token, &update);
+        assert_eq!(
+            (status, &body["error"]["code"]),
+            (507, &json!("storage_full")),
+            "{body}"
+        );
+        let (status, body) = import_map(&client, &url, &token, "during");
+        assert_eq!(
+            (status, &body["error"]["code"]),
+            (507, &json!("storage_full")),
+            "{body}"
+        );
+        rows.push_str(&format!(
+            "update and map import on a full disk: {status} storage_full\n"
+        ));
+        // Reads go on.
+        assert_eq!(count(&client, &url, &token, "urn:x:full"), 0);
+        disk.fill(None);
+        // Space is back: the store reopens and takes writes again.
+        let (status, body) = sparql_update(&client, &url, &token, &update);
+        assert_eq!(status, 204, "{body}");
+        assert_eq!(import_map(&client, &url, &token, "after").0, 201);
+        assert_eq!(count(&client, &url, &token, "urn:x:full"), 900);
+    }
+
+    // 2. A restart finds the store intact; with a reserve, a training on a filling disk goes
+    // back to the queue (its attempt not counted) and resumes from its checkpoint.
+    let (_server, url, token) = start_with(
+        &data,
+        &[
+            ("MENTALSIM_WORKER_CONCURRENCY", "1"),
+            ("MENTALSIM_MIN_FREE_BYTES", &(24u64 << 20).to_string()),
+            ("MENTALSIM_JOB_RETRY_BASE_S", "1"),
+        ],
+    );
+    assert_eq!(count(&client, &url, &token, "urn:x:full"), 900);
+    for floor in ["before", "after"] {
+        let r = client
+            .get(format!("{url}/v1/places/{floor}"))
+            .bearer_auth(&token)
+            .send()
+            .unwrap();
+        assert_eq!(r.status(), 200, "floor {floor} lost");
+    }
+    let submitted: Value = client
+        .post(format!("{url}/v1/jobs"))
+        .bearer_auth(&token)
+        .json(&json!({
+            "kind": "train",
+            "payload": {
+                "robot": "R-001", "place": "after", "minutes": 0.3, "seed": 3,
+                "config": {
+                    "td3": {"hidden": [16, 16], "batch_size": 32}, "envs": 2,
+                    "buffer_capacity": 20000, "random_steps": 100, "demo_steps": 500,
+                    "bc_steps": 100, "critic_warmup_steps": 100, "eval_every": 1000000,
+                    "eval_episodes": 3, "checkpoint_every_s": 1.0
+                }
+            }
+        }))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let id = submitted["id"].as_str().expect("a job id").to_owned();
+    let checkpoint = data.join("checkpoints").join(&id).join("checkpoint");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !checkpoint.exists() {
+        assert!(
+            Instant::now() < deadline,
+            "no checkpoint: {:#}",
+            job(&client, &url, &token, &id)
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    disk.fill(Some(8 << 20)); // under the reserve, still room for the job database
+    let deferred = wait_job(&client, &url, &token, &id, Duration::from_secs(30), |j| {
+        j["state"] == "queued"
+            && j["error"]
+                .as_str()
+                .is_some_and(|e| e.contains("disk space"))
+    });
+    let (status, body) = import_map(&client, &url, &token, "later");
+    assert_eq!(
+        (status, &body["error"]["code"]),
+        (507, &json!("storage_full")),
+        "{body}"
+    );
+    rows.push_str(&format!(
+        "training on a full disk: back to the queue ({}); map import {status}\n",
+        deferred["error"]
+    ));
+    // Stays queued while the disk is full (it is claimed, sees no room, goes back).
+    std::thread::sleep(Duration::from_secs(3));
+    assert_ne!(job(&client, &url, &token, &id)["state"], "succeeded");
+    disk.fill(None);
+    let finished = wait_job(&client, &url, &token, &id, Duration::from_secs(240), |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    });
+    assert_eq!(finished["state"], "succeeded", "{finished:#}");
+    assert_eq!(
+        finished["attempts"], 1,
+        "a full disk used up an attempt: {finished:#}"
+    );
+    assert!(
+        finished["result"]["sessions"].as_u64().unwrap_or(0) >= 2,
+        "the training did not resume from its checkpoint: {finished:#}"
+    );
+    assert_eq!(import_map(&client, &url, &token, "later").0, 201);
+    eprint!("{rows}");
 }

@@ -37,6 +37,9 @@ pub enum ErrorCode {
     Timeout,
     /// A result would exceed a configured size cap and was refused rather than truncated.
     ResultTooLarge,
+    /// The service's disk is (nearly) full: nothing of the request was stored; retry once
+    /// space is freed.
+    StorageFull,
     /// The request conflicts with the current state of the resource.
     Conflict,
     /// The request is well-formed but describes something impossible (e.g. a goal inside a wall).
@@ -67,6 +70,7 @@ impl ErrorCode {
             ErrorCode::PayloadTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             ErrorCode::Timeout => StatusCode::SERVICE_UNAVAILABLE,
             ErrorCode::ResultTooLarge => StatusCode::INSUFFICIENT_STORAGE,
+            ErrorCode::StorageFull => StatusCode::INSUFFICIENT_STORAGE,
             ErrorCode::Conflict => StatusCode::CONFLICT,
             ErrorCode::Unprocessable => StatusCode::UNPROCESSABLE_ENTITY,
             ErrorCode::NotReady | ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
@@ -90,6 +94,7 @@ impl ErrorCode {
             ErrorCode::PayloadTooLarge => "payload_too_large",
             ErrorCode::Timeout => "timeout",
             ErrorCode::ResultTooLarge => "result_too_large",
+            ErrorCode::StorageFull => "storage_full",
             ErrorCode::Conflict => "conflict",
             ErrorCode::Unprocessable => "unprocessable",
             ErrorCode::NotReady => "not_ready",
@@ -185,6 +190,12 @@ pub mod responses {
         ("Retry-After" = u32, description = "Seconds to wait before retrying (with `overloaded`).")
     ))]
     pub struct ServiceUnavailable(pub ErrorBody);
+
+    /// The service's disk is full or nearly so (`storage_full`): the write was refused before
+    /// it started (less than `min_free_bytes` would be left) or failed; nothing of it is
+    /// stored. Retry once space is freed.
+    #[derive(utoipa::ToResponse)]
+    pub struct StorageFull(pub ErrorBody);
 }
 
 impl ApiError {
@@ -215,7 +226,14 @@ impl ApiError {
 
     /// A fault inside the service: the cause is logged with the request's span, the client only
     /// learns that something failed on our side.
+    ///
+    /// A cause that is a full disk (see [`crate::disk::is_out_of_space`]) is not a fault of the
+    /// service's logic and says so: 507 `storage_full`.
     pub fn internal(cause: impl std::fmt::Display) -> Self {
+        let cause = cause.to_string();
+        if crate::disk::is_out_of_space(&cause) {
+            return crate::disk::storage_full(&cause);
+        }
         tracing::error!(error = %cause, "internal error");
         Self::new(ErrorCode::Internal, "internal error; see the service log")
     }
@@ -270,6 +288,7 @@ mod tests {
             ErrorCode::PayloadTooLarge,
             ErrorCode::Timeout,
             ErrorCode::ResultTooLarge,
+            ErrorCode::StorageFull,
             ErrorCode::Conflict,
             ErrorCode::Unprocessable,
             ErrorCode::NotReady,

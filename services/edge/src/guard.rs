@@ -97,15 +97,19 @@ pub async fn guard(State(guard): State<Arc<Guard>>, request: Request, next: Next
     run_limited(request, next, limit).await
 }
 
+/// The body length a request declares (`Content-Length`), when it declares one.
+pub fn declared_length(headers: &http::HeaderMap) -> Option<u64> {
+    headers
+        .get(CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok())
+}
+
 /// 413 at once when the declared length exceeds `limit`; else `next` with `limit` as the
 /// request's body limit (axum's [`DefaultBodyLimit`], which every body extractor applies: a
 /// chunked body that grows past it fails the handler's read with 413).
 async fn run_limited(request: Request, next: Next, limit: usize) -> Response {
-    let declared = request
-        .headers()
-        .get(CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.trim().parse::<u64>().ok());
+    let declared = declared_length(request.headers());
     if let Some(length) = declared
         && length > limit as u64
     {

@@ -16,6 +16,7 @@
 )]
 
 pub mod auth;
+pub mod disk;
 pub mod error;
 pub mod guard;
 pub mod metrics;

@@ -54,6 +54,10 @@ impl Default for QueryLimits {
 
 type Opener = Box<dyn Fn() -> Result<KnowledgeStore, StoreError> + Send + Sync>;
 
+/// Free space (beyond the reserve) a store that found its disk full waits for before it is
+/// reopened: opening writes a new log and manifest, and flushes what the old log held.
+const REOPEN_ROOM_BYTES: u64 = 16 << 20;
+
 /// Object reports one robot may make per second, on average.
 pub const REPORTS_PER_SECOND: f64 = 20.0;
 /// Object reports one robot may make at once.
@@ -75,6 +79,10 @@ pub struct Knowledge {
     reads: Arc<ReadState>,
     /// Object reports per robot: a token bucket by principal name (bounded by the tokens).
     reports: Mutex<HashMap<String, (f64, std::time::Instant)>>,
+    /// The free-space reserve of the store's disk, when it is on one.
+    disk: Option<edge::disk::DiskWatch>,
+    /// Whether `opener` can open the store again (false for a store handed over open).
+    reopenable: bool,
 }
 
 impl std::fmt::Debug for Knowledge {
@@ -100,6 +108,7 @@ impl Knowledge {
             limits,
         );
         service.store = Mutex::new(Some(store));
+        service.reopenable = false;
         service
     }
 
@@ -118,7 +127,22 @@ impl Knowledge {
             refresh_lock: Mutex::new(()),
             reads: Arc::new(ReadState::new()),
             reports: Mutex::new(HashMap::new()),
+            disk: None,
+            reopenable: true,
         }
+    }
+
+    /// Keeps `disk`'s reserve free: writes that would eat into it are refused (507).
+    #[must_use]
+    pub fn with_disk(mut self, disk: edge::disk::DiskWatch) -> Self {
+        self.disk = Some(disk);
+        self
+    }
+
+    /// `Ok` when a write of about `bytes` leaves the disk's reserve free; else 507
+    /// `storage_full`, before anything is written.
+    pub fn check_space(&self, bytes: u64) -> Result<(), ApiError> {
+        self.disk.as_ref().map_or(Ok(()), |disk| disk.check(bytes))
     }
 
     /// Takes one object report from `robot`'s allowance ([`REPORTS_PER_SECOND`], bursts of
@@ -141,10 +165,24 @@ impl Knowledge {
     }
 
     /// The store, opening it if needed. Blocking the first time (RocksDB opens its files).
+    ///
+    /// A store whose write found the disk full refuses every later write (RocksDB stops
+    /// writing after a failed log append); once the reserve is free again it is closed and
+    /// opened afresh, which replays its log: what was acknowledged stays, the failed write
+    /// is gone. Until then it keeps answering reads.
     pub fn try_store(&self) -> Result<KnowledgeStore, StoreError> {
         let mut slot = self.store.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(store) = slot.as_ref() {
-            return Ok(store.clone());
+            if !self.due_for_reopen(store) {
+                return Ok(store.clone());
+            }
+            tracing::info!(
+                location = store.location(),
+                "reopening the graph store after a full disk"
+            );
+            // Dropped before opening: RocksDB allows one open per directory. Requests still
+            // holding the old store make the open fail; the next request tries again.
+            *slot = None;
         }
         let store = (self.opener)()?;
         *slot = Some(store.clone());
@@ -154,6 +192,9 @@ impl Knowledge {
     /// The store for a handler: 503 `not_ready` naming the cause when it cannot be opened.
     pub fn store(&self) -> Result<KnowledgeStore, ApiError> {
         self.try_store().map_err(|e| {
+            if edge::disk::is_out_of_space(&e.to_string()) {
+                return edge::disk::storage_full(&e.to_string());
+            }
             ApiError::new(
                 ErrorCode::NotReady,
                 format!("the graph store is unavailable: {e}"),
@@ -172,12 +213,24 @@ impl Knowledge {
             .map_err(|e| ApiError::internal(format!("store open task failed: {e}")))?
     }
 
-    /// The store if it is already open, without trying to open it.
+    /// The store if it is already open (and not due to be reopened), without trying to open
+    /// it.
     pub fn opened_store(&self) -> Option<KnowledgeStore> {
         self.store
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .clone()
+            .filter(|store| !self.due_for_reopen(store))
+    }
+
+    /// Whether `store` found its disk full and the disk has room again.
+    fn due_for_reopen(&self, store: &KnowledgeStore) -> bool {
+        self.reopenable
+            && store.write_failed()
+            && self
+                .disk
+                .as_ref()
+                .is_none_or(|disk| disk.has_room(REOPEN_ROOM_BYTES))
     }
 
     /// How this service's SPARQL reads run (see `protocol/inline.rs`).

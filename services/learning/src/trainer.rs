@@ -837,27 +837,35 @@ impl Trainer {
         if new_dir.exists() {
             std::fs::remove_dir_all(&new_dir).map_err(io(&new_dir))?;
         }
-        std::fs::create_dir_all(&new_dir).map_err(io(&new_dir))?;
-        self.learner.save(&new_dir.join("learner.safetensors"))?;
-        self.buffer.save(&new_dir.join("replay.safetensors"))?;
-        let state = TrainerState {
-            config: self.options.config.clone(),
-            scaling: self.options.scaling,
-            counters: self.counters.clone(),
-            rng: RngState::of(&self.rng),
-            episodes: self.episodes.clone(),
-            evals: self.evals.clone(),
-        };
-        let json = serde_json::to_vec(&state).map_err(|e| TrainError::Checkpoint {
-            path: new_dir.clone(),
-            message: e.to_string(),
-        })?;
-        write_atomic(&new_dir.join("state.json"), &json).map_err(io(&new_dir))?;
-        // Durable before it is installed: every file, then the directory's entries.
-        for file in ["learner.safetensors", "replay.safetensors", "state.json"] {
-            sync_path(&new_dir.join(file)).map_err(io(&new_dir))?;
+        // A write that fails (a full disk) leaves no half-written directory behind.
+        let staged = (|| -> Result<(), TrainError> {
+            std::fs::create_dir_all(&new_dir).map_err(io(&new_dir))?;
+            self.learner.save(&new_dir.join("learner.safetensors"))?;
+            self.buffer.save(&new_dir.join("replay.safetensors"))?;
+            let state = TrainerState {
+                config: self.options.config.clone(),
+                scaling: self.options.scaling,
+                counters: self.counters.clone(),
+                rng: RngState::of(&self.rng),
+                episodes: self.episodes.clone(),
+                evals: self.evals.clone(),
+            };
+            let json = serde_json::to_vec(&state).map_err(|e| TrainError::Checkpoint {
+                path: new_dir.clone(),
+                message: e.to_string(),
+            })?;
+            write_atomic(&new_dir.join("state.json"), &json).map_err(io(&new_dir))?;
+            // Durable before it is installed: every file, then the directory's entries.
+            for file in ["learner.safetensors", "replay.safetensors", "state.json"] {
+                sync_path(&new_dir.join(file)).map_err(io(&new_dir))?;
+            }
+            sync_path(&new_dir).map_err(io(&new_dir))?;
+            Ok(())
+        })();
+        if let Err(e) = staged {
+            let _ = std::fs::remove_dir_all(&new_dir);
+            return Err(e);
         }
-        sync_path(&new_dir).map_err(io(&new_dir))?;
         if let Some(guard) = self.install_guard.as_mut()
             && let Err(why) = guard()
         {

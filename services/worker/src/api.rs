@@ -37,7 +37,7 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
     paths(create_job, list_jobs, get_job, cancel_job, job_events, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan),
     components(
         schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, ErrorCode, crate::plan_api::types::PlanApiRequestDoc, crate::plan_api::PlanApiResponse),
-        responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
+        responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
     security(("bearer" = []))
@@ -361,7 +361,8 @@ impl From<&Job> for JobView {
     (status = 413, response = edge::error::responses::PayloadTooLarge),
     (status = 415, response = edge::error::responses::UnsupportedMediaType),
     (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type), or a value is out of range (the message names the field).", body = ErrorBody),
-    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+    (status = 503, response = edge::error::responses::ServiceUnavailable),
+    (status = 507, response = edge::error::responses::StorageFull)))]
 async fn create_job(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,

@@ -56,6 +56,10 @@ pub enum JobError {
     /// The handler stopped because its cancellation token fired.
     #[error("stopped: {0}")]
     Stopped(StopReason),
+    /// The disk is (nearly) full: the job goes back to the queue without the attempt counting
+    /// and runs again, from its last checkpoint, after the retry backoff.
+    #[error("{0}")]
+    OutOfSpace(String),
     /// A queue write failed (including [`QueueError::LeaseLost`]).
     #[error(transparent)]
     Queue(#[from] QueueError),
@@ -70,6 +74,17 @@ impl JobError {
     /// A fatal error from anything displayable.
     pub fn fatal(e: impl std::fmt::Display) -> Self {
         Self::Fatal(e.to_string())
+    }
+
+    /// Whether the attempt failed for want of disk space (said so, or an error whose text is a
+    /// full disk's): not the job's fault, so it neither fails the job nor uses an attempt.
+    pub fn is_out_of_space(&self) -> bool {
+        match self {
+            Self::OutOfSpace(_) => true,
+            Self::Retryable(m) | Self::Fatal(m) => edge::disk::is_out_of_space(m),
+            Self::Stopped(_) => false,
+            Self::Queue(e) => edge::disk::is_out_of_space(&e.to_string()),
+        }
     }
 }
 
@@ -640,6 +655,20 @@ async fn run_job(
         }
         Ok(Err(JobError::Queue(QueueError::LeaseLost { .. }))) => Outcome::Lost,
         Ok(Err(_)) if reason == Some(StopReason::LeaseLost) => Outcome::Lost,
+        Ok(Err(e)) if reason.is_none() && e.is_out_of_space() => {
+            let message = format!("waiting for disk space: {e}");
+            tracing::warn!(%job, error = %e, "the disk is full; the job goes back to the queue");
+            record(&queue, &lease, |q, l| {
+                let message = message.clone();
+                async move {
+                    q.defer(&l, &message).await.map(|state| match state {
+                        JobState::Cancelled => Outcome::Cancelled,
+                        _ => Outcome::Released,
+                    })
+                }
+            })
+            .await
+        }
         Ok(Err(JobError::Fatal(message))) => fail(&queue, &lease, message, false).await,
         Ok(Err(_)) if reason == Some(StopReason::Shutdown) => {
             record(&queue, &lease, |q, l| async move {

@@ -54,6 +54,7 @@ conformance!(
     retries_back_off_exponentially_up_to_the_cap,
     cancellation,
     release_gives_the_attempt_back_and_keeps_the_checkpoint,
+    a_deferred_job_waits_the_first_backoff_without_using_an_attempt,
     retention_deletes_old_finished_jobs_and_their_events,
     events_are_ordered_and_resumable,
     concurrent_claims_take_each_job_once,
@@ -418,6 +419,44 @@ async fn release_gives_the_attempt_back_and_keeps_the_checkpoint(f: Fixture) {
         .unwrap();
     let job = q.get(id).await.unwrap().unwrap();
     assert_eq!(job.checkpoint, Some(Checkpoint::new(json!({"step": 41}))));
+}
+
+async fn a_deferred_job_waits_the_first_backoff_without_using_an_attempt(f: Fixture) {
+    let q = f.queue.clone().with_backoff(Backoff {
+        base: Duration::from_secs(10),
+        cap: Duration::from_secs(25),
+    });
+    let id = q
+        .enqueue(NewJob::new("train", json!({})).max_attempts(1))
+        .await
+        .unwrap();
+    // Deferred again and again (a disk that stays full): never failed, never past its one
+    // attempt, each time due one base delay later.
+    let mut now = START_MS;
+    for _ in 0..3 {
+        let c = q.claim("w", &["train"], LEASE).await.unwrap().unwrap();
+        assert_eq!(c.lease.attempt, 1);
+        assert_eq!(
+            q.defer(&c.lease, "waiting for disk space").await.unwrap(),
+            JobState::Queued
+        );
+        let job = q.get(id).await.unwrap().unwrap();
+        assert_eq!((job.state, job.attempt), (JobState::Queued, 0));
+        assert_eq!(job.last_error.as_deref(), Some("waiting for disk space"));
+        assert_eq!(job.run_after_ms, now + 10_000);
+        assert!(is_lease_lost(q.defer(&c.lease, "again").await));
+        f.clock.set(now + 9_999);
+        assert!(q.claim("w", &["train"], LEASE).await.unwrap().is_none());
+        now += 10_000;
+        f.clock.set(now);
+    }
+    // A deferred job with a cancel requested is cancelled instead.
+    let c = q.claim("w", &["train"], LEASE).await.unwrap().unwrap();
+    q.request_cancel(id).await.unwrap();
+    assert_eq!(
+        q.defer(&c.lease, "waiting for disk space").await.unwrap(),
+        JobState::Cancelled
+    );
 }
 
 async fn retention_deletes_old_finished_jobs_and_their_events(f: Fixture) {

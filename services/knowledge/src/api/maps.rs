@@ -85,6 +85,7 @@ pub(super) struct MapUpload {
         (status = 413, description = "The body is larger than an engineer's map import may be (`body_limit_bytes`, 64 MiB by default; a robot's token gets 403 or this at its smaller limit), or the image declares more pixels than a map may have (64 megapixels), refused before decoding.", body = ErrorBody),
         (status = 422, description = "The name breaks its rule, or the map does not make a floor: the YAML does not parse or has values out of range, the image does not decode or has no free cell.", body = ErrorBody),
         (status = 503, response = edge::error::responses::ServiceUnavailable),
+        (status = 507, response = edge::error::responses::StorageFull),
     ))]
 pub(super) async fn import_map(
     State(k): State<Arc<Knowledge>>,
@@ -126,6 +127,9 @@ pub(super) async fn import_map(
         ApiError::bad_request("missing form field `image` (the PGM or PNG the YAML names)")
     })?;
     let name = name.ok_or_else(|| ApiError::bad_request("missing form field `name`"))?;
+    // Checked once the body is read (it is bounded): a client still sending would see a
+    // dropped connection instead of this answer.
+    k.check_space((yaml.len() + image.len()) as u64)?;
     let imported =
         blocking(move || maps::import(&k, &name, &yaml, &image).map_err(ApiError::from)).await?;
     let floor = imported.floor_iri.clone();

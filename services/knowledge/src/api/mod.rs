@@ -40,7 +40,7 @@ use crate::service::Knowledge;
     paths(list_places, get_place, place_map, world_sdf, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database, floor_on_demand_database),
     components(
         schemas(PlaceView, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
-        responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
+        responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
     security(("bearer" = []))

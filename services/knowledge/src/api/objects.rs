@@ -162,6 +162,7 @@ pub struct ReportedObject {
         (status = 415, response = edge::error::responses::UnsupportedMediaType),
         (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type), the place is a building, the class is no object class, or a value is out of range.", body = ErrorBody),
         (status = 503, response = edge::error::responses::ServiceUnavailable),
+        (status = 507, response = edge::error::responses::StorageFull),
     ))]
 pub(super) async fn report_object(
     State(k): State<Arc<Knowledge>>,
@@ -171,6 +172,7 @@ pub(super) async fn report_object(
 ) -> Result<Response, ApiError> {
     let principal = k.tokens.require(&headers, Role::Robot)?;
     let is_robot = principal.role == Role::Robot;
+    k.check_space(0)?;
     if is_robot && let Err(wait_s) = k.take_report(&principal.name) {
         let mut response = ApiError::new(
             ErrorCode::TooManyRequests,

@@ -411,6 +411,7 @@ async fn replace(
             "PUT needs a graph: `/store?graph=IRI`, `/store?default`, or a URL under /store/",
         ));
     };
+    knowledge.check_space(body.len() as u64)?;
     let documents = documents(headers, body).await?;
     let base = base_for(&graph, uri, headers);
     let created = blocking(move || {
@@ -448,6 +449,7 @@ async fn merge(
             (graph.into(), Some(iri))
         }
     };
+    knowledge.check_space(body.len() as u64)?;
     let documents = documents(headers, body).await?;
     let base = base_for(&graph, uri, headers);
     let created = blocking(move || {

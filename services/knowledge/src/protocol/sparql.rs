@@ -223,6 +223,7 @@ async fn apply_update(
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
     knowledge.tokens.require(headers, Role::Engineer)?;
+    knowledge.check_space(text.len() as u64)?;
     super::complexity::check_sparql(text).map_err(|m| ApiError::new(ErrorCode::InvalidQuery, m))?;
     let update = parser(endpoint)?.parse_update(text).map_err(|e| {
         ApiError::new(
@@ -281,8 +282,12 @@ async fn apply_update(
             let Some(embedded) = store.embedded() else {
                 return Err(ApiError::internal("the store has no backend"));
             };
-            evaluation::run_update(embedded, update, dataset.as_ref(), token)
-                .map_err(|e| evaluation_error(e, &exceeded))?;
+            evaluation::run_update(embedded, update, dataset.as_ref(), token).map_err(|e| {
+                if let EvaluationError::Storage(message) = &e {
+                    store.note_failure(message);
+                }
+                evaluation_error(e, &exceeded)
+            })?;
             knowledge.after_write().map_err(ApiError::from)
         })
         .await?;

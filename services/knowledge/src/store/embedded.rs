@@ -4,6 +4,8 @@
 //! All methods are blocking (RocksDB reads and writes files): call them from `spawn_blocking`.
 
 use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use oxigraph::model::{GraphName, GraphNameRef, NamedNode, NamedNodeRef, Quad};
 use oxigraph::store::{StorageError, Store};
@@ -15,6 +17,9 @@ use crate::store::error::StoreError;
 pub(crate) struct EmbeddedStore {
     store: Store,
     location: String,
+    /// Set when a write found the disk full: RocksDB refuses writes from then on, until the
+    /// store is opened again.
+    failed: Arc<AtomicBool>,
 }
 
 impl EmbeddedStore {
@@ -26,7 +31,11 @@ impl EmbeddedStore {
             location: location.clone(),
             source,
         })?;
-        Ok(Self { store, location })
+        Ok(Self {
+            store,
+            location,
+            failed: Arc::default(),
+        })
     }
 
     /// Opening on disk needs the `rocksdb` feature; without it this is an error.
@@ -45,7 +54,11 @@ impl EmbeddedStore {
             location: location.clone(),
             source,
         })?;
-        Ok(Self { store, location })
+        Ok(Self {
+            store,
+            location,
+            failed: Arc::default(),
+        })
     }
 
     /// The Oxigraph store itself.
@@ -58,12 +71,25 @@ impl EmbeddedStore {
         &self.location
     }
 
-    /// Oxigraph's error, naming this store.
+    /// Oxigraph's error, naming this store (and remembering a full disk).
     pub(crate) fn storage(&self, source: StorageError) -> StoreError {
+        self.note_failure(&source.to_string());
         StoreError::Storage {
             location: self.location.clone(),
             source,
         }
+    }
+
+    /// Remembers that a write failed for want of space, when `message` says so.
+    pub(crate) fn note_failure(&self, message: &str) {
+        if edge::disk::is_out_of_space(message) {
+            self.failed.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Whether a write found the disk full since the store was opened.
+    pub(crate) fn write_failed(&self) -> bool {
+        self.failed.load(Ordering::Relaxed)
     }
 
     /// Runs a trivial query through the whole stack (parser, evaluator, RocksDB iterator).

@@ -230,11 +230,29 @@ impl KnowledgeStore {
         }
     }
 
-    /// Oxigraph's error, naming this store.
+    /// Oxigraph's error, naming this store (and remembering a full disk).
     pub(crate) fn storage(&self, source: oxigraph::store::StorageError) -> StoreError {
+        self.note_failure(&source.to_string());
         StoreError::Storage {
             location: self.location().to_owned(),
             source,
+        }
+    }
+
+    /// Remembers a write that failed with `message` outside this type's own methods (a
+    /// SPARQL update): when it says the disk is full, the store must be reopened.
+    pub fn note_failure(&self, message: &str) {
+        if let Backend::Embedded(store) = &self.backend {
+            store.note_failure(message);
+        }
+    }
+
+    /// Whether a write found the disk full since this store was opened (embedded only: a
+    /// remote store recovers by itself).
+    pub fn write_failed(&self) -> bool {
+        match &self.backend {
+            Backend::Embedded(store) => store.write_failed(),
+            Backend::Remote(_) => false,
         }
     }
 

@@ -109,6 +109,9 @@ pub struct JobEnv {
     pub policy_roadmaps: RoadmapStore,
     /// The plan validator behind `validate` jobs, when this build has one.
     pub validator: Option<Arc<dyn PlanValidator>>,
+    /// The free-space reserve of the disk checkpoints and policies go to: a training whose
+    /// disk has less stops at once and goes back to the queue until there is room.
+    pub disk: Option<edge::disk::DiskWatch>,
 }
 
 impl std::fmt::Debug for JobEnv {

@@ -26,6 +26,8 @@ pub const MAX_MINUTES: f64 = 10_080.0;
 
 /// Progress is written at most this often.
 pub const PROGRESS_EVERY: Duration = Duration::from_secs(2);
+/// How often a training looks at its disk's free space.
+const DISK_CHECK_EVERY: Duration = Duration::from_secs(1);
 
 /// What a `train` job is asked.
 #[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
@@ -298,7 +300,15 @@ fn train_blocking(
     }));
     let mut last_sent: Option<Instant> = None;
     let mut checkpoints = 0u64;
+    let (mut disk_checked, mut out_of_space) = (Instant::now(), false);
     let mut on_progress = |p: &Progress| {
+        // A full disk stops the training before its next checkpoint fails half-written.
+        if let Some(disk) = &env.disk
+            && disk_checked.elapsed() >= DISK_CHECK_EVERY
+        {
+            disk_checked = Instant::now();
+            out_of_space = !disk.has_room(0);
+        }
         if p.checkpoints_written != checkpoints {
             checkpoints = p.checkpoints_written;
             let _ = tx.send(Note::Checkpoint(json!({
@@ -312,9 +322,19 @@ fn train_blocking(
             last_sent = Some(Instant::now());
             let _ = tx.send(Note::Progress(progress_json(p, budget_s)));
         }
-        !ctx.is_stopping()
+        !ctx.is_stopping() && !out_of_space
     };
     trainer.run(budget, &mut on_progress).map_err(fatal)?;
+    if out_of_space && !ctx.is_stopping() {
+        return Err(JobError::OutOfSpace(format!(
+            "training stopped at {} environment steps: less than {} MiB free for checkpoints",
+            trainer.counters().env_steps,
+            env.disk
+                .as_ref()
+                .map_or(0, edge::disk::DiskWatch::min_free_bytes)
+                >> 20
+        )));
+    }
     let progress = trainer.progress(&budget);
     let _ = tx.send(Note::Progress(progress_json(&progress, budget_s)));
     if ctx.is_stopping() {
@@ -330,9 +350,10 @@ fn train_blocking(
         std::fs::remove_dir_all(&staged).map_err(|e| io("clearing the staging directory", e))?;
     }
     std::fs::create_dir_all(&staged).map_err(|e| io("creating the staging directory", e))?;
-    trainer
-        .export(&staged, summary.clone())
-        .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
+    trainer.export(&staged, summary.clone()).map_err(|e| {
+        let _ = std::fs::remove_dir_all(&staged);
+        JobError::Retryable(format!("exporting the policy: {e}"))
+    })?;
     let policy = Policy::load(&staged)
         .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
     let config = &trainer.options().config;

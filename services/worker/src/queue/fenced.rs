@@ -234,28 +234,53 @@ impl Queue {
     /// down): claimable at once, by any worker, resuming from its last checkpoint. A job with a
     /// cancel requested is cancelled instead.
     pub async fn release(&self, lease: &Lease) -> Result<JobState, QueueError> {
+        self.give_back(lease, 0, None).await
+    }
+
+    /// Gives the job back to the queue without counting the attempt, claimable after the
+    /// retry backoff's first delay, with `error` as its last error: the attempt could not go
+    /// on for a reason that is not the job's (its disk is full) and that time may cure.
+    pub async fn defer(&self, lease: &Lease, error: &str) -> Result<JobState, QueueError> {
+        let delay = duration_ms(self.backoff.delay(1));
+        self.give_back(lease, delay, Some(error)).await
+    }
+
+    async fn give_back(
+        &self,
+        lease: &Lease,
+        delay_ms: i64,
+        error: Option<&str>,
+    ) -> Result<JobState, QueueError> {
         let now = self.now_ms();
         let sql = format!(
             "UPDATE jobs SET \
                state = CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END, \
                attempt = CASE WHEN cancel_requested THEN attempt ELSE attempt - 1 END, \
                finished_ms = CASE WHEN cancel_requested THEN $3 ELSE NULL END, \
-               run_after_ms = $3, lease_owner = NULL, lease_expires_ms = NULL, updated_ms = $3 \
+               run_after_ms = $4, last_error = COALESCE($5, last_error), \
+               lease_owner = NULL, lease_expires_ms = NULL, updated_ms = $3 \
              WHERE {FENCE} RETURNING state"
         );
+        let run_after = now.saturating_add(delay_ms);
         let state: Option<String> = on_pool!(self, |pool, pg| {
             let mut tx = pool.begin().await.map_err(|e| self.db_err(e))?;
             let state: Option<String> = sqlx::query_scalar(&sql)
                 .bind(lease.job_id.to_string())
                 .bind(lease.token)
                 .bind(now)
+                .bind(run_after)
+                .bind(error)
                 .fetch_optional(&mut *tx)
                 .await
                 .map_err(|e| self.db_err(e))?;
             if let Some(state) = &state {
-                let event = to_text(&json!({
-                    "state": state, "attempt": lease.attempt, "released": true,
-                }));
+                let event = to_text(&match error {
+                    None => json!({"state": state, "attempt": lease.attempt, "released": true}),
+                    Some(error) => json!({
+                        "state": state, "attempt": lease.attempt, "deferred": true,
+                        "error": error, "run_after_ms": (state == "queued").then_some(run_after),
+                    }),
+                });
                 insert_event!(self, tx, lease.job_id.to_string(), "state", &event, now);
             }
             tx.commit().await.map_err(|e| self.db_err(e))?;
