@@ -253,6 +253,47 @@ async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
     let failed = finished_job(&app, &id).await;
     assert_eq!(failed["state"], "failed", "{failed}");
     assert!(failed.to_string().contains("obstacle"), "{failed}");
+    // Refused at submission with the plan endpoint's bounds, naming the field; an unknown
+    // policy is 404 as for every job kind.
+    let too_many: Vec<Value> = (0..1001)
+        .map(|_| json!({"x": goal.0, "y": goal.1}))
+        .collect();
+    for (payload, status, field) in [
+        (json!({"goals": too_many}), 422, "payload.goals"),
+        (
+            json!({"goal": {"x": goal.0, "y": goal.1}, "options": {"max_attempts": 0}}),
+            422,
+            "payload.options.max_attempts",
+        ),
+        (
+            json!({"goal": {"x": goal.0, "y": goal.1}, "options": {"samples": 100_000_000}}),
+            422,
+            "payload.options.samples",
+        ),
+        (
+            json!({"goal": {"x": goal.0, "y": goal.1}, "policy": "no-such-policy"}),
+            404,
+            "payload.policy",
+        ),
+    ] {
+        let mut payload = payload;
+        payload["robot"] = json!("R-001");
+        payload["place"] = json!("F0");
+        payload["start"] = json!({"x": start.0, "y": start.1});
+        let r = app
+            .request(Method::POST, "/v1/jobs")
+            .json(&json!({"kind": "validate", "payload": payload}))
+            .send()
+            .await
+            .unwrap();
+        let code = r.status().as_u16();
+        let body: Value = r.json().await.unwrap();
+        assert_eq!(code, status, "{field}: {body}");
+        assert!(
+            body["error"]["message"].as_str().unwrap().contains(field),
+            "{body}"
+        );
+    }
 }
 
 /// The floor's database, world and roadmap are cached between plans, and a write to the

@@ -128,6 +128,10 @@ pub enum OnDemandError {
         /// The places of the loop, the first repeated at the end.
         cycle: Vec<String>,
     },
+    /// The request was stopped (its client hung up or its deadline passed) before the
+    /// database was built.
+    #[error("stopped before the database was built: the request was cancelled")]
+    Stopped,
     /// Reading the store failed.
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -316,6 +320,23 @@ fn read_places(reader: &Reader) -> Result<Vec<Place>, StoreError> {
 
 /// Builds the on-demand database for `mission`. Blocking.
 pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDatabase, OnDemandError> {
+    build_until(store, mission, &grid::Stop::never())
+}
+
+/// [`build`], giving up with [`OnDemandError::Stopped`] soon after `stop` is requested: it is
+/// polled for every waypoint located, every leg routed and every place assembled.
+pub fn build_until(
+    store: &KnowledgeStore,
+    mission: &Mission,
+    stop: &grid::Stop,
+) -> Result<OnDemandDatabase, OnDemandError> {
+    let check = || {
+        if stop.requested() {
+            Err(OnDemandError::Stopped)
+        } else {
+            Ok(())
+        }
+    };
     if mission.goals.is_empty() {
         return Err(OnDemandError::NoGoals);
     }
@@ -331,6 +352,7 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
     let mut stops = Vec::new();
     stops.push(locate(&reader, &places, &index, "start", &mission.start)?);
     for (i, goal) in mission.goals.iter().enumerate() {
+        check()?;
         stops.push(locate(
             &reader,
             &places,
@@ -342,6 +364,7 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
 
     let mut route: Vec<String> = Vec::new();
     for pair in stops.windows(2) {
+        check()?;
         let leg = shortest_route(&index, &pair[0], &pair[1])?;
         for place in leg {
             if route.last() != Some(&place) {
@@ -357,6 +380,7 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
     let mut included: BTreeSet<String> = BTreeSet::new();
     let mut floors: Vec<String> = Vec::new();
     for place in &route {
+        check()?;
         let Some(start) = index.get(place.as_str()) else {
             included.insert(place.clone());
             continue;
@@ -369,7 +393,8 @@ pub fn build(store: &KnowledgeStore, mission: &Mission) -> Result<OnDemandDataba
         }
     }
 
-    let triples = assemble(&reader, &included, &robot)?;
+    check()?;
+    let triples = assemble(&reader, &included, &robot, &check)?;
     Ok(OnDemandDatabase {
         triples,
         robot: robot.into_string(),
@@ -384,11 +409,13 @@ fn assemble(
     reader: &Reader,
     included: &BTreeSet<String>,
     robot: &NamedNode,
+    check: &dyn Fn() -> Result<(), OnDemandError>,
 ) -> Result<Vec<Triple>, OnDemandError> {
     let store = &reader.store;
     let mut triples = HashSet::new();
     let mut seen = BTreeSet::new();
     for iri in included {
+        check()?;
         reader.closure(
             NamedNodeRef::new_unchecked(iri),
             false,
@@ -399,6 +426,7 @@ fn assemble(
     // Objects directly inside an included place, and objects inside those objects.
     let mut containers: VecDeque<String> = included.iter().cloned().collect();
     while let Some(container) = containers.pop_front() {
+        check()?;
         let node = NamedNode::new_unchecked(container);
         for quad in store.quads_for_pattern(
             None,
@@ -463,7 +491,7 @@ pub fn floor_database(
         included.insert(p.iri.clone());
     }
     let route: Vec<String> = included.iter().cloned().collect();
-    let triples = assemble(&reader, &included, &robot)?;
+    let triples = assemble(&reader, &included, &robot, &|| Ok(()))?;
     Ok(OnDemandDatabase {
         triples,
         robot: robot.into_string(),
@@ -709,6 +737,27 @@ mod tests {
                 .any(|p| p.kind == PlaceKind::Floor && p.map.is_some())
         );
         assert!(places.iter().any(|p| p.kind == PlaceKind::Room));
+    }
+
+    #[test]
+    fn a_stopped_request_builds_nothing() {
+        let store = store();
+        let floor = places(&store)
+            .into_iter()
+            .find(|p| p.kind == PlaceKind::Floor)
+            .unwrap();
+        let mission = Mission {
+            robot: robot(),
+            start: Waypoint::Place(floor.iri.clone()),
+            goals: vec![Waypoint::Place(floor.iri.clone()); 1000],
+        };
+        let stop = grid::Stop::new();
+        assert!(build_until(&store, &mission, &stop).is_ok());
+        stop.request();
+        assert!(matches!(
+            build_until(&store, &mission, &stop),
+            Err(OnDemandError::Stopped)
+        ));
     }
 
     #[test]

@@ -61,6 +61,35 @@ impl ReplayBuffer {
         }
     }
 
+    /// An empty buffer with room for all `capacity` transitions reserved now, so that filling
+    /// it never reallocates; `Err` naming the size when the allocator refuses (a job's
+    /// allocation failure is an error of that job, never an abort of the process).
+    pub fn try_with_capacity(obs_dim: usize, capacity: usize) -> Result<Self, String> {
+        let mut buffer = Self::new(obs_dim, capacity);
+        let n = buffer.capacity;
+        let too_big = |e: std::collections::TryReserveError| {
+            let bytes = (n as f64) * ((2 * obs_dim + 6) as f64) * 4.0;
+            format!(
+                "cannot allocate a replay buffer of {n} transitions ({:.1} GiB): {e}",
+                bytes / f64::from(1u32 << 30)
+            )
+        };
+        for (values, per_row) in [
+            (&mut buffer.obs, obs_dim),
+            (&mut buffer.next_obs, obs_dim),
+            (&mut buffer.actions, 2),
+            (&mut buffer.experts, 2),
+            (&mut buffer.rewards, 1),
+            (&mut buffer.dones, 1),
+        ] {
+            let len = n.checked_mul(per_row).ok_or_else(|| {
+                format!("a replay buffer of {n} transitions of {obs_dim} values overflows")
+            })?;
+            values.try_reserve_exact(len).map_err(too_big)?;
+        }
+        Ok(buffer)
+    }
+
     /// Stored transitions.
     pub fn len(&self) -> usize {
         self.len
@@ -239,6 +268,16 @@ impl ReplayBuffer {
 mod tests {
     use super::*;
     use rand::SeedableRng;
+
+    #[test]
+    fn a_buffer_the_allocator_refuses_is_an_error_not_an_abort() {
+        // 2^40 transitions of 30 values: 2^47 bytes and more, beyond any machine's memory.
+        let e = ReplayBuffer::try_with_capacity(30, 1 << 40).unwrap_err();
+        assert!(e.contains("cannot allocate"), "{e}");
+        assert!(ReplayBuffer::try_with_capacity(30, usize::MAX).is_err());
+        let b = ReplayBuffer::try_with_capacity(3, 100).unwrap();
+        assert!(b.is_empty());
+    }
 
     #[test]
     fn the_ring_overwrites_the_oldest_and_survives_a_round_trip() {

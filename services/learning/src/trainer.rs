@@ -37,6 +37,9 @@ pub enum TrainError {
     /// Writing or reading the policy or buffer failed.
     #[error(transparent)]
     Policy(#[from] PolicyError),
+    /// Memory the training needs could not be allocated.
+    #[error("out of memory: {0}")]
+    OutOfMemory(String),
     /// A checkpoint could not be written or read.
     #[error("checkpoint {path}: {message}")]
     Checkpoint {
@@ -365,7 +368,8 @@ impl Trainer {
         let learner = Learner::new(c.td3.clone(), dim, crate::training_device(), c.seed);
         let missions = mission_set(&world, &env_config, c.eval_episodes, c.eval_seed)?;
         let mut trainer = Trainer {
-            buffer: ReplayBuffer::new(dim, c.buffer_capacity),
+            buffer: ReplayBuffer::try_with_capacity(dim, c.buffer_capacity)
+                .map_err(TrainError::OutOfMemory)?,
             envs: Vec::new(),
             inputs: vec![0.0; c.envs * dim],
             returns: vec![0.0; c.envs],

@@ -417,7 +417,9 @@ pub fn env_config(beams: usize, noise: bool) -> EnvConfig {
     }
 }
 
-fn check_request(request: &PlanRequest) -> Result<(), PlanError> {
+/// Checks a request's values before any work: finite poses, 1 to [`MAX_GOALS`] goals, options
+/// within their bounds. `Err` is [`PlanError::InvalidInput`] naming the field.
+pub fn check_request(request: &PlanRequest) -> Result<(), PlanError> {
     let s = request.start;
     for (field, v) in [("start.x", s.x), ("start.y", s.y), ("start.yaw", s.yaw)] {
         if !v.is_finite() {

@@ -39,8 +39,8 @@ pub use edges::{
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
-    DriveLimits, DriveRun, Replanner, config_space, drive, env_config, validate, validate_with,
-    validate_with_fallback,
+    DriveLimits, DriveRun, Replanner, check_request, config_space, drive, env_config, validate,
+    validate_with, validate_with_fallback,
 };
 pub use planning_grid::planning_grid;
 pub use types::{

@@ -540,7 +540,8 @@ pub struct EventsQuery {
     (status = 400, description = "`after` or `Last-Event-ID` is not an integer.", body = ErrorBody),
     (status = 401, response = edge::error::responses::Unauthorized),
     (status = 404, description = "No job has this id.", body = ErrorBody),
-    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+    (status = 429, description = "This token already has 8 event streams open (`too_many_requests`, with `Retry-After`); close one.", body = ErrorBody),
+    (status = 503, description = "64 event streams are open in all (`overloaded`, with `Retry-After`), or the service cannot serve now (`not_ready`, `timeout`).", body = ErrorBody)))]
 async fn job_events(
     State(api): State<Arc<JobsApi>>,
     headers: HeaderMap,

@@ -28,7 +28,7 @@ use utoipa::ToSchema;
 use crate::api::JobsApi;
 use crate::jobs::policies::PolicyStore;
 use crate::jobs::source::SourceError;
-use crate::jobs::{PlanValidator, RoadmapKey};
+use crate::jobs::{PayloadError, PlanValidator, RoadmapKey};
 use crate::runner::JobError;
 
 pub use self::error::PlanErrorResponse;
@@ -337,12 +337,23 @@ impl ValidatePlan {
 }
 
 impl PlanValidator for ExecutorValidator {
-    fn check(&self, payload: &serde_json::Value) -> Result<(), String> {
-        let (plan, _) = ValidatePlan::parse(payload)?;
+    fn check(&self, payload: &serde_json::Value) -> Result<(), PayloadError> {
+        let (plan, request) = ValidatePlan::parse(payload).map_err(PayloadError::Invalid)?;
+        // The bounds a plan request has (goals, attempts, samples, timer), named in the payload.
+        if let Err(e) = rehearsal::check_request(&rehearsal::PlanRequest::from(request)) {
+            return Err(PayloadError::Invalid(match e {
+                PlanError::InvalidInput { field, message } => {
+                    format!("payload.{field}: {message}")
+                }
+                other => format!("payload: {other}"),
+            }));
+        }
         if let Some(id) = &plan.policy
             && self.policies.metadata(id).is_none()
         {
-            return Err(format!("payload.policy: no policy `{id}`"));
+            return Err(PayloadError::NotFound(format!(
+                "payload.policy: no policy `{id}`"
+            )));
         }
         Ok(())
     }

@@ -116,6 +116,7 @@ impl From<OnDemandError> for ApiError {
             | OnDemandError::AmbiguousFloor { .. }
             | OnDemandError::NotConnected { .. }
             | OnDemandError::Cycle { .. } => ApiError::new(ErrorCode::Unprocessable, e.to_string()),
+            OnDemandError::Stopped => ApiError::new(ErrorCode::Timeout, e.to_string()),
             OnDemandError::Store(_) => ApiError::internal(e),
         }
     }
@@ -155,9 +156,13 @@ pub(super) async fn on_demand_database(
         start: waypoint("start", request.start)?,
         goals,
     };
+    // Dropped with this future when the client hangs up or the request times out: the
+    // blocking work then stops at its next waypoint, leg or place.
+    let stop = grid::Stop::new();
+    let _stop_on_drop = grid::StopOnDrop(stop.clone());
     blocking(move || {
         let store = k.store()?;
-        let db = on_demand::build(&store, &mission)?;
+        let db = on_demand::build_until(&store, &mission, &stop)?;
         let body = serialize(&db.triples, format)?;
         let mut response = ([(header::CONTENT_TYPE, format.media_type())], body).into_response();
         response

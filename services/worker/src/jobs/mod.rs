@@ -161,7 +161,7 @@ impl JobEnv {
                             .to_owned(),
                     ));
                 };
-                validator.check(payload).map_err(PayloadError::Invalid)?;
+                validator.check(payload)?;
                 self.check_floor(&p.place, &p.robot).await?;
             }
             JobKind::Roadmap => {

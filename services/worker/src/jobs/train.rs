@@ -277,7 +277,13 @@ fn train_blocking(
     } = run;
     let out_dir = options.out_dir.clone();
     let budget_s = budget.wall_s.unwrap_or(0.0);
-    let fatal = |e: learning::trainer::TrainError| JobError::Fatal(format!("training: {e}"));
+    // Out of memory is this machine's state, not the job's: another attempt may find room.
+    let fatal = |e: learning::trainer::TrainError| match e {
+        learning::trainer::TrainError::OutOfMemory(_) => {
+            JobError::Retryable(format!("training: {e}"))
+        }
+        _ => JobError::Fatal(format!("training: {e}")),
+    };
     let mut trainer = if Trainer::has_checkpoint(&out_dir) {
         match Trainer::resume(Arc::clone(&world), options.clone()) {
             Ok(t) => {

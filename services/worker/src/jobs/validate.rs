@@ -29,9 +29,10 @@ pub struct ValidatePayload {
 
 /// The plan executor's hook.
 pub trait PlanValidator: Send + Sync + 'static {
-    /// Checks a payload when the job is created; the error names the field
-    /// (`payload.waypoints: ...`) and is answered as 422.
-    fn check(&self, payload: &Value) -> Result<(), String>;
+    /// Checks a payload when the job is created: a value out of range is
+    /// [`PayloadError::Invalid`] naming the field (`payload.goals: ...`, 422), a policy that
+    /// does not exist [`PayloadError::NotFound`] (404).
+    fn check(&self, payload: &Value) -> Result<(), super::PayloadError>;
 
     /// Validates the plan of `payload` in `world` and returns the job's result. Runs on a
     /// blocking thread: poll `stopping` between runs and return [`JobError::Stopped`] (any
