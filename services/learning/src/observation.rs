@@ -168,6 +168,93 @@ impl Scaling {
     }
 }
 
+/// A residual policy's base: the classical follower steering straight at the goal. The
+/// network's two raw outputs are added to this base's command written as pre-activations
+/// (the logit of the linear output, the inverse tanh of the angular one), so a network whose
+/// last layer is near zero drives as the follower does, and learning only has to find where
+/// to do better (residual policy learning: Silver et al. 2018; Johannink et al. 2019). It
+/// reads only the network's input, so every runtime can compute it.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Residual {
+    /// The follower's top linear speed, m/s.
+    pub linear_max: f64,
+    /// Its top angular speed, rad/s.
+    pub angular_max: f64,
+    /// Heading error beyond which it turns on the spot, radians.
+    pub rotate_threshold: f64,
+    /// Its steering gain, (rad/s) per rad.
+    pub heading_gain: f64,
+    /// Its slowest forward speed while driving, m/s.
+    pub linear_min: f64,
+    /// Within this distance of the goal its speed falls in proportion, metres.
+    pub slow_down_m: f64,
+}
+
+/// How far from 0 and 1 (linear) or ±1 (angular) the base is kept, so that its
+/// pre-activation is finite and the network can still move it both ways.
+const RESIDUAL_MARGIN: f32 = 0.02;
+
+impl Residual {
+    /// The base of the classical follower's settings.
+    pub fn follower(p: &sim::follower::FollowerParams) -> Self {
+        Self {
+            linear_max: p.linear_max,
+            angular_max: p.angular_max,
+            rotate_threshold: p.rotate_threshold,
+            heading_gain: p.heading_gain,
+            linear_min: p.linear_min,
+            slow_down_m: p.slow_down_m,
+        }
+    }
+
+    /// The follower's command for one network input row, in output units (linear in [0, 1],
+    /// angular in [-1, 1]).
+    #[allow(clippy::cast_possible_truncation, reason = "network values are f32")]
+    pub fn output(&self, scaling: &Scaling, input: &[f32]) -> [f32; ACTION_DIM] {
+        let rest = &input[scaling.beams.min(input.len())..];
+        let distance = f64::from(rest.first().copied().unwrap_or(0.0))
+            * f64::from(scaling.goal_distance_scale_m);
+        let angle = match scaling.layout {
+            InputLayout::Paper => {
+                f64::from(rest.get(1).copied().unwrap_or(0.0)) * std::f64::consts::PI
+            }
+            InputLayout::Extended => f64::from(rest.get(1).copied().unwrap_or(0.0))
+                .atan2(f64::from(rest.get(2).copied().unwrap_or(1.0))),
+        };
+        let params = sim::follower::FollowerParams {
+            linear_max: self.linear_max,
+            angular_max: self.angular_max,
+            rotate_threshold: self.rotate_threshold,
+            heading_gain: self.heading_gain,
+            linear_min: self.linear_min,
+            slow_down_m: self.slow_down_m,
+            ..sim::follower::FollowerParams::default()
+        };
+        let goal = (distance * angle.cos(), distance * angle.sin());
+        let action =
+            sim::follower::follow(&params, (0.0, 0.0), goal, sim::Pose2::new(0.0, 0.0, 0.0));
+        scaling.output_of(action)
+    }
+
+    /// [`Residual::output`] as the pre-activations the network's raw outputs are added to.
+    pub fn preactivation(&self, scaling: &Scaling, input: &[f32]) -> [f32; ACTION_DIM] {
+        let [linear, angular] = self.output(scaling, input);
+        let m = RESIDUAL_MARGIN;
+        let linear = linear.clamp(m, 1.0 - m);
+        let angular = angular.clamp(-1.0 + m, 1.0 - m);
+        [(linear / (1.0 - linear)).ln(), angular.atanh()]
+    }
+
+    /// [`Residual::preactivation`] of `rows` inputs of `width` values laid out row-major.
+    pub fn preactivations(&self, scaling: &Scaling, inputs: &[f32], width: usize) -> Vec<f32> {
+        inputs
+            .chunks_exact(width.max(1))
+            .flat_map(|row| self.preactivation(scaling, row))
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -224,5 +311,47 @@ mod tests {
         assert!((a.linear - 0.8).abs() < 1e-6 && (a.angular - 0.25).abs() < 1e-6);
         assert_eq!(s.output_of(a), [1.0, 0.5]);
         assert_eq!(s.output_of(Action::new(-1.0, 9.0)), [0.0, 1.0]);
+    }
+
+    #[test]
+    fn an_untrained_residual_policy_drives_as_the_follower() {
+        let s = Scaling::default();
+        let r = Residual::follower(&sim::follower::FollowerParams::default());
+        let obs = |d: f32, angle: f32| Observation {
+            ranges: vec![5.0; s.beams],
+            goal_distance: d,
+            goal_angle: angle,
+            velocity: [0.0, 0.0],
+        };
+        // Goal ahead, far: full speed, no turn (within the margin).
+        let input = s.encode(&obs(5.0, 0.0)).unwrap();
+        let [l, a] = r.output(&s, &input);
+        assert!((l - 1.0).abs() < 1e-6 && a.abs() < 1e-6, "{l} {a}");
+        let [pl, pa] = r.preactivation(&s, &input);
+        assert!((1.0 / (1.0 + (-pl).exp()) - 0.98).abs() < 1e-4 && pa.abs() < 1e-6);
+        // Goal to the left, behind the threshold: turn left on the spot.
+        let input = s.encode(&obs(3.0, 1.5)).unwrap();
+        let [l, a] = r.output(&s, &input);
+        assert!(l == 0.0 && (a - 1.0).abs() < 1e-6, "{l} {a}");
+        // The same as the follower's own law for the goal's point.
+        let input = s.encode(&obs(0.5, 0.2)).unwrap();
+        let p = sim::follower::FollowerParams::default();
+        let g = (0.5 * 0.2f64.cos(), 0.5 * 0.2f64.sin());
+        let want = s.output_of(sim::follower::follow(
+            &p,
+            (0.0, 0.0),
+            g,
+            sim::Pose2::new(0.0, 0.0, 0.0),
+        ));
+        let got = r.output(&s, &input);
+        assert!(
+            (got[0] - want[0]).abs() < 1e-4 && (got[1] - want[1]).abs() < 1e-4,
+            "{got:?} {want:?}"
+        );
+        assert_eq!(
+            r.preactivations(&s, &[input.clone(), input].concat(), s.input_len())
+                .len(),
+            4
+        );
     }
 }

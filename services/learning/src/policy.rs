@@ -13,7 +13,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 use sim::{Action, Observation};
 
-use crate::observation::{ACTION_DIM, Scaling};
+use crate::observation::{ACTION_DIM, Residual, Scaling};
 
 /// Name of the weights file in a policy directory.
 pub const WEIGHTS_FILE: &str = "policy.safetensors";
@@ -40,6 +40,11 @@ pub struct PolicyMetadata {
     /// How the policy was trained (free-form: configuration, counters, last evaluation).
     #[serde(default)]
     pub training: serde_json::Value,
+    /// When present, the network learned a correction to this base (the classical follower
+    /// steering at the goal): its raw outputs are added to the base's pre-activations before
+    /// the output activations ([`Residual::preactivation`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub residual: Option<Residual>,
 }
 
 impl PolicyMetadata {
@@ -57,6 +62,7 @@ impl PolicyMetadata {
             hidden,
             output_activations: vec!["sigmoid".into(), "tanh".into()],
             training,
+            residual: None,
         }
     }
 }
@@ -239,6 +245,11 @@ impl Policy {
                 }
             }
             std::mem::swap(&mut a, &mut b);
+        }
+        if let Some(residual) = &self.meta.residual {
+            let base = residual.preactivation(&self.meta.scaling, input);
+            a[0] += base[0];
+            a[1] += base[1];
         }
         Ok([sigmoid(a[0]), a[1].tanh()])
     }
@@ -452,5 +463,51 @@ mod tests {
         assert!(e.to_string().contains("shape"), "{e}");
         let missing = tempfile::tempdir().expect("tmp");
         assert!(Policy::load(missing.path()).is_err());
+    }
+
+    #[test]
+    fn a_residual_policy_with_a_silent_network_is_the_follower() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let scaling = Scaling::default();
+        let mut meta = PolicyMetadata::new(scaling, vec![4], serde_json::json!({}));
+        let residual = Residual::follower(&sim::follower::FollowerParams::default());
+        meta.residual = Some(residual);
+        let n = scaling.input_len();
+        let zeros = |k: usize| vec![0.0f32; k];
+        write_policy(
+            dir.path(),
+            &meta,
+            &[(zeros(4 * n), zeros(4)), (zeros(8), zeros(2))],
+        )
+        .expect("written");
+        let p = Policy::load(dir.path()).expect("loads");
+        assert_eq!(p.metadata().residual, Some(residual));
+        for (d, angle) in [(5.0f32, 0.0f32), (0.6, 0.25), (3.0, -2.5), (1.0, 0.3)] {
+            let obs = Observation {
+                ranges: vec![5.0; scaling.beams],
+                goal_distance: d,
+                goal_angle: angle,
+                velocity: [0.0, 0.0],
+            };
+            let input = scaling.encode(&obs).expect("encodes");
+            let want = residual.output(&scaling, &input);
+            let got = p.forward(&input).expect("forward");
+            // Equal up to the margin that keeps the base's pre-activation finite.
+            assert!(
+                (got[0] - want[0]).abs() <= 0.021,
+                "{d} {angle}: {got:?} vs {want:?}"
+            );
+            assert!(
+                (got[1] - want[1]).abs() <= 0.021,
+                "{d} {angle}: {got:?} vs {want:?}"
+            );
+        }
+        // The metadata of a policy without a base has no `residual` key (older runtimes read it).
+        let plain = PolicyMetadata::new(scaling, vec![4], serde_json::json!({}));
+        assert!(
+            !serde_json::to_string(&plain)
+                .expect("json")
+                .contains("residual")
+        );
     }
 }

@@ -15,7 +15,7 @@ use tch::nn::{self, Module};
 use tch::{Device, Kind, Tensor};
 
 use crate::config::Td3Config;
-use crate::observation::ACTION_DIM;
+use crate::observation::{ACTION_DIM, Residual, Scaling};
 use crate::replay::Batch;
 
 /// Why the learner failed.
@@ -177,6 +177,8 @@ pub struct Learner {
     action_low: Tensor,
     action_high: Tensor,
     updates: u64,
+    /// The base a residual actor's outputs are added to, with the scaling its inputs have.
+    residual: Option<(Residual, Scaling)>,
 }
 
 fn paired(target: &nn::VarStore, source: &nn::VarStore) -> Vec<(Tensor, Tensor)> {
@@ -276,7 +278,46 @@ impl Learner {
                 .view([1, 2])
                 .to_device(device),
             updates: 0,
+            residual: None,
             config,
+        }
+    }
+
+    /// Makes the actor a residual one over `residual` (for inputs scaled by `scaling`): its
+    /// raw outputs are added to the base's pre-activations, and its last layer is shrunk to
+    /// nearly zero (the targets copied) so that it starts as the base drives. Call before
+    /// training or loading a checkpoint.
+    pub fn set_residual(&mut self, residual: Residual, scaling: Scaling) {
+        self.residual = Some((residual, scaling));
+        if let Some(last) = self.actor.layers.last_mut() {
+            tch::no_grad(|| {
+                let _ = last.ws.f_mul_scalar_(0.01);
+                if let Some(bs) = &mut last.bs {
+                    let _ = bs.zero_();
+                }
+            });
+        }
+        tch::no_grad(|| {
+            for (t, s) in &mut self.polyak {
+                t.copy_(s);
+            }
+        });
+    }
+
+    /// The residual base of the actor, if it has one.
+    pub fn residual(&self) -> Option<Residual> {
+        self.residual.map(|(r, _)| r)
+    }
+
+    /// An actor's squashed outputs for the tensor `x` of the rows `rows`.
+    fn actor_out(&self, net: &Mlp, x: &Tensor, rows: &[f32]) -> Tensor {
+        let raw = net.forward(x);
+        match &self.residual {
+            None => squash(&raw),
+            Some((residual, scaling)) => {
+                let base = residual.preactivations(scaling, rows, self.obs_dim);
+                squash(&(raw + self.tensor(&base, ACTION_DIM)))
+            }
         }
     }
 
@@ -300,7 +341,7 @@ impl Learner {
         let x = Tensor::from_slice(inputs)
             .view([to_i64(n), to_i64(self.obs_dim)])
             .to_device(self.device);
-        let y = tch::no_grad(|| squash(&self.actor.forward(&x)));
+        let y = tch::no_grad(|| self.actor_out(&self.actor, &x, &inputs[..n * self.obs_dim]));
         let y = y.to_device(Device::Cpu).contiguous().view([-1]);
         out.extend(Vec::<f32>::try_from(&y).unwrap_or_else(|_| vec![0.0; n * ACTION_DIM]));
     }
@@ -341,7 +382,7 @@ impl Learner {
 
         // Lines 9–10: smoothed target actions (Eq. 14) and the clipped double-Q target (Eq. 15).
         let y = tch::no_grad(|| {
-            let a2 = (squash(&self.actor_target.forward(&s2)) + &noise)
+            let a2 = (self.actor_out(&self.actor_target, &s2, &batch.next_obs) + &noise)
                 .maximum(&self.action_low)
                 .minimum(&self.action_high);
             let sa2 = Tensor::cat(&[&s2, &a2], 1);
@@ -372,7 +413,7 @@ impl Learner {
             for p in &self.critic_params {
                 let _ = p.set_requires_grad(false);
             }
-            let pi = squash(&self.actor.forward(&s));
+            let pi = self.actor_out(&self.actor, &s, &batch.obs);
             let q = self.q1.forward(&Tensor::cat(&[&s, &pi], 1));
             let linear = pi.narrow(1, 0, 1);
             let angular = pi.narrow(1, 1, 1);
@@ -416,7 +457,7 @@ impl Learner {
     pub fn clone_step(&mut self, batch: &Batch) -> f64 {
         let s = self.tensor(&batch.obs, self.obs_dim);
         let experts = self.tensor(&batch.experts, ACTION_DIM);
-        let pi = squash(&self.actor.forward(&s));
+        let pi = self.actor_out(&self.actor, &s, &batch.obs);
         let loss = (pi - experts).square().mean(Kind::Float);
         self.actor_opt.zero_grad();
         loss.backward();

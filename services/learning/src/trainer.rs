@@ -365,7 +365,13 @@ impl Trainer {
         }
         let env_config = options.env_config();
         let dim = options.scaling.input_len();
-        let learner = Learner::new(c.td3.clone(), dim, crate::training_device(), c.seed);
+        let mut learner = Learner::new(c.td3.clone(), dim, crate::training_device(), c.seed);
+        if c.td3.residual {
+            learner.set_residual(
+                crate::observation::Residual::follower(&sim::follower::FollowerParams::default()),
+                options.scaling,
+            );
+        }
         let missions = mission_set(&world, &env_config, c.eval_episodes, c.eval_seed)?;
         let mut trainer = Trainer {
             buffer: ReplayBuffer::try_with_capacity(dim, c.buffer_capacity)
@@ -931,7 +937,7 @@ impl Trainer {
                 serde_json::json!({"actor": "final"}),
             ),
         };
-        let meta = PolicyMetadata::new(
+        let mut meta = PolicyMetadata::new(
             self.options.scaling,
             self.options.config.td3.hidden.clone(),
             serde_json::json!({
@@ -943,6 +949,7 @@ impl Trainer {
                 "summary": summary,
             }),
         );
+        meta.residual = self.learner.residual();
         write_policy(dir, &meta, &layers)?;
         Ok(())
     }

@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+use learning::observation::Residual;
 use learning::policy::{Policy, PolicyMetadata, write_policy};
 use learning::replay::{Batch, ReplayBuffer};
 use learning::td3::Learner;
@@ -120,6 +121,67 @@ fn the_pure_rust_policy_matches_tch_within_1e_5() {
     learner.act(&inputs, n, &mut expected);
     let mut worst = 0.0f32;
     for (row, want) in inputs.chunks_exact(dim).zip(expected.chunks_exact(2)) {
+        let got = policy.forward(row).unwrap();
+        worst = worst
+            .max((got[0] - want[0]).abs())
+            .max((got[1] - want[1]).abs());
+    }
+    assert!(worst <= 1e-5, "largest difference {worst}");
+}
+
+#[test]
+fn a_residual_actor_starts_as_the_follower_and_the_runtime_matches_it() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let scaling = Scaling::default();
+    let dim = scaling.input_len();
+    let residual = Residual::follower(&sim::follower::FollowerParams::default());
+    let config = Td3Config {
+        hidden: vec![64, 64],
+        residual: true,
+        ..Td3Config::default()
+    };
+    let mut learner = Learner::new(config.clone(), dim, tch::Device::Cpu, 8);
+    learner.set_residual(residual, scaling);
+    // Encoded observations: goals all around, near and far.
+    let n = 400;
+    let mut inputs = Vec::with_capacity(n * dim);
+    for _ in 0..n {
+        let obs = sim::Observation {
+            ranges: (0..scaling.beams)
+                .map(|_| rng.random::<f32>() * 6.0)
+                .collect(),
+            goal_distance: rng.random::<f32>() * 8.0,
+            goal_angle: (rng.random::<f32>() * 2.0 - 1.0) * std::f32::consts::PI,
+            velocity: [rng.random::<f32>() * 0.8, rng.random::<f32>() - 0.5],
+        };
+        inputs.extend(scaling.encode(&obs).unwrap());
+    }
+    let mut acted = Vec::new();
+    learner.act(&inputs, n, &mut acted);
+    let mut worst = 0.0f32;
+    for (row, got) in inputs.chunks_exact(dim).zip(acted.chunks_exact(2)) {
+        let want = residual.output(&scaling, row);
+        worst = worst
+            .max((got[0] - want[0]).abs())
+            .max((got[1] - want[1]).abs());
+    }
+    assert!(
+        worst < 0.05,
+        "the untrained residual actor is {worst} from the follower"
+    );
+    // After some updates the exported policy (with its base) still acts as tch does.
+    let batch = random_batch(&mut rng, dim, 256);
+    for _ in 0..20 {
+        learner.update(&batch, &mut rng);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut meta = PolicyMetadata::new(scaling, config.hidden.clone(), serde_json::json!({}));
+    meta.residual = learner.residual();
+    write_policy(dir.path(), &meta, &learner.actor_layers()).unwrap();
+    let policy = Policy::load(dir.path()).unwrap();
+    learner.act(&inputs, n, &mut acted);
+    let mut worst = 0.0f32;
+    for (row, want) in inputs.chunks_exact(dim).zip(acted.chunks_exact(2)) {
         let got = policy.forward(row).unwrap();
         worst = worst
             .max((got[0] - want[0]).abs())
