@@ -170,6 +170,11 @@ pub struct TrainConfig {
     /// not export a worse policy than it had. Snapshots live in memory: a resumed run chooses
     /// among those of its last session and its final actor.
     pub export_best: bool,
+    /// Drive every training step behind the rehearsal's collision shield (`sim::shield`): the
+    /// environment applies the shielded command, the buffer keeps the actor's own, so the
+    /// policy learns what the shield will do to it in a validation (slowed or stopped when it
+    /// skims walls) instead of meeting it first there.
+    pub shielded: bool,
     /// Train only on goals the robot can drive to in a straight line (`sim::EnvConfig::
     /// goals_in_view`): the waypoints of a roadmap plan, which is what the policy drives
     /// between. False also draws goals behind walls, reachable only by detours the laser
@@ -207,6 +212,7 @@ impl Default for TrainConfig {
             bc_steps: 0,
             critic_warmup_steps: 0,
             export_best: false,
+            shielded: false,
         }
     }
 }
@@ -224,7 +230,9 @@ impl TrainConfig {
     /// and runs out of time on long edges, so `bc_alpha` stays 0 here. The actor is residual
     /// over the follower steering at the goal (`td3.residual`): 97.17% of edge rollouts
     /// against 95.96% without (30% fewer failures, the same 6.58 s mean edge time; the
-    /// follower 99.63% at 9.15 s), and residual with TD3+BC (α = 2.5) 92.2%.
+    /// follower 99.63% at 9.15 s), and residual with TD3+BC (α = 2.5) 92.2%. Training behind
+    /// the rehearsal's collision shield (`shielded`), as the policy is validated, then takes
+    /// the residual policy from 97.17% to 99.44% at 6.40 s (near misses 3.5% → 7.0%).
     pub fn fast() -> Self {
         Self {
             td3: Td3Config {
@@ -244,6 +252,7 @@ impl TrainConfig {
             bc_steps: 10_000,
             critic_warmup_steps: 5_000,
             export_best: true,
+            shielded: true,
             ..Self::default()
         }
     }

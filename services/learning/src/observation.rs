@@ -157,6 +157,31 @@ impl Scaling {
         }
     }
 
+    /// The observation an input row encodes, as far as the encoding keeps it: ranges beyond
+    /// the horizon read as the horizon, the goal distance as clipped. What a monitor that
+    /// reads observations (the collision shield) needs in training, where only inputs are kept.
+    pub fn decode(&self, input: &[f32]) -> Observation {
+        let beams = self.beams.min(input.len());
+        let rest = &input[beams..];
+        let at = |i: usize| rest.get(i).copied().unwrap_or(0.0);
+        let (goal_angle, velocity) = match self.layout {
+            InputLayout::Paper => (at(1) * std::f32::consts::PI, [0.0, 0.0]),
+            InputLayout::Extended => (
+                at(1).atan2(at(2)),
+                [at(3) * self.linear_max, at(4) * self.angular_max],
+            ),
+        };
+        Observation {
+            ranges: input[..beams]
+                .iter()
+                .map(|r| r * self.range_horizon_m)
+                .collect(),
+            goal_distance: at(0) * self.goal_distance_scale_m,
+            goal_angle,
+            velocity,
+        }
+    }
+
     /// The network output that [`Scaling::command`] turns into `action` (clamped to the
     /// limits): how a demonstrator's command is written in the actor's units.
     #[allow(clippy::cast_possible_truncation, reason = "network outputs are f32")]
@@ -353,5 +378,23 @@ mod tests {
                 .len(),
             4
         );
+    }
+
+    #[test]
+    fn an_input_decodes_to_what_it_encodes() {
+        let s = Scaling::default();
+        let obs = Observation {
+            ranges: (0..s.beams).map(|i| 0.3 + 0.2 * i as f32).collect(),
+            goal_distance: 3.5,
+            goal_angle: -2.0,
+            velocity: [0.4, -0.2],
+        };
+        let back = s.decode(&s.encode(&obs).unwrap());
+        for (a, b) in obs.ranges.iter().zip(&back.ranges) {
+            assert!((a.min(s.range_horizon_m) - b).abs() < 1e-5, "{a} {b}");
+        }
+        assert!((back.goal_distance - 3.5).abs() < 1e-5);
+        assert!((back.goal_angle + 2.0).abs() < 1e-5);
+        assert!((back.velocity[0] - 0.4).abs() < 1e-5 && (back.velocity[1] + 0.2).abs() < 1e-5);
     }
 }

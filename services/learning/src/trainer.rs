@@ -269,6 +269,8 @@ pub struct Trainer {
     /// Asked right before a written checkpoint replaces the previous one; an error leaves the
     /// previous one in place (a job that lost its lease must not overwrite its successor's).
     install_guard: Option<InstallGuard>,
+    /// The collision shield every step is driven behind (`shielded`).
+    shield: Option<sim::shield::Shield>,
 }
 
 /// See [`Trainer::set_install_guard`].
@@ -390,6 +392,10 @@ impl Trainer {
             missions,
             checkpoints_written: 0,
             install_guard: None,
+            shield: c
+                .shielded
+                .then(|| sim::shield::Shield::new(&world, options.scaling.beams))
+                .flatten(),
             best: None,
             learner,
             env_config,
@@ -650,7 +656,16 @@ impl Trainer {
             // Lines 5–7: step, store, reset finished episodes.
             for i in 0..n {
                 let a = [actions[i * 2], actions[i * 2 + 1]];
-                let r = self.envs[i].step(self.options.scaling.command(a));
+                let mut command = self.options.scaling.command(a);
+                if let Some(shield) = &self.shield {
+                    let seen = self
+                        .options
+                        .scaling
+                        .decode(&self.inputs[i * dim..(i + 1) * dim]);
+                    let angular_max = f64::from(self.options.scaling.angular_max);
+                    command = shield.filter(command, &seen, angular_max);
+                }
+                let r = self.envs[i].step(command);
                 self.options.scaling.encode_into(&r.observation, &mut next);
                 let terminal = matches!(r.info.outcome, Outcome::ReachedGoal | Outcome::Collision);
                 #[allow(

@@ -298,6 +298,36 @@ fn a_stop_request_ends_the_run_with_a_checkpoint_and_an_exportable_policy() {
 }
 
 #[test]
+fn a_shielded_training_drives_random_actions_without_a_collision() {
+    // Random actions only (no actor yet): unshielded they run into the walls and the pillar;
+    // behind the shield the environment never sees a collision.
+    let collisions = |shielded: bool| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut options = small_options(dir.path());
+        options.config.random_steps = 100_000;
+        options.config.shielded = shielded;
+        let mut trainer = Trainer::new(room(), options).unwrap();
+        trainer
+            .run(
+                Budget {
+                    wall_s: None,
+                    env_steps: Some(4_000),
+                },
+                &mut |_| true,
+            )
+            .unwrap();
+        let episodes = trainer.episodes();
+        assert!(episodes.len() > 10, "{} episodes", episodes.len());
+        episodes.iter().filter(|e| e.outcome == "collision").count()
+    };
+    assert!(
+        collisions(false) > 0,
+        "random driving should hit something unshielded"
+    );
+    assert_eq!(collisions(true), 0);
+}
+
+#[test]
 fn bad_settings_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let mut options = small_options(dir.path());

@@ -33,6 +33,7 @@ pub mod kinematics;
 pub mod library;
 pub mod parse;
 pub mod render;
+pub mod shield;
 pub mod spec;
 pub mod world;
 
