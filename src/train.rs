@@ -331,6 +331,7 @@ pub fn eval(
         "env_steps": report.env_steps,
         "wall_s": report.wall_s,
         "control_command_us": per_command_us,
+        "shielded": report.shielded,
         "by_detour": report.by_detour,
         goals.other().key(): other,
         "map": map.display().to_string(),

@@ -80,6 +80,10 @@ pub struct EvalReport {
     /// [`evaluate_held_out`]): a policy that sees only its laser finds detours hardest.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub by_detour: Vec<DetourBucket>,
+    /// Whether the commands went through the collision shield (`sim::shield`), as a policy
+    /// trained behind it is evaluated: it drives that way in every validation.
+    #[serde(default)]
+    pub shielded: bool,
 }
 
 /// Missions whose shortest path is between `min` and `max` times the straight distance.
@@ -119,7 +123,20 @@ pub fn evaluate_held_out(
         ..EnvConfig::default()
     };
     let missions = mission_set(world, &env, episodes, seed)?;
-    let (mut report, outcomes) = run(policy, world, &env, policy.scaling(), &missions, seed)?;
+    // A policy trained behind the shield is measured behind it, as it will drive.
+    let trained_shielded = policy.metadata().training["config"]["shielded"] == true;
+    let shield = trained_shielded
+        .then(|| sim::shield::Shield::new(world, policy.scaling().beams))
+        .flatten();
+    let (mut report, outcomes) = run(
+        policy,
+        world,
+        &env,
+        policy.scaling(),
+        &missions,
+        seed,
+        shield.as_ref(),
+    )?;
     let bounds = [1.0, 1.1, 1.5, 2.0, f64::INFINITY];
     let mut counts = vec![(0usize, 0usize); bounds.len() - 1];
     for (m, o) in missions.iter().zip(&outcomes) {
@@ -159,7 +176,20 @@ pub fn evaluate(
     missions: &[Mission],
     seed: u64,
 ) -> Result<EvalReport, EnvError> {
-    run(actor, world, env, scaling, missions, seed).map(|(report, _)| report)
+    run(actor, world, env, scaling, missions, seed, None).map(|(report, _)| report)
+}
+
+/// [`evaluate`] with every command passed through `shield` first.
+pub fn evaluate_shielded(
+    actor: &dyn BatchActor,
+    world: &Arc<World>,
+    env: &EnvConfig,
+    scaling: &Scaling,
+    missions: &[Mission],
+    seed: u64,
+    shield: Option<&sim::shield::Shield>,
+) -> Result<EvalReport, EnvError> {
+    run(actor, world, env, scaling, missions, seed, shield).map(|(report, _)| report)
 }
 
 /// [`evaluate`], with each mission's outcome.
@@ -170,6 +200,7 @@ fn run(
     scaling: &Scaling,
     missions: &[Mission],
     seed: u64,
+    shield: Option<&sim::shield::Shield>,
 ) -> Result<(EvalReport, Vec<Outcome>), EnvError> {
     let started = Instant::now();
     let dim = scaling.input_len();
@@ -197,7 +228,12 @@ fn run(
         let mut still = Vec::with_capacity(running.len());
         for (k, &i) in running.iter().enumerate() {
             let y = [out[k * 2], out[k * 2 + 1]];
-            let r = envs[i].step(scaling.command(y));
+            let mut command = scaling.command(y);
+            if let Some(shield) = shield {
+                let seen = scaling.decode(&inputs[i * dim..(i + 1) * dim]);
+                command = shield.filter(command, &seen, f64::from(scaling.angular_max));
+            }
+            let r = envs[i].step(command);
             steps += 1;
             returns[i] += r.reward;
             scaling.encode_into(&r.observation, &mut inputs[i * dim..(i + 1) * dim]);
@@ -235,6 +271,7 @@ fn run(
         mean_return: mean(&returns),
         wall_s: started.elapsed().as_secs_f64(),
         by_detour: Vec::new(),
+        shielded: shield.is_some(),
     };
     Ok((report, outcome))
 }

@@ -46,7 +46,7 @@ pub mod trainer;
 pub use config::{ConfigFileError, Td3Config, TrainConfig};
 pub use evaluation::{
     BatchActor, DetourBucket, EvalReport, HELD_OUT_MAX_STEPS, Mission, evaluate, evaluate_held_out,
-    mission_set,
+    evaluate_shielded, mission_set,
 };
 pub use observation::{InputLayout, Scaling};
 pub use policy::{Policy, PolicyError, PolicyMetadata};

@@ -237,6 +237,7 @@ mod tests {
                 missions: episodes,
                 success_rate,
             }],
+            shielded: false,
         }
     }
 

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, EnvError, NavEnv, Outcome, World};
 
 use crate::config::TrainConfig;
-use crate::evaluation::{BatchActor, EvalReport, Mission, evaluate, mission_set};
+use crate::evaluation::{BatchActor, EvalReport, Mission, evaluate_shielded, mission_set};
 use crate::observation::{ACTION_DIM, Scaling};
 use crate::policy::{PolicyError, PolicyMetadata, write_atomic, write_policy};
 use crate::replay::{Batch, ReplayBuffer};
@@ -831,15 +831,17 @@ impl Trainer {
         Ok(report)
     }
 
-    /// Evaluates the current actor on `missions` in the training world.
+    /// Evaluates the current actor on `missions` in the training world (behind the shield
+    /// when it trains behind it: the best actor is chosen as it will drive).
     pub fn evaluate(&self, missions: &[Mission]) -> Result<EvalReport, TrainError> {
-        Ok(evaluate(
+        Ok(evaluate_shielded(
             &self.learner,
             &self.world,
             &self.env_config,
             &self.options.scaling,
             missions,
             self.options.config.eval_seed,
+            self.shield.as_ref(),
         )?)
     }
 

@@ -318,6 +318,13 @@ fn a_shielded_training_drives_random_actions_without_a_collision() {
             .unwrap();
         let episodes = trainer.episodes();
         assert!(episodes.len() > 10, "{} episodes", episodes.len());
+        // Its policy is measured as it will drive: behind the shield when trained behind it.
+        assert_eq!(trainer.evaluate(&[]).unwrap().shielded, shielded);
+        let export = dir.path().join("policy");
+        trainer.export(&export, serde_json::json!({})).unwrap();
+        let policy = Policy::load(&export).unwrap();
+        let held_out = learning::evaluate_held_out(&policy, &room(), 4, 1, true).unwrap();
+        assert_eq!(held_out.shielded, shielded);
         episodes.iter().filter(|e| e.outcome == "collision").count()
     };
     assert!(
