@@ -76,14 +76,14 @@ impl JobError {
         Self::Fatal(e.to_string())
     }
 
-    /// Whether the attempt failed for want of disk space (said so, or an error whose text is a
-    /// full disk's): not the job's fault, so it neither fails the job nor uses an attempt.
-    pub fn is_out_of_space(&self) -> bool {
-        match self {
-            Self::OutOfSpace(_) => true,
-            Self::Retryable(m) | Self::Fatal(m) => edge::disk::is_out_of_space(m),
-            Self::Stopped(_) => false,
-            Self::Queue(e) => edge::disk::is_out_of_space(&e.to_string()),
+    /// `OutOfSpace` when `message` (the text of an error writing the job's own files) says
+    /// the disk is full, else `otherwise(message)`. Only a handler's own file errors are
+    /// classified so: a message quoting a user's input must never defer a job forever.
+    pub fn unless_out_of_space(message: String, otherwise: fn(String) -> Self) -> Self {
+        if edge::disk::is_out_of_space(&message) {
+            Self::OutOfSpace(message)
+        } else {
+            otherwise(message)
         }
     }
 }
@@ -655,7 +655,7 @@ async fn run_job(
         }
         Ok(Err(JobError::Queue(QueueError::LeaseLost { .. }))) => Outcome::Lost,
         Ok(Err(_)) if reason == Some(StopReason::LeaseLost) => Outcome::Lost,
-        Ok(Err(e)) if reason.is_none() && e.is_out_of_space() => {
+        Ok(Err(e @ JobError::OutOfSpace(_))) if reason.is_none() => {
             let message = format!("waiting for disk space: {e}");
             tracing::warn!(%job, error = %e, "the disk is full; the job goes back to the queue");
             record(&queue, &lease, |q, l| {

@@ -282,6 +282,10 @@ fn train_blocking(
         learning::trainer::TrainError::OutOfMemory(_) => {
             JobError::Retryable(format!("training: {e}"))
         }
+        // A checkpoint that found the disk full waits for space instead of failing the job.
+        learning::trainer::TrainError::Checkpoint { .. } => {
+            JobError::unless_out_of_space(format!("training: {e}"), JobError::Fatal)
+        }
         _ => JobError::Fatal(format!("training: {e}")),
     };
     let mut trainer = if Trainer::has_checkpoint(&out_dir) {
@@ -358,7 +362,7 @@ fn train_blocking(
     std::fs::create_dir_all(&staged).map_err(|e| io("creating the staging directory", e))?;
     trainer.export(&staged, summary.clone()).map_err(|e| {
         let _ = std::fs::remove_dir_all(&staged);
-        JobError::Retryable(format!("exporting the policy: {e}"))
+        JobError::unless_out_of_space(format!("exporting the policy: {e}"), JobError::Retryable)
     })?;
     let policy = Policy::load(&staged)
         .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
