@@ -120,6 +120,9 @@ pub struct Config {
     /// Where training checkpoints go [default: `<data_dir>/checkpoints`]; shared by all
     /// workers, so whichever takes a job over can resume it.
     pub checkpoints_dir: Option<PathBuf>,
+    /// Serve the console's pages from this directory instead of the copy built into the
+    /// binary (front-end development: `npm run build` without rebuilding the binary).
+    pub console_dir: Option<PathBuf>,
 }
 
 impl Default for Config {
@@ -156,6 +159,7 @@ impl Default for Config {
             job_retention_days: 30.0,
             policies_dir: None,
             checkpoints_dir: None,
+            console_dir: None,
         }
     }
 }
@@ -547,6 +551,14 @@ impl Config {
         edge::disk::DiskWatch::new(&self.data_dir, self.min_free_bytes)
     }
 
+    /// Where the console's pages come from.
+    pub fn console_pages(&self) -> crate::console::Pages {
+        match &self.console_dir {
+            Some(dir) => crate::console::Pages::Directory(dir.clone()),
+            None => crate::console::Pages::Embedded,
+        }
+    }
+
     /// The connection limits of the HTTP server.
     pub fn serve_limits(&self) -> edge::serve::ServeLimits {
         edge::serve::ServeLimits {
@@ -561,7 +573,10 @@ impl Config {
         use axum::http::Method;
         edge::guard::Guard::new(edge::guard::GuardConfig {
             tokens,
-            public_routes: vec!["/healthz", "/readyz", "/metrics"],
+            public_routes: ["/healthz", "/readyz", "/metrics"]
+                .into_iter()
+                .chain(crate::console::PUBLIC_ROUTES)
+                .collect(),
             large_body_routes: vec![
                 (Method::POST, "/v1/maps"),
                 (Method::POST, "/sparql"),

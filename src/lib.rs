@@ -12,6 +12,7 @@
 
 pub mod cli;
 pub mod config;
+pub mod console;
 mod health;
 pub mod startup;
 pub mod telemetry;

@@ -277,6 +277,10 @@ fn router(config: &Config, components: Arc<Components>, stopping: CancellationTo
         .merge(worker::api::router(jobs))
         .merge(knowledge::api::router(knowledge.clone()))
         .merge(knowledge::protocol::router(knowledge))
+        .merge(
+            crate::console::router(config.console_pages())
+                .layer(tower_http::compression::CompressionLayer::new()),
+        )
         .fallback(edge::middleware::not_found);
     edge::middleware::stack_guarded(
         app,

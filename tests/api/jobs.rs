@@ -197,6 +197,32 @@ async fn a_training_job_streams_its_events_and_exports_a_policy_that_downloads_a
     // Its checkpoint is gone with it.
     assert!(!app.data_dir.join("checkpoints").join(&id).exists());
 
+    // Its learning curves stay, with the policy: one CSV row per episode, and the picture.
+    let csv = app
+        .request(Method::GET, &format!("/v1/jobs/{id}/curves.csv"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(csv.status(), 200);
+    let csv = csv.text().await.unwrap();
+    assert!(
+        csv.starts_with("episode,env_steps,wall_s,reward,outcome"),
+        "{csv}"
+    );
+    let rows = csv.lines().count() - 1;
+    assert!(
+        rows as u64 >= result["episodes"].as_u64().unwrap().min(1),
+        "{csv}"
+    );
+    let png = app
+        .request(Method::GET, &format!("/v1/jobs/{id}/curves.png"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(png.status(), 200);
+    assert_eq!(png.headers()["content-type"], "image/png");
+    assert!(png.bytes().await.unwrap().starts_with(b"\x89PNG"));
+
     // Listed, described and downloadable.
     let list: Vec<Value> = app
         .request(Method::GET, "/v1/policies")

@@ -6,6 +6,7 @@
 )]
 
 mod bounds;
+mod console;
 mod health;
 mod helpers;
 mod jobs;

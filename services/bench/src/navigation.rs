@@ -109,9 +109,10 @@ impl Default for NavigationBenchOptions {
 /// the roadmap re-sampled after a failed attempt; `plan_endpoint` is exactly what `POST /v1/plan`
 /// answers: `hybrid_prm_rl_resampled`, then the classical follower (also re-sampled) for a leg
 /// the policy validated in no attempt. `hybrid_policy_roadmap*` are the shielded policy on the
-/// policy-aware roadmap (PRM-RL: the map's geometric roadmap with only the edges the policy
-/// drove in at least 90% of 10 rollouts per direction, weighted by length and risk), first
-/// attempt and with re-tries (same roadmap, new noise).
+/// policy-aware roadmap as `options.roadmap: auto` plans on it (PRM-RL: the map's geometric
+/// roadmap with every edge direction driven 10 times by the policy, weighted by length and
+/// risk; directions under 90% success only where the kept ones join no route, at 100 m more),
+/// first attempt and with re-tries (same roadmap, new noise).
 pub const METHODS: [&str; 9] = [
     "hybrid_policy_roadmap",
     "hybrid_policy_roadmap_resampled",
@@ -489,7 +490,11 @@ fn run_map(
                 seed: opts.seed,
                 ..rehearsal::EdgeRolloutParams::default()
             };
-            let (roadmap, report) = rehearsal::policy_roadmap(world, &geometric, p, &rollout)
+            let (_, report) = rehearsal::policy_roadmap(world, &geometric, p, &rollout)
+                .map_err(|e| plan_err(name, &e))?;
+            // What the plan endpoint's `auto` plans on: every measured direction, the unkept
+            // ones only where the kept ones join no route.
+            let roadmap = rehearsal::reweight_with_unkept(&geometric, &report)
                 .map_err(|e| plan_err(name, &e))?;
             let edges = PolicyEdges {
                 map: name.to_owned(),
@@ -624,6 +629,7 @@ fn run_map(
                 sim_seed: mix(seed, 0x0707),
                 initial_velocity: Action::default(),
                 stop: rehearsal::Stop::default(),
+                trace: false,
             },
             None,
         )

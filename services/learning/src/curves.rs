@@ -72,6 +72,26 @@ pub fn curves_csv(episodes: &[EpisodeRecord]) -> String {
     s
 }
 
+/// Writes `curves.csv` and `curves.png` (the reward's moving statistics) of `episodes` into
+/// `dir`.
+pub fn write_curves(dir: &Path, title: &str, episodes: &[EpisodeRecord]) -> Result<(), PlotError> {
+    let csv = dir.join(CSV_FILE);
+    std::fs::write(&csv, curves_csv(episodes)).map_err(|e| PlotError {
+        path: csv.display().to_string(),
+        message: e.to_string(),
+    })?;
+    plot_curves(
+        &dir.join(PNG_FILE),
+        title,
+        &[("reward".into(), smooth(episodes))],
+    )
+}
+
+/// The curves' file names.
+pub const CSV_FILE: &str = "curves.csv";
+/// See [`CSV_FILE`].
+pub const PNG_FILE: &str = "curves.png";
+
 /// Why a plot could not be drawn.
 #[derive(Debug, thiserror::Error)]
 #[error("plot {path}: {message}")]

@@ -149,17 +149,12 @@ pub fn run(
 
     // Curves.
     let episodes = trainer.episodes();
-    write(run.out.join("curves.csv"), curves::curves_csv(episodes))?;
     let title = format!(
         "TD3 in the mental simulation of {} (β1 = β2 = {})",
         map_name(&run.map),
         config.td3.beta1
     );
-    curves::plot_curves(
-        &run.out.join("curves.png"),
-        &title,
-        &[("reward".into(), curves::smooth(episodes))],
-    )?;
+    curves::write_curves(&run.out, &title, episodes)?;
     let mut evals_csv = String::from(
         "env_steps,wall_s,success_rate,collision_rate,timeout_rate,mean_time_to_goal_s,mean_return\n",
     );

@@ -436,6 +436,23 @@ impl Trainer {
             || previous_checkpoint(out_dir).is_some()
     }
 
+    /// The episodes recorded in `out_dir`'s checkpoint, for the curves of a run in progress;
+    /// `None` without a readable checkpoint.
+    pub fn checkpointed_episodes(out_dir: &Path) -> Option<Vec<EpisodeRecord>> {
+        #[derive(Deserialize)]
+        struct Episodes {
+            episodes: Vec<EpisodeRecord>,
+        }
+        let mut dir = out_dir.join(CHECKPOINT_DIR);
+        if !dir.join("state.json").is_file() {
+            dir = previous_checkpoint(out_dir)?;
+        }
+        let bytes = std::fs::read(dir.join("state.json")).ok()?;
+        serde_json::from_slice::<Episodes>(&bytes)
+            .ok()
+            .map(|e| e.episodes)
+    }
+
     /// Continues the run checkpointed in `options.out_dir`. Its configuration comes from the
     /// checkpoint; `options.config` must equal it (a changed configuration is refused, named).
     pub fn resume(world: Arc<World>, options: TrainOptions) -> Result<Trainer, TrainError> {

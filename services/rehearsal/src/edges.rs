@@ -209,7 +209,24 @@ impl EdgeReport {
         (e.success_rate() >= self.params.keep_threshold)
             .then(|| e.length_m + risk_m * -e.success_estimate().ln())
     }
+
+    /// [`EdgeReport::cost`] for every measured direction, those below the keep threshold
+    /// included at [`UNKEPT_PENALTY_M`] more: a search takes them only where the kept ones join
+    /// no route within that detour, and then the ones the controller most likely drives.
+    pub fn cost_with_unkept(&self, from: usize, to: usize, risk_m: f64) -> Option<f64> {
+        let e = self.edges.iter().find(|e| e.from == from && e.to == to)?;
+        let penalty = if e.success_rate() >= self.params.keep_threshold {
+            0.0
+        } else {
+            UNKEPT_PENALTY_M
+        };
+        Some(e.length_m + risk_m * -e.success_estimate().ln() + penalty)
+    }
 }
+
+/// Metres of detour a route on the complete policy-aware roadmap
+/// ([`reweight_with_unkept`]) accepts to avoid one edge direction below the keep threshold.
+pub const UNKEPT_PENALTY_M: f64 = 100.0;
 
 /// Drives both directions of every edge of `roadmap` with the controllers `make` returns (one
 /// per worker thread; each is attached to `world` first), as the module docs describe.
@@ -304,6 +321,7 @@ where
                                 Action::default()
                             },
                             stop: grid::Stop::never(),
+                            trace: false,
                         },
                         None,
                     )?;
@@ -372,6 +390,21 @@ pub fn policy_roadmap(
 pub fn reweight(roadmap: &Roadmap, report: &EdgeReport) -> Result<Arc<Roadmap>, PlanError> {
     roadmap
         .reweighted(|a, b, _| report.cost(a, b, RISK_M))
+        .map(Arc::new)
+        .map_err(|e| PlanError::Map(e.to_string()))
+}
+
+/// The complete policy-aware roadmap of `roadmap`: every measured direction, weighted by
+/// length and risk ([`RISK_M`]), the ones below the keep threshold at [`UNKEPT_PENALTY_M`]
+/// more. Where the kept directions join start and goal it plans the same routes as
+/// [`reweight`]'s (within that detour); where they do not, the route the controller most
+/// likely finishes rather than none. What `options.roadmap: auto` plans on.
+pub fn reweight_with_unkept(
+    roadmap: &Roadmap,
+    report: &EdgeReport,
+) -> Result<Arc<Roadmap>, PlanError> {
+    roadmap
+        .reweighted(|a, b, _| report.cost_with_unkept(a, b, RISK_M))
         .map(Arc::new)
         .map_err(|e| PlanError::Map(e.to_string()))
 }

@@ -24,8 +24,8 @@ use crate::cache::{RoadmapCache, SpaceEntry};
 use crate::controller::{ClassicalFollower, Controller, PolicyController};
 use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
 use crate::types::{
-    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PlanOptions, PlanReport, PlanRequest,
-    RoadmapChoice, RoadmapInfo, RoadmapKind,
+    AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, LaserTrace, LegReport,
+    PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
 };
 
 /// Most goals one request may carry.
@@ -255,6 +255,7 @@ pub fn validate_with_fallback(
                         sim_seed: leg_seed(opts.seed, attempt, leg),
                         initial_velocity: Action::default(),
                         stop: request.stop.clone(),
+                        trace: opts.trace,
                     },
                     Some(replanner),
                 )?;
@@ -280,6 +281,9 @@ pub fn validate_with_fallback(
                     goals_reached,
                     prm_path_length_m: legs.length_m,
                     end_pose: run.end_pose,
+                    trace: opts.trace.then(|| {
+                        attempt_trace(&run, &legs.waypoints, driver.env.control_period, opts)
+                    }),
                 });
                 if run.outcome == AttemptOutcome::Reached {
                     done = Some(ValidatedLeg {
@@ -306,7 +310,7 @@ pub fn validate_with_fallback(
         validated.push(leg_run);
     }
     let roadmap = validated[0].roadmap.clone();
-    Ok(assemble(
+    let mut report = assemble(
         start,
         primary_kind,
         controller_description,
@@ -314,7 +318,40 @@ pub fn validate_with_fallback(
         validated,
         attempts,
         roadmap,
-    ))
+    );
+    if opts.trace {
+        let laser = &world.spec().robot.laser;
+        report.laser = Some(LaserTrace {
+            angles_rad: laser
+                .beam_angles(drivers[0].env.beams)
+                .unwrap_or_default()
+                .into_iter()
+                .map(|a| a + laser.mount.yaw)
+                .collect(),
+            max_range_m: laser.range_max,
+            control_period_s: drivers[0].env.control_period,
+        });
+    }
+    Ok(report)
+}
+
+/// An attempt's drive as [`PlanOptions::trace`] reports it, thinned by the trajectory stride.
+fn attempt_trace(
+    run: &DriveRun,
+    path: &[Point2],
+    control_period_s: f64,
+    opts: &PlanOptions,
+) -> AttemptTrace {
+    let kept = stride_indices(run.trajectory.len(), opts.trajectory_stride.max(1));
+    AttemptTrace {
+        path: path.to_vec(),
+        times_s: kept.iter().map(|&i| i as f64 * control_period_s).collect(),
+        poses: kept.iter().map(|&i| run.trajectory[i]).collect(),
+        ranges: kept
+            .iter()
+            .filter_map(|&i| run.ranges.get(i).cloned())
+            .collect(),
+    }
 }
 
 /// The simulation seed of one attempt on one leg: the first leg's are those of a one-leg plan.
@@ -381,6 +418,7 @@ fn assemble(
         roadmap,
         legs: leg_reports,
         attempts,
+        laser: None,
     }
 }
 
@@ -741,6 +779,8 @@ pub struct DriveLimits {
     /// Polled every few simulated steps: once requested, the drive ends with
     /// [`PlanError::Stopped`].
     pub stop: grid::Stop,
+    /// Record the laser ranges the controller saw at every step ([`DriveRun::ranges`]).
+    pub trace: bool,
 }
 
 /// Replans from the robot's position to a goal: the remaining waypoints of the leg, or why not.
@@ -767,6 +807,9 @@ pub struct DriveRun {
     pub goal_indices: Vec<usize>,
     /// Every pose of the drive.
     pub trajectory: Vec<Pose2>,
+    /// The laser ranges the controller saw at every pose of `trajectory`, when
+    /// [`DriveLimits::trace`] asked for them (else empty).
+    pub ranges: Vec<Vec<f32>>,
     /// Where the robot ended.
     pub end_pose: Pose2,
 }
@@ -821,12 +864,19 @@ pub fn drive(
     let mut reached = Vec::new();
     let mut goal_indices = Vec::new();
     let mut time_s;
+    let mut ranges = Vec::new();
+    if limits.trace {
+        ranges.push(obs.ranges.clone());
+    }
     let (outcome, reason) = loop {
         if steps_on_waypoint.is_multiple_of(64) && limits.stop.requested() {
             return Err(PlanError::Stopped);
         }
         let action = controller.command(&obs, env.pose(), (current.0.x, current.0.y));
         let step = env.step(action);
+        if limits.trace {
+            ranges.push(step.observation.ranges.clone());
+        }
         time_s = step.info.time_s;
         if step.info.min_clearance.is_finite() {
             min_clearance = min_clearance.min(step.info.min_clearance);
@@ -940,6 +990,7 @@ pub fn drive(
         goal_indices,
         end_pose: env.pose(),
         trajectory,
+        ranges,
     })
 }
 
@@ -974,15 +1025,21 @@ fn polyline_length(start: Pose2, points: &[Point2]) -> f64 {
 
 /// Every `n`-th pose and the last; none for `n == 0`.
 fn stride(poses: &[Pose2], n: u32) -> Vec<Pose2> {
-    if n == 0 {
+    stride_indices(poses.len(), n)
+        .into_iter()
+        .map(|i| poses[i])
+        .collect()
+}
+
+/// Every `n`-th index below `len` and the last one (none for `n` = 0).
+fn stride_indices(len: usize, n: u32) -> Vec<usize> {
+    if n == 0 || len == 0 {
         return Vec::new();
     }
     let n = n as usize;
-    let mut out: Vec<Pose2> = poses.iter().step_by(n).copied().collect();
-    if let Some(&last) = poses.last()
-        && !(poses.len() - 1).is_multiple_of(n)
-    {
-        out.push(last);
+    let mut out: Vec<usize> = (0..len).step_by(n).collect();
+    if !(len - 1).is_multiple_of(n) {
+        out.push(len - 1);
     }
     out
 }

@@ -35,7 +35,8 @@ pub mod types;
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
 pub use controller::{ClassicalFollower, Controller, FollowerParams, PolicyController, Shield};
 pub use edges::{
-    EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, drive_edges, policy_roadmap, reweight,
+    EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, UNKEPT_PENALTY_M, drive_edges,
+    policy_roadmap, reweight, reweight_with_unkept,
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
@@ -44,8 +45,8 @@ pub use executor::{
 };
 pub use planning_grid::planning_grid;
 pub use types::{
-    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PlanOptions, PlanReport, PlanRequest,
-    RoadmapChoice, RoadmapInfo, RoadmapKind,
+    AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, LaserTrace, LegReport,
+    PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
 };
 
 pub use grid::{Stop, StopOnDrop};

@@ -29,6 +29,9 @@ pub struct PlanOptions {
     pub trajectory_stride: u32,
     /// Which roadmap the policy plans on when a policy-aware one is given (default `Auto`).
     pub roadmap: RoadmapChoice,
+    /// Record every attempt's drive (poses, the laser ranges the controller saw, the planned
+    /// path) in its report, for replaying the rehearsal (default false).
+    pub trace: bool,
 }
 
 /// Which roadmap the policy plans on.
@@ -57,6 +60,7 @@ impl Default for PlanOptions {
             noise: true,
             trajectory_stride: 1,
             roadmap: RoadmapChoice::Auto,
+            trace: false,
         }
     }
 }
@@ -149,6 +153,32 @@ pub struct AttemptReport {
     pub prm_path_length_m: f64,
     /// Where the robot ended.
     pub end_pose: Pose2,
+    /// The drive step by step, when [`PlanOptions::trace`] asked for it.
+    pub trace: Option<AttemptTrace>,
+}
+
+/// One attempt's drive, step by step (every `trajectory_stride`-th step, and the last).
+#[derive(Clone, Debug, PartialEq)]
+pub struct AttemptTrace {
+    /// The roadmap path planned at the start of the attempt (its waypoints).
+    pub path: Vec<Point2>,
+    /// Simulated time of each recorded step, seconds.
+    pub times_s: Vec<f64>,
+    /// The robot's pose at each recorded step.
+    pub poses: Vec<Pose2>,
+    /// The laser ranges the controller saw at each recorded step, metres, rightmost beam first.
+    pub ranges: Vec<Vec<f32>>,
+}
+
+/// The laser as a trace's ranges read it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LaserTrace {
+    /// Angle of each beam in the robot frame, radians, rightmost first.
+    pub angles_rad: Vec<f64>,
+    /// Longest range, metres (a beam that hits nothing reads it).
+    pub max_range_m: f64,
+    /// Simulated seconds per step.
+    pub control_period_s: f64,
 }
 
 /// A plan validated in the mental simulation.
@@ -184,6 +214,8 @@ pub struct PlanReport {
     pub trajectory: Vec<Pose2>,
     /// The roadmap of the first leg's validating run.
     pub roadmap: RoadmapInfo,
+    /// The laser as the attempts' traces read it, when [`PlanOptions::trace`] asked for them.
+    pub laser: Option<LaserTrace>,
 }
 
 /// One leg of a validated plan: from the start (leg 0) or the previous goal to goal

@@ -108,6 +108,38 @@ fn the_follower_drives_the_edges_and_a_bad_controller_loses_them() {
             None => assert!(e.success_rate() < 0.9, "{e:?}"),
         }
     }
+    // The complete policy-aware roadmap prices every direction: the unkept ones at the
+    // penalty more, so a route takes them only where no kept route joins start and goal.
+    for e in &bad.edges {
+        let c = bad
+            .cost_with_unkept(e.from, e.to, 10.0)
+            .expect("every direction");
+        match bad.cost(e.from, e.to, 10.0) {
+            Some(kept) => assert!((c - kept).abs() < 1e-9, "{e:?}"),
+            None => assert!(c >= e.length_m + rehearsal::UNKEPT_PENALTY_M, "{e:?}"),
+        }
+    }
+    let kept_only = rehearsal::reweight(&map, &bad).expect("reweighted");
+    let complete = rehearsal::reweight_with_unkept(&map, &bad).expect("reweighted");
+    let opts = QueryOptions {
+        no_densify: true,
+        ..QueryOptions::default()
+    };
+    // Deep in the left part, where every edge in is unkept: only the complete roadmap goes.
+    let (start, goal) = (Point2::new(8.0, 2.0), Point2::new(1.5, 2.0));
+    let into_left = complete.query(start, goal, opts);
+    assert!(into_left.is_ok(), "{into_left:?}");
+    let kept_route = kept_only.query(start, goal, opts);
+    if let Ok(route) = kept_route {
+        // Where kept edges do join them, the complete roadmap plans the same route.
+        assert_eq!(into_left.unwrap().waypoints, route.waypoints);
+    }
+    // On the right, where everything is kept, both plan the same route.
+    let (a, b) = (Point2::new(6.0, 2.0), Point2::new(8.0, 6.5));
+    assert_eq!(
+        kept_only.query(a, b, opts).expect("kept route").waypoints,
+        complete.query(a, b, opts).expect("route").waypoints
+    );
 }
 
 #[test]

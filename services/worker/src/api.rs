@@ -34,9 +34,9 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
-    paths(create_job, list_jobs, get_job, cancel_job, job_events, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan),
+    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan, crate::plan_api::roadmap_view::get_roadmap),
     components(
-        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, ErrorCode, crate::plan_api::types::PlanApiRequestDoc, crate::plan_api::PlanApiResponse),
+        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, ErrorCode, crate::plan_api::types::PlanApiRequestDoc, crate::plan_api::PlanApiResponse, crate::plan_api::roadmap_view::RoadmapView, crate::plan_api::roadmap_view::EdgeView),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
@@ -148,6 +148,8 @@ pub fn router(state: Arc<JobsApi>) -> Router {
         .route("/v1/jobs/{id}", get(get_job))
         .route("/v1/jobs/{id}/cancel", post(cancel_job))
         .route("/v1/jobs/{id}/events", get(job_events))
+        .route("/v1/jobs/{id}/curves.csv", get(job_curves_csv))
+        .route("/v1/jobs/{id}/curves.png", get(job_curves_png))
         .route("/v1/policies", get(list_policies))
         .route("/v1/policies/{id}", get(get_policy))
         .route("/v1/policies/{id}/policy.safetensors", get(policy_weights))
@@ -763,4 +765,118 @@ async fn policy_metadata(
 ) -> Result<Response, ApiError> {
     api.tokens.authenticate(&headers)?;
     download(&api, &id, METADATA, "application/json").await
+}
+
+/// Where a training job's curves come from.
+enum CurvesSource {
+    /// Written beside the exported policy.
+    Files(std::path::PathBuf),
+    /// The episodes of the job's latest checkpoint (a run in progress).
+    Episodes(Vec<learning::trainer::EpisodeRecord>),
+}
+
+/// The curves of training job `id`: the exported policy's files once it succeeded, else its
+/// latest checkpoint's episodes; 404 for other kinds and before the first checkpoint.
+async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
+    let id = job_id(id)?;
+    let job = api
+        .queue()
+        .await?
+        .get(id)
+        .await
+        .map_err(queue_error)?
+        .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
+    if job.kind != "train" {
+        return Err(ApiError::not_found(format!(
+            "job {id} is a `{}` job: only `train` jobs have learning curves",
+            job.kind
+        )));
+    }
+    let policy_dir = job
+        .result
+        .as_ref()
+        .and_then(|r| r["policy_id"].as_str())
+        .and_then(|p| api.env.policies.path(p));
+    if let Some(dir) = policy_dir.filter(|d| d.join(learning::curves::CSV_FILE).is_file()) {
+        return Ok(CurvesSource::Files(dir));
+    }
+    let checkpoint_dir = job
+        .checkpoint
+        .as_ref()
+        .and_then(|c| c.data["dir"].as_str())
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| api.env.checkpoints_dir.join(id.to_string()));
+    let episodes = tokio::task::spawn_blocking(move || {
+        learning::trainer::Trainer::checkpointed_episodes(&checkpoint_dir)
+    })
+    .await
+    .map_err(|e| ApiError::internal(format!("reading the checkpoint failed: {e}")))?;
+    match episodes {
+        Some(e) if !e.is_empty() => Ok(CurvesSource::Episodes(e)),
+        _ => Err(ApiError::not_found(format!(
+            "job {id} has no learning curve yet: its first checkpoint (or its exported policy) \
+             holds the first points; its progress events have the running figures"
+        ))),
+    }
+}
+
+/// A training job's learning curves as CSV: one row per episode with its reward, outcome and
+/// the moving mean, standard deviation and success rate over 100 episodes (the columns of
+/// `mentalsim train`'s `curves.csv`). From the latest checkpoint while it runs.
+#[utoipa::path(get, path = "/v1/jobs/{id}/curves.csv", params(("id" = String, Path, format = "uuid", description = "A training job's id.")), responses(
+    (status = 200, content_type = "text/csv", body = String),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No job has this id, it is not a training job, or it has no curve point yet.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+async fn job_curves_csv(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    let csv = match curves_of(&api, &id).await? {
+        CurvesSource::Files(dir) => tokio::fs::read_to_string(dir.join(learning::curves::CSV_FILE))
+            .await
+            .map_err(|e| ApiError::internal(format!("reading the curves: {e}")))?,
+        CurvesSource::Episodes(episodes) => learning::curves::curves_csv(&episodes),
+    };
+    Ok(([(header::CONTENT_TYPE, "text/csv; charset=utf-8")], csv).into_response())
+}
+
+/// A training job's learning curve as a PNG (reward per episode: moving mean ± one standard
+/// deviation over 100 episodes, like the paper's Figure 10).
+#[utoipa::path(get, path = "/v1/jobs/{id}/curves.png", params(("id" = String, Path, format = "uuid", description = "A training job's id.")), responses(
+    (status = 200, content_type = "image/png", body = Vec<u8>),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No job has this id, it is not a training job, or it has no curve point yet.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+async fn job_curves_png(
+    State(api): State<Arc<JobsApi>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    api.tokens.authenticate(&headers)?;
+    let source = curves_of(&api, &id).await?;
+    let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
+        match source {
+            CurvesSource::Files(dir) => {
+                std::fs::read(dir.join(learning::curves::PNG_FILE)).map_err(|e| e.to_string())
+            }
+            CurvesSource::Episodes(episodes) => {
+                let tmp = tempfile::tempdir().map_err(|e| e.to_string())?;
+                let path = tmp.path().join(learning::curves::PNG_FILE);
+                learning::curves::plot_curves(
+                    &path,
+                    &crate::jobs::train::curves_title(&id),
+                    &[("reward".into(), learning::curves::smooth(&episodes))],
+                )
+                .map_err(|e| e.to_string())?;
+                std::fs::read(&path).map_err(|e| e.to_string())
+            }
+        }
+    })
+    .await
+    .map_err(|e| ApiError::internal(format!("plotting the curves failed: {e}")))?
+    .map_err(|e| ApiError::internal(format!("the curves' picture: {e}")))?;
+    Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }

@@ -9,6 +9,11 @@
 //!   `details`).
 
 pub mod error;
+#[allow(
+    unused_qualifications,
+    reason = "utoipa's path macro expands the query extractor's type with its span"
+)]
+pub mod roadmap_view;
 pub mod types;
 
 use std::collections::HashMap;
@@ -86,7 +91,8 @@ pub struct PlanApiResponse {
 pub struct PlanApi {
     jobs: Arc<JobsApi>,
     /// Policy-aware roadmaps (PRM-RL) read from the store, applied to their geometric roadmaps.
-    policy_roadmaps: Mutex<HashMap<RoadmapKey, Arc<planning::Roadmap>>>,
+    /// Keyed with whether the unkept directions are in (`auto`) or not (`policy`).
+    policy_roadmaps: Mutex<HashMap<(RoadmapKey, bool), Arc<planning::Roadmap>>>,
     /// The roadmap job enqueued per key by this process, so a burst of plans enqueues one.
     roadmap_jobs: tokio::sync::Mutex<HashMap<RoadmapKey, uuid::Uuid>>,
     /// Loaded policies by id, with the modification time of the weights they were read from
@@ -261,6 +267,10 @@ const POLICY_ROADMAPS: usize = 16;
 pub fn router(state: Arc<PlanApi>) -> Router {
     Router::new()
         .route("/v1/plan", post(plan))
+        .route(
+            "/v1/roadmaps",
+            axum::routing::get(roadmap_view::get_roadmap),
+        )
         .with_state(state)
 }
 
@@ -482,7 +492,8 @@ async fn plan(
                 .policy_roadmaps
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner)
-                .contains_key(key);
+                .keys()
+                .any(|(k, _)| k == key);
             in_memory || api.jobs.env.policy_roadmaps.contains(key)
         }
         None => false,
@@ -531,9 +542,13 @@ async fn plan(
                 .map(PlanReport::from)
                 .map_err(|e| e.to_api_error());
         };
+        // `auto` plans on every measured direction (the unkept ones only where the kept ones
+        // join no route); `policy` on the kept ones alone.
+        let with_unkept = choice == RoadmapChoice::Auto;
         let policy_roadmap = match roadmap_key.filter(|_| stored) {
             None => None,
             Some(key) => {
+                let key = (key, with_unkept);
                 let cached = api2
                     .policy_roadmaps
                     .lock()
@@ -545,9 +560,10 @@ async fn plan(
                     None => {
                         let loaded = crate::jobs::roadmap::load_policy_roadmap(
                             &api2.jobs.env.policy_roadmaps,
-                            &key,
+                            &key.0,
                             &world,
                             api2.roadmaps(),
+                            with_unkept,
                         )
                         .map_err(|m| ApiError::internal(format!("the stored policy-aware roadmap: {m}")))?;
                         if let Some(r) = &loaded {

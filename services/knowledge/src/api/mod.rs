@@ -28,7 +28,8 @@ use self::on_demand::{
     __path_floor_on_demand_database, __path_on_demand_database, OnDemandRequest, WaypointDoc,
 };
 use self::places::{
-    __path_get_place, __path_list_places, __path_place_map, __path_world_sdf, PlaceView,
+    __path_get_place, __path_list_objects, __path_list_places, __path_place_map, __path_world_sdf,
+    ObjectPose, ObjectView, PlaceView,
 };
 use self::robots::{__path_get_robot, __path_list_robots, __path_robot_urdf, RobotView};
 use crate::service::Knowledge;
@@ -37,9 +38,9 @@ use crate::service::Knowledge;
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
-    paths(list_places, get_place, place_map, world_sdf, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database, floor_on_demand_database),
+    paths(me, list_places, get_place, place_map, world_sdf, list_objects, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database, floor_on_demand_database),
     components(
-        schemas(PlaceView, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
+        schemas(Me, PlaceView, ObjectView, ObjectPose, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
@@ -53,7 +54,11 @@ pub fn router(knowledge: Arc<Knowledge>) -> Router {
         .route("/v1/places", get(places::list_places))
         .route("/v1/places/{id}", get(places::get_place))
         .route("/v1/places/{id}/map.png", get(places::place_map))
-        .route("/v1/places/{id}/objects", post(objects::report_object))
+        .route(
+            "/v1/places/{id}/objects",
+            get(places::list_objects).post(objects::report_object),
+        )
+        .route("/v1/me", get(me))
         .route("/v1/places/{id}/world.sdf", get(places::world_sdf))
         .route("/v1/robots/{id}/robot.urdf", get(robots::robot_urdf))
         .route("/v1/robots", get(robots::list_robots))
@@ -65,4 +70,31 @@ pub fn router(knowledge: Arc<Knowledge>) -> Router {
             get(on_demand::floor_on_demand_database),
         )
         .with_state(knowledge)
+}
+
+/// Who a token belongs to.
+#[derive(serde::Serialize, utoipa::ToSchema)]
+pub struct Me {
+    /// The token holder's name (a robot's id, a person's name).
+    name: String,
+    /// `engineer` (reads and writes everything) or `robot` (reads, plans, reports objects).
+    role: &'static str,
+}
+
+/// The token's holder and role: what the console offers follows it.
+#[utoipa::path(get, path = "/v1/me", responses(
+    (status = 200, body = Me),
+    (status = 401, response = edge::error::responses::Unauthorized)))]
+async fn me(
+    axum::extract::State(k): axum::extract::State<Arc<Knowledge>>,
+    headers: axum::http::HeaderMap,
+) -> Result<axum::Json<Me>, edge::ApiError> {
+    let principal = k.tokens.authenticate(&headers)?;
+    Ok(axum::Json(Me {
+        name: principal.name,
+        role: match principal.role {
+            edge::Role::Engineer => "engineer",
+            edge::Role::Robot => "robot",
+        },
+    }))
 }

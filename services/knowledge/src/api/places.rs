@@ -183,31 +183,107 @@ pub(super) async fn world_sdf(
 ) -> Result<Response, ApiError> {
     k.tokens.authenticate(&headers)?;
     let sdf = blocking(move || {
-        let store = k.store()?;
-        let places = on_demand::all_places(&store)?;
-        let place = &places[find_place(&places, &id)?];
-        let floor = on_demand::containers(|iri| places.iter().find(|q| q.iri == iri), place)?
-            .into_iter()
-            .find(|p| p.kind == PlaceKind::Floor);
-        let floor = floor.ok_or_else(|| {
-            ApiError::new(
-                ErrorCode::Unprocessable,
-                format!(
-                    "{} is on no floor: only floors and the places on them have a world",
-                    place.iri
-                ),
-            )
-        })?;
-        let db = on_demand::floor_database(&store, &floor.iri, query.robot.as_deref())?;
-        let graph: Graph = db.triples.into_iter().collect();
-        let spec = sim::parse_floor(&graph, &db.robot, &floor.iri).map_err(|p| {
-            ApiError::new(
-                ErrorCode::Unprocessable,
-                format!("the stored knowledge does not make a world: {p}"),
-            )
-        })?;
+        let spec = floor_spec(&k, &id, query.robot.as_deref())?;
         Ok(sim::export::world_sdf(&spec))
     })
     .await?;
     Ok(([(header::CONTENT_TYPE, "application/xml")], sdf).into_response())
+}
+
+/// The world the simulation parser makes of the floor `id` is on (or is), with `robot` in it.
+fn floor_spec(k: &Knowledge, id: &str, robot: Option<&str>) -> Result<sim::WorldSpec, ApiError> {
+    let store = k.store()?;
+    let places = on_demand::all_places(&store)?;
+    let place = &places[find_place(&places, id)?];
+    let floor = on_demand::containers(|iri| places.iter().find(|q| q.iri == iri), place)?
+        .into_iter()
+        .find(|p| p.kind == PlaceKind::Floor);
+    let floor = floor.ok_or_else(|| {
+        ApiError::new(
+            ErrorCode::Unprocessable,
+            format!(
+                "{} is on no floor: only floors and the places on them have a world",
+                place.iri
+            ),
+        )
+    })?;
+    let db = on_demand::floor_database(&store, &floor.iri, robot)?;
+    let graph: Graph = db.triples.into_iter().collect();
+    sim::parse_floor(&graph, &db.robot, &floor.iri).map_err(|p| {
+        ApiError::new(
+            ErrorCode::Unprocessable,
+            format!("the stored knowledge does not make a world: {p}"),
+        )
+    })
+}
+
+/// An object as the simulation sees it: what the console draws on a floor's map.
+#[derive(Serialize, ToSchema)]
+pub struct ObjectView {
+    /// The object's IRI.
+    iri: String,
+    /// Its TOSM class (local name or IRI), when stated.
+    class: Option<String>,
+    /// `box`, `cylinder` or `sphere`.
+    shape: &'static str,
+    /// Bounding-box extents along the object's x, y and z axes, metres.
+    size: [f64; 3],
+    /// Pose of the bounding-box centre in the floor frame: x, y, z in metres, yaw in radians.
+    pose: ObjectPose,
+    /// Colour as `#rrggbb`.
+    colour: String,
+    /// Whether the simulation stands in a placeholder of the object's own shape (no library
+    /// model for its class).
+    placeholder: bool,
+    /// For doors: whether the leaf is open.
+    open: bool,
+}
+
+/// Where an object stands.
+#[derive(Serialize, ToSchema)]
+pub struct ObjectPose {
+    x: f64,
+    y: f64,
+    z: f64,
+    yaw: f64,
+}
+
+/// Every object on the floor a place is on (or of that floor), as the simulation parser builds
+/// it from the on-demand database: shape, size, pose, colour, and whether it is a placeholder.
+#[utoipa::path(get, path = "/v1/places/{id}/objects", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier.")), responses(
+    (status = 200, body = [ObjectView]),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No place has this IRI or identifier, or there is no robot to make a world with.", body = ErrorBody),
+    (status = 422, description = "The place is on no floor, or the stored knowledge does not make a world.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+pub(super) async fn list_objects(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<Vec<ObjectView>>, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    blocking(move || {
+        let spec = floor_spec(&k, &id, None)?;
+        Ok(Json(
+            spec.objects
+                .iter()
+                .map(|o| ObjectView {
+                    iri: o.id.clone(),
+                    class: o.class.clone(),
+                    shape: o.shape.name(),
+                    size: [o.size.x, o.size.y, o.size.z],
+                    pose: ObjectPose {
+                        x: o.pose.x,
+                        y: o.pose.y,
+                        z: o.pose.z,
+                        yaw: o.pose.yaw,
+                    },
+                    colour: o.colour.to_hex(),
+                    placeholder: sim::library::model_for(o) == sim::library::Model::Placeholder,
+                    open: o.open,
+                })
+                .collect(),
+        ))
+    })
+    .await
 }

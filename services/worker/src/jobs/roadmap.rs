@@ -333,11 +333,14 @@ pub fn geometric_roadmap(
 
 /// The stored roadmap of `key` applied to the geometric roadmap of `world`: `Ok(None)` when
 /// none is stored, an error when the stored one does not fit (another geometric roadmap).
+/// `with_unkept`: the complete policy-aware roadmap ([`rehearsal::reweight_with_unkept`], what
+/// `options.roadmap: auto` plans on), else only the kept directions (`policy`).
 pub fn load_policy_roadmap(
     store: &RoadmapStore,
     key: &RoadmapKey,
     world: &Arc<World>,
     roadmaps: &rehearsal::RoadmapCache,
+    with_unkept: bool,
 ) -> Result<Option<Arc<planning::Roadmap>>, String> {
     let Some(stored) = store.get(key) else {
         return Ok(None);
@@ -355,9 +358,14 @@ pub fn load_policy_roadmap(
             "the stored policy-aware roadmap was built over another geometric roadmap".into(),
         );
     }
-    rehearsal::reweight(&geometric, &stored.report())
-        .map(Some)
-        .map_err(|e| e.to_string())
+    let report = stored.report();
+    if with_unkept {
+        rehearsal::reweight_with_unkept(&geometric, &report)
+    } else {
+        rehearsal::reweight(&geometric, &report)
+    }
+    .map(Some)
+    .map_err(|e| e.to_string())
 }
 
 /// The payload of the roadmap job for `policy` on `place` (the plan endpoint's and an export's).

@@ -251,6 +251,11 @@ impl JobHandler for TrainHandler {
     }
 }
 
+/// The title of a training job's curves.
+pub fn curves_title(job: impl std::fmt::Display) -> String {
+    format!("TD3 in the mental simulation: training job {job}")
+}
+
 /// Where this job checkpoints: the directory the queue's checkpoint names when it holds a
 /// checkpoint here, else `<checkpoints_dir>/<job id>`.
 fn checkpoint_dir(ctx: &JobContext, checkpoints_dir: &Path) -> PathBuf {
@@ -385,6 +390,12 @@ fn train_blocking(
     trainer
         .export(&staged, summary.clone())
         .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
+    // The learning curves travel with the policy (`GET /v1/jobs/{id}/curves.csv`, `.png`).
+    if let Err(e) =
+        learning::curves::write_curves(&staged, &curves_title(ctx.id()), trainer.episodes())
+    {
+        tracing::warn!(job = %ctx.id(), error = %e, "the learning curves were not written");
+    }
     ctx.fence_blocking()?;
     env.policies
         .install(&policy_id, &staged)

@@ -108,6 +108,10 @@ pub struct PlanOptions {
     /// `policy` (only the policy-aware one: 409 while it is being built, or when no kept edge
     /// joins a leg) or `geometric`.
     pub roadmap: RoadmapChoice,
+    /// Answer every attempt's drive step by step (`attempts[].trace`: poses, the laser ranges
+    /// the controller saw, the planned path; thinned by `trajectory_stride`) and the laser's
+    /// beam angles (`laser`), to replay the rehearsal (default false).
+    pub trace: bool,
 }
 
 /// Which roadmap the policy plans on.
@@ -163,6 +167,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             noise,
             trajectory_stride,
             roadmap,
+            trace,
         } = o;
         Self {
             max_attempts,
@@ -175,6 +180,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             noise,
             trajectory_stride,
             roadmap: roadmap.into(),
+            trace,
         }
     }
 }
@@ -192,6 +198,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             noise,
             trajectory_stride,
             roadmap,
+            trace,
         } = o;
         Self {
             max_attempts,
@@ -204,6 +211,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             noise,
             trajectory_stride,
             roadmap: roadmap.into(),
+            trace,
         }
     }
 }
@@ -358,6 +366,55 @@ pub struct AttemptReport {
     pub prm_path_length_m: f64,
     /// Where the robot ended.
     pub end_pose: Pose,
+    /// The drive step by step, with `options.trace`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trace: Option<AttemptTrace>,
+}
+
+/// One attempt's drive step by step (every `trajectory_stride`-th step, and the last).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct AttemptTrace {
+    /// The roadmap path planned at the start of the attempt: its waypoints.
+    pub path: Vec<Point>,
+    /// Simulated time of each recorded step, seconds.
+    pub times_s: Vec<f64>,
+    /// The robot's pose at each recorded step.
+    pub poses: Vec<Pose>,
+    /// The laser ranges the controller saw at each recorded step (with the simulation's
+    /// noise), metres, in the order of `laser.angles_rad`.
+    pub ranges: Vec<Vec<f32>>,
+}
+
+impl From<rehearsal::AttemptTrace> for AttemptTrace {
+    fn from(t: rehearsal::AttemptTrace) -> Self {
+        Self {
+            path: t.path.into_iter().map(Into::into).collect(),
+            times_s: t.times_s,
+            poses: t.poses.into_iter().map(Into::into).collect(),
+            ranges: t.ranges,
+        }
+    }
+}
+
+/// The laser as the traces' ranges read it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct LaserTrace {
+    /// Angle of each beam in the robot frame, radians (counter-clockwise, 0 ahead).
+    pub angles_rad: Vec<f64>,
+    /// Longest range, metres: a beam that hits nothing reads it.
+    pub max_range_m: f64,
+    /// Simulated seconds per step.
+    pub control_period_s: f64,
+}
+
+impl From<rehearsal::LaserTrace> for LaserTrace {
+    fn from(l: rehearsal::LaserTrace) -> Self {
+        Self {
+            angles_rad: l.angles_rad,
+            max_range_m: l.max_range_m,
+            control_period_s: l.control_period_s,
+        }
+    }
 }
 
 impl From<rehearsal::AttemptReport> for AttemptReport {
@@ -377,6 +434,7 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
             goals_reached,
             prm_path_length_m,
             end_pose,
+            trace,
         } = a;
         Self {
             attempt,
@@ -393,6 +451,7 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
             goals_reached,
             prm_path_length_m,
             end_pose: end_pose.into(),
+            trace: trace.map(Into::into),
         }
     }
 }
@@ -431,6 +490,9 @@ pub struct PlanReport {
     pub trajectory: Vec<Pose>,
     /// The roadmap of the first leg's validating run.
     pub roadmap: RoadmapInfo,
+    /// The laser as `attempts[].trace` reads it, with `options.trace`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub laser: Option<LaserTrace>,
 }
 
 impl From<rehearsal::PlanReport> for PlanReport {
@@ -450,6 +512,7 @@ impl From<rehearsal::PlanReport> for PlanReport {
             replans,
             trajectory,
             roadmap,
+            laser,
         } = r;
         Self {
             waypoints: waypoints.into_iter().map(Into::into).collect(),
@@ -466,6 +529,7 @@ impl From<rehearsal::PlanReport> for PlanReport {
             replans,
             trajectory: trajectory.into_iter().map(Into::into).collect(),
             roadmap: roadmap.into(),
+            laser: laser.map(Into::into),
         }
     }
 }

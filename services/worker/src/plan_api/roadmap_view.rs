@@ -1,0 +1,210 @@
+//! `GET /v1/roadmaps`: the roadmap a plan on a floor starts on, as nodes and edges for the
+//! console and for robots that draw it: the geometric roadmap of the robot's configuration
+//! space, and, with a policy whose policy-aware roadmap is stored, each edge's measured success
+//! probability and time and whether the policy keeps it.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use axum::Json;
+use axum::extract::State;
+use axum::http::HeaderMap;
+use edge::{ApiError, ErrorCode, Role};
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use super::PlanApi;
+use crate::jobs::RoadmapKey;
+use crate::jobs::roadmap::{StoredEdge, geometric_roadmap, nodes_fingerprint};
+use crate::jobs::source::SourceError;
+
+/// Which roadmap.
+#[derive(Debug, Deserialize, IntoParams)]
+pub struct RoadmapQuery {
+    /// A floor or a place on one: identifier or IRI.
+    pub place: String,
+    /// The robot whose footprint inflates the free space: identifier or IRI.
+    pub robot: String,
+    /// A policy: its policy-aware roadmap's measurements, where stored.
+    #[param(nullable = false)]
+    pub policy: Option<String>,
+    /// Clearance kept beyond the robot's radius, metres [default: the plan endpoint's, 0.1].
+    #[param(nullable = false)]
+    pub safety_margin_m: Option<f64>,
+}
+
+/// A roadmap as nodes and undirected edges in the floor frame.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RoadmapView {
+    /// `geometric`, or `policy` when the edges carry a stored policy-aware roadmap's
+    /// measurements.
+    pub kind: &'static str,
+    /// The floor's IRI.
+    pub floor: String,
+    /// The policy whose measurements the edges carry.
+    pub policy: Option<String>,
+    /// Why there are none, when a policy was named.
+    pub note: Option<String>,
+    /// Samples n (Eq. 19).
+    pub samples: usize,
+    /// The roadmap's seed (a plan's first attempt plans on seed 0).
+    pub seed: u64,
+    /// Robot radius plus safety margin the free space was inflated by, metres.
+    pub inflation_m: f64,
+    /// Node positions `[x, y]`, metres.
+    pub nodes: Vec<[f64; 2]>,
+    /// Edges between node indices.
+    pub edges: Vec<EdgeView>,
+}
+
+/// One edge.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct EdgeView {
+    /// One end (index into `nodes`).
+    pub a: usize,
+    /// The other end.
+    pub b: usize,
+    /// Length, metres.
+    pub length_m: f64,
+    /// The policy's measured success rate, the worse of the two directions.
+    pub success: Option<f64>,
+    /// Mean simulated time of the successful rollouts, both directions, seconds.
+    pub mean_time_s: Option<f64>,
+    /// Whether the policy-aware roadmap keeps both directions (success at or above the keep
+    /// threshold); `null` without measurements.
+    pub kept: Option<bool>,
+}
+
+/// The roadmap of a floor for a robot, and a policy's measurements of its edges.
+#[utoipa::path(get, path = "/v1/roadmaps", params(RoadmapQuery), responses(
+    (status = 200, body = RoadmapView),
+    (status = 400, description = "A query parameter is missing or malformed.", body = edge::ErrorBody),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No such place, robot or policy.", body = edge::ErrorBody),
+    (status = 422, description = "The place is on no floor, the knowledge does not make a world, or the margin is out of range.", body = edge::ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+pub async fn get_roadmap(
+    State(api): State<Arc<PlanApi>>,
+    headers: HeaderMap,
+    axum::extract::Query(query): axum::extract::Query<RoadmapQuery>,
+) -> Result<Json<RoadmapView>, ApiError> {
+    api.jobs.tokens.require(&headers, Role::Robot)?;
+    let margin = query
+        .safety_margin_m
+        .unwrap_or(rehearsal::PlanOptions::default().safety_margin_m);
+    if !(0.0..=5.0).contains(&margin) {
+        return Err(ApiError::new(
+            ErrorCode::Unprocessable,
+            format!("safety_margin_m must be within 0–5 m, not {margin}"),
+        )
+        .with_details(serde_json::json!({"field": "safety_margin_m"})));
+    }
+    let db = api
+        .jobs
+        .env
+        .knowledge
+        .floor_database(&query.place, &query.robot)
+        .await
+        .map_err(|e| match e {
+            SourceError::NotFound(m) => ApiError::new(ErrorCode::NotFound, m),
+            SourceError::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m),
+            SourceError::Unavailable(m) => ApiError::new(ErrorCode::NotReady, m),
+        })?;
+    let key = match &query.policy {
+        None => None,
+        Some(id) => {
+            if api.jobs.env.policies.metadata(id).is_none() {
+                return Err(ApiError::not_found(format!("no policy `{id}`")));
+            }
+            let loaded = api.policy(id).await?;
+            let params = rehearsal::EdgeRolloutParams::default();
+            Some(RoadmapKey {
+                floor_state: db.version.clone(),
+                policy: id.clone(),
+                weights: loaded.weights,
+                margin_bits: margin.to_bits(),
+                rollouts: params.rollouts,
+                keep_bits: params.keep_threshold.to_bits(),
+            })
+        }
+    };
+    let api2 = Arc::clone(&api);
+    tokio::task::spawn_blocking(move || -> Result<RoadmapView, ApiError> {
+        let world = db
+            .world()
+            .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
+        let roadmap = geometric_roadmap(&world, api2.roadmaps(), &db.version, margin)
+            .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
+        let stored = key
+            .as_ref()
+            .and_then(|k| api2.jobs.env.policy_roadmaps.get(k))
+            .filter(|s| {
+                s.nodes == roadmap.nodes().count()
+                    && s.nodes_fingerprint == nodes_fingerprint(&roadmap)
+            });
+        let note = match (&key, &stored) {
+            (Some(_), None) => Some(
+                "no policy-aware roadmap of this floor state and policy is stored yet (a plan \
+                 with the policy enqueues its `roadmap` job): the edges carry no measurements"
+                    .to_owned(),
+            ),
+            _ => None,
+        };
+        let directions: HashMap<(usize, usize), &StoredEdge> = stored
+            .iter()
+            .flat_map(|s| s.edges.iter().map(|e| ((e.from, e.to), e)))
+            .collect();
+        let keep = rehearsal::EdgeRolloutParams::default().keep_threshold;
+        let nodes: Vec<[f64; 2]> = roadmap.nodes().map(|p| [p.x, p.y]).collect();
+        let edges = roadmap
+            .edges()
+            .map(|(a, b)| {
+                let length_m = (nodes[a][0] - nodes[b][0]).hypot(nodes[a][1] - nodes[b][1]);
+                let measured: Vec<&StoredEdge> = [(a, b), (b, a)]
+                    .iter()
+                    .filter_map(|d| directions.get(d).copied())
+                    .collect();
+                let success = (!measured.is_empty()).then(|| {
+                    measured
+                        .iter()
+                        .map(|e| f64::from(e.successes) / f64::from(e.rollouts.max(1)))
+                        .fold(1.0, f64::min)
+                });
+                let (t, n) = measured
+                    .iter()
+                    .filter_map(|e| {
+                        e.mean_time_s
+                            .map(|t| (t * f64::from(e.successes), e.successes))
+                    })
+                    .fold((0.0, 0u32), |(t, n), (et, es)| (t + et, n + es));
+                EdgeView {
+                    a,
+                    b,
+                    length_m,
+                    success,
+                    mean_time_s: (n > 0).then(|| t / f64::from(n)),
+                    kept: success.map(|p| p >= keep - 1e-9 && measured.len() == 2),
+                }
+            })
+            .collect();
+        let params = roadmap.params();
+        Ok(RoadmapView {
+            kind: if stored.is_some() {
+                "policy"
+            } else {
+                "geometric"
+            },
+            floor: db.floor.clone(),
+            policy: query.policy.clone(),
+            note,
+            samples: params.samples,
+            seed: params.seed,
+            inflation_m: roadmap.cspace().inflation().total_m(),
+            nodes,
+            edges,
+        })
+    })
+    .await
+    .map_err(|e| ApiError::internal(format!("roadmap task failed: {e}")))?
+    .map(Json)
+}
