@@ -147,6 +147,9 @@ pub struct TrainConfig {
     /// Measure progress along the shortest path through the free region rather than in a
     /// straight line (`sim::RewardConfig::geodesic`).
     pub geodesic_reward: bool,
+    /// Charge per second spent within 15 cm of an obstacle, at contact
+    /// (`sim::RewardConfig::clearance`); 0: none.
+    pub clearance_reward: f64,
     /// Probability that an episode which reached its goal is followed by one from the same pose
     /// and velocity with a new goal (`sim::NavEnv::continue_random`), as when a plan's next
     /// waypoint is handed over; otherwise the next episode starts from rest somewhere else.
@@ -204,6 +207,7 @@ impl Default for TrainConfig {
             curriculum: true,
             heading_reward: 0.5,
             geodesic_reward: true,
+            clearance_reward: 0.0,
             chain_goals: 0.5,
             time_cost: 1.0,
             goals_in_view: true,
@@ -422,7 +426,8 @@ impl TrainConfig {
         if let Some((name, value, max)) = reals.iter().find(|(_, v, max)| *v > *max) {
             return Err(format!("{name} must be at most {max}, got {value}"));
         }
-        let more: [(&str, f64, f64); 4] = [
+        let more: [(&str, f64, f64); 5] = [
+            ("clearance_reward", self.clearance_reward.abs(), 1e6),
             ("checkpoint_every_s", self.checkpoint_every_s, 86_400.0),
             ("time_cost", self.time_cost, 1e6),
             ("heading_reward", self.heading_reward.abs(), 1e6),

@@ -91,6 +91,7 @@ impl TrainOptions {
                 time_per_step: self.config.time_per_step_reward,
                 heading: self.config.heading_reward,
                 geodesic: self.config.geodesic_reward,
+                clearance: self.config.clearance_reward,
                 time: self.config.time_cost,
                 ..self.env.reward
             },

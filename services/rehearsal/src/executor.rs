@@ -190,8 +190,12 @@ pub fn validate_with_fallback(
         let mut done = None;
         'drivers: for (d, driver) in drivers.iter_mut().enumerate() {
             let on_policy_roadmap = d == 0 && policy_roadmap.is_some();
+            // On the policy-aware roadmap only driven edges join the roadmap's nodes. `policy`
+            // never densifies; `auto` densifies where they join no route (a start or goal that
+            // no node within reach sees in a straight line, a gap the build left), as the
+            // start and goal links, which no rollout drove either.
             let query = QueryOptions {
-                no_densify: on_policy_roadmap,
+                no_densify: on_policy_roadmap && opts.roadmap == RoadmapChoice::Policy,
                 ..QueryOptions::default()
             };
             for attempt in 1..=opts.max_attempts {

@@ -96,7 +96,16 @@ pub struct RewardConfig {
     /// path. Potential-based like the straight form, but a detour round a wall to its door is
     /// progress instead of a loss. Costs one coarse Dijkstra per goal.
     pub geodesic: bool,
+    /// Charged per second while the footprint is closer than [`CLEARANCE_BAND_M`] to an
+    /// obstacle, in proportion to how far inside the band it is (the full amount at contact).
+    /// Not potential-based, on purpose: it trades a little time for clearance, so a policy
+    /// stops brushing past door frames. 0 turns it off.
+    pub clearance: f64,
 }
+
+/// Clearance under which [`RewardConfig::clearance`] charges, metres: a little more than a
+/// near miss (10 cm), so the charge starts before one.
+pub const CLEARANCE_BAND_M: f64 = 0.15;
 
 impl Default for RewardConfig {
     fn default() -> Self {
@@ -109,6 +118,7 @@ impl Default for RewardConfig {
             time_per_step: false,
             heading: 0.0,
             geodesic: false,
+            clearance: 0.0,
         }
     }
 }
@@ -665,6 +675,13 @@ impl NavEnv {
                 }
                 Outcome::Running | Outcome::TimeLimit if distance < self.distance => r.closer,
                 Outcome::Running | Outcome::TimeLimit => 0.0,
+            }
+            - if self.outcome == Outcome::Collision || !min_clearance.is_finite() {
+                0.0
+            } else {
+                r.clearance
+                    * dt
+                    * ((CLEARANCE_BAND_M - min_clearance) / CLEARANCE_BAND_M).clamp(0.0, 1.0)
             };
         self.distance = distance;
         let observation = self.observe();

@@ -39,8 +39,8 @@ pub mod world;
 
 pub use batch::{EnvBatch, env_seed};
 pub use env::{
-    EnvConfig, EnvError, NavEnv, NoiseConfig, Observation, Outcome, RewardConfig, StepInfo,
-    StepResult,
+    CLEARANCE_BAND_M, EnvConfig, EnvError, NavEnv, NoiseConfig, Observation, Outcome, RewardConfig,
+    StepInfo, StepResult,
 };
 pub use field::PathField;
 pub use floors::{FloorParams, generate_floor};

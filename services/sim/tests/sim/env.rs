@@ -373,6 +373,41 @@ fn the_progress_reward_pays_for_distance_gained_and_charges_for_distance_lost() 
     );
 }
 
+#[test]
+fn the_clearance_charge_applies_only_close_to_obstacles() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    // A lane along the bottom wall 5 cm from it, and one down the middle of the room.
+    let near_y = (0..400)
+        .map(|k| 0.1 + f64::from(k) * 0.002)
+        .find(|&y| world.clearance(6.0, y) >= 0.05)
+        .expect("a lane 5 cm from the wall");
+    let rewards = |clearance: f64, y: f64| {
+        let mut config = quiet();
+        config.reward.progress = true;
+        config.reward.clearance = clearance;
+        let mut env = NavEnv::new(Arc::clone(&world), config, 1).expect("env");
+        env.reset(Pose2::new(4.0, y, 0.0), (9.0, y)).expect("reset");
+        (0..5)
+            .map(|_| env.step(Action::new(0.4, 0.0)))
+            .map(|r| (r.reward, r.info.min_clearance))
+            .collect::<Vec<_>>()
+    };
+    let dt = quiet().control_period;
+    for ((charged, c), (free, _)) in rewards(2.0, near_y).into_iter().zip(rewards(0.0, near_y)) {
+        let expected = 2.0 * dt * (sim::CLEARANCE_BAND_M - c) / sim::CLEARANCE_BAND_M;
+        assert!(c < sim::CLEARANCE_BAND_M, "{c}");
+        assert!(
+            (free - charged - expected).abs() < 1e-9,
+            "{free} {charged} {expected}"
+        );
+    }
+    assert_eq!(
+        rewards(2.0, 4.0),
+        rewards(0.0, 4.0),
+        "nothing is charged mid-room"
+    );
+}
+
 /// After a goal, `continue_random` starts the next episode where the robot is, moving as it
 /// was, with a new goal in range; after anything else it is a random reset.
 #[test]
