@@ -148,7 +148,9 @@ pub struct TrainConfig {
     /// straight line (`sim::RewardConfig::geodesic`).
     pub geodesic_reward: bool,
     /// Charge per second spent within 15 cm of an obstacle, at contact
-    /// (`sim::RewardConfig::clearance`); 0: none.
+    /// (`sim::RewardConfig::clearance`); 0: none. Measured with the fast preset (10 minutes
+    /// each, side by side, `mentalsim bench edges` on the 11 shared maps): 2.0 gave 98.83% of
+    /// edge rollouts with 4.51% near misses against 98.98% and 4.13% without, so it stays 0.
     pub clearance_reward: f64,
     /// Probability that an episode which reached its goal is followed by one from the same pose
     /// and velocity with a new goal (`sim::NavEnv::continue_random`), as when a plan's next
