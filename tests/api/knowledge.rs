@@ -613,3 +613,66 @@ async fn the_http_knowledge_source_reuses_its_database_until_a_write() {
     assert!(third.graph.len() > first.graph.len());
     app.stop().await;
 }
+
+#[tokio::test]
+async fn every_shared_map_exports_as_map_server_files_that_import_to_the_same_grid() {
+    let Some(yamls) = shared_ros_maps() else {
+        return;
+    };
+    let app = spawn_app().await;
+    let get = |path: String| {
+        let request = app.request(Method::GET, &path);
+        async move {
+            let r = request.send().await.unwrap();
+            assert_eq!(r.status(), 200, "{path}");
+            r.bytes().await.unwrap().to_vec()
+        }
+    };
+    for (i, yaml_path) in yamls.iter().enumerate() {
+        let yaml = std::fs::read_to_string(yaml_path).unwrap();
+        let meta = tosm::RosMapMeta::parse_yaml(&yaml).unwrap();
+        let image = std::fs::read(yaml_path.parent().unwrap().join(&meta.image)).unwrap();
+        let (a, b) = (format!("round-trip-a-{i}"), format!("round-trip-b-{i}"));
+        assert_eq!(import(&app, &a, &yaml, image).await.status(), 201);
+        let yaml1 = String::from_utf8(get(format!("/v1/places/{a}/map.yaml")).await).unwrap();
+        let pgm1 = get(format!("/v1/places/{a}/map.pgm")).await;
+        assert!(pgm1.starts_with(b"P5\n"), "{}", yaml_path.display());
+        // The exported pair imports as nav2's map_server reads it, to the same grid.
+        let exported = tosm::RosMapMeta::parse_yaml(&yaml1).unwrap();
+        assert_eq!(exported.image, "map.pgm");
+        assert_eq!(exported.resolution, meta.resolution, "{}", yaml_path.display());
+        assert_eq!(exported.origin, meta.origin, "{}", yaml_path.display());
+        assert_eq!(import(&app, &b, &yaml1, pgm1.clone()).await.status(), 201);
+        let yaml2 = String::from_utf8(get(format!("/v1/places/{b}/map.yaml")).await).unwrap();
+        let pgm2 = get(format!("/v1/places/{b}/map.pgm")).await;
+        assert_eq!(yaml1, yaml2, "{}", yaml_path.display());
+        assert!(pgm1 == pgm2, "{}: the grids differ", yaml_path.display());
+        assert!(
+            get(format!("/v1/places/{a}/map.png")).await
+                == get(format!("/v1/places/{b}/map.png")).await,
+            "{}",
+            yaml_path.display()
+        );
+    }
+    // A building is on no floor: 404 naming it.
+    let places: Vec<Value> = app
+        .request(Method::GET, "/v1/places")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let building = places.iter().find(|p| p["kind"] == "building").unwrap();
+    let id = building["id"].as_str().unwrap();
+    let r = app
+        .request(Method::GET, &format!("/v1/places/{id}/map.yaml"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 404);
+    let body: Value = r.json().await.unwrap();
+    let message = body["error"]["message"].as_str().unwrap();
+    assert!(message.contains("on no floor"), "{message}");
+    assert!(message.contains(building["iri"].as_str().unwrap()), "{message}");
+}

@@ -81,6 +81,16 @@ async fn a_plan_across_rooms_is_validated_in_the_simulation_and_reported() {
     assert!(body["distance_m"].as_f64().unwrap() > 0.0);
     assert!(body["simulated_time_s"].as_f64().unwrap() > 0.0);
     assert!(body["min_clearance_m"].as_f64().unwrap() > 0.0);
+    // The same waypoints as a ROS 2 nav_msgs/Path in the map frame, from the start.
+    assert_eq!(body["path"]["header"]["frame_id"], "map");
+    let poses = body["path"]["poses"].as_array().unwrap();
+    assert_eq!(poses.len(), waypoints.len() + 1);
+    assert!((poses[0]["pose"]["position"]["x"].as_f64().unwrap() - start.0).abs() < 1e-9);
+    let last_pose = &poses.last().unwrap()["pose"];
+    assert!((last_pose["position"]["x"].as_f64().unwrap() - goal.0).abs() < 1e-6);
+    let q = &last_pose["orientation"];
+    let norm = q["z"].as_f64().unwrap().hypot(q["w"].as_f64().unwrap());
+    assert!((norm - 1.0).abs() < 1e-9, "{q}");
     let trajectory = body["trajectory"].as_array().unwrap();
     let end = trajectory.last().unwrap();
     let d = (end["x"].as_f64().unwrap() - goal.0).hypot(end["y"].as_f64().unwrap() - goal.1);
@@ -176,6 +186,35 @@ async fn impossible_plans_get_distinct_client_errors() {
     )
     .await;
     assert!(status == 400 || status == 422, "{status}");
+}
+
+#[tokio::test]
+async fn a_plan_asked_in_a_form_it_does_not_come_in_is_a_406_naming_json() {
+    let app = spawn_app().await;
+    let body = json!({"robot": "R-001", "place": "F0", "start": {"x": 0.0, "y": 0.0}, "goal": {"x": 1.0, "y": 0.0}});
+    let r = app
+        .request(Method::POST, "/v1/plan")
+        .header("accept", "application/x-mcap")
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 406);
+    let e: Value = r.json().await.unwrap();
+    let message = e["error"]["message"].as_str().unwrap();
+    assert!(message.contains("application/json") && message.contains("application/x-mcap"), "{message}");
+    // JSON, any application type, anything: not refused for the form.
+    for accept in ["application/json", "application/*;q=0.5", "*/*", "text/html, */*;q=0.1"] {
+        let r = app
+            .request(Method::POST, "/v1/plan")
+            .header("accept", accept)
+            .json(&body)
+            .send()
+            .await
+            .unwrap();
+        assert_ne!(r.status(), 406, "{accept}");
+    }
+    app.stop().await;
 }
 
 #[tokio::test]

@@ -80,6 +80,9 @@ pub struct PlanApiResponse {
     pub note: Option<String>,
     /// Wall-clock time of the whole request in this service, milliseconds.
     pub service_ms: f64,
+    /// The start and the waypoints as a ROS 2 `nav_msgs/Path` in the floor's map frame: what
+    /// a Nav2 robot publishes or hands its controller without conversion.
+    pub path: types::RosPath,
     /// The validated waypoints and the report of the simulated runs.
     #[serde(flatten)]
     pub report: PlanReport,
@@ -274,6 +277,35 @@ pub fn router(state: Arc<PlanApi>) -> Router {
         .with_state(state)
 }
 
+/// 406 unless the request's `Accept` (when it has one) takes JSON, naming what is offered.
+fn check_accept(headers: &HeaderMap) -> Result<(), ApiError> {
+    let Some(accept) = headers.get(axum::http::header::ACCEPT) else {
+        return Ok(());
+    };
+    let text = accept.to_str().unwrap_or("");
+    let takes_json = text.split(',').any(|entry| {
+        let mut parts = entry.split(';');
+        let media = parts.next().unwrap_or("").trim().to_ascii_lowercase();
+        let refused = parts.any(|p| {
+            p.trim()
+                .strip_prefix("q=")
+                .and_then(|q| q.trim().parse::<f64>().ok())
+                .is_some_and(|q| q <= 0.0)
+        });
+        !refused && matches!(media.as_str(), "application/json" | "application/*" | "*/*")
+    });
+    if takes_json {
+        Ok(())
+    } else {
+        Err(ApiError::new(
+            ErrorCode::NotAcceptable,
+            format!(
+                "POST /v1/plan answers application/json only; the request accepts {text:?}"
+            ),
+        ))
+    }
+}
+
 /// The goals of a request that gives `goal` or `goals` (exactly one of them, non-empty).
 fn goals_of(goal: Option<Point>, goals: &[Point]) -> Result<Vec<Point>, String> {
     match (goal, goals.is_empty()) {
@@ -420,6 +452,7 @@ impl PlanValidator for ExecutorValidator {
         (status = 403, response = edge::error::responses::Forbidden),
         (status = 404, description = "Unknown robot, place or policy", body = edge::ErrorBody),
         (status = 409, description = "No attempt could validate the plan (the attempts are in the details), or `options.roadmap` is `policy` and the policy-aware roadmap is not built yet or joins no leg", body = edge::ErrorBody),
+        (status = 406, description = "The request's `Accept` takes no JSON (the answer's only form).", body = edge::ErrorBody),
         (status = 413, response = edge::error::responses::PayloadTooLarge),
         (status = 415, response = edge::error::responses::UnsupportedMediaType),
         (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type); the start or a goal is inside an obstacle, outside the map, or unreachable from the start; the place is on no floor; the map or the policy cannot be used", body = edge::ErrorBody),
@@ -434,6 +467,7 @@ async fn plan(
 ) -> Result<Json<PlanApiResponse>, ApiError> {
     let started = Instant::now();
     api.jobs.tokens.require(&headers, Role::Robot)?;
+    check_accept(&headers)?;
     let goals =
         goals_of(req.goal, &req.goals).map_err(|m| ApiError::new(ErrorCode::BadRequest, m))?;
     let db = api
@@ -627,12 +661,14 @@ async fn plan(
     } else {
         None
     };
+    let path = types::RosPath::through(&req.start, &report.waypoints, types::MAP_FRAME);
     Ok(Json(PlanApiResponse {
         robot,
         floor,
         policy: policy_id,
         note,
         service_ms: started.elapsed().as_secs_f64() * 1000.0,
+        path,
         report,
     }))
 }

@@ -287,3 +287,62 @@ pub(super) async fn list_objects(
     })
     .await
 }
+
+/// The occupancy grid of the floor the place `id` is on (or is); 404 naming the place when it
+/// is on no floor or its floor has no map.
+fn floor_grid(k: &Knowledge, id: &str) -> Result<tosm::OccupancyGrid, ApiError> {
+    let store = k.store()?;
+    let places = on_demand::all_places(&store)?;
+    let place = &places[find_place(&places, id)?];
+    let floor = on_demand::containers(|iri| places.iter().find(|q| q.iri == iri), place)?
+        .into_iter()
+        .find(|p| p.kind == PlaceKind::Floor)
+        .ok_or_else(|| {
+            ApiError::not_found(format!(
+                "{} is on no floor: only a floor and the places on it have a map",
+                place.iri
+            ))
+        })?;
+    floor.map.as_ref().map(|m| m.grid.clone()).ok_or_else(|| {
+        ApiError::not_found(format!("floor {} has no metric map", floor.iri))
+    })
+}
+
+/// The floor a place is on as nav2's `map_server` loads it: this YAML (trinary, thresholds
+/// 0.65 / 0.196, `image: map.pgm`) beside `map.pgm`. Importing the two (`POST /v1/maps`) gives
+/// the same grid back.
+#[utoipa::path(get, path = "/v1/places/{id}/map.yaml", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier.")), responses(
+    (status = 200, content_type = "application/yaml", body = String),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No place has this IRI or identifier, or it is on no floor with a map.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+pub(super) async fn place_map_yaml(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    let yaml = blocking(move || {
+        let grid = floor_grid(&k, &id)?;
+        Ok(tosm::RosMapMeta::for_grid_png("map.pgm", grid.resolution, grid.origin).to_yaml())
+    })
+    .await?;
+    Ok(([(header::CONTENT_TYPE, "application/yaml")], yaml).into_response())
+}
+
+/// The floor a place is on as a binary PGM (free 254, occupied 0, unknown 205, top row first),
+/// the image `map.yaml` names.
+#[utoipa::path(get, path = "/v1/places/{id}/map.pgm", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier.")), responses(
+    (status = 200, content_type = "image/x-portable-graymap", body = Vec<u8>),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No place has this IRI or identifier, or it is on no floor with a map.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+pub(super) async fn place_map_pgm(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    let pgm = blocking(move || Ok(floor_grid(&k, &id)?.to_pgm())).await?;
+    Ok(([(header::CONTENT_TYPE, "image/x-portable-graymap")], pgm).into_response())
+}

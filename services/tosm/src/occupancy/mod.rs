@@ -287,6 +287,27 @@ impl OccupancyGrid {
         self.try_to_png().unwrap_or_default()
     }
 
+    /// The grid as a binary PGM (P5) in `map_saver`'s convention, as nav2's `map_server` loads
+    /// it: free 254, occupied 0, unknown 205, top row first; [`RosMapMeta::for_grid_png`] with
+    /// this file's name is its YAML. Empty for a grid with zero width or height.
+    pub fn to_pgm(&self) -> Vec<u8> {
+        if self.width == 0 || self.height == 0 {
+            return Vec::new();
+        }
+        let header = format!("P5\n{} {}\n255\n", self.width, self.height);
+        let mut out = Vec::with_capacity(header.len() + self.width * self.height);
+        out.extend_from_slice(header.as_bytes());
+        for img_row in 0..self.height {
+            let row = self.height - 1 - img_row;
+            out.extend((0..self.width).map(|col| match self.get(col, row) {
+                Some(Occupancy::Free) => PNG_FREE,
+                Some(Occupancy::Occupied) => PNG_OCCUPIED,
+                Some(Occupancy::Unknown) | None => PNG_UNKNOWN,
+            }));
+        }
+        out
+    }
+
     /// Like [`OccupancyGrid::to_png`], with the encoder's error for grids that have no PNG form
     /// (zero or more than `u32::MAX` columns or rows).
     pub fn try_to_png(&self) -> Result<Vec<u8>, RosMapError> {

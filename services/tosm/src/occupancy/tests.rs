@@ -425,3 +425,20 @@ fn values_that_overflow_and_images_that_declare_too_many_pixels_are_refused() {
         "{err:?}"
     );
 }
+
+#[test]
+fn a_grid_written_as_pgm_reads_back_the_same() {
+    let mut g = OccupancyGrid::filled(5, 3, 0.05, Pose2::new(-1.0, 2.0, 0.3), Occupancy::Free);
+    g.cells[0] = Occupancy::Occupied;
+    g.cells[7] = Occupancy::Unknown;
+    g.cells[14] = Occupancy::Occupied;
+    let pgm = g.to_pgm();
+    assert!(pgm.starts_with(b"P5\n5 3\n255\n"));
+    let meta = RosMapMeta::for_grid_png("map.pgm", g.resolution, g.origin);
+    let back = OccupancyGrid::from_ros_map_server(&meta, &pgm).expect("reads back");
+    assert_eq!(back, g);
+    // The YAML reads back to the same values.
+    assert_eq!(RosMapMeta::parse_yaml(&meta.to_yaml()).expect("yaml"), meta);
+    let empty = OccupancyGrid::filled(0, 3, 0.05, Pose2::new(0.0, 0.0, 0.0), Occupancy::Free);
+    assert!(empty.to_pgm().is_empty());
+}

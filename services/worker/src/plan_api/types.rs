@@ -643,3 +643,135 @@ impl From<rehearsal::RoadmapInfo> for RoadmapInfo {
         }
     }
 }
+
+/// A path as ROS 2's `nav_msgs/Path` is written in JSON (rosbridge, `ros2 topic pub`): the
+/// start and every waypoint in the floor's map frame (REP-103: metres, x forward, z up), each
+/// facing along the path (towards the next pose; the last as it is reached).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RosPath {
+    /// `std_msgs/Header`: the frame the poses are in.
+    pub header: RosHeader,
+    /// `geometry_msgs/PoseStamped[]`.
+    pub poses: Vec<RosPoseStamped>,
+}
+
+/// `std_msgs/Header` without a stamp (the robot stamps what it publishes).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RosHeader {
+    /// The floor's map frame (`map`).
+    pub frame_id: String,
+}
+
+/// `geometry_msgs/PoseStamped`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RosPoseStamped {
+    /// The frame.
+    pub header: RosHeader,
+    /// `geometry_msgs/Pose`.
+    pub pose: RosPose,
+}
+
+/// `geometry_msgs/Pose`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RosPose {
+    /// `geometry_msgs/Point`, metres (z = 0: on the floor).
+    pub position: RosPoint,
+    /// `geometry_msgs/Quaternion`: a rotation about z by the heading.
+    pub orientation: RosQuaternion,
+}
+
+/// `geometry_msgs/Point`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RosPoint {
+    /// Metres.
+    pub x: f64,
+    /// Metres.
+    pub y: f64,
+    /// Metres.
+    pub z: f64,
+}
+
+/// `geometry_msgs/Quaternion`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RosQuaternion {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+    /// w.
+    pub w: f64,
+}
+
+/// The map frame of a floor's poses.
+pub const MAP_FRAME: &str = "map";
+
+impl RosPath {
+    /// The path from `start` through `waypoints` in `frame_id`, each pose facing the next
+    /// (the last facing as it was reached).
+    pub fn through(start: &Pose, waypoints: &[Point], frame_id: &str) -> Self {
+        let points: Vec<(f64, f64)> = std::iter::once((start.x, start.y))
+            .chain(waypoints.iter().map(|p| (p.x, p.y)))
+            .collect();
+        let mut heading = start.yaw;
+        let header = RosHeader {
+            frame_id: frame_id.to_owned(),
+        };
+        let poses = points
+            .iter()
+            .enumerate()
+            .map(|(i, &(x, y))| {
+                if let Some(&(nx, ny)) = points.get(i + 1)
+                    && (nx - x).hypot(ny - y) > 1e-9
+                {
+                    heading = (ny - y).atan2(nx - x);
+                }
+                RosPoseStamped {
+                    header: header.clone(),
+                    pose: RosPose {
+                        position: RosPoint { x, y, z: 0.0 },
+                        orientation: RosQuaternion {
+                            x: 0.0,
+                            y: 0.0,
+                            z: (heading / 2.0).sin(),
+                            w: (heading / 2.0).cos(),
+                        },
+                    },
+                }
+            })
+            .collect();
+        Self { header, poses }
+    }
+}
+
+#[cfg(test)]
+mod ros_path_tests {
+    use super::*;
+
+    #[test]
+    fn poses_face_along_the_path() {
+        let start = Pose {
+            x: 0.0,
+            y: 0.0,
+            yaw: 1.0,
+        };
+        let path = RosPath::through(
+            &start,
+            &[Point { x: 1.0, y: 0.0 }, Point { x: 1.0, y: 2.0 }],
+            MAP_FRAME,
+        );
+        assert_eq!(path.header.frame_id, "map");
+        assert_eq!(path.poses.len(), 3);
+        let yaw = |q: &RosQuaternion| 2.0 * q.z.atan2(q.w);
+        let yaws: Vec<f64> = path.poses.iter().map(|p| yaw(&p.pose.orientation)).collect();
+        assert!(yaws[0].abs() < 1e-12, "{yaws:?}");
+        assert!((yaws[1] - std::f64::consts::FRAC_PI_2).abs() < 1e-12, "{yaws:?}");
+        assert!((yaws[2] - std::f64::consts::FRAC_PI_2).abs() < 1e-12, "{yaws:?}");
+        for p in &path.poses {
+            let q = &p.pose.orientation;
+            assert!((q.z * q.z + q.w * q.w - 1.0).abs() < 1e-12);
+        }
+        assert_eq!(path.poses[2].pose.position, RosPoint { x: 1.0, y: 2.0, z: 0.0 });
+    }
+}
