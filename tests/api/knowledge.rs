@@ -640,7 +640,12 @@ async fn every_shared_map_exports_as_map_server_files_that_import_to_the_same_gr
         // The exported pair imports as nav2's map_server reads it, to the same grid.
         let exported = tosm::RosMapMeta::parse_yaml(&yaml1).unwrap();
         assert_eq!(exported.image, "map.pgm");
-        assert_eq!(exported.resolution, meta.resolution, "{}", yaml_path.display());
+        assert_eq!(
+            exported.resolution,
+            meta.resolution,
+            "{}",
+            yaml_path.display()
+        );
         assert_eq!(exported.origin, meta.origin, "{}", yaml_path.display());
         assert_eq!(import(&app, &b, &yaml1, pgm1.clone()).await.status(), 201);
         let yaml2 = String::from_utf8(get(format!("/v1/places/{b}/map.yaml")).await).unwrap();
@@ -674,5 +679,8 @@ async fn every_shared_map_exports_as_map_server_files_that_import_to_the_same_gr
     let body: Value = r.json().await.unwrap();
     let message = body["error"]["message"].as_str().unwrap();
     assert!(message.contains("on no floor"), "{message}");
-    assert!(message.contains(building["iri"].as_str().unwrap()), "{message}");
+    assert!(
+        message.contains(building["iri"].as_str().unwrap()),
+        "{message}"
+    );
 }

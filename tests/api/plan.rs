@@ -202,9 +202,17 @@ async fn a_plan_asked_in_a_form_it_does_not_come_in_is_a_406_naming_json() {
     assert_eq!(r.status(), 406);
     let e: Value = r.json().await.unwrap();
     let message = e["error"]["message"].as_str().unwrap();
-    assert!(message.contains("application/json") && message.contains("application/x-mcap"), "{message}");
+    assert!(
+        message.contains("application/json") && message.contains("application/x-mcap"),
+        "{message}"
+    );
     // JSON, any application type, anything: not refused for the form.
-    for accept in ["application/json", "application/*;q=0.5", "*/*", "text/html, */*;q=0.1"] {
+    for accept in [
+        "application/json",
+        "application/*;q=0.5",
+        "*/*",
+        "text/html, */*;q=0.1",
+    ] {
         let r = app
             .request(Method::POST, "/v1/plan")
             .header("accept", accept)

@@ -299,9 +299,7 @@ fn check_accept(headers: &HeaderMap) -> Result<(), ApiError> {
     } else {
         Err(ApiError::new(
             ErrorCode::NotAcceptable,
-            format!(
-                "POST /v1/plan answers application/json only; the request accepts {text:?}"
-            ),
+            format!("POST /v1/plan answers application/json only; the request accepts {text:?}"),
         ))
     }
 }

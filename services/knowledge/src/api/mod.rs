@@ -28,8 +28,9 @@ use self::on_demand::{
     __path_floor_on_demand_database, __path_on_demand_database, OnDemandRequest, WaypointDoc,
 };
 use self::places::{
-    __path_get_place, __path_list_objects, __path_list_places, __path_place_map_pgm, __path_place_map_yaml, __path_place_map, __path_world_sdf,
-    ObjectPose, ObjectView, PlaceView,
+    __path_get_place, __path_list_objects, __path_list_places, __path_place_map,
+    __path_place_map_pgm, __path_place_map_yaml, __path_world_sdf, ObjectPose, ObjectView,
+    PlaceView,
 };
 use self::robots::{__path_get_robot, __path_list_robots, __path_robot_urdf, RobotView};
 use crate::service::Knowledge;

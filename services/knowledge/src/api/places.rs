@@ -303,9 +303,11 @@ fn floor_grid(k: &Knowledge, id: &str) -> Result<tosm::OccupancyGrid, ApiError> 
                 place.iri
             ))
         })?;
-    floor.map.as_ref().map(|m| m.grid.clone()).ok_or_else(|| {
-        ApiError::not_found(format!("floor {} has no metric map", floor.iri))
-    })
+    floor
+        .map
+        .as_ref()
+        .map(|m| m.grid.clone())
+        .ok_or_else(|| ApiError::not_found(format!("floor {} has no metric map", floor.iri)))
 }
 
 /// The floor a place is on as nav2's `map_server` loads it: this YAML (trinary, thresholds

@@ -764,14 +764,31 @@ mod ros_path_tests {
         assert_eq!(path.header.frame_id, "map");
         assert_eq!(path.poses.len(), 3);
         let yaw = |q: &RosQuaternion| 2.0 * q.z.atan2(q.w);
-        let yaws: Vec<f64> = path.poses.iter().map(|p| yaw(&p.pose.orientation)).collect();
+        let yaws: Vec<f64> = path
+            .poses
+            .iter()
+            .map(|p| yaw(&p.pose.orientation))
+            .collect();
         assert!(yaws[0].abs() < 1e-12, "{yaws:?}");
-        assert!((yaws[1] - std::f64::consts::FRAC_PI_2).abs() < 1e-12, "{yaws:?}");
-        assert!((yaws[2] - std::f64::consts::FRAC_PI_2).abs() < 1e-12, "{yaws:?}");
+        assert!(
+            (yaws[1] - std::f64::consts::FRAC_PI_2).abs() < 1e-12,
+            "{yaws:?}"
+        );
+        assert!(
+            (yaws[2] - std::f64::consts::FRAC_PI_2).abs() < 1e-12,
+            "{yaws:?}"
+        );
         for p in &path.poses {
             let q = &p.pose.orientation;
             assert!((q.z * q.z + q.w * q.w - 1.0).abs() < 1e-12);
         }
-        assert_eq!(path.poses[2].pose.position, RosPoint { x: 1.0, y: 2.0, z: 0.0 });
+        assert_eq!(
+            path.poses[2].pose.position,
+            RosPoint {
+                x: 1.0,
+                y: 2.0,
+                z: 0.0
+            }
+        );
     }
 }
