@@ -310,11 +310,32 @@ fn floor_grid(k: &Knowledge, id: &str) -> Result<tosm::OccupancyGrid, ApiError> 
         .ok_or_else(|| ApiError::not_found(format!("floor {} has no metric map", floor.iri)))
 }
 
+/// The YAML `map_server` reads, as `GET /v1/places/{id}/map.yaml` writes it. Documentation
+/// only: the handler writes [`tosm::RosMapMeta::to_yaml`].
+#[derive(ToSchema)]
+#[allow(dead_code, reason = "read by the OpenAPI document, never built")]
+pub struct MapServerYaml {
+    /// The image file, beside the YAML: `map.pgm`.
+    image: String,
+    /// Metres per cell.
+    resolution: f64,
+    /// The lower-left cell's corner in the map frame: x, y (metres), yaw (radians).
+    origin: [f64; 3],
+    /// 0: black is occupied.
+    negate: u8,
+    /// Occupancy probability above which a cell is occupied (0.65).
+    occupied_thresh: f64,
+    /// Occupancy probability below which a cell is free (0.196).
+    free_thresh: f64,
+    /// `trinary`.
+    mode: String,
+}
+
 /// The floor a place is on as nav2's `map_server` loads it: this YAML (trinary, thresholds
 /// 0.65 / 0.196, `image: map.pgm`) beside `map.pgm`. Importing the two (`POST /v1/maps`) gives
 /// the same grid back.
 #[utoipa::path(get, path = "/v1/places/{id}/map.yaml", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier.")), responses(
-    (status = 200, content_type = "application/yaml", body = String),
+    (status = 200, content_type = "application/yaml", body = MapServerYaml),
     (status = 401, response = edge::error::responses::Unauthorized),
     (status = 404, description = "No place has this IRI or identifier, or it is on no floor with a map.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
