@@ -338,14 +338,30 @@ fn urdf_link(
     let _ = writeln!(s, "  </link>");
 }
 
-/// The robot as a URDF document: a `base_footprint` root link in the robot frame (on the floor
-/// under the drive axle's midpoint), each structural part and sensor a link on a fixed joint at
-/// its mounting pose, each wheel a link on a continuous joint about its axle, and Gazebo sensor
-/// and differential-drive tags for the laser, the cameras and the active wheels.
+/// The robot as a URDF document, framed as REP-105 asks: a `base_footprint` root link on the
+/// floor under the drive axle's midpoint, `base_link` above it at the axle's height on a fixed
+/// joint, and on `base_link` each structural part and sensor a link on a fixed joint at its
+/// mounting pose (the laser's link named after the robot's laser in the knowledge graph), each
+/// wheel a link on a continuous joint about its axle; Gazebo sensor and differential-drive tags
+/// for the laser, the cameras and the active wheels.
 pub fn robot_urdf(robot: &RobotSpec) -> String {
     let mut s = String::new();
     let mut names = HashSet::new();
     names.insert("base_footprint".to_owned());
+    names.insert("base_link".to_owned());
+    // base_link at the drive axle's height; every mounting pose is given from base_footprint.
+    let axle = robot
+        .wheels
+        .iter()
+        .filter(|w| w.active)
+        .map(|w| w.pose.z)
+        .fold(0.0, f64::max);
+    let on_base = |p: &Pose3| {
+        urdf_origin(&Pose3 {
+            z: p.z - axle,
+            ..*p
+        })
+    };
     let robot_name = unique_name(&robot.id, &mut HashSet::new());
     let _ = writeln!(s, r#"<?xml version="1.0"?>"#);
     let _ = writeln!(s, r#"<robot name="{}">"#, xml(&robot_name));
@@ -355,6 +371,11 @@ pub fn robot_urdf(robot: &RobotSpec) -> String {
         xml(&robot.id).replace("--", "- -")
     );
     let _ = writeln!(s, r#"  <link name="base_footprint"/>"#);
+    let _ = writeln!(s, r#"  <link name="base_link"/>"#);
+    let _ = writeln!(
+        s,
+        r#"  <joint name="base_joint" type="fixed"><parent link="base_footprint"/><child link="base_link"/><origin xyz="0 0 {axle}" rpy="0 0 0"/></joint>"#
+    );
     let mut laser_link = None;
     let mut camera_links = Vec::new();
     for p in &robot.parts {
@@ -362,8 +383,8 @@ pub fn robot_urdf(robot: &RobotSpec) -> String {
         urdf_link(&mut s, &name, p.shape, p.size, p.colour, p.mass, "0 0 0");
         let _ = writeln!(
             s,
-            r#"  <joint name="{name}_joint" type="fixed"><parent link="base_footprint"/><child link="{name}"/>{}</joint>"#,
-            urdf_origin(&p.pose)
+            r#"  <joint name="{name}_joint" type="fixed"><parent link="base_link"/><child link="{name}"/>{}</joint>"#,
+            on_base(&p.pose)
         );
         if p.id == robot.laser.id {
             laser_link = Some(name.clone());
@@ -389,8 +410,8 @@ pub fn robot_urdf(robot: &RobotSpec) -> String {
         );
         let _ = writeln!(
             s,
-            r#"  <joint name="{name}_joint" type="continuous"><parent link="base_footprint"/><child link="{name}"/>{}<axis xyz="0 1 0"/></joint>"#,
-            urdf_origin(&w.pose)
+            r#"  <joint name="{name}_joint" type="continuous"><parent link="base_link"/><child link="{name}"/>{}<axis xyz="0 1 0"/></joint>"#,
+            on_base(&w.pose)
         );
         if w.active {
             drive_joints.push((w.pose.y, format!("{name}_joint")));
@@ -402,8 +423,8 @@ pub fn robot_urdf(robot: &RobotSpec) -> String {
         let _ = writeln!(s, r#"  <link name="{name}"/>"#);
         let _ = writeln!(
             s,
-            r#"  <joint name="{name}_joint" type="fixed"><parent link="base_footprint"/><child link="{name}"/>{}</joint>"#,
-            urdf_origin(&robot.laser.mount)
+            r#"  <joint name="{name}_joint" type="fixed"><parent link="base_link"/><child link="{name}"/>{}</joint>"#,
+            on_base(&robot.laser.mount)
         );
         name
     });
@@ -413,8 +434,8 @@ pub fn robot_urdf(robot: &RobotSpec) -> String {
             let _ = writeln!(s, r#"  <link name="{name}"/>"#);
             let _ = writeln!(
                 s,
-                r#"  <joint name="{name}_joint" type="fixed"><parent link="base_footprint"/><child link="{name}"/>{}</joint>"#,
-                urdf_origin(&cam.mount)
+                r#"  <joint name="{name}_joint" type="fixed"><parent link="base_link"/><child link="{name}"/>{}</joint>"#,
+                on_base(&cam.mount)
             );
             camera_links.push((cam.id.clone(), name));
         }

@@ -170,7 +170,37 @@ fn the_robot_urdf_is_accepted_by_check_urdf() {
     let text = robot_urdf(&robot);
     let doc = roxmltree::Document::parse(&text).expect("well-formed XML");
     let links = doc.descendants().filter(|n| n.has_tag_name("link")).count();
-    assert_eq!(links, 1 + 1 + 3 + 1, "root, body, three wheels, laser");
+    assert_eq!(
+        links,
+        1 + 1 + 1 + 3 + 1,
+        "base_footprint, base_link, body, three wheels, laser"
+    );
+    // REP-105: base_footprint → base_link (at the axle's height) → everything else.
+    let parent_of = |child: &str| {
+        doc.descendants()
+            .filter(|n| n.has_tag_name("joint"))
+            .find(|j| {
+                j.children()
+                    .any(|c| c.has_tag_name("child") && c.attribute("link") == Some(child))
+            })
+            .and_then(|j| {
+                j.children()
+                    .find(|c| c.has_tag_name("parent"))
+                    .and_then(|c| c.attribute("link"))
+                    .map(str::to_owned)
+            })
+    };
+    assert_eq!(parent_of("base_link").as_deref(), Some("base_footprint"));
+    let children: Vec<&str> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("child"))
+        .filter_map(|c| c.attribute("link"))
+        .filter(|l| *l != "base_link")
+        .collect();
+    assert_eq!(children.len(), 5, "{children:?}");
+    for child in children {
+        assert_eq!(parent_of(child).as_deref(), Some("base_link"), "{child}");
+    }
     assert!(text.contains("<samples>690</samples>"));
     assert!(text.contains("<left_joint>left_wheel_joint</left_joint>"));
     let path = scratch("robot.urdf");
