@@ -374,7 +374,7 @@ pub fn robot_urdf(robot: &RobotSpec) -> String {
     let _ = writeln!(s, r#"  <link name="base_link"/>"#);
     let _ = writeln!(
         s,
-        r#"  <joint name="base_joint" type="fixed"><parent link="base_footprint"/><child link="base_link"/><origin xyz="0 0 {axle}" rpy="0 0 0"/></joint>"#
+        r#"  <joint name="base_footprint_joint" type="fixed"><parent link="base_footprint"/><child link="base_link"/><origin xyz="0 0 {axle}" rpy="0 0 0"/></joint>"#
     );
     let mut laser_link = None;
     let mut camera_links = Vec::new();
