@@ -230,3 +230,59 @@ async fn curves_belong_to_training_jobs() {
     );
     app.stop().await;
 }
+
+#[tokio::test]
+async fn a_floor_route_graph_is_nav2_route_server_geojson() {
+    let app = spawn_app().await;
+    let (_, roadmap) = get_json(&app, "/v1/roadmaps?place=F0&robot=R-001").await;
+    let r = app
+        .request(Method::GET, "/v1/places/F0/route-graph.geojson?robot=R-001")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.headers()["content-type"], "application/geo+json");
+    let graph: Value = r.json().await.unwrap();
+    assert_eq!(graph["type"], "FeatureCollection");
+    let features = graph["features"].as_array().unwrap();
+    let nodes: Vec<&Value> = features
+        .iter()
+        .filter(|f| f["geometry"]["type"] == "Point")
+        .collect();
+    let edges: Vec<&Value> = features
+        .iter()
+        .filter(|f| f["geometry"]["type"] == "MultiLineString")
+        .collect();
+    // What nav2_route's GeoJSON parser reads: node id and frame, edge id, startid, endid, cost.
+    assert_eq!(nodes.len(), roadmap["nodes"].as_array().unwrap().len());
+    assert_eq!(edges.len(), 2 * roadmap["edges"].as_array().unwrap().len());
+    let mut ids = std::collections::HashSet::new();
+    for f in features {
+        assert!(
+            ids.insert(f["properties"]["id"].as_u64().unwrap()),
+            "ids are unique"
+        );
+    }
+    let node_ids: std::collections::HashSet<u64> = nodes
+        .iter()
+        .map(|n| {
+            assert_eq!(n["properties"]["frame"], "map");
+            n["properties"]["id"].as_u64().unwrap()
+        })
+        .collect();
+    for e in &edges {
+        let p = &e["properties"];
+        assert!(node_ids.contains(&p["startid"].as_u64().unwrap()));
+        assert!(node_ids.contains(&p["endid"].as_u64().unwrap()));
+        assert!(p["cost"].as_f64().unwrap() > 0.0);
+        let line = &e["geometry"]["coordinates"][0];
+        assert_eq!(line.as_array().unwrap().len(), 2);
+    }
+    let r = app
+        .request(Method::GET, "/v1/places/F0/route-graph.geojson")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 400, "the robot is required");
+    app.stop().await;
+}

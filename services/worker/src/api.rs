@@ -34,7 +34,7 @@ use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
-    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan, crate::plan_api::roadmap_view::get_roadmap),
+    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan, crate::plan_api::roadmap_view::get_roadmap, crate::plan_api::roadmap_view::route_graph),
     components(
         schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, ErrorCode, crate::plan_api::types::PlanApiRequestDoc, crate::plan_api::PlanApiResponse, crate::plan_api::roadmap_view::RoadmapView, crate::plan_api::roadmap_view::EdgeView),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)

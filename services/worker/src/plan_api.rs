@@ -274,6 +274,10 @@ pub fn router(state: Arc<PlanApi>) -> Router {
             "/v1/roadmaps",
             axum::routing::get(roadmap_view::get_roadmap),
         )
+        .route(
+            "/v1/places/{id}/route-graph.geojson",
+            axum::routing::get(roadmap_view::route_graph),
+        )
         .with_state(state)
 }
 

@@ -89,6 +89,107 @@ pub async fn get_roadmap(
     axum::extract::Query(query): axum::extract::Query<RoadmapQuery>,
 ) -> Result<Json<RoadmapView>, ApiError> {
     api.jobs.tokens.require(&headers, Role::Robot)?;
+    roadmap_view(api, query).await.map(Json)
+}
+
+/// Which robot's route graph.
+#[derive(Debug, Deserialize, IntoParams)]
+pub struct RouteGraphQuery {
+    /// The robot whose footprint inflates the free space: identifier or IRI.
+    pub robot: String,
+    /// A policy: its policy-aware roadmap's measurements, where stored [default: none].
+    #[param(nullable = false)]
+    pub policy: Option<String>,
+}
+
+/// The floor's roadmap (the one `GET /v1/roadmaps` answers) as a route graph for Nav2's Route
+/// Server (`nav2_route`'s GeoJSON graph): a `FeatureCollection` of `Point` nodes (`id`,
+/// `frame`: `map`) and one `MultiLineString` edge per direction (`id`, `startid`, `endid`,
+/// `cost` in metres; `metadata.success_probability` and `metadata.mean_time_s` where a policy's
+/// rollouts measured them). Node and edge ids are unique together, as the Route Server requires.
+#[utoipa::path(get, path = "/v1/places/{id}/route-graph.geojson", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier."), RouteGraphQuery), responses(
+    (status = 200, content_type = "application/geo+json", body = Object),
+    (status = 400, description = "A query parameter is missing or malformed.", body = edge::ErrorBody),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No such place, robot or policy.", body = edge::ErrorBody),
+    (status = 422, description = "The place is on no floor, or the knowledge does not make a world.", body = edge::ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+pub async fn route_graph(
+    State(api): State<Arc<PlanApi>>,
+    headers: HeaderMap,
+    axum::extract::Path(place): axum::extract::Path<String>,
+    axum::extract::Query(query): axum::extract::Query<RouteGraphQuery>,
+) -> Result<axum::response::Response, ApiError> {
+    use axum::response::IntoResponse;
+    api.jobs.tokens.require(&headers, Role::Robot)?;
+    let view = roadmap_view(
+        api,
+        RoadmapQuery {
+            place,
+            robot: query.robot,
+            policy: query.policy,
+            safety_margin_m: None,
+        },
+    )
+    .await?;
+    Ok((
+        [(axum::http::header::CONTENT_TYPE, "application/geo+json")],
+        Json(geojson(&view)),
+    )
+        .into_response())
+}
+
+/// `view` in the Route Server's GeoJSON graph format.
+pub fn geojson(view: &RoadmapView) -> serde_json::Value {
+    use serde_json::json;
+    let frame = super::types::MAP_FRAME;
+    let mut features: Vec<serde_json::Value> = view
+        .nodes
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            json!({
+                "type": "Feature",
+                "properties": {"id": i, "frame": frame},
+                "geometry": {"type": "Point", "coordinates": [p[0], p[1]]}
+            })
+        })
+        .collect();
+    let mut next_id = view.nodes.len();
+    for e in &view.edges {
+        for (from, to) in [(e.a, e.b), (e.b, e.a)] {
+            let mut metadata = serde_json::Map::new();
+            if let Some(p) = e.success {
+                metadata.insert("success_probability".into(), json!(p));
+            }
+            if let Some(t) = e.mean_time_s {
+                metadata.insert("mean_time_s".into(), json!(t));
+            }
+            if let Some(k) = e.kept {
+                metadata.insert("kept".into(), json!(k));
+            }
+            features.push(json!({
+                "type": "Feature",
+                "properties": {
+                    "id": next_id,
+                    "startid": from,
+                    "endid": to,
+                    "cost": e.length_m,
+                    "metadata": metadata
+                },
+                "geometry": {
+                    "type": "MultiLineString",
+                    "coordinates": [[view.nodes[from], view.nodes[to]]]
+                }
+            }));
+            next_id += 1;
+        }
+    }
+    json!({"type": "FeatureCollection", "name": "graph", "features": features})
+}
+
+/// The roadmap `query` names, as `GET /v1/roadmaps` answers it.
+async fn roadmap_view(api: Arc<PlanApi>, query: RoadmapQuery) -> Result<RoadmapView, ApiError> {
     let margin = query
         .safety_margin_m
         .unwrap_or(rehearsal::PlanOptions::default().safety_margin_m);
@@ -206,5 +307,4 @@ pub async fn get_roadmap(
     })
     .await
     .map_err(|e| ApiError::internal(format!("roadmap task failed: {e}")))?
-    .map(Json)
 }
