@@ -158,6 +158,17 @@ pub fn router(state: Arc<JobsApi>) -> Router {
 }
 
 impl JobsApi {
+    /// The job `id` names; 404 for anything else.
+    async fn job(&self, id: &str) -> Result<Job, ApiError> {
+        let id = job_id(id)?;
+        self.queue()
+            .await?
+            .get(id)
+            .await
+            .map_err(queue_error)?
+            .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))
+    }
+
     async fn queue(&self) -> Result<&crate::Queue, ApiError> {
         self.queue.get().await.map_err(|reason| {
             ApiError::new(
@@ -467,15 +478,7 @@ async fn get_job(
     Path(id): Path<String>,
 ) -> Result<Json<JobView>, ApiError> {
     api.tokens.authenticate(&headers)?;
-    let id = job_id(&id)?;
-    let job = api
-        .queue()
-        .await?
-        .get(id)
-        .await
-        .map_err(queue_error)?
-        .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
-    Ok(Json(JobView::from(&job)))
+    Ok(Json(JobView::from(&api.job(&id).await?)))
 }
 
 /// Asks a job to stop: a queued job is cancelled at once; a running one stops at its next
@@ -778,14 +781,8 @@ enum CurvesSource {
 /// The curves of training job `id`: the exported policy's files once it succeeded, else its
 /// latest checkpoint's episodes; 404 for other kinds and before the first checkpoint.
 async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
-    let id = job_id(id)?;
-    let job = api
-        .queue()
-        .await?
-        .get(id)
-        .await
-        .map_err(queue_error)?
-        .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
+    let job = api.job(id).await?;
+    let id = job.id;
     if job.kind != "train" {
         return Err(ApiError::not_found(format!(
             "job {id} is a `{}` job: only `train` jobs have learning curves",
@@ -800,12 +797,8 @@ async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
     if let Some(dir) = policy_dir.filter(|d| d.join(learning::curves::CSV_FILE).is_file()) {
         return Ok(CurvesSource::Files(dir));
     }
-    let checkpoint_dir = job
-        .checkpoint
-        .as_ref()
-        .and_then(|c| c.data["dir"].as_str())
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| api.env.checkpoints_dir.join(id.to_string()));
+    let checkpoint_dir =
+        crate::jobs::train::checkpoint_dir(job.checkpoint.as_ref(), id, &api.env.checkpoints_dir);
     let episodes = tokio::task::spawn_blocking(move || {
         learning::trainer::Trainer::checkpointed_episodes(&checkpoint_dir)
     })

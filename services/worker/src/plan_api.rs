@@ -180,14 +180,32 @@ impl PlanApi {
         Ok(id)
     }
 
-    /// The policy `id`, loaded again only when its weights file changed.
-    async fn policy(&self, id: &str) -> Result<LoadedPolicy, ApiError> {
-        let dir = self
-            .jobs
+    /// The floor database of `place` for `robot`, the knowledge source's refusals as API errors.
+    async fn floor_database(
+        &self,
+        place: &str,
+        robot: &str,
+    ) -> Result<Arc<crate::jobs::source::FloorDatabase>, ApiError> {
+        self.jobs
             .env
-            .policies
-            .path(id)
-            .ok_or_else(|| ApiError::new(ErrorCode::NotFound, format!("no policy `{id}`")))?;
+            .knowledge
+            .floor_database(place, robot)
+            .await
+            .map_err(|e| match e {
+                SourceError::NotFound(m) => ApiError::new(ErrorCode::NotFound, m),
+                SourceError::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m),
+                SourceError::Unavailable(m) => ApiError::new(ErrorCode::NotReady, m),
+            })
+    }
+
+    /// The policy `id`, loaded again only when its weights file changed; 404 for a policy that
+    /// was never exported.
+    async fn policy(&self, id: &str) -> Result<LoadedPolicy, ApiError> {
+        let not_found = || ApiError::new(ErrorCode::NotFound, format!("no policy `{id}`"));
+        if self.jobs.env.policies.metadata(id).is_none() {
+            return Err(not_found());
+        }
+        let dir = self.jobs.env.policies.path(id).ok_or_else(not_found)?;
         let modified = std::fs::metadata(dir.join(learning::policy::WEIGHTS_FILE))
             .and_then(|m| m.modified())
             .ok();
@@ -472,30 +490,13 @@ async fn plan(
     check_accept(&headers)?;
     let goals =
         goals_of(req.goal, &req.goals).map_err(|m| ApiError::new(ErrorCode::BadRequest, m))?;
-    let db = api
-        .jobs
-        .env
-        .knowledge
-        .floor_database(&req.place, &req.robot)
-        .await
-        .map_err(|e| match e {
-            SourceError::NotFound(m) => ApiError::new(ErrorCode::NotFound, m),
-            SourceError::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m),
-            SourceError::Unavailable(m) => ApiError::new(ErrorCode::NotReady, m),
-        })?;
+    let db = api.floor_database(&req.place, &req.robot).await?;
 
     // The policy: the one named, else the robot's newest.
     let policies = &api.jobs.env.policies;
     let policy_id = match &req.policy {
-        Some(id) => {
-            if policies.metadata(id).is_none() {
-                return Err(ApiError::new(
-                    ErrorCode::NotFound,
-                    format!("no policy `{id}`"),
-                ));
-            }
-            Some(id.clone())
-        }
+        // An unknown one is a 404 from `PlanApi::policy` below.
+        Some(id) => Some(id.clone()),
         None => newest_policy(policies, &db.robot),
     };
     let policy = match &policy_id {
@@ -509,17 +510,9 @@ async fn plan(
     // its own), and the plan goes on the geometric roadmap (`auto`) or is refused (`policy`).
     let margin = req.options.safety_margin_m;
     let roadmap_key = match (&policy_id, &policy, choice) {
-        (Some(id), Some(loaded), RoadmapChoice::Auto | RoadmapChoice::Policy) => {
-            let params = rehearsal::EdgeRolloutParams::default();
-            Some(RoadmapKey {
-                floor_state: db.version.clone(),
-                policy: id.clone(),
-                weights: loaded.weights,
-                margin_bits: margin.to_bits(),
-                rollouts: params.rollouts,
-                keep_bits: params.keep_threshold.to_bits(),
-            })
-        }
+        (Some(id), Some(loaded), RoadmapChoice::Auto | RoadmapChoice::Policy) => Some(
+            RoadmapKey::for_plans(&db.version, id, loaded.weights, margin),
+        ),
         _ => None,
     };
     let stored = match &roadmap_key {

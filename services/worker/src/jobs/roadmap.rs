@@ -120,6 +120,20 @@ pub struct RoadmapKey {
 }
 
 impl RoadmapKey {
+    /// The key the plan endpoint looks up: `policy` (whose weights hash to `weights`) on
+    /// `floor_state` with `margin` and the default rollout parameters.
+    pub fn for_plans(floor_state: &str, policy: &str, weights: u64, margin: f64) -> Self {
+        let params = EdgeRolloutParams::default();
+        Self {
+            floor_state: floor_state.to_owned(),
+            policy: policy.to_owned(),
+            weights,
+            margin_bits: margin.to_bits(),
+            rollouts: params.rollouts,
+            keep_bits: params.keep_threshold.to_bits(),
+        }
+    }
+
     /// The key of `policy_dir`'s weights on `floor_state` with these parameters; `None` when
     /// the weights cannot be read.
     pub fn new(

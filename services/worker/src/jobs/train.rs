@@ -171,7 +171,7 @@ impl JobHandler for TrainHandler {
         if ctx.is_stopping() {
             return Err(ctx.stopped());
         }
-        let out_dir = checkpoint_dir(&ctx, &self.env.checkpoints_dir);
+        let out_dir = checkpoint_dir(ctx.checkpoint(), ctx.id(), &self.env.checkpoints_dir);
         std::fs::create_dir_all(&out_dir).map_err(|e| {
             JobError::Retryable(format!("cannot create {}: {e}", out_dir.display()))
         })?;
@@ -258,13 +258,17 @@ pub fn curves_title(job: impl std::fmt::Display) -> String {
 
 /// Where this job checkpoints: the directory the queue's checkpoint names when it holds a
 /// checkpoint here, else `<checkpoints_dir>/<job id>`.
-fn checkpoint_dir(ctx: &JobContext, checkpoints_dir: &Path) -> PathBuf {
-    let recorded = ctx
-        .checkpoint()
+/// (Also where `GET /v1/jobs/{id}/curves.csv` reads a running training's episodes.)
+pub fn checkpoint_dir(
+    checkpoint: Option<&Checkpoint>,
+    job: uuid::Uuid,
+    checkpoints_dir: &Path,
+) -> PathBuf {
+    let recorded = checkpoint
         .and_then(|c| c.data["dir"].as_str())
         .map(PathBuf::from)
         .filter(|d| Trainer::has_checkpoint(d));
-    recorded.unwrap_or_else(|| checkpoints_dir.join(ctx.id().to_string()))
+    recorded.unwrap_or_else(|| checkpoints_dir.join(job.to_string()))
 }
 
 fn train_blocking(

@@ -16,7 +16,6 @@ use utoipa::{IntoParams, ToSchema};
 use super::PlanApi;
 use crate::jobs::RoadmapKey;
 use crate::jobs::roadmap::{StoredEdge, geometric_roadmap, nodes_fingerprint};
-use crate::jobs::source::SourceError;
 
 /// Which roadmap.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -200,33 +199,17 @@ async fn roadmap_view(api: Arc<PlanApi>, query: RoadmapQuery) -> Result<RoadmapV
         )
         .with_details(serde_json::json!({"field": "safety_margin_m"})));
     }
-    let db = api
-        .jobs
-        .env
-        .knowledge
-        .floor_database(&query.place, &query.robot)
-        .await
-        .map_err(|e| match e {
-            SourceError::NotFound(m) => ApiError::new(ErrorCode::NotFound, m),
-            SourceError::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m),
-            SourceError::Unavailable(m) => ApiError::new(ErrorCode::NotReady, m),
-        })?;
+    let db = api.floor_database(&query.place, &query.robot).await?;
     let key = match &query.policy {
         None => None,
         Some(id) => {
-            if api.jobs.env.policies.metadata(id).is_none() {
-                return Err(ApiError::not_found(format!("no policy `{id}`")));
-            }
             let loaded = api.policy(id).await?;
-            let params = rehearsal::EdgeRolloutParams::default();
-            Some(RoadmapKey {
-                floor_state: db.version.clone(),
-                policy: id.clone(),
-                weights: loaded.weights,
-                margin_bits: margin.to_bits(),
-                rollouts: params.rollouts,
-                keep_bits: params.keep_threshold.to_bits(),
-            })
+            Some(RoadmapKey::for_plans(
+                &db.version,
+                id,
+                loaded.weights,
+                margin,
+            ))
         }
     };
     let api2 = Arc::clone(&api);
