@@ -69,9 +69,10 @@ pub enum Command {
         #[arg(long, env = "MENTALSIM_TOKEN", hide_env_values = true)]
         token: Option<String>,
     },
-    /// Export a floor's world as SDF, or a robot as URDF, from a running service.
+    /// Export a floor's world as SDF, or a robot as URDF, as a gz-sim model (SDF) or its
+    /// ros_gz_bridge configuration, from a running service.
     Export {
-        /// `sdf` (a place's floor) or `urdf` (a robot).
+        /// `sdf` (a place's floor), `urdf`, `robot-sdf` or `bridge` (a robot).
         #[arg(value_enum)]
         kind: ExportKind,
         /// The place or robot: IRI or identifier.
@@ -79,6 +80,10 @@ pub enum Command {
         /// Where to write the file [default: standard output].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// For `bridge`: the gz-sim world's name, whose clock is bridged [default: gz-sim's
+        /// global /clock].
+        #[arg(long)]
+        world: Option<String>,
         /// The service's URL.
         #[arg(long, env = "MENTALSIM_URL", default_value = "http://127.0.0.1:8080")]
         url: String,
@@ -117,6 +122,24 @@ pub enum Command {
     /// Run a benchmark and write its figures.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Use an exported policy without the service.
+    #[command(subcommand)]
+    Policy(PolicyCommand),
+}
+
+/// What `mentalsim policy` does.
+#[derive(Debug, Subcommand)]
+pub enum PolicyCommand {
+    /// Run a policy's forward pass on JSON lines from stdin, one answer line each on stdout:
+    /// an observation `{"ranges": [...], "goal_distance", "goal_angle", "velocity": [v, w]}`
+    /// (scaled as the policy was trained), or a network input row `{"input": [...]}`; the answer
+    /// is `{"input": [...], "output": [o0, o1], "action": {"linear", "angular"}}`. What a
+    /// client's own implementation of the forward pass is checked against.
+    Act {
+        /// The policy directory (policy.safetensors + policy.json).
+        #[arg(long)]
+        policy: PathBuf,
+    },
 }
 
 /// What `mentalsim export` writes.
@@ -126,6 +149,10 @@ pub enum ExportKind {
     Sdf,
     /// URDF robot for ROS and Gazebo.
     Urdf,
+    /// SDF 1.9 robot model for gz-sim.
+    RobotSdf,
+    /// ros_gz_bridge configuration (YAML) for the robot in gz-sim.
+    Bridge,
 }
 
 /// Benchmarks: each prints its figures and writes them to files.
@@ -359,9 +386,10 @@ pub fn main() -> ExitCode {
             kind,
             id,
             out,
+            world,
             url,
             token,
-        } => export(kind, &id, out, &url, token),
+        } => export(kind, &id, out, world.as_deref(), &url, token),
         Command::Train(args) => run_train(args),
         Command::Eval {
             policy,
@@ -374,6 +402,7 @@ pub fn main() -> ExitCode {
         } => crate::train::eval(&policy, &map, episodes, seed, goals, rollouts)
             .and_then(|v| print_json(&v, json)),
         Command::Bench(bench) => run_bench(bench),
+        Command::Policy(PolicyCommand::Act { policy }) => crate::train::act(&policy),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -507,15 +536,28 @@ fn export(
     kind: ExportKind,
     id: &str,
     out: Option<PathBuf>,
+    world: Option<&str>,
     url: &str,
     token: Option<String>,
 ) -> anyhow::Result<()> {
     use anyhow::Context;
-    let encoded = percent_encoding::utf8_percent_encode(id, percent_encoding::NON_ALPHANUMERIC);
+    use percent_encoding::{NON_ALPHANUMERIC, utf8_percent_encode};
+    let encoded = utf8_percent_encode(id, NON_ALPHANUMERIC);
     let path = match kind {
         ExportKind::Sdf => format!("/v1/places/{encoded}/world.sdf"),
         ExportKind::Urdf => format!("/v1/robots/{encoded}/robot.urdf"),
+        ExportKind::RobotSdf => format!("/v1/robots/{encoded}/robot.sdf"),
+        ExportKind::Bridge => match world {
+            Some(w) => format!(
+                "/v1/robots/{encoded}/bridge.yaml?world={}",
+                utf8_percent_encode(w, NON_ALPHANUMERIC)
+            ),
+            None => format!("/v1/robots/{encoded}/bridge.yaml"),
+        },
     };
+    if world.is_some() && !matches!(kind, ExportKind::Bridge) {
+        anyhow::bail!("--world is for `export bridge` only");
+    }
     let response = reqwest::blocking::Client::new()
         .get(format!("{}{path}", url.trim_end_matches('/')))
         .bearer_auth(token_or_default(token)?)

@@ -669,3 +669,80 @@ pub fn bench_edges(
     std::fs::write(out.join("edges.md"), &md)?;
     Ok(md)
 }
+
+/// One line `mentalsim policy act` reads.
+#[derive(serde::Deserialize)]
+#[serde(untagged)]
+enum ActLine {
+    Input {
+        input: Vec<f32>,
+    },
+    Observation {
+        ranges: Vec<f32>,
+        goal_distance: f32,
+        goal_angle: f32,
+        velocity: [f32; 2],
+    },
+}
+
+/// `mentalsim policy act`: the forward pass of the policy in `dir` on every JSON line of stdin.
+pub fn act(dir: &Path) -> anyhow::Result<()> {
+    use std::io::{BufRead, Write};
+    let policy =
+        Policy::load(dir).with_context(|| format!("loading the policy in {}", dir.display()))?;
+    let scaling = policy.scaling();
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    for (n, line) in std::io::stdin().lock().lines().enumerate() {
+        let line = line.context("reading stdin")?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let parsed: ActLine = serde_json::from_str(&line).with_context(|| {
+            format!(
+                "line {}: neither an observation {{ranges, goal_distance, goal_angle, velocity}} nor {{input}}",
+                n + 1
+            )
+        })?;
+        let input = match parsed {
+            ActLine::Input { input } => input,
+            ActLine::Observation {
+                ranges,
+                goal_distance,
+                goal_angle,
+                velocity,
+            } => {
+                let beams = ranges.len();
+                scaling
+                    .encode(&sim::Observation {
+                        ranges,
+                        goal_distance,
+                        goal_angle,
+                        velocity,
+                    })
+                    .with_context(|| {
+                        format!(
+                            "line {}: {beams} ranges, the policy reads {}",
+                            n + 1,
+                            scaling.beams
+                        )
+                    })?
+            }
+        };
+        let output = policy
+            .forward(&input)
+            .with_context(|| format!("line {}", n + 1))?;
+        let action = scaling.command(output);
+        serde_json::to_writer(
+            &mut out,
+            &serde_json::json!({
+                "input": input,
+                "output": output,
+                "action": {"linear": action.linear, "angular": action.angular},
+            }),
+        )?;
+        out.write_all(b"\n")?;
+    }
+    out.flush()?;
+    Ok(())
+}

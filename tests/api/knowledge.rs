@@ -587,6 +587,83 @@ async fn a_floor_exports_as_sdf_and_the_robot_as_urdf_that_check_urdf_accepts() 
     app.stop().await;
 }
 
+/// The robot's gz-sim model and its ros_gz_bridge configuration: the same topics on both
+/// sides, the clock of the world `world.sdf` names, 404 for an unknown robot.
+#[tokio::test]
+async fn the_robot_exports_as_a_gz_sim_model_and_a_bridge_configuration() {
+    let app = spawn_app().await;
+    let get = |path: String| {
+        let request = app.request(Method::GET, &path);
+        async move { request.send().await.unwrap() }
+    };
+    let sdf = get("/v1/robots/R-001/robot.sdf".into()).await;
+    assert_eq!(sdf.status(), 200);
+    assert_eq!(sdf.headers()["content-type"], "application/xml");
+    let sdf = sdf.text().await.unwrap();
+    assert!(sdf.contains("<sdf version=\"1.9\">"), "{sdf}");
+    assert!(
+        sdf.contains(r#"<model name="differential-robot">"#),
+        "{sdf}"
+    );
+    assert!(
+        sdf.contains(r#"filename="gz-sim-diff-drive-system""#),
+        "{sdf}"
+    );
+    assert!(sdf.contains(r#"type="gpu_lidar""#), "{sdf}");
+
+    let world = get("/v1/places/F0/world.sdf".into())
+        .await
+        .text()
+        .await
+        .unwrap();
+    let name = world
+        .split("<world name=\"")
+        .nth(1)
+        .and_then(|rest| rest.split('"').next())
+        .expect("the world's name")
+        .to_owned();
+    assert!(
+        world.contains("<render_engine>ogre2</render_engine>"),
+        "{world}"
+    );
+    let bridge = get(format!("/v1/robots/R-001/bridge.yaml?world={name}")).await;
+    assert_eq!(bridge.status(), 200);
+    assert_eq!(bridge.headers()["content-type"], "application/yaml");
+    let bridge = bridge.text().await.unwrap();
+    // Each entry's Gazebo topic is one the model's systems and sensors use.
+    for (ros, gz) in [
+        ("/cmd_vel", "/model/differential-robot/cmd_vel"),
+        ("/odom", "/model/differential-robot/odometry"),
+        ("/scan", "/model/differential-robot/scan"),
+        ("/tf", "/model/differential-robot/tf"),
+        ("/joint_states", "/model/differential-robot/joint_states"),
+        ("/clock", &format!("/world/{name}/clock")),
+    ] {
+        let entry = format!("- ros_topic_name: \"{ros}\"\n  gz_topic_name: \"{gz}\"\n");
+        assert!(bridge.contains(&entry), "{entry} in {bridge}");
+        if gz.starts_with("/model/") {
+            assert!(sdf.contains(&format!(">{gz}<")), "{gz} in the model");
+        }
+    }
+    assert!(bridge.contains("direction: ROS_TO_GZ"), "{bridge}");
+    let global = get("/v1/robots/R-001/bridge.yaml".into())
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        global.contains("- ros_topic_name: \"/clock\"\n  gz_topic_name: \"/clock\"\n"),
+        "{global}"
+    );
+    let bad = get("/v1/robots/R-001/bridge.yaml?world=a%20b".into()).await;
+    assert_eq!(bad.status(), 400);
+    for path in ["robot.sdf", "bridge.yaml"] {
+        let missing = get(format!("/v1/robots/R-404/{path}")).await;
+        assert_eq!(missing.status(), 404, "{path}");
+    }
+    app.stop().await;
+}
+
 /// A worker's HTTP knowledge source keeps the floor database (and so its world) while the
 /// service answers 304, and reads it again after a write.
 #[tokio::test]

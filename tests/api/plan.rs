@@ -189,23 +189,29 @@ async fn impossible_plans_get_distinct_client_errors() {
 }
 
 #[tokio::test]
-async fn a_plan_asked_in_a_form_it_does_not_come_in_is_a_406_naming_json() {
+async fn a_plan_asked_in_a_form_it_does_not_come_in_is_a_406_naming_the_forms() {
     let app = spawn_app().await;
     let body = json!({"robot": "R-001", "place": "F0", "start": {"x": 0.0, "y": 0.0}, "goal": {"x": 1.0, "y": 0.0}});
-    let r = app
-        .request(Method::POST, "/v1/plan")
-        .header("accept", "application/x-mcap")
-        .json(&body)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 406);
-    let e: Value = r.json().await.unwrap();
-    let message = e["error"]["message"].as_str().unwrap();
-    assert!(
-        message.contains("application/json") && message.contains("application/x-mcap"),
-        "{message}"
-    );
+    for refused in [
+        "text/html",
+        "application/xml, image/*",
+        "application/json;q=0",
+    ] {
+        let r = app
+            .request(Method::POST, "/v1/plan")
+            .header("accept", refused)
+            .json(&body)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 406, "{refused}");
+        let e: Value = r.json().await.unwrap();
+        let message = e["error"]["message"].as_str().unwrap();
+        assert!(
+            message.contains("application/json") && message.contains("application/x-mcap"),
+            "{message}"
+        );
+    }
     // JSON, any application type, anything: not refused for the form.
     for accept in [
         "application/json",
@@ -221,6 +227,77 @@ async fn a_plan_asked_in_a_form_it_does_not_come_in_is_a_406_naming_json() {
             .await
             .unwrap();
         assert_ne!(r.status(), 406, "{accept}");
+    }
+    app.stop().await;
+}
+
+/// The `(x, y)` of a CDR-encoded `geometry_msgs/PoseStamped`: after the encapsulation header,
+/// the stamp (8 bytes) and the frame (a length-prefixed string), aligned to 8.
+fn pose_stamped_xy(data: &[u8]) -> (f64, f64) {
+    let frame_len = u32::from_le_bytes(data[12..16].try_into().unwrap()) as usize;
+    let mut at = 16 + frame_len;
+    while !(at - 4).is_multiple_of(8) {
+        at += 1;
+    }
+    let f = |i: usize| f64::from_le_bytes(data[i..i + 8].try_into().unwrap());
+    (f(at), f(at + 8))
+}
+
+#[tokio::test]
+async fn a_plan_accepting_mcap_gets_the_whole_rehearsal_as_a_ros_2_recording() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let request = json!({
+        "robot": "R-001", "place": "F0",
+        "start": {"x": start.0, "y": start.1, "yaw": 0.0}, "goal": {"x": goal.0, "y": goal.1},
+        "options": {"seed": 4, "trace": true}
+    });
+    let (status, answer) = plan(&app, &request).await;
+    assert_eq!(status, 200, "{answer}");
+    let r = app
+        .request(Method::POST, "/v1/plan")
+        .header("accept", "application/x-mcap")
+        .json(&request)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.headers()["content-type"], "application/x-mcap");
+    let bytes = r.bytes().await.unwrap();
+
+    let mut topics: std::collections::BTreeMap<String, Vec<Vec<u8>>> = Default::default();
+    for message in mcap::MessageStream::new(&bytes).unwrap() {
+        let message = message.unwrap();
+        assert_eq!(message.channel.message_encoding, "cdr");
+        let schema = message.channel.schema.as_ref().unwrap();
+        assert_eq!(schema.encoding, "ros2msg");
+        topics
+            .entry(message.channel.topic.clone())
+            .or_default()
+            .push(message.data.into_owned());
+    }
+    for topic in ["/map", "/plan", "/tf_static"] {
+        assert_eq!(topics[topic].len(), 1, "{topic}");
+    }
+    // Every recorded step of every attempt, in the simulation's order.
+    let poses: Vec<&Value> = answer["attempts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|a| a["trace"]["poses"].as_array().unwrap())
+        .collect();
+    assert!(!poses.is_empty());
+    for topic in ["/rehearsal/pose", "/tf", "/rehearsal/scan"] {
+        assert_eq!(topics[topic].len(), poses.len(), "{topic}");
+    }
+    let attempts = answer["attempts"].as_array().unwrap().len();
+    assert_eq!(topics["/rehearsal/attempt"].len(), attempts);
+    assert_eq!(topics["/rehearsal/attempt_path"].len(), attempts);
+    for (data, pose) in topics["/rehearsal/pose"].iter().zip(&poses) {
+        let (x, y) = pose_stamped_xy(data);
+        assert_eq!(x, pose["x"].as_f64().unwrap());
+        assert_eq!(y, pose["y"].as_f64().unwrap());
     }
     app.stop().await;
 }
@@ -536,4 +613,73 @@ async fn the_policy_aware_roadmap_is_built_by_a_job_and_then_used() {
         "{body}"
     );
     app.stop().await;
+}
+
+/// Sets the `tosm:frameId` of floor F0's map over SPARQL, as an engineer would.
+async fn set_map_frame(app: &TestApp, frame: &str) {
+    let update = format!(
+        r#"PREFIX tosm: <https://mentalsim.dev/ontology/tosm#>
+        DELETE {{ GRAPH ?g {{ ?m tosm:frameId ?old }} }}
+        INSERT {{ GRAPH ?g {{ ?m tosm:frameId "{frame}" }} }}
+        WHERE {{ GRAPH ?g {{ ?f tosm:identifier "F0" ; tosm:hasMetricMap ?m }}
+                 OPTIONAL {{ GRAPH ?g {{ ?m tosm:frameId ?old }} }} }}"#
+    );
+    let updated = app
+        .request(Method::POST, "/sparql")
+        .header("content-type", "application/sparql-update")
+        .body(update)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(updated.status(), 204, "{}", updated.text().await.unwrap());
+}
+
+#[tokio::test]
+async fn the_map_frame_stated_in_the_graph_names_every_pose_of_the_floor() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let request = json!({
+        "robot": "R-001", "place": "F0",
+        "start": {"x": start.0, "y": start.1}, "goal": {"x": goal.0, "y": goal.1}
+    });
+    set_map_frame(&app, "level_0/map").await;
+    let (status, body) = plan(&app, &request).await;
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["path"]["header"]["frame_id"], "level_0/map");
+    assert!(
+        body["path"]["poses"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|p| p["header"]["frame_id"] == "level_0/map"),
+        "{body}"
+    );
+    let graph: Value = app
+        .request(Method::GET, "/v1/places/F0/route-graph.geojson?robot=R-001")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let nodes: Vec<&Value> = graph["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["geometry"]["type"] == "Point")
+        .collect();
+    assert!(!nodes.is_empty());
+    assert!(
+        nodes
+            .iter()
+            .all(|n| n["properties"]["frame"] == "level_0/map")
+    );
+
+    // A frame that is no ROS name is the engineer's mistake, named.
+    set_map_frame(&app, "2nd floor").await;
+    let (status, body) = plan(&app, &request).await;
+    assert_eq!(status, 422, "{body}");
+    let message = body["error"]["message"].as_str().unwrap();
+    assert!(message.contains("frameId"), "{message}");
 }

@@ -15,6 +15,7 @@
     clippy::cast_possible_wrap
 )]
 
+pub mod accept;
 pub mod auth;
 pub mod disk;
 pub mod error;

@@ -80,6 +80,15 @@ pub enum OnDemandError {
         /// The name given.
         name: String,
     },
+    /// The graph has the place, but not as the ontology describes one (an engineer's write
+    /// left it unreadable): what is wrong with it.
+    #[error("{name:?} is in the graph but cannot be read as a place: {problems}")]
+    UnreadablePlace {
+        /// The name given.
+        name: String,
+        /// What is wrong with it, and with its metric map.
+        problems: String,
+    },
     /// The point is in no known place.
     #[error("{which}: the point ({x}, {y}) lies outside every known place{floor_note}")]
     OutsideEveryPlace {
@@ -526,8 +535,57 @@ pub fn floor_database_of_place(
     robot: Option<&str>,
 ) -> Result<OnDemandDatabase, OnDemandError> {
     let places = all_places(store)?;
-    let floor = floor_of(&places, place)?;
+    let floor = match floor_of(&places, place) {
+        Err(OnDemandError::UnknownPlace { .. }) => return Err(unknown_place(store, place)?),
+        other => other?,
+    };
     floor_database(store, &floor, robot)
+}
+
+/// Why no readable place is named `name`: a place in the graph that does not read as one
+/// ([`OnDemandError::UnreadablePlace`], with the problems of it and of its metric map), else
+/// [`OnDemandError::UnknownPlace`]. The error path only: it reads every place again.
+fn unknown_place(store: &KnowledgeStore, name: &str) -> Result<OnDemandError, StoreError> {
+    let unknown = OnDemandError::UnknownPlace {
+        which: "place".to_owned(),
+        name: name.to_owned(),
+    };
+    let reader = Reader::new(store)?;
+    let Some(iri) = reader.resolve(name)? else {
+        return Ok(unknown);
+    };
+    if !reader.is_a(iri.as_ref(), vocab::PLACE)? {
+        return Ok(unknown);
+    }
+    let mut about = vec![iri.as_str().to_owned()];
+    for quad in reader.store.quads_for_pattern(
+        Some(iri.as_ref().into()),
+        Some(vocab::HAS_METRIC_MAP),
+        None,
+        None,
+    ) {
+        if let Term::NamedNode(map) = quad.map_err(|e| reader.err(e))?.object {
+            about.push(map.into_string());
+        }
+    }
+    let mut triples = HashSet::new();
+    let mut seen = BTreeSet::new();
+    reader.closure(iri.as_ref(), false, &mut triples, &mut seen)?;
+    let graph: Graph = triples.into_iter().collect();
+    let (_, problems) = tosm::read_places_lenient(&graph);
+    let problems: Vec<String> = problems
+        .iter()
+        .filter(|p| about.contains(&p.individual))
+        .map(ToString::to_string)
+        .collect();
+    Ok(if problems.is_empty() {
+        unknown
+    } else {
+        OnDemandError::UnreadablePlace {
+            name: name.to_owned(),
+            problems: problems.join("; "),
+        }
+    })
 }
 
 /// The place a waypoint is in: the smallest place whose boundary contains the point.

@@ -33,6 +33,7 @@ fn room() -> Arc<World> {
             id: "room".into(),
             grid,
             wall_height: 2.0,
+            frame_id: "map".into(),
         }),
         walls: vec![],
         objects: vec![],

@@ -440,6 +440,7 @@ fn a_real_map_validates_a_multi_goal_plan() {
             id: "aws_small_house".into(),
             grid,
             wall_height: 2.5,
+            frame_id: "map".into(),
         }),
         walls: vec![],
         objects: vec![],

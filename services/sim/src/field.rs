@@ -235,6 +235,7 @@ mod tests {
                 id: "split-room".into(),
                 grid,
                 wall_height: 2.5,
+                frame_id: "map".into(),
             }),
             walls: vec![],
             objects: vec![],

@@ -92,6 +92,7 @@ fn parse(
                 id: floor.iri.clone(),
                 grid: map.grid.clone(),
                 wall_height: WALL_HEIGHT,
+                frame_id: map.frame_id.clone(),
             });
         } else {
             // No metric map: the boundary of the floor bounds the world; lacking that, every

@@ -25,9 +25,9 @@ pub mod vocab;
 pub mod write;
 
 pub use model::{
-    Camera, CameraKind, Colour, Joint, JointKind, Laser, MetricMap, Object, ObjectClass, Part,
-    Physical, Place, PlaceKind, Pose3, Relation, RelationKind, Robot, Shape, StructuralPart,
-    Symbol, Wheel,
+    Camera, CameraKind, Colour, DEFAULT_MAP_FRAME, Joint, JointKind, Laser, MetricMap, Object,
+    ObjectClass, Part, Physical, Place, PlaceKind, Pose3, Relation, RelationKind, Robot, Shape,
+    StructuralPart, Symbol, Wheel, is_ros_frame_name,
 };
 pub use occupancy::{Occupancy, OccupancyGrid, Pose2, RosMapError, RosMapMeta};
 pub use problems::{Problem, Problems};

@@ -162,6 +162,20 @@ pub enum PlaceKind {
     Other,
 }
 
+/// The frame of a floor's map when the graph states none (REP-105's `map`).
+pub const DEFAULT_MAP_FRAME: &str = "map";
+
+/// Whether `name` is a ROS frame name as tf2 and REP-105 use them: letters, digits, `_` and
+/// `/`, not starting with a digit or `/`, at most 256 bytes.
+pub fn is_ros_frame_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 256
+        && !name.starts_with(|c: char| c.is_ascii_digit() || c == '/')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/')
+}
+
 /// A floor's metric map: a map_server occupancy grid stored in the graph as a PNG.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MetricMap {
@@ -177,6 +191,9 @@ pub struct MetricMap {
     pub free_thresh: f64,
     /// map_server `negate`.
     pub negate: bool,
+    /// The ROS frame the map's coordinates are in (`tosm:frameId`; [`DEFAULT_MAP_FRAME`] when
+    /// not stated).
+    pub frame_id: String,
     /// The PNG image as stored (image row 0 = top of the map).
     pub png: Vec<u8>,
     /// The grid the PNG decodes to under the thresholds above.
@@ -199,6 +216,7 @@ impl MetricMap {
             occupied_thresh: CANONICAL_OCCUPIED_THRESH,
             free_thresh: CANONICAL_FREE_THRESH,
             negate: false,
+            frame_id: DEFAULT_MAP_FRAME.to_owned(),
             png: grid.to_png(),
             grid,
         }

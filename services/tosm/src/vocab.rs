@@ -220,6 +220,8 @@ terms! {
     FREE_THRESHOLD = "freeThreshold",
     /// `tosm:negate` (datatype property).
     NEGATE = "negate",
+    /// `tosm:frameId` (datatype property).
+    FRAME_ID = "frameId",
     /// `tosm:widthCells` (datatype property).
     WIDTH_CELLS = "widthCells",
     /// `tosm:heightCells` (datatype property).

@@ -67,6 +67,7 @@ pub fn occupancy_grid_to_triples(
         occupied_thresh: crate::occupancy::CANONICAL_OCCUPIED_THRESH,
         free_thresh: crate::occupancy::CANONICAL_FREE_THRESH,
         negate: false,
+        frame_id: crate::model::DEFAULT_MAP_FRAME.to_owned(),
         png: image_png.to_vec(),
         grid: grid.clone(),
     };
@@ -346,6 +347,17 @@ impl Writer {
             );
         }
         self.boolean(&m, v::NEGATE, map.negate);
+        if !crate::model::is_ros_frame_name(&map.frame_id) {
+            self.problem(
+                &map.iri,
+                v::FRAME_ID,
+                format!(
+                    "must be a ROS frame name (letters, digits, _ and /, not starting with a digit or /), found {:?}",
+                    map.frame_id
+                ),
+            );
+        }
+        self.string(&m, v::FRAME_ID, &map.frame_id);
         let (w, h) = (map.grid.width, map.grid.height);
         if w == 0 || h == 0 || map.grid.cells.len() != w.saturating_mul(h) {
             self.problem(

@@ -537,6 +537,59 @@ fn metric_map_problems_are_reported() {
 }
 
 #[test]
+fn a_map_states_its_ros_frame_and_defaults_to_rep_105_map() {
+    let grid = tosm::OccupancyGrid::filled(
+        3,
+        2,
+        0.1,
+        tosm::Pose2::new(0.0, 0.0, 0.0),
+        tosm::Occupancy::Free,
+    );
+    let floor = NamedNode::new_unchecked(t("floor"));
+    let map = NamedNode::new_unchecked(format!("{}/map", t("floor")));
+    let with_frame = |frame: Option<&str>| {
+        let mut triples = tosm::occupancy_grid_to_triples(floor.as_str(), &grid, &grid.to_png())
+            .expect("valid map");
+        // The writer states the default.
+        assert!(triples.iter().any(|t| t.predicate == vocab::FRAME_ID
+            && t.object == Term::Literal(Literal::new_simple_literal("map"))));
+        triples.retain(|t| t.predicate != vocab::FRAME_ID);
+        if let Some(frame) = frame {
+            triples.push(Triple::new(
+                map.clone(),
+                vocab::FRAME_ID.into_owned(),
+                Literal::new_simple_literal(frame),
+            ));
+        }
+        triples.push(Triple::new(
+            floor.clone(),
+            rdf::TYPE,
+            vocab::FLOOR.into_owned(),
+        ));
+        triples.push(Triple::new(
+            floor.clone(),
+            vocab::NAME.into_owned(),
+            Literal::new_simple_literal("F"),
+        ));
+        tosm::read_places(&graph_of(triples))
+    };
+    let frame_of = |places: Vec<Place>| places[0].map.as_ref().unwrap().frame_id.clone();
+    assert_eq!(frame_of(with_frame(None).expect("no frame stated")), "map");
+    assert_eq!(
+        frame_of(with_frame(Some("level_2/map")).expect("a ROS name")),
+        "level_2/map"
+    );
+    for bad in ["", "/map", "2nd_floor", "floor two", "map\u{e9}"] {
+        let problems = with_frame(Some(bad)).expect_err(bad);
+        assert_problem(&problems, map.as_str(), &prop("frameId"), "ROS frame name");
+    }
+    // Writing refuses one too.
+    let mut m = tosm::MetricMap::from_grid(map.as_str(), grid.clone());
+    m.frame_id = "a b".into();
+    assert!(tosm::metric_map_to_triples(floor.as_str(), &m).is_err());
+}
+
+#[test]
 fn writers_validate_values() {
     let mut object = sample_object();
     object.shape = Shape::Box {

@@ -14,6 +14,7 @@ pub mod error;
     reason = "utoipa's path macro expands the query extractor's type with its span"
 )]
 pub mod roadmap_view;
+pub mod rosbag;
 pub mod types;
 
 use std::collections::HashMap;
@@ -22,6 +23,7 @@ use std::time::Instant;
 
 use axum::extract::State;
 use axum::http::HeaderMap;
+use axum::response::IntoResponse;
 use axum::routing::post;
 use axum::{Json, Router};
 use edge::{ApiError, ErrorCode, Role};
@@ -299,31 +301,17 @@ pub fn router(state: Arc<PlanApi>) -> Router {
         .with_state(state)
 }
 
-/// 406 unless the request's `Accept` (when it has one) takes JSON, naming what is offered.
-fn check_accept(headers: &HeaderMap) -> Result<(), ApiError> {
-    let Some(accept) = headers.get(axum::http::header::ACCEPT) else {
-        return Ok(());
-    };
-    let text = accept.to_str().unwrap_or("");
-    let takes_json = text.split(',').any(|entry| {
-        let mut parts = entry.split(';');
-        let media = parts.next().unwrap_or("").trim().to_ascii_lowercase();
-        let refused = parts.any(|p| {
-            p.trim()
-                .strip_prefix("q=")
-                .and_then(|q| q.trim().parse::<f64>().ok())
-                .is_some_and(|q| q <= 0.0)
-        });
-        !refused && matches!(media.as_str(), "application/json" | "application/*" | "*/*")
-    });
-    if takes_json {
-        Ok(())
-    } else {
-        Err(ApiError::new(
-            ErrorCode::NotAcceptable,
-            format!("POST /v1/plan answers application/json only; the request accepts {text:?}"),
-        ))
-    }
+/// The media types `POST /v1/plan` answers in, JSON first (no `Accept`, or `*/*`, gets it).
+const PLAN_MEDIA_TYPES: &[&str] = &["application/json", rosbag::MEDIA_TYPE];
+
+/// Whether the request's `Accept` asks for the rehearsal as an MCAP recording (else JSON); 406
+/// when it takes neither, naming both.
+fn wants_recording(headers: &HeaderMap) -> Result<bool, ApiError> {
+    let accept = headers
+        .get(axum::http::header::ACCEPT)
+        .map(|v| v.to_str().unwrap_or("\u{fffd}"));
+    let chosen = edge::accept::choose(accept, PLAN_MEDIA_TYPES, "POST /v1/plan")?;
+    Ok(chosen == rosbag::MEDIA_TYPE)
 }
 
 /// The goals of a request that gives `goal` or `goals` (exactly one of them, non-empty).
@@ -466,13 +454,13 @@ impl PlanValidator for ExecutorValidator {
     path = "/v1/plan",
     request_body(content = types::PlanApiRequestDoc, description = "One goal (`goal`) or a non-empty sequence of goals (`goals`, at most 1000), never both; every option within its bounds."),
     responses(
-        (status = 200, description = "Waypoints validated in the mental simulation", body = PlanApiResponse),
+        (status = 200, description = "Waypoints validated in the mental simulation: as JSON, or with `Accept: application/x-mcap` the whole rehearsal as a ROS 2 recording (MCAP, CDR): `/map`, `/plan`, `/tf_static`, and per attempt `/rehearsal/attempt`, `/rehearsal/attempt_path`, and per simulated step `/rehearsal/pose`, `/tf`, `/rehearsal/scan`", content((PlanApiResponse = "application/json"), (Vec<u8> = "application/x-mcap"))),
         (status = 400, description = "Malformed request: the body is not JSON, neither or both of `goal` and `goals`, too many goals, an option out of range", body = edge::ErrorBody),
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, response = edge::error::responses::Forbidden),
         (status = 404, description = "Unknown robot, place or policy", body = edge::ErrorBody),
         (status = 409, description = "No attempt could validate the plan (the attempts are in the details), or `options.roadmap` is `policy` and the policy-aware roadmap is not built yet or joins no leg", body = edge::ErrorBody),
-        (status = 406, description = "The request's `Accept` takes no JSON (the answer's only form).", body = edge::ErrorBody),
+        (status = 406, description = "The request's `Accept` takes neither JSON nor MCAP (the answer's forms).", body = edge::ErrorBody),
         (status = 413, response = edge::error::responses::PayloadTooLarge),
         (status = 415, response = edge::error::responses::UnsupportedMediaType),
         (status = 422, description = "The body does not fit the schema (a missing or unknown field, a wrong type); the start or a goal is inside an obstacle, outside the map, or unreachable from the start; the place is on no floor; the map or the policy cannot be used", body = edge::ErrorBody),
@@ -483,11 +471,13 @@ impl PlanValidator for ExecutorValidator {
 async fn plan(
     State(api): State<Arc<PlanApi>>,
     headers: HeaderMap,
-    Json(req): Json<PlanApiRequest>,
-) -> Result<Json<PlanApiResponse>, ApiError> {
+    Json(mut req): Json<PlanApiRequest>,
+) -> Result<axum::response::Response, ApiError> {
     let started = Instant::now();
     api.jobs.tokens.require(&headers, Role::Robot)?;
-    check_accept(&headers)?;
+    let recording = wants_recording(&headers)?;
+    // A recording replays every attempt step by step.
+    req.options.trace |= recording;
     let goals =
         goals_of(req.goal, &req.goals).map_err(|m| ApiError::new(ErrorCode::BadRequest, m))?;
     let db = api.floor_database(&req.place, &req.robot).await?;
@@ -559,7 +549,7 @@ async fn plan(
     // rehearsal on the blocking thread sees the stop at its next check and ends.
     let stop = rehearsal::Stop::new();
     let _stop_on_drop = rehearsal::StopOnDrop(stop.clone());
-    let report = tokio::task::spawn_blocking(move || -> Result<PlanReport, ApiError> {
+    let (report, world) = tokio::task::spawn_blocking(move || -> Result<(PlanReport, Arc<World>), ApiError> {
         let _running = Rehearsing::start();
         let world = db
             .world()
@@ -568,7 +558,7 @@ async fn plan(
         request.stop = stop;
         let Some(LoadedPolicy { policy, .. }) = policy else {
             return rehearsal::validate(&world, api2.roadmaps(), &db.version, &request, None)
-                .map(PlanReport::from)
+                .map(|r| (PlanReport::from(r), world))
                 .map_err(|e| e.to_api_error());
         };
         // `auto` plans on every measured direction (the unkept ones only where the kept ones
@@ -627,7 +617,7 @@ async fn plan(
             Some(&mut follower),
             policy_roadmap.as_ref(),
         )
-        .map(PlanReport::from)
+        .map(|r| (PlanReport::from(r), Arc::clone(&world)))
         .map_err(|e| match e {
             // Only the policy-aware roadmap was asked for, and no kept edge joins the leg.
             PlanError::Unreachable { .. } if choice == RoadmapChoice::Policy => ApiError::new(
@@ -656,8 +646,8 @@ async fn plan(
     } else {
         None
     };
-    let path = types::RosPath::through(&req.start, &report.waypoints, types::MAP_FRAME);
-    Ok(Json(PlanApiResponse {
+    let path = types::RosPath::through(&req.start, &report.waypoints, world.spec().map_frame());
+    let answer = PlanApiResponse {
         robot,
         floor,
         policy: policy_id,
@@ -665,5 +655,50 @@ async fn plan(
         service_ms: started.elapsed().as_secs_f64() * 1000.0,
         path,
         report,
-    }))
+    };
+    if !recording {
+        return Ok(Json(answer).into_response());
+    }
+    let bytes = tokio::task::spawn_blocking(move || recording_of(&answer, &world))
+        .await
+        .map_err(|e| ApiError::internal(format!("recording task failed: {e}")))??;
+    Ok((
+        [(axum::http::header::CONTENT_TYPE, rosbag::MEDIA_TYPE)],
+        bytes,
+    )
+        .into_response())
+}
+
+/// The answer as an MCAP recording ([`rosbag`]).
+fn recording_of(answer: &PlanApiResponse, world: &World) -> Result<Vec<u8>, ApiError> {
+    let spec = world.spec();
+    let frames = sim::export::RobotFrames::of(&spec.robot);
+    let start_ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+    let mut metadata = std::collections::BTreeMap::from([
+        ("robot".to_owned(), answer.robot.clone()),
+        ("floor".to_owned(), answer.floor.clone()),
+        (
+            "controller".to_owned(),
+            answer.report.controller_description.clone(),
+        ),
+    ]);
+    if let Some(p) = &answer.policy {
+        metadata.insert("policy".to_owned(), p.clone());
+    }
+    if let Some(n) = &answer.note {
+        metadata.insert("note".to_owned(), n.clone());
+    }
+    rosbag::write(&rosbag::Recording {
+        path: &answer.path,
+        report: &answer.report,
+        grid: spec.floor.as_ref().map(|f| &f.grid),
+        map_frame: spec.map_frame(),
+        frames: &frames,
+        laser: &spec.robot.laser,
+        start_ns,
+        metadata,
+    })
+    .map_err(|e| ApiError::internal(format!("writing the recording: {e}")))
 }

@@ -32,14 +32,17 @@ use self::places::{
     __path_place_map_pgm, __path_place_map_yaml, __path_world_sdf, MapServerYaml, ObjectPose,
     ObjectView, PlaceView,
 };
-use self::robots::{__path_get_robot, __path_list_robots, __path_robot_urdf, RobotView};
+use self::robots::{
+    __path_bridge_yaml, __path_get_robot, __path_list_robots, __path_robot_sdf, __path_robot_urdf,
+    RobotView,
+};
 use crate::service::Knowledge;
 
 /// The OpenAPI document of the REST API, generated from the handlers of the resource modules.
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
-    paths(me, list_places, get_place, place_map, place_map_yaml, place_map_pgm, world_sdf, list_objects, list_robots, get_robot, robot_urdf, import_map, report_object, on_demand_database, floor_on_demand_database),
+    paths(me, list_places, get_place, place_map, place_map_yaml, place_map_pgm, world_sdf, list_objects, list_robots, get_robot, robot_urdf, robot_sdf, bridge_yaml, import_map, report_object, on_demand_database, floor_on_demand_database),
     components(
         schemas(Me, PlaceView, ObjectView, ObjectPose, MapServerYaml, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
@@ -64,6 +67,8 @@ pub fn router(knowledge: Arc<Knowledge>) -> Router {
         .route("/v1/me", get(me))
         .route("/v1/places/{id}/world.sdf", get(places::world_sdf))
         .route("/v1/robots/{id}/robot.urdf", get(robots::robot_urdf))
+        .route("/v1/robots/{id}/robot.sdf", get(robots::robot_sdf))
+        .route("/v1/robots/{id}/bridge.yaml", get(robots::bridge_yaml))
         .route("/v1/robots", get(robots::list_robots))
         .route("/v1/robots/{id}", get(robots::get_robot))
         .route("/v1/maps", post(maps::import_map))

@@ -115,7 +115,10 @@ impl From<OnDemandError> for ApiError {
             | OnDemandError::NoFloor(_)
             | OnDemandError::AmbiguousFloor { .. }
             | OnDemandError::NotConnected { .. }
-            | OnDemandError::Cycle { .. } => ApiError::new(ErrorCode::Unprocessable, e.to_string()),
+            | OnDemandError::Cycle { .. }
+            | OnDemandError::UnreadablePlace { .. } => {
+                ApiError::new(ErrorCode::Unprocessable, e.to_string())
+            }
             OnDemandError::Stopped => ApiError::new(ErrorCode::Timeout, e.to_string()),
             OnDemandError::Store(_) => ApiError::internal(e),
         }

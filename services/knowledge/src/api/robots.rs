@@ -1,5 +1,6 @@
-//! Robots: browse the robot models (`/v1/robots`, `/v1/robots/{id}`) and a robot's URDF
-//! generated from its TOSM description.
+//! Robots: browse the robot models (`/v1/robots`, `/v1/robots/{id}`), and a robot's URDF, its
+//! gz-sim model (SDF) and its `ros_gz_bridge` configuration, generated from its TOSM
+//! description.
 
 use std::sync::Arc;
 
@@ -9,7 +10,7 @@ use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use edge::{ApiError, ErrorBody, ErrorCode};
 use oxigraph::model::Graph;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::task::blocking;
@@ -17,8 +18,26 @@ use crate::graphs::INFERRED_GRAPH;
 use crate::service::Knowledge;
 use crate::store::KnowledgeStore;
 
-/// The URDF of a robot, generated from its TOSM description: links, joints, wheels, laser
-/// and camera sensors. `check_urdf` and ROS load it as it is.
+/// The simulated robot `id` (IRI or identifier) names, as the simulation parser makes it.
+fn robot_spec(k: &Knowledge, id: &str) -> Result<sim::RobotSpec, ApiError> {
+    let store = k.store()?;
+    let graph = union_graph(&store)?;
+    let robots = tosm::read_robots(&graph)
+        .map_err(|p| ApiError::internal(format!("stored robots do not validate: {p}")))?;
+    let robot = find_robot(&robots, id)?;
+    sim::parse_robot(&graph, &robot.iri).map_err(|p| {
+        ApiError::new(
+            ErrorCode::Unprocessable,
+            format!("the robot's description does not make a simulated robot: {p}"),
+        )
+    })
+}
+
+/// The URDF of a robot, generated from its TOSM description: REP-105 frames
+/// (`base_footprint` → `base_link` → parts, wheels and sensors, the laser's link named after
+/// the robot's laser), and gz-sim extensions: the laser a `gpu_lidar`, cameras `camera` or
+/// `rgbd_camera` sensors, the DiffDrive and JointStatePublisher systems on the topics
+/// `bridge.yaml` bridges. `check_urdf`, ROS and gz-sim load it as it is.
 #[utoipa::path(get, path = "/v1/robots/{id}/robot.urdf", params(("id" = String, Path, min_length = 1, description = "IRI or tosm:identifier")), responses(
     (status = 200, content_type = "application/xml", body = String),
     (status = 401, response = edge::error::responses::Unauthorized),
@@ -31,22 +50,76 @@ pub(super) async fn robot_urdf(
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
     k.tokens.authenticate(&headers)?;
-    let urdf = blocking(move || {
-        let store = k.store()?;
-        let graph = union_graph(&store)?;
-        let robots = tosm::read_robots(&graph)
-            .map_err(|p| ApiError::internal(format!("stored robots do not validate: {p}")))?;
-        let robot = find_robot(&robots, &id)?;
-        let spec = sim::parse_robot(&graph, &robot.iri).map_err(|p| {
-            ApiError::new(
-                ErrorCode::Unprocessable,
-                format!("the robot's description does not make a simulated robot: {p}"),
-            )
-        })?;
-        Ok(sim::export::robot_urdf(&spec))
+    let urdf = blocking(move || Ok(sim::export::robot_urdf(&robot_spec(&k, &id)?))).await?;
+    Ok(([(header::CONTENT_TYPE, "application/xml")], urdf).into_response())
+}
+
+/// The robot as an SDF 1.9 model for gz-sim (`ros_gz_sim create -file robot.sdf`): the links
+/// and joints of `robot.urdf`, the laser a `gpu_lidar` sensor, cameras `camera` or
+/// `rgbd_camera` sensors, and the DiffDrive and JointStatePublisher systems on the topics
+/// `bridge.yaml` bridges. The world must run gz-sim's sensors system (`world.sdf` does).
+#[utoipa::path(get, path = "/v1/robots/{id}/robot.sdf", params(("id" = String, Path, min_length = 1, description = "IRI or tosm:identifier")), responses(
+    (status = 200, content_type = "application/xml", body = String),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No robot has this IRI or identifier.", body = ErrorBody),
+    (status = 422, description = "The robot's description does not make a simulated robot.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+pub(super) async fn robot_sdf(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    let sdf = blocking(move || Ok(sim::export::robot_sdf(&robot_spec(&k, &id)?))).await?;
+    Ok(([(header::CONTENT_TYPE, "application/xml")], sdf).into_response())
+}
+
+/// Which world's clock the bridge forwards.
+#[derive(Deserialize, utoipa::IntoParams)]
+pub struct BridgeQuery {
+    /// The gz-sim world's name (the `<world name>` of `world.sdf`): the clock is bridged from
+    /// `/world/<world>/clock` [default: gz-sim's global `/clock`]. Letters, digits, `_`, `-`
+    /// and `.`.
+    #[param(nullable = false, min_length = 1)]
+    world: Option<String>,
+}
+
+/// The `ros_gz_bridge` configuration for the robot in gz-sim (`ros2 run ros_gz_bridge
+/// parameter_bridge --ros-args -p config_file:=bridge.yaml`): `/cmd_vel` to the drive;
+/// `/odom`, `/scan`, `/tf` (`odom` → `base_footprint`), `/joint_states` and `/clock` from
+/// Gazebo; each camera's `/<camera>/image` and `camera_info` (an RGB-D camera's also
+/// `depth_image` and `points`). The Gazebo topics are those `robot.sdf` and `robot.urdf` use.
+#[utoipa::path(get, path = "/v1/robots/{id}/bridge.yaml", params(("id" = String, Path, min_length = 1, description = "IRI or tosm:identifier"), BridgeQuery), responses(
+    (status = 200, content_type = "application/yaml", body = String),
+    (status = 400, description = "The `world` is empty or holds other characters than letters, digits, `_`, `-` and `.`.", body = ErrorBody),
+    (status = 401, response = edge::error::responses::Unauthorized),
+    (status = 404, description = "No robot has this IRI or identifier.", body = ErrorBody),
+    (status = 422, description = "The robot's description does not make a simulated robot.", body = ErrorBody),
+    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
+pub(super) async fn bridge_yaml(
+    State(k): State<Arc<Knowledge>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    axum::extract::Query(query): axum::extract::Query<BridgeQuery>,
+) -> Result<Response, ApiError> {
+    k.tokens.authenticate(&headers)?;
+    if let Some(world) = &query.world {
+        let valid = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
+        if world.is_empty() || !world.chars().all(valid) {
+            return Err(ApiError::bad_request(format!(
+                "world {world:?} is no gz-sim world name: letters, digits, `_`, `-` and `.` only"
+            )));
+        }
+    }
+    let yaml = blocking(move || {
+        let spec = robot_spec(&k, &id)?;
+        Ok(sim::export::ros_gz_bridge_yaml(
+            &spec,
+            query.world.as_deref(),
+        ))
     })
     .await?;
-    Ok(([(header::CONTENT_TYPE, "application/xml")], urdf).into_response())
+    Ok(([(header::CONTENT_TYPE, "application/yaml")], yaml).into_response())
 }
 
 /// A robot as described in TOSM.

@@ -2,6 +2,7 @@
 //! (with q-values and wildcards) and from the `format`/`output`/`results` parameters that
 //! SPARQLWrapper adds to every query.
 
+use edge::accept::{parse_accept, quality};
 use edge::{ApiError, ErrorCode};
 use oxigraph::io::{JsonLdProfileSet, RdfFormat};
 use oxigraph::sparql::results::QueryResultsFormat;
@@ -118,80 +119,6 @@ fn aliases(format: Format) -> (&'static [&'static str], &'static [&'static str])
         Format::Rdf(RdfFormat::N3) => (&["text/n3"], &["n3"]),
         Format::Results(_) | Format::Rdf(_) => (&[], &[]),
     }
-}
-
-/// One entry of an `Accept` header.
-#[derive(Debug, Clone, PartialEq)]
-struct MediaRange {
-    kind: String,
-    subtype: String,
-    q: f32,
-}
-
-impl MediaRange {
-    /// How specifically this range names `kind/subtype`: 3 exact, 2 `kind/*`, 1 `*/*`, 0 not.
-    fn specificity(&self, kind: &str, subtype: &str) -> u8 {
-        if self.kind == "*" {
-            1
-        } else if self.kind != kind {
-            0
-        } else if self.subtype == "*" {
-            2
-        } else if self.subtype == subtype {
-            3
-        } else {
-            0
-        }
-    }
-}
-
-/// Parses an `Accept` header. Malformed entries are skipped rather than failing the request:
-/// a client with one odd entry should still get an answer from the others.
-fn parse_accept(header: &str) -> Vec<MediaRange> {
-    header
-        .split(',')
-        .filter_map(|entry| {
-            let mut parts = entry.split(';');
-            let (kind, subtype) = parts.next()?.trim().split_once('/')?;
-            let (kind, subtype) = (kind.trim(), subtype.trim());
-            if kind.is_empty() || subtype.is_empty() || (kind == "*" && subtype != "*") {
-                return None;
-            }
-            let mut q = 1.0;
-            for parameter in parts {
-                if let Some((name, value)) = parameter.split_once('=')
-                    && name.trim().eq_ignore_ascii_case("q")
-                {
-                    q = value.trim().parse::<f32>().ok()?.clamp(0.0, 1.0);
-                }
-            }
-            Some(MediaRange {
-                kind: kind.to_ascii_lowercase(),
-                subtype: subtype.to_ascii_lowercase(),
-                q,
-            })
-        })
-        .collect()
-}
-
-/// The q-value `ranges` give to `media_type`: that of the most specific matching range, 0 when
-/// none matches. With `exact_only`, wildcards do not count: aliases (say `text/xml` for SPARQL
-/// XML results) are matched only when named, so `text/*` does not earn an `application/…` answer.
-fn quality(ranges: &[MediaRange], media_type: &str, exact_only: bool) -> f32 {
-    let Some((kind, subtype)) = media_type.split_once('/') else {
-        return 0.0;
-    };
-    let mut best: (u8, f32) = (0, 0.0);
-    for range in ranges {
-        let specificity = range.specificity(kind, subtype);
-        if exact_only && specificity < 3 {
-            continue;
-        }
-        if specificity > best.0 || (specificity == best.0 && specificity > 0 && range.q > best.1) {
-            best = (specificity, range.q);
-        }
-    }
-    best.1
 }
 
 /// Picks the format among `offered` (in our order of preference) that answers a request.

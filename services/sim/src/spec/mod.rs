@@ -147,6 +147,9 @@ pub struct FloorMap {
     pub grid: OccupancyGrid,
     /// Height of the walls the occupied and unknown cells become, metres.
     pub wall_height: f64,
+    /// The ROS frame the grid's coordinates are in (the map's `tosm:frameId`, REP-105's `map`
+    /// by default): what plans, map exports and route graphs of this floor name.
+    pub frame_id: String,
 }
 
 /// A straight wall, for example one edge of a place's boundary.
@@ -238,25 +241,34 @@ impl LaserSpec {
 
     /// Angles of `n` equally spaced beams picked from the scan's samples (the paper's 23 sparse
     /// readings), relative to the sensor's x axis; `None` when `n` is 0 or exceeds the samples.
+    pub fn beam_angles(&self, n: usize) -> Option<Vec<f64>> {
+        Some(
+            self.beam_samples(n)?
+                .into_iter()
+                .map(|i| self.sample_angle(i))
+                .collect(),
+        )
+    }
+
+    /// The samples [`LaserSpec::beam_angles`] reads for `n` beams, in its order: `n` spread
+    /// evenly over the scan (rounded to the nearest sample), both ends included; the middle one
+    /// for a single beam. `None` when `n` is 0 or exceeds the samples.
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
         reason = "sample counts are far below 2^52 and the rounded index is within 0..samples"
     )]
-    pub fn beam_angles(&self, n: usize) -> Option<Vec<f64>> {
+    pub fn beam_samples(&self, n: usize) -> Option<Vec<usize>> {
         if n == 0 || n > self.samples {
             return None;
         }
         if n == 1 {
-            return Some(vec![self.sample_angle(self.samples / 2)]);
+            return Some(vec![self.samples / 2]);
         }
         let last = (self.samples - 1) as f64;
         Some(
             (0..n)
-                .map(|i| {
-                    let idx = (i as f64 * last / (n - 1) as f64).round() as usize;
-                    self.sample_angle(idx)
-                })
+                .map(|i| (i as f64 * last / (n - 1) as f64).round() as usize)
                 .collect(),
         )
     }
@@ -443,6 +455,15 @@ pub struct WorldSpec {
     /// Problems found while reading the description that did not stop it (an object skipped,
     /// a value assumed); [`crate::World`] reports them with its own warnings.
     pub notes: Vec<SpecProblem>,
+}
+
+impl WorldSpec {
+    /// The ROS frame the world's coordinates are in: the floor map's, else REP-105's `map`.
+    pub fn map_frame(&self) -> &str {
+        self.floor
+            .as_ref()
+            .map_or(tosm::DEFAULT_MAP_FRAME, |f| f.frame_id.as_str())
+    }
 }
 
 /// The largest grid the simulator accepts: cell indices are `u32` and a grid this size already

@@ -33,6 +33,7 @@ pub fn room_at(w: f64, h: f64, origin: Pose2) -> WorldSpec {
             id: "room".into(),
             grid: room_grid(w, h, origin),
             wall_height: 2.5,
+            frame_id: "map".into(),
         }),
         walls: vec![],
         objects: vec![],

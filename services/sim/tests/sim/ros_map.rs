@@ -40,6 +40,7 @@ fn a_world_from_a_real_ros_map() {
             id,
             grid,
             wall_height: 2.5,
+            frame_id: "map".into(),
         }),
         walls: vec![],
         objects: vec![],

@@ -124,6 +124,20 @@ impl<'g> Reader<'g> {
         let occupied = self.unit_interval(&map, v::OCCUPIED_THRESHOLD, true);
         let free = self.unit_interval(&map, v::FREE_THRESHOLD, true);
         let negate = self.boolean(&map, v::NEGATE, false).unwrap_or(false);
+        let frame_id = match self.string(&map, v::FRAME_ID, false) {
+            None => crate::model::DEFAULT_MAP_FRAME.to_owned(),
+            Some(f) if crate::model::is_ros_frame_name(&f) => f,
+            Some(f) => {
+                self.problem(
+                    &map,
+                    v::FRAME_ID,
+                    format!(
+                        "must be a ROS frame name (letters, digits, _ and /, not starting with a digit or /), found {f:?}"
+                    ),
+                );
+                return None;
+            }
+        };
         let width = self.count(&map, v::WIDTH_CELLS, true);
         let height = self.count(&map, v::HEIGHT_CELLS, true);
         let png = self.base64(&map, v::MAP_IMAGE_PNG);
@@ -171,6 +185,7 @@ impl<'g> Reader<'g> {
             occupied_thresh: occupied,
             free_thresh: free,
             negate,
+            frame_id,
             png,
             grid,
         })

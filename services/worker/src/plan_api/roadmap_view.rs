@@ -40,6 +40,8 @@ pub struct RoadmapView {
     pub kind: &'static str,
     /// The floor's IRI.
     pub floor: String,
+    /// The ROS frame the node positions are in (the floor map's `tosm:frameId`).
+    pub frame_id: String,
     /// The policy whose measurements the edges carry.
     pub policy: Option<String>,
     /// Why there are none, when a policy was named.
@@ -141,7 +143,7 @@ pub async fn route_graph(
 /// `view` in the Route Server's GeoJSON graph format.
 pub fn geojson(view: &RoadmapView) -> serde_json::Value {
     use serde_json::json;
-    let frame = super::types::MAP_FRAME;
+    let frame = view.frame_id.as_str();
     let mut features: Vec<serde_json::Value> = view
         .nodes
         .iter()
@@ -279,6 +281,7 @@ async fn roadmap_view(api: Arc<PlanApi>, query: RoadmapQuery) -> Result<RoadmapV
                 "geometric"
             },
             floor: db.floor.clone(),
+            frame_id: world.spec().map_frame().to_owned(),
             policy: query.policy.clone(),
             note,
             samples: params.samples,

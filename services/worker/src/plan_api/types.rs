@@ -658,7 +658,7 @@ pub struct RosPath {
 /// `std_msgs/Header` without a stamp (the robot stamps what it publishes).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct RosHeader {
-    /// The floor's map frame (`map`).
+    /// The floor map's frame (its `tosm:frameId`; `map` unless the graph states another).
     pub frame_id: String,
 }
 
@@ -703,9 +703,6 @@ pub struct RosQuaternion {
     /// w.
     pub w: f64,
 }
-
-/// The map frame of a floor's poses.
-pub const MAP_FRAME: &str = "map";
 
 impl RosPath {
     /// The path from `start` through `waypoints` in `frame_id`, each pose facing the next
@@ -759,7 +756,7 @@ mod ros_path_tests {
         let path = RosPath::through(
             &start,
             &[Point { x: 1.0, y: 0.0 }, Point { x: 1.0, y: 2.0 }],
-            MAP_FRAME,
+            "map",
         );
         assert_eq!(path.header.frame_id, "map");
         assert_eq!(path.poses.len(), 3);

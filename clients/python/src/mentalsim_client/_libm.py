@@ -1,0 +1,141 @@
+"""The C math library's functions, for the arithmetic the Rust runtime does.
+
+Rust's ``f32::exp``, ``tanh``, ``ln``, ``ln_1p``, ``sin``, ``cos`` and ``f64::atan2``, ``sin``,
+``cos``, ``hypot`` call the platform's C math library (glibc's ``expf``, ``tanhf``, ... on
+Linux), whose results are not always correctly rounded. Calling the same functions here gives
+the same bits as ``learning::Policy`` on the same machine. Where no C math library can be
+loaded, the functions are computed in double precision and rounded (``EXACT`` is false): equal
+to the C library's but for rare last-bit differences.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import math
+import sys
+from collections.abc import Callable
+from typing import Final
+
+import numpy as np
+import numpy.typing as npt
+
+F32Array = npt.NDArray[np.float32]
+
+
+def _load() -> ctypes.CDLL | None:
+    names = [ctypes.util.find_library("m"), "libm.so.6"]
+    if sys.platform == "darwin":
+        names.append("/usr/lib/libSystem.B.dylib")
+    for name in names:
+        if not name:
+            continue
+        try:
+            return ctypes.CDLL(name)
+        except OSError:
+            continue
+    return None
+
+
+_LIB: Final = _load()
+
+
+def _f32(name: str, fallback: Callable[[float], float]) -> Callable[[float], float]:
+    if _LIB is not None:
+        try:
+            fn = getattr(_LIB, name)
+        except AttributeError:
+            fn = None
+        if fn is not None:
+            fn.argtypes = [ctypes.c_float]
+            fn.restype = ctypes.c_float
+            c_fn: Callable[[float], float] = fn
+            return c_fn
+
+    def rounded(x: float) -> float:
+        try:
+            return float(np.float32(fallback(x)))
+        except OverflowError:
+            return math.inf
+
+    return rounded
+
+
+def _f64(name: str, fallback: Callable[..., float], arity: int) -> Callable[..., float]:
+    if _LIB is not None:
+        try:
+            fn = getattr(_LIB, name)
+        except AttributeError:
+            fn = None
+        if fn is not None:
+            fn.argtypes = [ctypes.c_double] * arity
+            fn.restype = ctypes.c_double
+            c_fn: Callable[..., float] = fn
+            return c_fn
+    return fallback
+
+
+def _exp(x: float) -> float:
+    return math.exp(x) if x < 709.0 else math.inf
+
+
+#: Whether the functions are the C math library's own.
+EXACT: Final = _LIB is not None
+
+expf: Final = _f32("expf", _exp)
+tanhf: Final = _f32("tanhf", math.tanh)
+logf: Final = _f32("logf", lambda x: math.log(x) if x > 0 else (-math.inf if x == 0 else math.nan))
+log1pf: Final = _f32("log1pf", lambda x: math.log1p(x) if x > -1 else (-math.inf if x == -1 else math.nan))
+sinf: Final = _f32("sinf", math.sin)
+cosf: Final = _f32("cosf", math.cos)
+
+atan2: Final = _f64("atan2", math.atan2, 2)
+sin: Final = _f64("sin", math.sin, 1)
+cos: Final = _f64("cos", math.cos, 1)
+hypot: Final = _f64("hypot", math.hypot, 2)
+
+
+def has_fmaf() -> bool:
+    """Whether the C library's ``fmaf`` is available (tests compare :func:`fma32` with it)."""
+    return _LIB is not None and hasattr(_LIB, "fmaf")
+
+
+def fmaf3(a: float, b: float, c: float) -> float:
+    """The C library's ``fmaf(a, b, c)`` (see :func:`has_fmaf`)."""
+    assert _LIB is not None
+    fn = _LIB.fmaf
+    fn.argtypes = [ctypes.c_float, ctypes.c_float, ctypes.c_float]
+    fn.restype = ctypes.c_float
+    result: float = fn(a, b, c)
+    return result
+
+
+def map_f32(fn: Callable[[float], float], values: F32Array) -> F32Array:
+    """``fn`` applied to every element of a float32 array."""
+    flat = values.astype(np.float32, copy=False).ravel()
+    out = np.fromiter((fn(float(v)) for v in flat), dtype=np.float32, count=flat.size)
+    return out.reshape(values.shape)
+
+
+def fma32(a: F32Array, b: F32Array, c: F32Array) -> F32Array:
+    """``a * b + c`` rounded once to float32, element-wise with broadcasting: Rust's
+    ``f32::mul_add``.
+
+    The product of two float32 values is exact in float64, and their sum with ``c`` is rounded
+    to float64 by round-to-odd (round to nearest, then, when inexact, the value truncated towards
+    zero with its last bit set: Boldo and Melquiond's rule). Rounding that float64 to float32 is
+    then the correctly rounded fused result, since float64 has more than 24 + 1 bits.
+    """
+    p = a.astype(np.float64) * b.astype(np.float64)
+    c64 = np.broadcast_to(c.astype(np.float64), p.shape)
+    s = p + c64
+    # TwoSum: s + err == p + c exactly.
+    bb = s - p
+    err = (p - (s - bb)) + (c64 - bb)
+    inexact = (err != 0.0) & np.isfinite(s)
+    bits = np.ascontiguousarray(s).view(np.int64).copy()
+    # |exact| < |s| when err points back towards zero: step s one unit towards zero first.
+    towards_zero = inexact & ((err > 0.0) != (s > 0.0))
+    bits[towards_zero] -= 1
+    bits[inexact] |= 1
+    return bits.view(np.float64).astype(np.float32)

@@ -1,0 +1,853 @@
+"""Typed values of the API: what the client sends and what it reads back.
+
+Each result keeps the JSON it was read from in ``raw`` (fields a newer service adds are there
+before this package knows them). Field names and meanings follow the OpenAPI schemas named in
+each docstring.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any, Literal, TypeAlias
+
+from .errors import MentalsimError
+
+JsonObject: TypeAlias = dict[str, Any]
+
+
+class ResponseShapeError(MentalsimError, ValueError):
+    """An answer that does not have the documented shape (code ``bad_response``)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(None, "bad_response", message)
+
+
+# --------------------------------------------------------------------------------------------
+# Reading JSON
+
+
+def _obj(value: object, what: str) -> JsonObject:
+    if not isinstance(value, dict):
+        raise ResponseShapeError(f"{what}: expected an object, got {type(value).__name__}")
+    return value
+
+
+def _list(value: object, what: str) -> list[Any]:
+    if not isinstance(value, list):
+        raise ResponseShapeError(f"{what}: expected an array, got {type(value).__name__}")
+    return value
+
+
+def _float(d: Mapping[str, Any], key: str) -> float:
+    v = d.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ResponseShapeError(f"`{key}`: expected a number, got {v!r}")
+    return float(v)
+
+
+def _opt_float(d: Mapping[str, Any], key: str) -> float | None:
+    return None if d.get(key) is None else _float(d, key)
+
+
+def _int(d: Mapping[str, Any], key: str) -> int:
+    v = d.get(key)
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ResponseShapeError(f"`{key}`: expected an integer, got {v!r}")
+    return v
+
+
+def _str(d: Mapping[str, Any], key: str) -> str:
+    v = d.get(key)
+    if not isinstance(v, str):
+        raise ResponseShapeError(f"`{key}`: expected a string, got {v!r}")
+    return v
+
+
+def _opt_str(d: Mapping[str, Any], key: str) -> str | None:
+    return None if d.get(key) is None else _str(d, key)
+
+
+def _bool(d: Mapping[str, Any], key: str) -> bool:
+    v = d.get(key)
+    if not isinstance(v, bool):
+        raise ResponseShapeError(f"`{key}`: expected a boolean, got {v!r}")
+    return v
+
+
+def _opt_obj(d: Mapping[str, Any], key: str) -> JsonObject | None:
+    return None if d.get(key) is None else _obj(d[key], key)
+
+
+def _floats(value: object, what: str) -> list[float]:
+    out: list[float] = []
+    for v in _list(value, what):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ResponseShapeError(f"{what}: expected numbers, got {v!r}")
+        out.append(float(v))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry
+
+
+@dataclass(frozen=True, slots=True)
+class Point:
+    """A point in a floor's map frame, metres (schema ``Point``)."""
+
+    x: float
+    y: float
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> Point:
+        return cls(_float(d, "x"), _float(d, "y"))
+
+    def to_json(self) -> JsonObject:
+        return {"x": self.x, "y": self.y}
+
+
+@dataclass(frozen=True, slots=True)
+class Pose:
+    """A pose in a floor's map frame: metres, heading in radians counter-clockwise from +x
+    (schema ``Pose``)."""
+
+    x: float
+    y: float
+    yaw: float = 0.0
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> Pose:
+        return cls(_float(d, "x"), _float(d, "y"), _opt_float(d, "yaw") or 0.0)
+
+    def to_json(self) -> JsonObject:
+        return {"x": self.x, "y": self.y, "yaw": self.yaw}
+
+
+PointLike: TypeAlias = Point | tuple[float, float] | Sequence[float]
+PoseLike: TypeAlias = Pose | Point | tuple[float, float] | tuple[float, float, float] | Sequence[float]
+
+
+def as_point(p: PointLike) -> Point:
+    """A :class:`Point` from a point or an ``(x, y)`` pair."""
+    if isinstance(p, Point):
+        return p
+    if isinstance(p, Pose):
+        return Point(p.x, p.y)
+    values = [float(v) for v in p]
+    if len(values) != 2:
+        raise ValueError(f"a point is (x, y), got {p!r}")
+    return Point(values[0], values[1])
+
+
+def as_pose(p: PoseLike) -> Pose:
+    """A :class:`Pose` from a pose, a point, or an ``(x, y)`` or ``(x, y, yaw)`` tuple."""
+    if isinstance(p, Pose):
+        return p
+    if isinstance(p, Point):
+        return Pose(p.x, p.y)
+    values = [float(v) for v in p]
+    if len(values) not in (2, 3):
+        raise ValueError(f"a pose is (x, y) or (x, y, yaw), got {p!r}")
+    return Pose(values[0], values[1], values[2] if len(values) == 3 else 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# ROS messages
+
+
+@dataclass(frozen=True, slots=True)
+class RosPoseStamped:
+    """``geometry_msgs/PoseStamped`` as ``PlanResult.path`` writes it (schema ``RosPoseStamped``)."""
+
+    frame_id: str
+    x: float
+    y: float
+    z: float
+    qx: float
+    qy: float
+    qz: float
+    qw: float
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> RosPoseStamped:
+        header = _obj(d.get("header"), "header")
+        pose = _obj(d.get("pose"), "pose")
+        position = _obj(pose.get("position"), "position")
+        q = _obj(pose.get("orientation"), "orientation")
+        return cls(
+            _str(header, "frame_id"),
+            _float(position, "x"),
+            _float(position, "y"),
+            _float(position, "z"),
+            _float(q, "x"),
+            _float(q, "y"),
+            _float(q, "z"),
+            _float(q, "w"),
+        )
+
+    @property
+    def yaw(self) -> float:
+        """The heading the quaternion encodes, radians."""
+        return math.atan2(
+            2.0 * (self.qw * self.qz + self.qx * self.qy),
+            1.0 - 2.0 * (self.qy * self.qy + self.qz * self.qz),
+        )
+
+    def to_ros(self) -> JsonObject:
+        """The message as ROS JSON (rosbridge, ``ros2 topic pub``)."""
+        return {
+            "header": {"frame_id": self.frame_id},
+            "pose": {
+                "position": {"x": self.x, "y": self.y, "z": self.z},
+                "orientation": {"x": self.qx, "y": self.qy, "z": self.qz, "w": self.qw},
+            },
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class RosPath:
+    """``nav_msgs/Path`` in the floor's ``map`` frame (schema ``RosPath``): the start, then every
+    waypoint, each facing along the path."""
+
+    frame_id: str
+    poses: list[RosPoseStamped]
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> RosPath:
+        header = _obj(d.get("header"), "path.header")
+        poses = [RosPoseStamped.from_json(_obj(p, "path.poses[]")) for p in _list(d.get("poses"), "path.poses")]
+        return cls(_str(header, "frame_id"), poses)
+
+    def to_ros(self) -> JsonObject:
+        """The message as ROS JSON, ready for rosbridge or ``ros2 topic pub /plan nav_msgs/Path``."""
+        return {"header": {"frame_id": self.frame_id}, "poses": [p.to_ros() for p in self.poses]}
+
+    def points(self) -> list[tuple[float, float]]:
+        """``(x, y)`` of every pose."""
+        return [(p.x, p.y) for p in self.poses]
+
+
+# --------------------------------------------------------------------------------------------
+# Plans
+
+
+RoadmapChoice: TypeAlias = Literal["auto", "policy", "geometric"]
+
+
+@dataclass(frozen=True, slots=True)
+class PlanOptions:
+    """How a plan is validated (schema ``PlanOptions``); ``None`` leaves the service's default."""
+
+    #: Simulated runs at most, each on a re-sampled roadmap, 1-50 (default 5).
+    max_attempts: int | None = None
+    #: Replans allowed within one attempt, 0-1000 (default 5).
+    max_replans: int | None = None
+    #: Gaussian noise on observations and commands, as in training (default true).
+    noise: bool | None = None
+    #: ``auto`` (default), ``policy`` or ``geometric``.
+    roadmap: RoadmapChoice | None = None
+    #: Clearance beyond the robot's radius, metres, 0-5 (default 0.1).
+    safety_margin_m: float | None = None
+    #: PRM samples, 1-10 000 000 (default: the paper's n*).
+    samples: int | None = None
+    #: Seed of the roadmaps and the simulation (default 0).
+    seed: int | None = None
+    #: Remove detours from the roadmap path (default false).
+    shortcut: bool | None = None
+    #: Answer every attempt's drive step by step (default false).
+    trace: bool | None = None
+    #: Keep every n-th pose of the trajectory (default 1; 0: none).
+    trajectory_stride: int | None = None
+    #: Simulated seconds per waypoint before replanning, (0, 600] (default 15).
+    waypoint_timeout_s: float | None = None
+
+    def to_json(self) -> JsonObject:
+        out: JsonObject = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is not None:
+                out[f.name] = value
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class LegReport:
+    """One leg of a validated plan (schema ``LegReport``)."""
+
+    goal_index: int
+    controller: str
+    roadmap: str
+    attempts: int
+    roadmap_seed: int
+    simulated_time_s: float
+    distance_m: float
+    min_clearance_m: float
+    replans: int
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> LegReport:
+        return cls(
+            _int(d, "goal_index"),
+            _str(d, "controller"),
+            _str(d, "roadmap"),
+            _int(d, "attempts"),
+            _int(d, "roadmap_seed"),
+            _float(d, "simulated_time_s"),
+            _float(d, "distance_m"),
+            _float(d, "min_clearance_m"),
+            _int(d, "replans"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class AttemptReport:
+    """One simulated run (schema ``AttemptReport``); ``trace`` with ``PlanOptions(trace=True)``."""
+
+    attempt: int
+    leg: int
+    controller: str
+    roadmap_seed: int
+    outcome: Literal["reached", "collision", "stalled"] | str
+    reason: str
+    simulated_time_s: float
+    distance_m: float
+    min_clearance_m: float
+    replans: int
+    waypoints_reached: int
+    goals_reached: int
+    prm_path_length_m: float
+    end_pose: Pose
+    trace: JsonObject | None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> AttemptReport:
+        return cls(
+            _int(d, "attempt"),
+            _int(d, "leg"),
+            _str(d, "controller"),
+            _int(d, "roadmap_seed"),
+            _str(d, "outcome"),
+            _str(d, "reason"),
+            _float(d, "simulated_time_s"),
+            _float(d, "distance_m"),
+            _float(d, "min_clearance_m"),
+            _int(d, "replans"),
+            _int(d, "waypoints_reached"),
+            _int(d, "goals_reached"),
+            _float(d, "prm_path_length_m"),
+            Pose.from_json(_obj(d.get("end_pose"), "end_pose")),
+            _opt_obj(d, "trace"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class RoadmapInfo:
+    """The roadmap a plan's first leg planned on (schema ``RoadmapInfo``)."""
+
+    kind: str
+    samples: int
+    nodes: int
+    seed: int
+    inflation_m: float
+    cached: bool
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> RoadmapInfo:
+        return cls(
+            _str(d, "kind"),
+            _int(d, "samples"),
+            _int(d, "nodes"),
+            _int(d, "seed"),
+            _float(d, "inflation_m"),
+            _bool(d, "cached"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PlanResult:
+    """A plan validated in the mental simulation (schema ``PlanApiResponse``)."""
+
+    #: The robot's IRI.
+    robot: str
+    #: The floor's IRI.
+    floor: str
+    #: The policy that drove, if any.
+    policy: str | None
+    #: Why the classical follower was used, when it was.
+    note: str | None
+    service_ms: float
+    #: The start and the waypoints as a ROS 2 ``nav_msgs/Path`` in the ``map`` frame.
+    path: RosPath
+    #: The waypoints to follow, ending with the last goal (the start is not repeated).
+    waypoints: list[Point]
+    #: Index into ``waypoints`` of each goal.
+    goal_indices: list[int]
+    controller: str
+    controller_description: str
+    legs: list[LegReport]
+    attempts: list[AttemptReport]
+    simulated_time_s: float
+    distance_m: float
+    min_clearance_m: float
+    prm_path_length_m: float
+    waypoint_path_length_m: float
+    replans: int
+    trajectory: list[Pose]
+    roadmap: RoadmapInfo
+    #: The laser the traces read (``PlanOptions(trace=True)``).
+    laser: JsonObject | None
+    raw: JsonObject = field(repr=False, compare=False)
+
+    @classmethod
+    def from_json(cls, d: JsonObject) -> PlanResult:
+        return cls(
+            robot=_str(d, "robot"),
+            floor=_str(d, "floor"),
+            policy=_opt_str(d, "policy"),
+            note=_opt_str(d, "note"),
+            service_ms=_float(d, "service_ms"),
+            path=RosPath.from_json(_obj(d.get("path"), "path")),
+            waypoints=[Point.from_json(_obj(p, "waypoints[]")) for p in _list(d.get("waypoints"), "waypoints")],
+            goal_indices=[int(i) for i in _list(d.get("goal_indices"), "goal_indices")],
+            controller=_str(d, "controller"),
+            controller_description=_str(d, "controller_description"),
+            legs=[LegReport.from_json(_obj(x, "legs[]")) for x in _list(d.get("legs"), "legs")],
+            attempts=[AttemptReport.from_json(_obj(x, "attempts[]")) for x in _list(d.get("attempts"), "attempts")],
+            simulated_time_s=_float(d, "simulated_time_s"),
+            distance_m=_float(d, "distance_m"),
+            min_clearance_m=_float(d, "min_clearance_m"),
+            prm_path_length_m=_float(d, "prm_path_length_m"),
+            waypoint_path_length_m=_float(d, "waypoint_path_length_m"),
+            replans=_int(d, "replans"),
+            trajectory=[Pose.from_json(_obj(p, "trajectory[]")) for p in _list(d.get("trajectory"), "trajectory")],
+            roadmap=RoadmapInfo.from_json(_obj(d.get("roadmap"), "roadmap")),
+            laser=_opt_obj(d, "laser"),
+            raw=d,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class RoadmapEdge:
+    """One undirected roadmap edge (schema ``EdgeView``)."""
+
+    a: int
+    b: int
+    length_m: float
+    success: float | None
+    mean_time_s: float | None
+    kept: bool | None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> RoadmapEdge:
+        kept = d.get("kept")
+        return cls(
+            _int(d, "a"),
+            _int(d, "b"),
+            _float(d, "length_m"),
+            _opt_float(d, "success"),
+            _opt_float(d, "mean_time_s"),
+            kept if isinstance(kept, bool) else None,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Roadmap:
+    """A floor's roadmap for a robot (schema ``RoadmapView``)."""
+
+    kind: str
+    floor: str
+    samples: int
+    seed: int
+    inflation_m: float
+    nodes: list[Point]
+    edges: list[RoadmapEdge]
+    policy: str | None
+    note: str | None
+
+    @classmethod
+    def from_json(cls, d: JsonObject) -> Roadmap:
+        nodes = []
+        for n in _list(d.get("nodes"), "nodes"):
+            xy = _floats(n, "nodes[]")
+            nodes.append(Point(xy[0], xy[1]))
+        return cls(
+            _str(d, "kind"),
+            _str(d, "floor"),
+            _int(d, "samples"),
+            _int(d, "seed"),
+            _float(d, "inflation_m"),
+            nodes,
+            [RoadmapEdge.from_json(_obj(e, "edges[]")) for e in _list(d.get("edges"), "edges")],
+            _opt_str(d, "policy"),
+            _opt_str(d, "note"),
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# Knowledge
+
+
+@dataclass(frozen=True, slots=True)
+class Me:
+    """Who a token belongs to (schema ``Me``)."""
+
+    name: str
+    role: str
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> Me:
+        return cls(_str(d, "name"), _str(d, "role"))
+
+
+@dataclass(frozen=True, slots=True)
+class MapInfo:
+    """A floor's metric map (schema ``MapView``)."""
+
+    width: int
+    height: int
+    resolution: float
+    origin: list[float]
+    free_area_m2: float
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> MapInfo:
+        return cls(
+            _int(d, "width"),
+            _int(d, "height"),
+            _float(d, "resolution"),
+            _floats(d.get("origin"), "origin"),
+            _float(d, "free_area_m2"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Place:
+    """A building, floor, room, corridor or hall (schema ``PlaceView``)."""
+
+    iri: str
+    id: str | None
+    name: str
+    kind: str
+    parent: str | None
+    connected: list[str]
+    boundary: list[tuple[float, float]]
+    complexity: float | None
+    map: MapInfo | None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> Place:
+        boundary = []
+        for p in _list(d.get("boundary"), "boundary"):
+            xy = _floats(p, "boundary[]")
+            boundary.append((xy[0], xy[1]))
+        m = _opt_obj(d, "map")
+        return cls(
+            _str(d, "iri"),
+            _opt_str(d, "id"),
+            _str(d, "name"),
+            _str(d, "kind"),
+            _opt_str(d, "parent"),
+            [str(c) for c in _list(d.get("connected"), "connected")],
+            boundary,
+            _opt_float(d, "complexity"),
+            MapInfo.from_json(m) if m is not None else None,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Robot:
+    """A robot model (schema ``RobotView``)."""
+
+    iri: str
+    id: str | None
+    name: str
+    wheels: int
+    joints: int
+    lasers: int
+    cameras: int
+    footprint: list[float] | None
+    wheel_separation: float | None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> Robot:
+        fp = d.get("footprint")
+        return cls(
+            _str(d, "iri"),
+            _opt_str(d, "id"),
+            _str(d, "name"),
+            _int(d, "wheels"),
+            _int(d, "joints"),
+            _int(d, "lasers"),
+            _int(d, "cameras"),
+            _floats(fp, "footprint") if fp is not None else None,
+            _opt_float(d, "wheel_separation"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class ImportedMap:
+    """The floor a map import made (schema ``ImportedMap``)."""
+
+    floor: str
+    graph: str
+    width: int
+    height: int
+    resolution: float
+    free_area_m2: float
+    triples: int
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> ImportedMap:
+        return cls(
+            _str(d, "floor"),
+            _str(d, "graph"),
+            _int(d, "width"),
+            _int(d, "height"),
+            _float(d, "resolution"),
+            _float(d, "free_area_m2"),
+            _int(d, "triples"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Box:
+    """A box, metres: extents along the object's x, y and z."""
+
+    length: float
+    width: float
+    height: float
+
+    def to_json(self) -> JsonObject:
+        return {"type": "box", "length": self.length, "width": self.width, "height": self.height}
+
+
+@dataclass(frozen=True, slots=True)
+class Cylinder:
+    """An upright cylinder, metres."""
+
+    diameter: float
+    height: float
+
+    def to_json(self) -> JsonObject:
+        return {"type": "cylinder", "diameter": self.diameter, "height": self.height}
+
+
+@dataclass(frozen=True, slots=True)
+class Sphere:
+    """A sphere, metres."""
+
+    diameter: float
+
+    def to_json(self) -> JsonObject:
+        return {"type": "sphere", "diameter": self.diameter}
+
+
+Shape: TypeAlias = Box | Cylinder | Sphere
+
+
+@dataclass(frozen=True, slots=True)
+class Colour:
+    """A colour, components in [0, 1] (schema ``ColourInput``)."""
+
+    r: float
+    g: float
+    b: float
+    a: float | None = None
+
+    def to_json(self) -> JsonObject:
+        out: JsonObject = {"r": self.r, "g": self.g, "b": self.b}
+        if self.a is not None:
+            out["a"] = self.a
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class ReportedObject:
+    """What the service stored for an object report (schema ``ReportedObject``)."""
+
+    iri: str
+    place: str
+    reported_by: str
+    reported_at: str
+    #: Whether an earlier report of the same id was replaced.
+    updated: bool
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> ReportedObject:
+        return cls(
+            _str(d, "iri"),
+            _str(d, "place"),
+            _str(d, "reported_by"),
+            _str(d, "reported_at"),
+            _bool(d, "updated"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class WorldObject:
+    """An object as the simulation builds it (schema ``ObjectView``)."""
+
+    iri: str
+    cls: str | None
+    shape: str
+    size: list[float]
+    pose: tuple[float, float, float, float]
+    colour: str
+    placeholder: bool
+    open: bool
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> WorldObject:
+        pose = _obj(d.get("pose"), "pose")
+        return cls(
+            _str(d, "iri"),
+            _opt_str(d, "class"),
+            _str(d, "shape"),
+            _floats(d.get("size"), "size"),
+            (_float(pose, "x"), _float(pose, "y"), _float(pose, "z"), _float(pose, "yaw")),
+            _str(d, "colour"),
+            _bool(d, "placeholder"),
+            _bool(d, "open"),
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# Jobs and policies
+
+JobKind: TypeAlias = Literal["train", "evaluate", "validate", "roadmap"]
+JobState: TypeAlias = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+FINISHED_STATES: frozenset[str] = frozenset({"succeeded", "failed", "cancelled"})
+
+
+@dataclass(frozen=True, slots=True)
+class Job:
+    """A job (schema ``JobView``)."""
+
+    id: str
+    kind: str
+    state: str
+    payload: JsonObject
+    priority: int
+    attempts: int
+    max_attempts: int
+    cancel_requested: bool
+    created: str
+    updated: str
+    run_after: str
+    started: str | None
+    finished: str | None
+    worker: str | None
+    progress: JsonObject | None
+    checkpoint: JsonObject | None
+    result: JsonObject | None
+    error: str | None
+    raw: JsonObject = field(repr=False, compare=False)
+
+    @property
+    def is_finished(self) -> bool:
+        """Succeeded, failed for good, or cancelled."""
+        return self.state in FINISHED_STATES
+
+    @classmethod
+    def from_json(cls, d: JsonObject) -> Job:
+        return cls(
+            id=_str(d, "id"),
+            kind=_str(d, "kind"),
+            state=_str(d, "state"),
+            payload=_obj(d.get("payload"), "payload"),
+            priority=_int(d, "priority"),
+            attempts=_int(d, "attempts"),
+            max_attempts=_int(d, "max_attempts"),
+            cancel_requested=_bool(d, "cancel_requested"),
+            created=_str(d, "created"),
+            updated=_str(d, "updated"),
+            run_after=_str(d, "run_after"),
+            started=_opt_str(d, "started"),
+            finished=_opt_str(d, "finished"),
+            worker=_opt_str(d, "worker"),
+            progress=_opt_obj(d, "progress"),
+            checkpoint=_opt_obj(d, "checkpoint"),
+            result=_opt_obj(d, "result"),
+            error=_opt_str(d, "error"),
+            raw=d,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class JobEvent:
+    """One event of a job's event stream: ``kind`` is ``state``, ``progress``, ``checkpoint`` or
+    ``cancel_requested``; ``data`` its JSON. Training progress carries ``env_steps``,
+    ``episodes``, ``grad_steps``, ``success_rate_100``, ``mean_reward_100``, ``fraction_done``,
+    ``eta_s``, ``wall_s``, ...; a roadmap job's ``edges`` and ``fraction_done``."""
+
+    #: The event's id in the job's event log (increasing; resume after it).
+    id: int
+    kind: str
+    created: str
+    data: JsonObject
+
+    @property
+    def state(self) -> str | None:
+        """The job's new state, for a ``state`` event."""
+        v = self.data.get("state") if self.kind == "state" else None
+        return v if isinstance(v, str) else None
+
+    @property
+    def fraction_done(self) -> float | None:
+        """How much of the job is done, in [0, 1], for a ``progress`` event."""
+        v = self.data.get("fraction_done") if self.kind == "progress" else None
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+    @property
+    def eta_s(self) -> float | None:
+        """Seconds left, for a training's ``progress`` event."""
+        v = self.data.get("eta_s") if self.kind == "progress" else None
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+    @classmethod
+    def from_sse(cls, event_id: int, event: str, data: str) -> JobEvent:
+        try:
+            body = json.loads(data)
+        except ValueError as e:
+            raise ResponseShapeError(f"event {event_id}: data is not JSON: {data[:200]!r}") from e
+        body = _obj(body, f"event {event_id}")
+        inner = body.get("data")
+        return cls(
+            event_id,
+            str(body.get("kind") or event),
+            str(body.get("created") or ""),
+            inner if isinstance(inner, dict) else {"value": inner},
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PolicySummary:
+    """An exported policy (schema ``PolicySummary``); ``metadata`` (its ``policy.json``) only from
+    :meth:`Client.policy`."""
+
+    id: str
+    robot: str | None
+    place: str | None
+    floor: str | None
+    job_id: str | None
+    created: str | None
+    eval: JsonObject
+    metadata: JsonObject | None
+    raw: JsonObject = field(repr=False, compare=False)
+
+    @classmethod
+    def from_json(cls, d: JsonObject) -> PolicySummary:
+        return cls(
+            _str(d, "id"),
+            _opt_str(d, "robot"),
+            _opt_str(d, "place"),
+            _opt_str(d, "floor"),
+            _opt_str(d, "job_id"),
+            _opt_str(d, "created"),
+            _obj(d.get("eval"), "eval"),
+            _opt_obj(d, "metadata"),
+            d,
+        )
