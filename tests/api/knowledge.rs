@@ -557,6 +557,46 @@ async fn a_floor_exports_as_sdf_and_the_robot_as_urdf_that_check_urdf_accepts() 
         &sdf[..200.min(sdf.len())]
     );
     assert!(sdf.contains("<world"));
+    // No robot unless asked where; with x and y the gz-sim model stands there.
+    assert!(!sdf.contains("gz-sim-diff-drive-system"));
+    let placed = app
+        .request(
+            Method::GET,
+            &format!("/v1/places/{id}/world.sdf?x=0.5&y=-2&yaw=1.5"),
+        )
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(placed.status(), 200);
+    let placed = placed.text().await.unwrap();
+    assert!(placed.contains("gz-sim-diff-drive-system") && placed.contains("<pose>0.5 -2 "));
+    for half in ["x=1", "y=1", "yaw=1", "x=1&y=NaN"] {
+        let r = app
+            .request(Method::GET, &format!("/v1/places/{id}/world.sdf?{half}"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 400, "{half}");
+    }
+    // A building is on no floor: 404 naming it.
+    let building = places.iter().find(|p| p["kind"] == "building").unwrap();
+    let r = app
+        .request(
+            Method::GET,
+            &format!(
+                "/v1/places/{}/world.sdf",
+                url_encode(building["iri"].as_str().unwrap())
+            ),
+        )
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 404);
+    let message = r.text().await.unwrap();
+    assert!(
+        message.contains(building["iri"].as_str().unwrap()),
+        "{message}"
+    );
 
     let urdf = app
         .request(Method::GET, "/v1/robots/R-001/robot.urdf")

@@ -107,6 +107,7 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         "robot_bridge_yaml": lambda c: c.robot_bridge_yaml("R-001"),
         "robot_bridge_yaml (world)": lambda c: c.robot_bridge_yaml("R-001", world="F0"),
         "world_sdf": lambda c: c.world_sdf("F0"),
+        "world_sdf (robot)": lambda c: c.world_sdf("F0", robot="R-001", at=(0.5, -2.0, 1.0)),
         "map_png": lambda c: c.map_png("F0"),
         "download_map": lambda c: c.download_map("F0-hall", tmp / "map"),
         "import_map": lambda c: c.import_map("a-map", yaml),

@@ -69,6 +69,10 @@ def test_a_downloaded_map_imports_to_the_same_grid(engineer: Client, kitchen: st
 def test_a_floor_exports_as_an_sdf_world(robot: Client, kitchen: str) -> None:
     sdf = robot.world_sdf(kitchen)
     assert sdf.lstrip().startswith("<?xml") and "<sdf" in sdf and "<world" in sdf
+    assert "gz-sim-diff-drive-system" not in sdf
+    # With a pose, the robot's gz-sim model stands there.
+    placed = robot.world_sdf(kitchen, robot="R-001", at=(1.0, -2.0, 0.5))
+    assert "gz-sim-diff-drive-system" in placed and "<pose>1 -2 0 0 0 0.5</pose>" in placed
 
 
 def test_a_missions_on_demand_database_is_an_rdflib_graph(robot: Client) -> None:

@@ -336,6 +336,26 @@ pub struct JobView {
     events: String,
 }
 
+/// A checkpoint reference as a token of `role` sees it: the server's directory is for
+/// engineers only (as `/readyz` shows paths to them alone).
+fn checkpoint_for(mut data: Value, role: Role) -> Value {
+    if role != Role::Engineer
+        && let Some(o) = data.as_object_mut()
+    {
+        o.remove("dir");
+    }
+    data
+}
+
+impl JobView {
+    /// The job as a token of `role` sees it.
+    fn seen_by(j: &Job, role: Role) -> Self {
+        let mut view = Self::from(j);
+        view.checkpoint = view.checkpoint.map(|c| checkpoint_for(c, role));
+        view
+    }
+}
+
 impl From<&Job> for JobView {
     fn from(j: &Job) -> Self {
         let t = crate::jobs::rfc3339;
@@ -441,7 +461,7 @@ async fn list_jobs(
     headers: HeaderMap,
     Query(query): Query<ListQuery>,
 ) -> Result<Json<Vec<JobView>>, ApiError> {
-    api.tokens.authenticate(&headers)?;
+    let role = api.tokens.authenticate(&headers)?.role;
     let state = match query.state.as_deref() {
         None | Some("") => None,
         Some(s) => Some(s.parse::<JobState>().map_err(|_| {
@@ -463,7 +483,9 @@ async fn list_jobs(
         .list_by(state, kind, limit)
         .await
         .map_err(queue_error)?;
-    Ok(Json(jobs.iter().map(JobView::from).collect()))
+    Ok(Json(
+        jobs.iter().map(|j| JobView::seen_by(j, role)).collect(),
+    ))
 }
 
 /// One job: state, kind, payload, attempts, progress, result, error, timestamps.
@@ -477,8 +499,8 @@ async fn get_job(
     headers: HeaderMap,
     Path(id): Path<String>,
 ) -> Result<Json<JobView>, ApiError> {
-    api.tokens.authenticate(&headers)?;
-    Ok(Json(JobView::from(&api.job(&id).await?)))
+    let role = api.tokens.authenticate(&headers)?.role;
+    Ok(Json(JobView::seen_by(&api.job(&id).await?, role)))
 }
 
 /// Asks a job to stop: a queued job is cancelled at once; a running one stops at its next
@@ -575,7 +597,7 @@ async fn job_events(
         .map_err(queue_error)?
         .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))?;
     let permit = api.streams.open(&principal.name)?;
-    let stream = event_stream(api, id, after, permit);
+    let stream = event_stream(api, id, after, permit, principal.role);
     Ok(Sse::new(stream)
         .keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
         .into_response())
@@ -590,12 +612,14 @@ struct Cursor {
     pending: std::collections::VecDeque<JobEvent>,
     finished_seen: bool,
     done: bool,
+    /// The reader's role (what it may see of checkpoints).
+    role: Role,
 }
 
-fn sse_event(e: &JobEvent) -> Event {
+fn sse_event(e: &JobEvent, role: Role) -> Event {
     let data = serde_json::json!({
         "kind": e.kind,
-        "data": e.data,
+        "data": if e.kind == "checkpoint" { checkpoint_for(e.data.clone(), role) } else { e.data.clone() },
         "created": crate::jobs::rfc3339(e.created_ms),
     });
     Event::default()
@@ -609,8 +633,10 @@ fn event_stream(
     job: Uuid,
     after: i64,
     permit: StreamPermit,
+    role: Role,
 ) -> impl futures_util::Stream<Item = Result<Event, Infallible>> + Send {
     let cursor = Cursor {
+        role,
         _permit: permit,
         api,
         job,
@@ -623,7 +649,7 @@ fn event_stream(
         loop {
             if let Some(e) = c.pending.pop_front() {
                 c.after = e.id;
-                let event = sse_event(&e);
+                let event = sse_event(&e, c.role);
                 return Some((Ok(event), c));
             }
             if c.done || c.api.shutdown.is_cancelled() {
@@ -872,4 +898,27 @@ async fn job_curves_png(
     .map_err(|e| ApiError::internal(format!("plotting the curves failed: {e}")))?
     .map_err(|e| ApiError::internal(format!("the curves' picture: {e}")))?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_engineers_see_where_a_checkpoint_lies_on_the_server() {
+        let data = serde_json::json!({"dir": "/srv/data/checkpoints/x", "env_steps": 10});
+        let robot = checkpoint_for(data.clone(), Role::Robot);
+        assert_eq!(robot, serde_json::json!({"env_steps": 10}));
+        assert_eq!(checkpoint_for(data.clone(), Role::Engineer), data);
+        let event = JobEvent {
+            id: 3,
+            job_id: Uuid::nil(),
+            kind: "checkpoint".into(),
+            data,
+            created_ms: 0,
+        };
+        let shown = format!("{:?}", sse_event(&event, Role::Robot));
+        assert!(!shown.contains("/srv/data"), "{shown}");
+        assert!(format!("{:?}", sse_event(&event, Role::Engineer)).contains("/srv/data"));
+    }
 }

@@ -68,7 +68,7 @@ OPERATIONS: Final[dict[str, Operation]] = dict(
         _op("place_map_yaml", "GET", "/v1/places/{id}/map.yaml", "knowledge", accept=("application/yaml",)),
         _op("place_map_pgm", "GET", "/v1/places/{id}/map.pgm", "knowledge", accept=("image/x-portable-graymap",)),
         _op("place_map", "GET", "/v1/places/{id}/map.png", "knowledge", accept=("image/png",)),
-        _op("world_sdf", "GET", "/v1/places/{id}/world.sdf", "knowledge", accept=("application/xml",)),
+        _op("world_sdf", "GET", "/v1/places/{id}/world.sdf", "knowledge", query=("robot", "x", "y", "yaw"), accept=("application/xml",)),
         _op("list_objects", "GET", "/v1/places/{id}/objects", "knowledge"),
         _op("report_object", "POST", "/v1/places/{id}/objects", "knowledge", body="ObjectReport", body_type=JSON),
         _op("floor_on_demand_database", "GET", "/v1/places/{id}/on-demand", "knowledge", query=("robot",), accept=RDF_TYPES),

@@ -291,9 +291,16 @@ class Client:
         query = {"world": world} if world is not None else None
         return self._send("bridge_yaml", path={"id": robot}, query=query).text
 
-    def world_sdf(self, place: str) -> str:
-        """The SDF 1.9 world of the floor ``place`` is on (Gazebo)."""
-        return self._send("world_sdf", path={"id": place}).text
+    def world_sdf(self, place: str, *, robot: str | None = None, at: PoseLike | None = None) -> str:
+        """The SDF 1.9 world of the floor ``place`` is on, for gz-sim; with ``at`` (``(x, y)``
+        or ``(x, y, yaw)`` in the map frame) ``robot`` (default: the first one) stands in it."""
+        query: dict[str, object] = {}
+        if robot is not None:
+            query["robot"] = robot
+        if at is not None:
+            pose = as_pose(at)
+            query.update(x=pose.x, y=pose.y, yaw=pose.yaw)
+        return self._send("world_sdf", path={"id": place}, query=query or None).text
 
     def map_png(self, place: str) -> bytes:
         """A floor's occupancy grid as a PNG (free 254, occupied 0, unknown 205)."""

@@ -157,23 +157,57 @@ pub(super) async fn place_map(
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
 
-/// Which robot to place in an exported world.
+/// Which robot the exported world is made for, and where to put it.
 #[derive(Deserialize, utoipa::IntoParams)]
 pub struct WorldQuery {
     /// The robot's IRI or identifier [default: the first robot in the store]. An unknown one
     /// (an empty one included) is 404.
     #[param(nullable = false)]
     pub(super) robot: Option<String>,
+    /// With `y`: the world includes the robot's gz-sim model (as `robot.sdf`) standing at
+    /// (`x`, `y`) in the map frame, metres. Without both, the world has no robot
+    /// (`ros_gz_sim create` spawns one).
+    #[param(nullable = false)]
+    pub(super) x: Option<f64>,
+    /// See `x`.
+    #[param(nullable = false)]
+    pub(super) y: Option<f64>,
+    /// The robot's heading with `x` and `y`, radians [default: 0].
+    #[param(nullable = false)]
+    pub(super) yaw: Option<f64>,
+}
+
+impl WorldQuery {
+    /// Where to put the robot, if anywhere; 400 for half a position or a non-finite number.
+    fn robot_pose(&self) -> Result<Option<sim::Pose2>, ApiError> {
+        let pose = match (self.x, self.y) {
+            (None, None) if self.yaw.is_none() => return Ok(None),
+            (Some(x), Some(y)) => sim::Pose2::new(x, y, self.yaw.unwrap_or(0.0)),
+            _ => {
+                return Err(ApiError::bad_request(
+                    "x, y: give both to place the robot in the world (and yaw only with them)",
+                ));
+            }
+        };
+        if [pose.x, pose.y, pose.yaw].iter().all(|v| v.is_finite()) {
+            Ok(Some(pose))
+        } else {
+            Err(ApiError::bad_request("x, y, yaw: must be finite numbers"))
+        }
+    }
 }
 
 /// The SDF 1.9 world of a floor (or of the floor a place is on), generated from the graph alone
 /// by the simulation parser: walls from the metric map, library models, and placeholders of
-/// their stated shape and colour. Gazebo loads it as it is.
+/// their stated shape and colour, with the systems gz-sim needs to run a robot (physics, user
+/// commands, scene broadcaster, sensors on ogre2), and the robot itself where `x` and `y` put
+/// it. gz-sim loads it as it is.
 #[utoipa::path(get, path = "/v1/places/{id}/world.sdf", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier."), WorldQuery), responses(
     (status = 200, content_type = "application/xml", body = String),
     (status = 401, response = edge::error::responses::Unauthorized),
-    (status = 404, description = "No place has this IRI or identifier, or no robot the `robot` given (or none at all).", body = ErrorBody),
-    (status = 422, description = "The place is on no floor (a building, or a place outside every floor): only floors and the places on them have a world; or the stored knowledge does not make a world.", body = ErrorBody),
+    (status = 400, description = "Half a robot position (`x` without `y`, or `yaw` alone), or a non-finite one.", body = ErrorBody),
+    (status = 404, description = "No place has this IRI or identifier, or it is on no floor (a building, or a place outside every floor: only floors and the places on them have a world), or no robot the `robot` given (or none at all).", body = ErrorBody),
+    (status = 422, description = "The stored knowledge does not make a world.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn world_sdf(
     State(k): State<Arc<Knowledge>>,
@@ -182,9 +216,13 @@ pub(super) async fn world_sdf(
     axum::extract::Query(query): axum::extract::Query<WorldQuery>,
 ) -> Result<Response, ApiError> {
     k.tokens.authenticate(&headers)?;
+    let at = query.robot_pose()?;
     let sdf = blocking(move || {
         let spec = floor_spec(&k, &id, query.robot.as_deref())?;
-        Ok(sim::export::world_sdf(&spec))
+        Ok(match at {
+            Some(start) => sim::export::world_sdf_with_robot(&spec, start),
+            None => sim::export::world_sdf(&spec),
+        })
     })
     .await?;
     Ok(([(header::CONTENT_TYPE, "application/xml")], sdf).into_response())
@@ -199,13 +237,10 @@ fn floor_spec(k: &Knowledge, id: &str, robot: Option<&str>) -> Result<sim::World
         .into_iter()
         .find(|p| p.kind == PlaceKind::Floor);
     let floor = floor.ok_or_else(|| {
-        ApiError::new(
-            ErrorCode::Unprocessable,
-            format!(
-                "{} is on no floor: only floors and the places on them have a world",
-                place.iri
-            ),
-        )
+        ApiError::not_found(format!(
+            "{} is on no floor: only floors and the places on them have a world",
+            place.iri
+        ))
     })?;
     let db = on_demand::floor_database(&store, &floor.iri, robot)?;
     let graph: Graph = db.triples.into_iter().collect();
@@ -253,8 +288,8 @@ pub struct ObjectPose {
 #[utoipa::path(get, path = "/v1/places/{id}/objects", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier.")), responses(
     (status = 200, body = [ObjectView]),
     (status = 401, response = edge::error::responses::Unauthorized),
-    (status = 404, description = "No place has this IRI or identifier, or there is no robot to make a world with.", body = ErrorBody),
-    (status = 422, description = "The place is on no floor, or the stored knowledge does not make a world.", body = ErrorBody),
+    (status = 404, description = "No place has this IRI or identifier, or it is on no floor, or there is no robot to make a world with.", body = ErrorBody),
+    (status = 422, description = "The stored knowledge does not make a world.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn list_objects(
     State(k): State<Arc<Knowledge>>,

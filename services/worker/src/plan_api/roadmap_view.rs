@@ -90,7 +90,7 @@ pub async fn get_roadmap(
     axum::extract::Query(query): axum::extract::Query<RoadmapQuery>,
 ) -> Result<Json<RoadmapView>, ApiError> {
     api.jobs.tokens.require(&headers, Role::Robot)?;
-    roadmap_view(api, query).await.map(Json)
+    roadmap_view(api, query, false).await.map(Json)
 }
 
 /// Which robot's route graph.
@@ -98,16 +98,19 @@ pub async fn get_roadmap(
 pub struct RouteGraphQuery {
     /// The robot whose footprint inflates the free space: identifier or IRI.
     pub robot: String,
-    /// A policy: its policy-aware roadmap's measurements, where stored [default: none].
+    /// A policy: its policy-aware roadmap's measurements, where stored [default: the robot's
+    /// newest policy, as `POST /v1/plan` drives with].
     #[param(nullable = false)]
     pub policy: Option<String>,
 }
 
-/// The floor's roadmap (the one `GET /v1/roadmaps` answers) as a route graph for Nav2's Route
-/// Server (`nav2_route`'s GeoJSON graph): a `FeatureCollection` of `Point` nodes (`id`,
-/// `frame`: `map`) and one `MultiLineString` edge per direction (`id`, `startid`, `endid`,
-/// `cost` in metres; `metadata.success_probability` and `metadata.mean_time_s` where a policy's
-/// rollouts measured them). Node and edge ids are unique together, as the Route Server requires.
+/// The floor's roadmap (the one `GET /v1/roadmaps` answers, with the measurements of the
+/// robot's newest policy's policy-aware roadmap when one is stored) as a route graph for Nav2's
+/// Route Server (`nav2_route`'s GeoJSON graph): a `FeatureCollection` of `Point` nodes (`id`,
+/// `frame`: the floor map's `tosm:frameId`) and one `MultiLineString` edge per direction (`id`,
+/// `startid`, `endid`, `cost` in metres; `metadata.success_probability` and
+/// `metadata.mean_time_s` where a policy's rollouts measured them). Node and edge ids are unique
+/// together, as the Route Server requires.
 #[utoipa::path(get, path = "/v1/places/{id}/route-graph.geojson", params(("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier."), RouteGraphQuery), responses(
     (status = 200, content_type = "application/geo+json", body = Object),
     (status = 400, description = "A query parameter is missing or malformed.", body = edge::ErrorBody),
@@ -131,6 +134,7 @@ pub async fn route_graph(
             policy: query.policy,
             safety_margin_m: None,
         },
+        true,
     )
     .await?;
     Ok((
@@ -189,8 +193,13 @@ pub fn geojson(view: &RoadmapView) -> serde_json::Value {
     json!({"type": "FeatureCollection", "name": "graph", "features": features})
 }
 
-/// The roadmap `query` names, as `GET /v1/roadmaps` answers it.
-async fn roadmap_view(api: Arc<PlanApi>, query: RoadmapQuery) -> Result<RoadmapView, ApiError> {
+/// The roadmap `query` names, as `GET /v1/roadmaps` answers it; without a policy named, with
+/// `newest_policy` the robot's newest one's measurements.
+async fn roadmap_view(
+    api: Arc<PlanApi>,
+    mut query: RoadmapQuery,
+    newest_policy: bool,
+) -> Result<RoadmapView, ApiError> {
     let margin = query
         .safety_margin_m
         .unwrap_or(rehearsal::PlanOptions::default().safety_margin_m);
@@ -202,6 +211,9 @@ async fn roadmap_view(api: Arc<PlanApi>, query: RoadmapQuery) -> Result<RoadmapV
         .with_details(serde_json::json!({"field": "safety_margin_m"})));
     }
     let db = api.floor_database(&query.place, &query.robot).await?;
+    if newest_policy && query.policy.is_none() {
+        query.policy = super::newest_policy(&api.jobs.env.policies, &db.robot);
+    }
     let key = match &query.policy {
         None => None,
         Some(id) => {
