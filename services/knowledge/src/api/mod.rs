@@ -34,7 +34,7 @@ use self::places::{
 };
 use self::robots::{
     __path_bridge_yaml, __path_get_robot, __path_list_robots, __path_robot_sdf, __path_robot_urdf,
-    RobotView,
+    BridgeEntry, RobotView,
 };
 use crate::service::Knowledge;
 
@@ -44,7 +44,7 @@ use crate::service::Knowledge;
     info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
     paths(me, list_places, get_place, place_map, place_map_yaml, place_map_pgm, world_sdf, list_objects, list_robots, get_robot, robot_urdf, robot_sdf, bridge_yaml, import_map, report_object, on_demand_database, floor_on_demand_database),
     components(
-        schemas(Me, PlaceView, ObjectView, ObjectPose, MapServerYaml, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
+        schemas(Me, PlaceView, ObjectView, ObjectPose, MapServerYaml, BridgeEntry, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),

@@ -13,7 +13,6 @@ use oxigraph::io::{RdfFormat, RdfSerializer};
 use serde::Deserialize;
 use utoipa::ToSchema;
 
-use super::places::WorldQuery;
 use super::task::blocking;
 use crate::on_demand::{self, Mission, OnDemandError, Waypoint};
 use crate::service::Knowledge;
@@ -179,6 +178,15 @@ pub(super) async fn on_demand_database(
     .await
 }
 
+/// Which robot a floor's database is for.
+#[derive(serde::Deserialize, utoipa::IntoParams)]
+pub struct FloorRobotQuery {
+    /// The robot's IRI or identifier [default: the first robot in the store]. An unknown one
+    /// (an empty one included) is 404.
+    #[param(nullable = false)]
+    robot: Option<String>,
+}
+
 /// The on-demand database of the whole floor a place is on (the place itself when it is a
 /// floor), for one robot: everything a mental simulation of that floor needs — the floor, its
 /// ancestors, the places on it with their maps and boundaries, the objects in them, and the
@@ -188,7 +196,7 @@ pub(super) async fn on_demand_database(
 /// `If-None-Match` set to it is answered 304 without a body while nothing was written since.
 #[utoipa::path(get, path = "/v1/places/{id}/on-demand", params(
         ("id" = String, Path, min_length = 1, description = "A floor or a place on one: IRI or tosm:identifier."),
-        WorldQuery,
+        FloorRobotQuery,
         ("If-None-Match" = Option<String>, Header, nullable = false, description = "An `ETag` of an earlier answer: 304 while the graph is unchanged.")),
     responses(
     (status = 200, description = "The floor's database, in the format `Accept` asks for (Turtle by default).",
@@ -209,7 +217,7 @@ pub(super) async fn floor_on_demand_database(
     State(k): State<Arc<Knowledge>>,
     headers: HeaderMap,
     Path(id): Path<String>,
-    axum::extract::Query(query): axum::extract::Query<WorldQuery>,
+    axum::extract::Query(query): axum::extract::Query<FloorRobotQuery>,
 ) -> Result<Response, ApiError> {
     k.tokens.require(&headers, Role::Robot)?;
     let format = graph_format(headers.get(header::ACCEPT).and_then(|v| v.to_str().ok()))?;

@@ -90,7 +90,7 @@ pub struct BridgeQuery {
 /// Gazebo; each camera's `/<camera>/image` and `camera_info` (an RGB-D camera's also
 /// `depth_image` and `points`). The Gazebo topics are those `robot.sdf` and `robot.urdf` use.
 #[utoipa::path(get, path = "/v1/robots/{id}/bridge.yaml", params(("id" = String, Path, min_length = 1, description = "IRI or tosm:identifier"), BridgeQuery), responses(
-    (status = 200, content_type = "application/yaml", body = String),
+    (status = 200, content_type = "application/yaml", body = [BridgeEntry]),
     (status = 400, description = "The `world` is empty or holds other characters than letters, digits, `_`, `-` and `.`.", body = ErrorBody),
     (status = 401, response = edge::error::responses::Unauthorized),
     (status = 404, description = "No robot has this IRI or identifier.", body = ErrorBody),
@@ -220,4 +220,21 @@ pub(super) async fn get_robot(
         Ok(Json(RobotView::from(find_robot(&robots, &id)?)))
     })
     .await
+}
+
+/// One topic of the `ros_gz_bridge` configuration `GET /v1/robots/{id}/bridge.yaml` writes (a
+/// YAML list of these). Documentation only: [`sim::export::ros_gz_bridge_yaml`] writes it.
+#[derive(utoipa::ToSchema)]
+#[allow(dead_code, reason = "read by the OpenAPI document, never built")]
+pub struct BridgeEntry {
+    /// The ROS 2 topic.
+    ros_topic_name: String,
+    /// The Gazebo Transport topic.
+    gz_topic_name: String,
+    /// The ROS 2 message type, e.g. `sensor_msgs/msg/LaserScan`.
+    ros_type_name: String,
+    /// The Gazebo message type, e.g. `gz.msgs.LaserScan`.
+    gz_type_name: String,
+    /// `GZ_TO_ROS` or `ROS_TO_GZ`.
+    direction: String,
 }
