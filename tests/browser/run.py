@@ -31,20 +31,18 @@ CI=true (or MENTALSIM_REQUIRE_ALL=1) and a clear skip otherwise.
 Usage: python tests/browser/run.py [--bin PATH] [--out DIR] [--only floors,plan,...]
                                    [--url URL --engineer-token T --robot-token T] [--no-build]
 The binary is MENTALSIM_BIN, else $CARGO_TARGET_DIR/release/mentalsim (CARGO_TARGET_DIR
-defaults to ~/.cache/mentalsim/target). Chromium is $CHROMIUM, else /usr/bin/chromium.
+defaults to ~/.cache/mentalsim/target). Chromium is $CHROMIUM, else /usr/bin/chromium. The
+service is started and stopped by tests/support/mentalsim_service.py.
 """
 
 from __future__ import annotations
 
 import argparse
 import gzip
-import http.client
 import json
 import os
 import re
 import shutil
-import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -56,12 +54,17 @@ import uuid
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests" / "support"))
+from mentalsim_service import (  # noqa: E402
+    Config, Missing, Service, default_binary, engineer_and_robot, executable, missing, require_all,
+    shared_maps,
+)
+
 CONSOLE = ROOT / "console"
 TOKENS = {
     "engineer": "browser-engineer-token-0123456789abcdef",
     "robot": "browser-robot-token-0123456789abcdef",
 }
-ROBOT_IRI = "https://mentalsim.dev/data/robots/differential-robot"
 # The measurements run before the training job, whose follow-up roadmap job would load the CPU.
 ALL_CHECKS = ["pages", "floor-perf", "replay", "plan", "knowledge", "keyboard", "jobs", "robot"]
 FLOOR_BUDGET_MS = 1000.0
@@ -73,112 +76,6 @@ PLANT = ("cob_ipa_production_plant", (16.22, -35.54, 0.0), (-1.11, -14.18))
 
 def say(message: str) -> None:
     print(message, flush=True)
-
-
-def require_all() -> bool:
-    return os.environ.get("CI") == "true" or os.environ.get("MENTALSIM_REQUIRE_ALL") == "1"
-
-
-def default_binary() -> Path:
-    if os.environ.get("MENTALSIM_BIN"):
-        return Path(os.environ["MENTALSIM_BIN"])
-    target = os.environ.get("CARGO_TARGET_DIR")
-    if not target:
-        cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-        target = str(Path(cache) / "mentalsim" / "target")
-    return Path(target) / "release" / "mentalsim"
-
-
-def shared_maps() -> Path:
-    if os.environ.get("MENTALSIM_SHARED_MAPS"):
-        return Path(os.environ["MENTALSIM_SHARED_MAPS"])
-    return ROOT.parent / "shared" / "maps" / "ros"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-# --------------------------------------------------------------------------------------------
-# The service
-
-
-def config_toml(port: int, data_dir: Path) -> str:
-    return f"""\
-bind = "127.0.0.1:{port}"
-data_dir = "{data_dir}"
-request_timeout_s = 300
-shutdown_grace_s = 10
-# One job at a time in process: the training the test submits runs here.
-worker_concurrency = 1
-log_format = "text"
-
-[[tokens]]
-token = "{TOKENS["engineer"]}"
-name = "browser-engineer"
-role = "engineer"
-
-[[tokens]]
-token = "{TOKENS["robot"]}"
-name = "{ROBOT_IRI}"
-role = "robot"
-"""
-
-
-class Service:
-    def __init__(self, binary: Path, out: Path, port: int, console_dir: Path | None):
-        self.binary = binary
-        self.port = port
-        self.url = f"http://127.0.0.1:{port}"
-        self.data_dir = out / "data"
-        self.config = out / "mentalsim.toml"
-        self.log_path = out / "mentalsim.log"
-        self.console_dir = console_dir
-        self.config.write_text(config_toml(port, self.data_dir))
-        self.proc: subprocess.Popen | None = None
-
-    def start(self) -> None:
-        # Our configuration only: the caller's MENTALSIM_* variables would change what is tested.
-        env = {k: v for k, v in os.environ.items() if not k.startswith("MENTALSIM_")}
-        env["RUST_BACKTRACE"] = "1"
-        if self.console_dir is not None:
-            env["MENTALSIM_CONSOLE_DIR"] = str(self.console_dir)
-        with open(self.log_path, "ab") as log:
-            self.proc = subprocess.Popen(
-                [str(self.binary), "serve", "--config", str(self.config)],
-                stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=env,
-                cwd=self.data_dir.parent,
-            )
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"mentalsim serve exited with {self.proc.returncode}:\n{self.log_tail()}")
-            try:
-                conn = http.client.HTTPConnection("127.0.0.1", self.port, timeout=2)
-                conn.request("GET", "/healthz")
-                if conn.getresponse().status == 200:
-                    return
-            except OSError:
-                pass
-            time.sleep(0.2)
-        raise RuntimeError("mentalsim serve did not answer /healthz within 120 s:\n" + self.log_tail())
-
-    def log_tail(self, lines: int = 20) -> str:
-        if not self.log_path.exists():
-            return ""
-        text = re.sub(r"\x1b\[[0-9;]*m", "", self.log_path.read_text(errors="replace"))
-        return "\n".join(text.splitlines()[-lines:])
-
-    def stop(self) -> None:
-        if self.proc and self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
 
 
 class Api:
@@ -737,12 +634,13 @@ def build_console() -> None:
     subprocess.run(["npm", "run", "build", "--silent"], cwd=CONSOLE, check=True, stdout=subprocess.DEVNULL)
 
 
-def missing(what: str, hint: str) -> int:
-    if require_all():
-        print(f"FAIL: {what} is missing ({hint}); CI=true requires it.", file=sys.stderr)
+def report_missing(e: Missing) -> int:
+    """A failure (1) under CI=true (or MENTALSIM_REQUIRE_ALL=1), else a clear skip (0)."""
+    if e.required:
+        print(f"FAIL: {e.what} is missing ({e.hint}); CI=true requires it.", file=sys.stderr)
         print("0 passed, 1 failed")
         return 1
-    print(f"SKIP: browser tests not run: {what} is missing ({hint}).")
+    print(f"SKIP: browser tests not run: {e.what} is missing ({e.hint}).")
     return 0
 
 
@@ -767,17 +665,20 @@ def main(argv=None) -> int:
     TOKENS["engineer"], TOKENS["robot"] = args.engineer_token, args.robot_token
 
     chromium = Path(os.environ.get("CHROMIUM", "/usr/bin/chromium"))
-    if not chromium.exists():
-        return missing(f"chromium ({chromium})", "apt-get install chromium")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        return missing("the Python package playwright", f"pip install -r {ROOT / 'requirements/test.txt'}")
-    if not args.no_build and not (shutil.which("node") and shutil.which("npm")):
-        return missing("node and npm", "apt-get install nodejs npm")
     binary = args.bin or default_binary()
-    if not args.url and not (binary.is_file() and os.access(binary, os.X_OK)):
-        return missing(f"the mentalsim binary {binary}", "`. scripts/env.sh && cargo build --release`, or MENTALSIM_BIN")
+    try:
+        if not chromium.exists():
+            missing(f"chromium ({chromium})", "apt-get install chromium")
+        try:
+            from playwright.sync_api import sync_playwright
+        except ImportError:
+            missing("the Python package playwright", f"pip install -r {ROOT / 'requirements/test.txt'}")
+        if not args.no_build and not (shutil.which("node") and shutil.which("npm")):
+            missing("node and npm", "apt-get install nodejs npm")
+        if not args.url and not executable(binary):
+            missing(f"the mentalsim binary {binary}", "`. scripts/env.sh && cargo build --release`, or MENTALSIM_BIN")
+    except Missing as e:
+        return report_missing(e)
 
     out = (args.out or Path(tempfile.mkdtemp(prefix="mentalsim-browser-"))).resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -793,10 +694,10 @@ def main(argv=None) -> int:
     if args.url:
         url = args.url.rstrip("/")
     else:
-        if (out / "data").exists():
-            shutil.rmtree(out / "data")
-        (out / "data").mkdir()
-        service = Service(binary, out, free_port(), None if args.embedded else dist)
+        # One job at a time in process: the training the test submits runs here.
+        config = Config(engineer_and_robot(TOKENS, "browser-engineer"), worker_concurrency=1)
+        env = {} if args.embedded else {"MENTALSIM_CONSOLE_DIR": str(dist)}
+        service = Service(binary, out, config, env=env)
         say(f"starting {binary} on {service.url}")
         try:
             service.start()

@@ -29,7 +29,8 @@ the protocol part are drawn from the same seed.
 Usage: python tests/fuzz/run.py [--seed N] [--max-examples N] [--part all|openapi|protocol]
                                 [--probe SUBSTRING] [--bin PATH] [--out DIR] [--serve --port P]
 The binary is MENTALSIM_BIN, else $CARGO_TARGET_DIR/release/mentalsim (CARGO_TARGET_DIR as
-`scripts/env.sh` sets it). Needs the PyPI package `schemathesis` (requirements/test.txt).
+`scripts/env.sh` sets it). Needs the PyPI package `schemathesis` (requirements/test.txt). The
+service is started and stopped by tests/support/mentalsim_service.py.
 """
 
 from __future__ import annotations
@@ -38,13 +39,11 @@ import argparse
 import base64
 import http.client
 import json
-import os
 import random
 import re
 import select
 import shlex
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -55,6 +54,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests" / "support"))
+import mentalsim_service  # noqa: E402
+from mentalsim_service import Config, default_binary, engineer_and_robot, executable, signal_name  # noqa: E402
+
 DOCUMENTS = ("knowledge", "worker")
 # Fixed so that printed reproductions work against `--serve`; the service only ever runs on
 # 127.0.0.1 with a throw-away data directory.
@@ -62,10 +65,9 @@ TOKENS = {
     "engineer": "fuzz-engineer-token-0123456789abcdef",
     "robot": "fuzz-robot-token-0123456789abcdef",
 }
-ROBOT_IRI = "https://mentalsim.dev/data/robots/differential-robot"
 DEFAULT_SEED = 16
 DEFAULT_MAX_EXAMPLES = 15
-# The service's own bounds for this run (see `config_toml`): a probe not answered within
+# The service's own bounds for this run (see `CONFIG`): a probe not answered within
 # CLIENT_TIMEOUT_S is a failure.
 REQUEST_TIMEOUT_S = 30
 QUERY_DEADLINE_S = 10
@@ -74,6 +76,16 @@ CLIENT_TIMEOUT_S = 60
 # A whole schemathesis run (one document, one role) normally takes 5-15 s.
 SCHEMATHESIS_TIMEOUT_S = 300
 MIB = 1024 * 1024
+CONFIG = Config(
+    engineer_and_robot(TOKENS, "fuzz-engineer"),
+    request_timeout_s=REQUEST_TIMEOUT_S,
+    shutdown_grace_s=SHUTDOWN_GRACE_S,
+    # No job runs in this process: a schema-valid `train` job would otherwise spend both CPU
+    # cores of a CI machine for its whole budget while the fuzzer runs. The jobs API is served
+    # all the same (jobs stay queued).
+    worker_concurrency=0,
+    settings={"query_deadline_s": QUERY_DEADLINE_S},
+)
 
 
 def say(message: str) -> None:
@@ -190,88 +202,15 @@ def excerpt(body: bytes, limit: int = 300) -> str:
 # The service
 
 
-def default_binary() -> Path:
-    if os.environ.get("MENTALSIM_BIN"):
-        return Path(os.environ["MENTALSIM_BIN"])
-    target = os.environ.get("CARGO_TARGET_DIR")
-    if not target:
-        cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-        target = str(Path(cache) / "mentalsim" / "target")
-    return Path(target) / "release" / "mentalsim"
+class Service(mentalsim_service.Service):
+    """The service of tests/support/mentalsim_service.py with CONFIG, watched as the fuzzer needs:
+    alive after every request (restarted after a crash), its memory, its shutdown."""
 
+    def __init__(self, binary: Path, out: Path, port: int | None):
+        super().__init__(binary, out, CONFIG, port=port)
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def config_toml(port: int, data_dir: Path) -> str:
-    return f"""\
-bind = "127.0.0.1:{port}"
-data_dir = "{data_dir}"
-request_timeout_s = {REQUEST_TIMEOUT_S}
-query_deadline_s = {QUERY_DEADLINE_S}
-shutdown_grace_s = {SHUTDOWN_GRACE_S}
-# No job runs in this process: a schema-valid `train` job would otherwise spend both CPU cores
-# of a CI machine for its whole budget while the fuzzer runs. The jobs API is served all the
-# same (jobs stay queued).
-worker_concurrency = 0
-log_format = "text"
-
-[[tokens]]
-token = "{TOKENS["engineer"]}"
-name = "fuzz-engineer"
-role = "engineer"
-
-[[tokens]]
-token = "{TOKENS["robot"]}"
-name = "{ROBOT_IRI}"
-role = "robot"
-"""
-
-
-class Service:
-    def __init__(self, binary: Path, out: Path, port: int):
-        self.binary = binary
-        self.port = port
-        self.url = f"http://127.0.0.1:{port}"
-        self.data_dir = out / "data"
-        self.config = out / "mentalsim.toml"
-        self.log_path = out / "mentalsim.log"
-        self.config.write_text(config_toml(port, self.data_dir))
-        self.proc: subprocess.Popen | None = None
-        self.starts = 0
-
-    def start(self) -> None:
-        self.starts += 1
-        # Our own configuration only: a MENTALSIM_* variable of the caller's shell (a store URL,
-        # a database URL) would change what is tested, and one that is no configuration key
-        # (MENTALSIM_BIN) would stop `serve`.
-        env = {k: v for k, v in os.environ.items() if not k.startswith("MENTALSIM_")}
-        env["RUST_BACKTRACE"] = "1"
-        with open(self.log_path, "ab") as log:
-            log.write(f"\n===== start {self.starts} =====\n".encode())
-            log.flush()
-            self.proc = subprocess.Popen(
-                [str(self.binary), "serve", "--config", str(self.config)],
-                stdin=subprocess.DEVNULL,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                env=env,
-                cwd=self.data_dir.parent,
-            )
-        deadline = time.monotonic() + 90
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(
-                    f"mentalsim serve exited with {self.proc.returncode} while starting:\n"
-                    + self.log_tail()
-                )
-            if self.healthy(timeout=1):
-                return
-            time.sleep(0.2)
-        raise RuntimeError("mentalsim serve did not answer /healthz within 90 s:\n" + self.log_tail())
+    def start(self, timeout_s: float = 90) -> None:
+        super().start(timeout_s)
 
     def peak_rss_mib(self) -> float | None:
         """The process's peak resident memory so far (Linux), in MiB."""
@@ -281,31 +220,6 @@ class Service:
             return None
         m = re.search(r"^VmHWM:\s+(\d+) kB", status, re.M)
         return int(m.group(1)) / 1024 if m else None
-
-    def alive(self) -> bool:
-        return self.proc is not None and self.proc.poll() is None
-
-    def healthy(self, timeout: float = 10) -> bool:
-        try:
-            conn = http.client.HTTPConnection("127.0.0.1", self.port, timeout=timeout)
-            conn.request("GET", "/healthz")
-            ok = conn.getresponse().status == 200
-            conn.close()
-            return ok
-        except (OSError, http.client.HTTPException):
-            return False
-
-    def log_size(self) -> int:
-        return self.log_path.stat().st_size if self.log_path.exists() else 0
-
-    def log_since(self, offset: int) -> str:
-        with open(self.log_path, "rb") as f:
-            f.seek(offset)
-            return strip_ansi(f.read().decode("utf-8", "replace"))
-
-    def log_tail(self, lines: int = 15) -> str:
-        text = strip_ansi(self.log_path.read_text(errors="replace")) if self.log_path.exists() else ""
-        return "\n".join(text.splitlines()[-lines:])
 
     def check_alive(self, after: str, failures: list[Failure], log_offset: int) -> bool:
         """Whether the service survived `after`; records a crash and restarts it if not."""
@@ -346,17 +260,13 @@ class Service:
         self.start()
         return False
 
-    def stop(self, failures: list[Failure]) -> float | None:
-        """SIGTERM; it must exit 0 within the grace period (plus 10 s of slack)."""
-        if not self.alive():
+    def shut_down(self, failures: list[Failure]) -> float | None:
+        """SIGTERM; it must exit 0 within the grace period (plus 10 s of slack). How long it
+        took, if it was running and did."""
+        stopped = self.stop(timeout_s=SHUTDOWN_GRACE_S + 10)
+        if not stopped.terminated:
             return None
-        started = time.monotonic()
-        self.proc.send_signal(signal.SIGTERM)
-        try:
-            code = self.proc.wait(timeout=SHUTDOWN_GRACE_S + 10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+        if stopped.killed:
             failures.append(
                 Failure(
                     part="service",
@@ -366,42 +276,20 @@ class Service:
                 )
             )
             return None
-        elapsed = time.monotonic() - started
-        if code != 0:
+        if stopped.code != 0:
             failures.append(
                 Failure(
                     part="service",
-                    what=f"exited {code}{signal_name(code)} after SIGTERM, not 0",
+                    what=f"exited {stopped.status} after SIGTERM, not 0",
                     subject="shutdown",
                     detail=self.log_tail(6),
                 )
             )
-        return elapsed
-
-
-def strip_ansi(text: str) -> str:
-    return re.sub(r"\x1b\[[0-9;]*m", "", text)
-
-
-def signal_name(code: int | None) -> str:
-    if code is not None and code < 0:
-        try:
-            return f", {signal.Signals(-code).name}"
-        except ValueError:
-            pass
-    return ""
+        return stopped.elapsed_s
 
 
 def panics_in_log(service: Service) -> list[Failure]:
     """A panic the service survived (caught by a task or a layer) is a crash all the same."""
-    if not service.log_path.exists():
-        return []
-    text = strip_ansi(service.log_path.read_text(errors="replace"))
-    seen: dict[str, int] = {}
-    for line in text.splitlines():
-        m = re.search(r"panicked at (.*)", line)
-        if m:
-            seen[m.group(1)] = seen.get(m.group(1), 0) + 1
     return [
         Failure(
             part="service",
@@ -409,7 +297,7 @@ def panics_in_log(service: Service) -> list[Failure]:
             subject=where,
             detail=f"{count} time(s); the full log is {service.log_path}",
         )
-        for where, count in seen.items()
+        for where, count in service.panics().items()
     ]
 
 
@@ -1047,7 +935,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     binary = args.bin or default_binary()
-    if not (binary.is_file() and os.access(binary, os.X_OK)):
+    if not executable(binary):
         print(
             f"FAIL: the mentalsim binary {binary} does not exist or is not executable. Build it with "
             "`. scripts/env.sh && cargo build --release` (it lands in $CARGO_TARGET_DIR/release), "
@@ -1064,11 +952,7 @@ def main(argv=None) -> int:
 
     out = args.out or Path(tempfile.mkdtemp(prefix="mentalsim-fuzz-"))
     out = out.resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    if (out / "data").exists():
-        shutil.rmtree(out / "data")
-    (out / "data").mkdir()
-    service = Service(binary, out, args.port or free_port())
+    service = Service(binary, out, args.port or None)
     rep = Reproducer(out)
     failures: list[Failure] = []
     started = time.monotonic()
@@ -1085,7 +969,7 @@ def main(argv=None) -> int:
             service.proc.wait()
         except KeyboardInterrupt:
             pass
-        service.stop(failures)
+        service.shut_down(failures)
         return 0
 
     counts = {}
@@ -1107,7 +991,7 @@ def main(argv=None) -> int:
             say(f"  {n} probes in {counts['protocol']:.0f} s, {service.starts - restarts} restart(s) "
                 f"after crashes; slowest answer {slowest:.1f} s ({slowest_name!r})")
     finally:
-        stop_time = service.stop(failures)
+        stop_time = service.shut_down(failures)
     if stop_time is not None:
         say(f"stopped by SIGTERM in {stop_time:.1f} s")
     failures.extend(panics_in_log(service))

@@ -1,6 +1,7 @@
 """The real service for the client's tests: `mentalsim serve` on a free port with a fresh data
 directory, one in-process job worker and two tokens (an engineer's and a robot's), as
-tests/fuzz/run.py and tests/browser/run.py start it.
+tests/fuzz/run.py and tests/browser/run.py start it (all three through
+tests/support/mentalsim_service.py, which run_tests.sh puts on PYTHONPATH and MYPYPATH).
 
 The binary is MENTALSIM_BIN, else $CARGO_TARGET_DIR/release/mentalsim (CARGO_TARGET_DIR as
 scripts/env.sh sets it: ~/.cache/mentalsim/target by default). The shared maps are
@@ -15,14 +16,8 @@ request fits the OpenAPI documents.
 
 from __future__ import annotations
 
-import http.client
 import json
-import os
 import re
-import signal
-import socket
-import subprocess
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,14 +27,29 @@ import httpx
 import pytest
 
 from mentalsim_client import Client, Job, JobEvent
+from mentalsim_service import (
+    Config,
+    ServiceError,
+    default_binary,
+    engineer_and_robot,
+    executable,
+    require_all,
+    shared_maps,
+)
 
-ROOT = Path(__file__).resolve().parents[3]
+# The tests import these from here.
+from mentalsim_service import ROBOT_IRI as ROBOT_IRI
+from mentalsim_service import Service as Service
+from mentalsim_service import free_port as free_port
+
 CLIENT_DIR = Path(__file__).resolve().parents[1]
-ROBOT_IRI = "https://mentalsim.dev/data/robots/differential-robot"
 TOKENS = {
     "engineer": "client-engineer-token-0123456789abcdef",
     "robot": "client-robot-token-0123456789abcdef",
 }
+#: The service's configuration: one job at a time in process (the trainings the tests submit
+#: run there), the default limits.
+CONFIG = Config(engineer_and_robot(TOKENS, "client-engineer"), worker_concurrency=1)
 #: The shared map the tests import: small (148 x 238 cells), a real room (TUM's kitchen lab).
 SHARED_MAP = ("strands_tum_kitchen", "tum_kitchen.yaml")
 KITCHEN = "kitchen"
@@ -58,38 +68,11 @@ TINY_TRAINING: dict[str, Any] = {
 }
 
 
-def require_all() -> bool:
-    return os.environ.get("CI") == "true" or os.environ.get("MENTALSIM_REQUIRE_ALL") == "1"
-
-
 def missing(what: str) -> NoReturn:
     """Skips the test for want of ``what``; fails it under CI=true (MENTALSIM_REQUIRE_ALL=1)."""
     if require_all():
         pytest.fail(f"{what} (required under CI=true / MENTALSIM_REQUIRE_ALL=1)", pytrace=False)
     pytest.skip(what)
-
-
-def default_binary() -> Path:
-    if os.environ.get("MENTALSIM_BIN"):
-        return Path(os.environ["MENTALSIM_BIN"])
-    target = os.environ.get("CARGO_TARGET_DIR")
-    if not target:
-        cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-        target = str(Path(cache) / "mentalsim" / "target")
-    return Path(target) / "release" / "mentalsim"
-
-
-def shared_maps() -> Path:
-    if os.environ.get("MENTALSIM_SHARED_MAPS"):
-        return Path(os.environ["MENTALSIM_SHARED_MAPS"])
-    return ROOT.parent / "shared" / "maps" / "ros"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
 
 
 # --------------------------------------------------------------------------------------------
@@ -146,99 +129,27 @@ LIVE_CALLS: list[Recorded] = []
 # The service
 
 
-def config_toml(port: int, data_dir: Path) -> str:
-    return f"""\
-bind = "127.0.0.1:{port}"
-data_dir = "{data_dir}"
-request_timeout_s = 300
-shutdown_grace_s = 10
-# One job at a time in process: the trainings the tests submit run here.
-worker_concurrency = 1
-log_format = "text"
-
-[[tokens]]
-token = "{TOKENS["engineer"]}"
-name = "client-engineer"
-role = "engineer"
-
-[[tokens]]
-token = "{TOKENS["robot"]}"
-name = "{ROBOT_IRI}"
-role = "robot"
-"""
-
-
-@dataclass
-class Service:
-    url: str
-    port: int
-    data_dir: Path
-    log_path: Path
-    proc: subprocess.Popen[bytes]
-
-    def log_tail(self, lines: int = 30) -> str:
-        if not self.log_path.exists():
-            return ""
-        text = re.sub(r"\x1b\[[0-9;]*m", "", self.log_path.read_text(errors="replace"))
-        return "\n".join(text.splitlines()[-lines:])
-
-
 @pytest.fixture(scope="session")
 def binary() -> Path:
     path = default_binary()
-    if not path.is_file() or not os.access(path, os.X_OK):
+    if not executable(path):
         missing(f"no mentalsim binary at {path} (build it: scripts/test, or set MENTALSIM_BIN)")
     return path
 
 
 @pytest.fixture(scope="session")
 def service(binary: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Service]:
-    out = tmp_path_factory.mktemp("mentalsim")
-    port = free_port()
-    data_dir = out / "data"
-    config = out / "mentalsim.toml"
-    config.write_text(config_toml(port, data_dir))
-    log_path = out / "mentalsim.log"
-    # Our configuration only: the caller's MENTALSIM_* variables would change what is tested.
-    env = {k: v for k, v in os.environ.items() if not k.startswith("MENTALSIM_")}
-    env["RUST_BACKTRACE"] = "1"
-    with open(log_path, "ab") as log:
-        proc = subprocess.Popen(
-            [str(binary), "serve", "--config", str(config)],
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            env=env,
-            cwd=out,
-        )
-    svc = Service(f"http://127.0.0.1:{port}", port, data_dir, log_path, proc)
-    deadline = time.monotonic() + 120
+    svc = Service(binary, tmp_path_factory.mktemp("mentalsim"), CONFIG)
     try:
-        while True:
-            if proc.poll() is not None:
-                pytest.fail(f"mentalsim serve exited with {proc.returncode}:\n{svc.log_tail()}", pytrace=False)
-            try:
-                conn = http.client.HTTPConnection("127.0.0.1", port, timeout=2)
-                conn.request("GET", "/healthz")
-                if conn.getresponse().status == 200:
-                    break
-            except OSError:
-                pass
-            if time.monotonic() > deadline:
-                pytest.fail("mentalsim serve did not answer /healthz within 120 s:\n" + svc.log_tail(), pytrace=False)
-            time.sleep(0.1)
+        try:
+            svc.start()
+        except ServiceError as e:
+            pytest.fail(str(e), pytrace=False)
         yield svc
     finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-    text = svc.log_tail(100000)
-    assert "panicked" not in text, f"the service panicked:\n{svc.log_tail(60)}"
-    assert proc.returncode == 0, f"mentalsim serve exited with {proc.returncode} after SIGTERM:\n{svc.log_tail()}"
+        stopped = svc.stop()
+    assert not stopped.panics, f"the service panicked:\n{svc.log_tail(60)}"
+    assert stopped.code == 0, f"mentalsim serve exited with {stopped.status} after SIGTERM:\n{svc.log_tail(30)}"
 
 
 def make_client(service: Service, role: str, transport: httpx.BaseTransport | None = None) -> Client:
