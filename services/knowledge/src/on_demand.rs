@@ -366,7 +366,7 @@ pub fn build_until(
             &reader,
             &places,
             &index,
-            &format!("goal {}", i + 1),
+            &format!("goals[{i}]"),
             goal,
         )?);
     }

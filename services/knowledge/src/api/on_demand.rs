@@ -151,7 +151,7 @@ pub(super) async fn on_demand_database(
     let format = graph_format(headers.get(header::ACCEPT).and_then(|v| v.to_str().ok()))?;
     let mut goals = Vec::new();
     for (i, g) in request.goals.into_iter().enumerate() {
-        goals.push(waypoint(&format!("goal {}", i + 1), g)?);
+        goals.push(waypoint(&format!("goals[{i}]"), g)?);
     }
     let mission = Mission {
         robot: request.robot,
