@@ -21,7 +21,7 @@
 use std::collections::BTreeMap;
 use std::io::Cursor;
 
-use super::types::{PlanReport, Pose, RosPath};
+use super::types::{PlanReport, Pose, RosPath, RosQuaternion};
 
 /// The media type of the answer.
 pub const MEDIA_TYPE: &str = "application/x-mcap";
@@ -104,16 +104,15 @@ pub fn write(rec: &Recording<'_>) -> Result<Vec<u8>, String> {
             o.remove("trace");
         }
         out.message(attempt_info, at(0.0), &string_message(&info.to_string()))?;
-        let planned = trace
-            .path
-            .iter()
-            .map(|p| (p.x, p.y, 0.0))
-            .collect::<Vec<_>>();
-        out.message(
-            attempt_path,
-            at(0.0),
-            &poses_path(&planned, rec.map_frame, at(0.0)),
-        )?;
+        if let Some((first, rest)) = trace.path.split_first() {
+            let from = Pose {
+                x: first.x,
+                y: first.y,
+                yaw: 0.0,
+            };
+            let planned = RosPath::through(&from, rest, rec.map_frame);
+            out.message(attempt_path, at(0.0), &path_message(&planned, at(0.0)))?;
+        }
         for (i, (p, t)) in trace.poses.iter().zip(&trace.times_s).enumerate() {
             let stamp = at(*t);
             out.message(pose, stamp, &pose_stamped(p, rec.map_frame, stamp))?;
@@ -379,8 +378,8 @@ impl Cdr {
 
 /// `[x, y, z, w]` of a rotation by `yaw` about z.
 fn yaw_quaternion(yaw: f64) -> [f64; 4] {
-    let (s, c) = (yaw / 2.0).sin_cos();
-    [0.0, 0.0, s, c]
+    let q = RosQuaternion::about_z(yaw);
+    [q.x, q.y, q.z, q.w]
 }
 
 fn string_message(text: &str) -> Vec<u8> {
@@ -407,18 +406,6 @@ fn path_message(path: &RosPath, stamp: u64) -> Vec<u8> {
         for v in [pos.x, pos.y, pos.z, q.x, q.y, q.z, q.w] {
             m.f64(v);
         }
-    }
-    m.0
-}
-
-/// A path through `(x, y, yaw)` poses.
-fn poses_path(poses: &[(f64, f64, f64)], frame: &str, stamp: u64) -> Vec<u8> {
-    let mut m = Cdr::new();
-    m.header(stamp, frame);
-    m.len(poses.len());
-    for &(x, y, yaw) in poses {
-        m.header(stamp, frame);
-        m.pose(x, y, 0.0, yaw);
     }
     m.0
 }

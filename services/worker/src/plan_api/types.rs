@@ -704,6 +704,19 @@ pub struct RosQuaternion {
     pub w: f64,
 }
 
+impl RosQuaternion {
+    /// The rotation by `yaw` radians about z (REP-103: counter-clockwise from x).
+    pub fn about_z(yaw: f64) -> Self {
+        let (s, c) = (yaw / 2.0).sin_cos();
+        Self {
+            x: 0.0,
+            y: 0.0,
+            z: s,
+            w: c,
+        }
+    }
+}
+
 impl RosPath {
     /// The path from `start` through `waypoints` in `frame_id`, each pose facing the next
     /// (the last facing as it was reached).
@@ -728,12 +741,7 @@ impl RosPath {
                     header: header.clone(),
                     pose: RosPose {
                         position: RosPoint { x, y, z: 0.0 },
-                        orientation: RosQuaternion {
-                            x: 0.0,
-                            y: 0.0,
-                            z: (heading / 2.0).sin(),
-                            w: (heading / 2.0).cos(),
-                        },
+                        orientation: RosQuaternion::about_z(heading),
                     },
                 }
             })
