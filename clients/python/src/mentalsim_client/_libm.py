@@ -15,7 +15,7 @@ import ctypes.util
 import math
 import sys
 from collections.abc import Callable
-from typing import Final
+from typing import Any, Final
 
 import numpy as np
 import numpy.typing as npt
@@ -40,17 +40,20 @@ def _load() -> ctypes.CDLL | None:
 _LIB: Final = _load()
 
 
+def _symbol(name: str) -> Any:
+    """The C library's function `name`, or None (no library, or no such function)."""
+    if _LIB is None:
+        return None
+    return getattr(_LIB, name, None)
+
+
 def _f32(name: str, fallback: Callable[[float], float]) -> Callable[[float], float]:
-    if _LIB is not None:
-        try:
-            fn = getattr(_LIB, name)
-        except AttributeError:
-            fn = None
-        if fn is not None:
-            fn.argtypes = [ctypes.c_float]
-            fn.restype = ctypes.c_float
-            c_fn: Callable[[float], float] = fn
-            return c_fn
+    fn = _symbol(name)
+    if fn is not None:
+        fn.argtypes = [ctypes.c_float]
+        fn.restype = ctypes.c_float
+        c_fn: Callable[[float], float] = fn
+        return c_fn
 
     def rounded(x: float) -> float:
         try:
@@ -62,16 +65,12 @@ def _f32(name: str, fallback: Callable[[float], float]) -> Callable[[float], flo
 
 
 def _f64(name: str, fallback: Callable[..., float], arity: int) -> Callable[..., float]:
-    if _LIB is not None:
-        try:
-            fn = getattr(_LIB, name)
-        except AttributeError:
-            fn = None
-        if fn is not None:
-            fn.argtypes = [ctypes.c_double] * arity
-            fn.restype = ctypes.c_double
-            c_fn: Callable[..., float] = fn
-            return c_fn
+    fn = _symbol(name)
+    if fn is not None:
+        fn.argtypes = [ctypes.c_double] * arity
+        fn.restype = ctypes.c_double
+        c_fn: Callable[..., float] = fn
+        return c_fn
     return fallback
 
 

@@ -569,11 +569,7 @@ class Client:
         """Trains a navigation policy (TD3) for ``robot`` on the whole floor ``place`` is on, for
         ``minutes`` of wall-clock time; ``config`` overrides keys of ``learning::TrainConfig``.
         The result names the exported policy (``policy_id``)."""
-        payload: JsonObject = {"robot": robot, "place": place, "minutes": minutes}
-        if config is not None:
-            payload["config"] = dict(config)
-        if seed is not None:
-            payload["seed"] = seed
+        payload = _given(robot=robot, place=place, minutes=minutes, config=dict(config) if config is not None else None, seed=seed)
         return self.submit_job("train", payload, priority=priority, max_attempts=max_attempts)
 
     def submit_evaluation(
@@ -589,10 +585,7 @@ class Client:
         max_attempts: int | None = None,
     ) -> Job:
         """Evaluates ``policy`` on random missions on the floor ``place`` is on."""
-        payload: JsonObject = {"policy": policy, "place": place}
-        for key, value in (("episodes", episodes), ("seed", seed), ("robot", robot), ("goals_in_view", goals_in_view)):
-            if value is not None:
-                payload[key] = value
+        payload = _given(policy=policy, place=place, episodes=episodes, seed=seed, robot=robot, goals_in_view=goals_in_view)
         return self.submit_job("evaluate", payload, priority=priority, max_attempts=max_attempts)
 
     def submit_roadmap(
@@ -608,15 +601,9 @@ class Client:
         max_attempts: int | None = None,
     ) -> Job:
         """Builds the policy-aware roadmap (PRM-RL) of ``policy`` on the floor ``place`` is on."""
-        payload: JsonObject = {"policy": policy, "place": place}
-        for key, value in (
-            ("robot", robot),
-            ("rollouts", rollouts),
-            ("keep_threshold", keep_threshold),
-            ("safety_margin_m", safety_margin_m),
-        ):
-            if value is not None:
-                payload[key] = value
+        payload = _given(
+            policy=policy, place=place, robot=robot, rollouts=rollouts, keep_threshold=keep_threshold, safety_margin_m=safety_margin_m
+        )
         return self.submit_job("roadmap", payload, priority=priority, max_attempts=max_attempts)
 
     def submit_validation(
@@ -798,3 +785,8 @@ def _write_atomic(path: Path, data: bytes) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def _given(**values: Any) -> JsonObject:
+    """A job payload of the values given (``None`` ones left out: the server's defaults)."""
+    return {key: value for key, value in values.items() if value is not None}
