@@ -375,13 +375,24 @@ fn eval_roadmap(world: &Arc<World>, seed: u64) -> anyhow::Result<Arc<planning::R
     Ok(roadmap)
 }
 
-/// Every edge of `roadmap`, both directions, driven `rollouts` times by the shielded `policy`
-/// (or by the classical follower when `None`), as the policy-aware roadmap drives them;
-/// returns the report and the wall-clock seconds.
+/// Which controller drives the edges of a roadmap in `eval` and `bench edges`.
+#[derive(Clone, Copy)]
+enum EdgeDriver<'a> {
+    /// The policy as plans drive it: behind the shield, the follower taking over near
+    /// obstacles.
+    Policy(&'a Arc<Policy>),
+    /// The policy behind the shield alone (no handover): the ablation.
+    ShieldOnly(&'a Arc<Policy>),
+    /// The classical follower.
+    Follower,
+}
+
+/// Every edge of `roadmap`, both directions, driven `rollouts` times by `driver`, as the
+/// policy-aware roadmap drives them; returns the report and the wall-clock seconds.
 fn drive_roadmap(
     world: &Arc<World>,
     roadmap: &planning::Roadmap,
-    policy: Option<&Arc<Policy>>,
+    driver: EdgeDriver<'_>,
     seed: u64,
     rollouts: u32,
 ) -> anyhow::Result<(rehearsal::EdgeReport, f64)> {
@@ -391,14 +402,20 @@ fn drive_roadmap(
         ..rehearsal::EdgeRolloutParams::default()
     };
     let t = std::time::Instant::now();
-    let report = match policy {
-        Some(p) => rehearsal::drive_edges(
+    let report = match driver {
+        EdgeDriver::Policy(p) => rehearsal::drive_edges(
             world,
             roadmap,
             || rehearsal::PolicyController::new(Arc::clone(p)),
             &params,
         ),
-        None => rehearsal::drive_edges(
+        EdgeDriver::ShieldOnly(p) => rehearsal::drive_edges(
+            world,
+            roadmap,
+            || rehearsal::PolicyController::without_handover(Arc::clone(p)),
+            &params,
+        ),
+        EdgeDriver::Follower => rehearsal::drive_edges(
             world,
             roadmap,
             rehearsal::ClassicalFollower::default,
@@ -425,10 +442,11 @@ fn edge_eval(
         ..rehearsal::EdgeRolloutParams::default()
     };
     let policy = Arc::new(policy.clone());
-    let (report, wall_s) = drive_roadmap(world, &roadmap, Some(&policy), seed, rollouts)?;
+    let (report, wall_s) =
+        drive_roadmap(world, &roadmap, EdgeDriver::Policy(&policy), seed, rollouts)?;
     // The classical follower on the same edges, same rollouts and seeds: the baseline the
     // policy must beat (time) and match (success).
-    let (follower, _) = drive_roadmap(world, &roadmap, None, seed, rollouts)?;
+    let (follower, _) = drive_roadmap(world, &roadmap, EdgeDriver::Follower, seed, rollouts)?;
     let undirected = report.edges.len() / 2;
     // An edge is kept when the policy drives it in both directions.
     let kept = report
@@ -472,6 +490,10 @@ fn edge_eval(
         (
             "edge_near_miss_rate",
             serde_json::json!(report.near_miss_rate()),
+        ),
+        (
+            "edge_handover_share",
+            serde_json::json!(report.handover_share()),
         ),
         (
             "follower_edge_success_rate",
@@ -524,6 +546,10 @@ pub struct EdgeBenchRow {
     pub mean_edge_time_s: Option<f64>,
     /// Share of rollouts closer than 10 cm to an obstacle.
     pub near_miss_rate: f64,
+    /// Share of the control steps the follower drove inside the policy controller.
+    pub handover_share: f64,
+    /// Control steps of all rollouts.
+    pub steps: u64,
     /// Wall-clock seconds of the rollouts.
     pub wall_s: f64,
 }
@@ -563,11 +589,18 @@ pub fn bench_edges(
         let map = learning::run::map_name(yaml);
         let world = load_world(yaml, 0, seed)?;
         let roadmap = eval_roadmap(&world, seed)?;
-        let mut controllers: Vec<(String, Option<&Arc<Policy>>)> =
-            loaded.iter().map(|(n, p)| (n.clone(), Some(p))).collect();
-        controllers.push(("follower".into(), None));
-        for (name, policy) in controllers {
-            let (report, wall_s) = drive_roadmap(&world, &roadmap, policy, seed, rollouts)?;
+        let mut controllers: Vec<(String, EdgeDriver<'_>)> = loaded
+            .iter()
+            .flat_map(|(n, p)| {
+                [
+                    (n.clone(), EdgeDriver::Policy(p)),
+                    (format!("{n} (shield only)"), EdgeDriver::ShieldOnly(p)),
+                ]
+            })
+            .collect();
+        controllers.push(("follower".into(), EdgeDriver::Follower));
+        for (name, driver) in controllers {
+            let (report, wall_s) = drive_roadmap(&world, &roadmap, driver, seed, rollouts)?;
             let row = EdgeBenchRow {
                 map: map.clone(),
                 controller: name,
@@ -579,6 +612,8 @@ pub fn bench_edges(
                 kept: report.kept().count(),
                 mean_edge_time_s: report.mean_edge_time_s(),
                 near_miss_rate: report.near_miss_rate(),
+                handover_share: report.handover_share(),
+                steps: report.steps,
                 wall_s,
             };
             eprintln!(
@@ -595,11 +630,11 @@ pub fn bench_edges(
     }
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut csv = String::from(
-        "map,controller,edge_directions,rollouts,successes,collisions,edge_success_rate,kept,mean_edge_time_s,near_miss_rate,wall_s\n",
+        "map,controller,edge_directions,rollouts,successes,collisions,edge_success_rate,kept,mean_edge_time_s,near_miss_rate,handover_share,wall_s\n",
     );
     for r in &rows {
         csv.push_str(&format!(
-            "{},{},{},{},{},{},{:.5},{},{},{:.5},{:.2}\n",
+            "{},{},{},{},{},{},{:.5},{},{},{:.5},{:.5},{:.2}\n",
             r.map,
             r.controller,
             r.edge_directions,
@@ -611,19 +646,24 @@ pub fn bench_edges(
             r.mean_edge_time_s
                 .map_or(String::new(), |t| format!("{t:.3}")),
             r.near_miss_rate,
+            r.handover_share,
             r.wall_s
         ));
     }
     std::fs::write(out.join("edges.csv"), csv)?;
     // Pooled over maps: rollouts weighted equally; times weighted by arrivals.
-    let mut names: Vec<String> = loaded.iter().map(|(n, _)| n.clone()).collect();
+    let mut names: Vec<String> = loaded
+        .iter()
+        .flat_map(|(n, _)| [n.clone(), format!("{n} (shield only)")])
+        .collect();
     names.push("follower".into());
     let mut md = format!(
-        "# Every roadmap edge, both directions, {rollouts} rollouts each (seed {seed})\n\n| map | controller | edge directions | success | collided | kept (≥ 90%) | mean edge time (s) | near misses (< 10 cm) |\n|---|---|---:|---:|---:|---:|---:|---:|\n"
+        "# Every roadmap edge, both directions, {rollouts} rollouts each (seed {seed})\n\nA policy drives behind the collision shield with the classical follower taking over within {} m of what the laser sees, as plans drive it; `(shield only)` is the same policy without that handover; `handover` is the share of control steps the follower drove.\n\n| map | controller | edge directions | success | collided | kept (≥ 90%) | mean edge time (s) | near misses (< 10 cm) | handover |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        rehearsal::HANDOVER_MARGIN_M
     );
     for r in &rows {
         md.push_str(&format!(
-            "| {} | {} | {} | {:.2}% | {:.2}% | {} | {} | {:.1}% |\n",
+            "| {} | {} | {} | {:.2}% | {:.2}% | {} | {} | {:.1}% | {:.1}% |\n",
             r.map,
             r.controller,
             r.edge_directions,
@@ -632,10 +672,11 @@ pub fn bench_edges(
                 / (r.edge_directions as f64 * f64::from(r.rollouts)).max(1.0),
             r.kept,
             r.mean_edge_time_s.map_or("–".into(), |t| format!("{t:.2}")),
-            r.near_miss_rate * 100.0
+            r.near_miss_rate * 100.0,
+            r.handover_share * 100.0
         ));
     }
-    md.push_str("\n## Pooled over the maps\n\n| controller | rollouts | success | collided | mean edge time (s) | near misses | maps at ≥ 99.5% |\n|---|---:|---:|---:|---:|---:|---:|\n");
+    md.push_str("\n## Pooled over the maps\n\n| controller | rollouts | success | collided | mean edge time (s) | near misses | handover | maps at ≥ 99.5% |\n|---|---:|---:|---:|---:|---:|---:|---:|\n");
     for name in &names {
         let mine: Vec<&EdgeBenchRow> = rows.iter().filter(|r| &r.controller == name).collect();
         let n: u64 = mine
@@ -653,15 +694,22 @@ pub fn bench_edges(
             .map(|r| r.near_miss_rate * (r.edge_directions as f64) * f64::from(r.rollouts))
             .sum();
         let good = mine.iter().filter(|r| r.edge_success_rate >= 0.995).count();
+        let steps: u64 = mine.iter().map(|r| r.steps).sum();
+        let handed: f64 = mine.iter().map(|r| r.handover_share * r.steps as f64).sum();
         let rate = |x: f64| if n == 0 { 0.0 } else { x / n as f64 };
         md.push_str(&format!(
-            "| {} | {} | {:.3}% | {:.3}% | {:.2} | {:.2}% | {}/{} |\n",
+            "| {} | {} | {:.3}% | {:.3}% | {:.2} | {:.2}% | {:.1}% | {}/{} |\n",
             name,
             n,
             rate(s as f64) * 100.0,
             rate(collided as f64) * 100.0,
             if s == 0 { f64::NAN } else { t / s as f64 },
             rate(near) * 100.0,
+            if steps == 0 {
+                0.0
+            } else {
+                handed * 100.0 / steps as f64
+            },
             good,
             mine.len()
         ));

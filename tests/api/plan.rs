@@ -77,6 +77,7 @@ async fn a_plan_across_rooms_is_validated_in_the_simulation_and_reported() {
     // One leg, validated by the controller the robot has.
     assert_eq!(body["legs"].as_array().map(Vec::len), Some(1), "{body}");
     assert_eq!(body["legs"][0]["controller"], "classical");
+    assert_eq!(body["attempts"][0]["handover_share"], 0.0, "{body}");
     assert_eq!(body["attempts"][0]["leg"], 0);
     assert!(body["distance_m"].as_f64().unwrap() > 0.0);
     assert!(body["simulated_time_s"].as_f64().unwrap() > 0.0);
@@ -476,9 +477,15 @@ async fn a_policy_exported_again_replaces_the_loaded_one() {
             assert_eq!(body["controller"], "policy", "{body}");
             let description = body["controller_description"].as_str().unwrap();
             assert!(
-                description.contains(&format!("{steps} training steps")),
+                description.contains(&format!("{steps} training steps"))
+                    && description.contains("classical follower taking over"),
                 "{description}"
             );
+            // Each attempt says how much of its drive was the follower's handover.
+            for a in body["attempts"].as_array().unwrap() {
+                let share = a["handover_share"].as_f64().unwrap();
+                assert!((0.0..=1.0).contains(&share), "{a}");
+            }
         }
         // Another modification time for the next export, whatever the file system's clock.
         std::thread::sleep(std::time::Duration::from_millis(20));

@@ -53,6 +53,7 @@ def test_a_plan_is_a_ros_path_from_the_start_to_the_goal(robot: Client, kitchen:
     assert plan.note and "follower" in plan.note
     assert [leg.controller for leg in plan.legs] == ["classical"]
     assert plan.attempts and plan.attempts[-1].outcome == "reached"
+    assert all(a.handover_share == 0.0 for a in plan.attempts)  # the follower's own drives
     assert plan.floor.endswith(f"/{kitchen}") and plan.robot.endswith("differential-robot")
     path = plan.path
     assert path.frame_id == "map" and all(p.frame_id == "map" for p in path.poses)

@@ -104,7 +104,10 @@ impl Default for NavigationBenchOptions {
 }
 
 /// The methods, in table order. `hybrid_prm_rl` is what `POST /v1/plan` runs: the policy
-/// behind the collision shield (`rehearsal::Shield`); `hybrid_unshielded` is the paper's
+/// behind the collision shield (`rehearsal::Shield`), the classical follower taking over to the
+/// next waypoint near obstacles (`rehearsal::HANDOVER_MARGIN_M`);
+/// `hybrid_prm_rl_no_handover` is the same policy behind the shield alone (the ablation, first
+/// attempt); `hybrid_unshielded` is the paper's
 /// hybrid, the policy's commands sent to the wheels unchanged; `*_resampled` is the same with
 /// the roadmap re-sampled after a failed attempt; `plan_endpoint` is exactly what `POST /v1/plan`
 /// answers: `hybrid_prm_rl_resampled`, then the classical follower (also re-sampled) for a leg
@@ -112,12 +115,15 @@ impl Default for NavigationBenchOptions {
 /// policy-aware roadmap as `options.roadmap: auto` plans on it (PRM-RL: the map's geometric
 /// roadmap with every edge direction driven 10 times by the policy, weighted by length and
 /// risk; directions under 90% success only where the kept ones join no route, at 100 m more),
-/// first attempt and with re-tries (same roadmap, new noise).
-pub const METHODS: [&str; 9] = [
+/// first attempt and with re-tries (same roadmap, new noise). `pure_rl` is the policy behind
+/// the shield driving straight at the goal (no handover: the follower's segment would cross
+/// walls).
+pub const METHODS: [&str; 10] = [
     "hybrid_policy_roadmap",
     "hybrid_policy_roadmap_resampled",
     "hybrid_prm_rl",
     "hybrid_prm_rl_resampled",
+    "hybrid_prm_rl_no_handover",
     "plan_endpoint",
     "hybrid_unshielded",
     "hybrid_unshielded_resampled",
@@ -608,6 +614,9 @@ fn run_map(
             rows.push(row("hybrid_policy_roadmap", name, run, &first));
             rows.push(row("hybrid_policy_roadmap_resampled", name, run, &last));
         }
+        let mut shield_only = PolicyController::without_handover(Arc::clone(policy));
+        let (first_s, _, _) = timed_validate(world, cache, name, &request, &mut shield_only)?;
+        rows.push(row("hybrid_prm_rl_no_handover", name, run, &first_s));
         let mut unshielded = PolicyController::without_shield(Arc::clone(policy));
         let (first_u, last_u, _) = timed_validate(world, cache, name, &request, &mut unshielded)?;
         rows.push(row("hybrid_unshielded", name, run, &first_u));
@@ -622,7 +631,7 @@ fn run_map(
             &env,
             start,
             &[vec![mission.goal]],
-            &mut controller,
+            &mut shield_only,
             DriveLimits {
                 waypoint_timeout_s: timeout,
                 max_replans: 0,
@@ -944,11 +953,11 @@ fn to_markdown(
         ),
     }
     s.push_str(
-        "Methods: `hybrid_prm_rl` = the policy through the roadmap's waypoints (15 s timer, replanning), first attempt only — the paper's measure; `hybrid_prm_rl_resampled` = the plan endpoint's behaviour, up to ",
+        "Methods: `hybrid_prm_rl` = the policy through the roadmap's waypoints (15 s timer, replanning) behind the collision shield, the classical follower taking over to the next waypoint where the policy would come within 0.3 m of what the laser sees, first attempt only — the paper's measure; `hybrid_prm_rl_no_handover` = the same without the follower's handover (the shield alone); `hybrid_policy_roadmap` = the same controller on the policy-aware roadmap (PRM-RL, below), first attempt, and `_resampled` with re-tries; `hybrid_unshielded` = the paper's hybrid, the policy's commands unchanged; `hybrid_prm_rl_resampled` = the plan endpoint's behaviour, up to ",
     );
     let _ = write!(s, "{}", opts.max_attempts);
     s.push_str(
-        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers: the same, then the classical follower (re-sampled too) when no policy attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt. Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
+        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers: the same, then the classical follower (re-sampled too) when no policy attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy behind the shield straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt. Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
     );
     s.push_str("The paper's Table 3 (Gazebo, one building, ~140 m): Move Base 141.04 m / 123.31 s / 100%; Constrained Move Base 140.21 m / 125.19 s, failure 26.87 m / 60%; Pure RL failure 14.7 m / 0%; Hybrid PRM-RL 149.71 m / 160.45 s, failure 102.4 m / 90%.\n\n");
 
@@ -978,7 +987,7 @@ fn to_markdown(
     }
 
     if !edges.is_empty() {
-        s.push_str("\n## The policy on the roadmap edges\n\nEvery edge of the map's geometric roadmap driven by the shielded policy, both directions, 10 rollouts each (heading as if arriving over a neighbouring edge, at rest in even rollouts and at half the top speed in odd ones, noise on); kept where at least 90% succeed. Build = the rollouts and the reweighting, wall time on this machine's cores.\n\n| Map | Edge directions | Kept | Edge success rate | Simulated steps | Build (s) |\n|---|---|---|---|---|---|\n");
+        s.push_str("\n## The policy on the roadmap edges\n\nEvery edge of the map's geometric roadmap driven by the policy as plans drive it (shield and handover), both directions, 10 rollouts each (heading as if arriving over a neighbouring edge, at rest in even rollouts and at half the top speed in odd ones, noise on); kept where at least 90% succeed. Build = the rollouts and the reweighting, wall time on this machine's cores.\n\n| Map | Edge directions | Kept | Edge success rate | Simulated steps | Build (s) |\n|---|---|---|---|---|---|\n");
         for e in edges {
             let _ = writeln!(
                 s,

@@ -55,9 +55,10 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.missions.len(), 1, "{:?}", report.skipped);
     let m = &report.missions[0];
     assert!(!m.full_length && m.prm_length_m > 5.0, "{m:?}");
-    // Nine methods (the policy-aware roadmap, the shielded and unshielded hybrids, each first
-    // attempt and re-tried; the plan endpoint; pure RL; classical), two runs each.
-    assert_eq!(report.rows.len(), 18);
+    // Ten methods (the policy-aware roadmap, the shielded and unshielded hybrids, each first
+    // attempt and re-tried; the shielded hybrid without the handover; the plan endpoint; pure
+    // RL; classical), two runs each.
+    assert_eq!(report.rows.len(), 20);
     for method in bench::navigation::METHODS {
         assert_eq!(
             report.rows.iter().filter(|r| r.method == method).count(),
@@ -89,7 +90,7 @@ fn the_benchmark_writes_table_3_for_every_method() {
         lines.next(),
         Some("method,map,run,success,distance_m,time_s")
     );
-    assert_eq!(lines.count(), 18);
+    assert_eq!(lines.count(), 20);
     // The classical follower on the roadmap path reaches the goal.
     assert!(
         report

@@ -153,6 +153,9 @@ pub struct EdgeReport {
     pub params: EdgeRolloutParams,
     /// Simulated control steps over all rollouts.
     pub steps: u64,
+    /// Of those, the steps a fallback inside the controller drove (the follower a policy
+    /// hands over to near obstacles).
+    pub handover_steps: u64,
 }
 
 impl EdgeReport {
@@ -162,6 +165,16 @@ impl EdgeReport {
             (s + u64::from(e.successes), n + u64::from(e.rollouts))
         });
         if n == 0 { 0.0 } else { s as f64 / n as f64 }
+    }
+
+    /// Share of the control steps a fallback inside the controller drove.
+    pub fn handover_share(&self) -> f64 {
+        #[allow(clippy::cast_precision_loss, reason = "step counts are far below 2^52")]
+        if self.steps == 0 {
+            0.0
+        } else {
+            self.handover_steps as f64 / self.steps as f64
+        }
     }
 
     /// Share of all rollouts that were near misses ([`NEAR_MISS_M`]).
@@ -270,7 +283,7 @@ where
     drop(probe);
     let max_segment_m = (0.5 * env.limits.linear_max * params.waypoint_timeout_s).max(0.5);
     let arrival_speed = params.arrival_speed_share * env.limits.linear_max;
-    let results: Result<Vec<(EdgeStat, u64)>, PlanError> = directed
+    let results: Result<Vec<(EdgeStat, u64, u64)>, PlanError> = directed
         .par_iter()
         .map_init(
             || {
@@ -295,7 +308,7 @@ where
                     near_misses: 0,
                 };
                 let mut time_sum = 0.0;
-                let mut steps = 0u64;
+                let (mut steps, mut handover_steps) = (0u64, 0u64);
                 for k in 0..params.rollouts {
                     let yaw = if others.is_empty() {
                         (pb.y - pa.y).atan2(pb.x - pa.x)
@@ -325,14 +338,8 @@ where
                         },
                         None,
                     )?;
-                    #[allow(
-                        clippy::cast_possible_truncation,
-                        clippy::cast_sign_loss,
-                        reason = "simulated time over a positive control period: a small count"
-                    )]
-                    {
-                        steps += (run.time_s / env.control_period).round() as u64;
-                    }
+                    steps += run.steps;
+                    handover_steps += run.handover_steps;
                     stat.min_clearance_m = stat.min_clearance_m.min(run.min_clearance_m);
                     if run.min_clearance_m < NEAR_MISS_M {
                         stat.near_misses += 1;
@@ -348,16 +355,18 @@ where
                 }
                 stat.mean_time_s =
                     (stat.successes > 0).then(|| time_sum / f64::from(stat.successes));
-                Ok((stat, steps))
+                Ok((stat, steps, handover_steps))
             },
         )
         .collect();
     let results = results?;
     let steps = results.iter().map(|r| r.1).sum();
+    let handover_steps = results.iter().map(|r| r.2).sum();
     Ok(EdgeReport {
         edges: results.into_iter().map(|r| r.0).collect(),
         params: *params,
         steps,
+        handover_steps,
     })
 }
 

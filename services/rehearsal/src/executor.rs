@@ -285,6 +285,7 @@ pub fn validate_with_fallback(
                     goals_reached,
                     prm_path_length_m: legs.length_m,
                     end_pose: run.end_pose,
+                    handover_share: run.handover_share(),
                     trace: opts.trace.then(|| {
                         attempt_trace(&run, &legs.waypoints, driver.env.control_period, opts)
                     }),
@@ -816,6 +817,24 @@ pub struct DriveRun {
     pub ranges: Vec<Vec<f32>>,
     /// Where the robot ended.
     pub end_pose: Pose2,
+    /// Control steps driven.
+    pub steps: u64,
+    /// Of those, the steps a fallback inside the controller drove ([`Controller::handed_over`]).
+    pub handover_steps: u64,
+}
+
+impl DriveRun {
+    /// The share of control steps a fallback inside the controller drove (0 without steps).
+    pub fn handover_share(&self) -> f64 {
+        if self.steps == 0 {
+            0.0
+        } else {
+            #[allow(clippy::cast_precision_loss, reason = "step counts are far below 2^52")]
+            {
+                self.handover_steps as f64 / self.steps as f64
+            }
+        }
+    }
 }
 
 /// Drives the simulated robot from `start` through `legs` (each leg ends at its goal) with
@@ -863,6 +882,7 @@ pub fn drive(
     )]
     let timer_steps = ((limits.waypoint_timeout_s / dt).ceil() as u64).max(1);
     let mut steps_on_waypoint = 0u64;
+    let (mut steps, mut handover_steps) = (0u64, 0u64);
     let mut min_clearance = world.clearance(start.x, start.y);
     let mut replans = 0u32;
     let mut reached = Vec::new();
@@ -877,6 +897,10 @@ pub fn drive(
             return Err(PlanError::Stopped);
         }
         let action = controller.command(&obs, env.pose(), (current.0.x, current.0.y));
+        steps += 1;
+        if controller.handed_over() {
+            handover_steps += 1;
+        }
         let step = env.step(action);
         if limits.trace {
             ranges.push(step.observation.ranges.clone());
@@ -995,6 +1019,8 @@ pub fn drive(
         end_pose: env.pose(),
         trajectory,
         ranges,
+        steps,
+        handover_steps,
     })
 }
 

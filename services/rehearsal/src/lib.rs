@@ -33,7 +33,10 @@ pub mod planning_grid;
 pub mod types;
 
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
-pub use controller::{ClassicalFollower, Controller, FollowerParams, PolicyController, Shield};
+pub use controller::{
+    ClassicalFollower, Controller, FollowerParams, HANDOVER_MARGIN_M, POLICY_CONTROLLER_REVISION,
+    PolicyController, Shield,
+};
 pub use edges::{
     EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, UNKEPT_PENALTY_M, drive_edges,
     policy_roadmap, reweight, reweight_with_unkept,

@@ -153,6 +153,9 @@ pub struct AttemptReport {
     pub prm_path_length_m: f64,
     /// Where the robot ended.
     pub end_pose: Pose2,
+    /// Share of the control steps the classical follower drove inside a policy controller
+    /// (its handover near obstacles); 0 for the follower's own attempts.
+    pub handover_share: f64,
     /// The drive step by step, when [`PlanOptions::trace`] asked for it.
     pub trace: Option<AttemptTrace>,
 }

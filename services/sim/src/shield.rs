@@ -68,6 +68,18 @@ impl Shield {
 
     /// Whether driving `command` for the horizon keeps the footprint clear of `points`.
     fn safe(&self, command: Action, points: &[(f64, f64)]) -> bool {
+        self.keeps(command, points, SHIELD_MARGIN_M)
+    }
+
+    /// Whether driving `command` for the horizon keeps the footprint `margin` clear of what
+    /// the laser sees (returns it is not approaching excepted), as the shield checks its own
+    /// margin.
+    pub fn keeps_margin(&self, command: Action, obs: &Observation, margin: f64) -> bool {
+        let points = self.returns(obs);
+        points.is_empty() || self.keeps(command, &points, margin)
+    }
+
+    fn keeps(&self, command: Action, points: &[(f64, f64)], margin: f64) -> bool {
         let gap = |x: f64, y: f64| {
             points
                 .iter()
@@ -84,7 +96,7 @@ impl Shield {
             yaw += command.angular * SHIELD_STEP_S;
             t += SHIELD_STEP_S;
             let g = gap(x, y);
-            if g < SHIELD_MARGIN_M && g < now - 1e-3 {
+            if g < margin && g < now - 1e-3 {
                 return false;
             }
         }

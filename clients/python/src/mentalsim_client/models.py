@@ -321,6 +321,9 @@ class AttemptReport:
     prm_path_length_m: float
     end_pose: Pose
     trace: JsonObject | None
+    #: Share of the control steps the classical follower drove inside the policy controller
+    #: (its handover near obstacles); 0 for the follower's own attempts.
+    handover_share: float = 0.0
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> AttemptReport:
@@ -340,6 +343,7 @@ class AttemptReport:
             _float(d, "prm_path_length_m"),
             Pose.from_json(_obj(d.get("end_pose"), "end_pose")),
             _opt_obj(d, "trace"),
+            _float(d, "handover_share"),
         )
 
 

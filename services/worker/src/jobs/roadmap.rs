@@ -155,8 +155,11 @@ impl RoadmapKey {
     }
 
     fn file_name(&self) -> String {
+        // The controller's revision names the file too: a roadmap driven by an older policy
+        // controller is never served, and is rebuilt.
         let text = format!(
-            "{}\u{1f}{}\u{1f}{:x}\u{1f}{:x}\u{1f}{}\u{1f}{:x}",
+            "{}\u{1f}{}\u{1f}{}\u{1f}{:x}\u{1f}{:x}\u{1f}{}\u{1f}{:x}",
+            rehearsal::POLICY_CONTROLLER_REVISION,
             self.floor_state,
             self.policy,
             self.weights,
@@ -275,6 +278,7 @@ impl StoredRoadmap {
                 ..EdgeRolloutParams::default()
             },
             steps: 0,
+            handover_steps: 0,
         }
     }
 }

@@ -366,6 +366,12 @@ pub struct AttemptReport {
     pub prm_path_length_m: f64,
     /// Where the robot ended.
     pub end_pose: Pose,
+    /// Share of the attempt's control steps that the classical follower drove inside the
+    /// policy controller: it takes over to the next waypoint where the policy would come within
+    /// 0.3 m of what the laser sees. 0 for the follower's own attempts.
+    #[serde(default)]
+    #[schema(minimum = 0.0, maximum = 1.0)]
+    pub handover_share: f64,
     /// The drive step by step, with `options.trace`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trace: Option<AttemptTrace>,
@@ -434,6 +440,7 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
             goals_reached,
             prm_path_length_m,
             end_pose,
+            handover_share,
             trace,
         } = a;
         Self {
@@ -451,6 +458,7 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
             goals_reached,
             prm_path_length_m,
             end_pose: end_pose.into(),
+            handover_share,
             trace: trace.map(Into::into),
         }
     }
