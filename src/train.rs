@@ -89,9 +89,20 @@ pub struct TrainArgs {
     /// reported beside them).
     #[arg(long, value_enum, default_value_t = Goals::InView)]
     pub goals: Goals,
+    /// Learners trained side by side, one per core, each with its own seed, replay buffer and
+    /// checkpoint (`OUT/learners/K/`); the one whose policy does best on selection missions is
+    /// the run's policy [default: the machine's cores, at most 4]
+    #[arg(long)]
+    pub learners: Option<usize>,
     /// Show a progress bar (the command line always does).
     #[arg(skip = true)]
     pub progress: bool,
+}
+
+/// Learners when `--learners` is not given: one per core, at most 4 (each holds a replay
+/// buffer of `buffer_capacity` transitions).
+pub fn default_learners() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get().min(4))
 }
 
 /// Where a training configuration starts.
@@ -138,6 +149,14 @@ pub fn train_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
 pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<TrainSummary> {
     if !(args.minutes.is_finite() && args.minutes > 0.0) {
         anyhow::bail!("--minutes must be a positive number, got {}", args.minutes);
+    }
+    if let Some(n) = args.learners
+        && !(1..=learning::run::MAX_LEARNERS).contains(&n)
+    {
+        anyhow::bail!(
+            "--learners must be between 1 and {}, got {n}",
+            learning::run::MAX_LEARNERS
+        );
     }
     if args.eval_episodes == 0 {
         anyhow::bail!("--eval-episodes must be at least 1");
@@ -202,9 +221,18 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<TrainSummary
         fresh: args.fresh,
         eval_episodes: args.eval_episodes,
         goals: args.goals.into(),
+        learners: args.learners.unwrap_or_else(default_learners),
     };
     if run.resumes() {
         eprintln!("resuming the run checkpointed in {}", args.out.display());
+    }
+    if run.learners > 1 {
+        eprintln!(
+            "{} learners side by side (seeds {}..={}), progress of the first; the best on selection missions makes the policy",
+            run.learners,
+            run.config.seed,
+            run.config.seed.wrapping_add(run.learners as u64 - 1)
+        );
     }
     let bar = if args.progress {
         let bar = ProgressBar::new(1000);

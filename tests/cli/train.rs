@@ -50,6 +50,7 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
         .arg(&out)
         .arg("--config")
         .arg(&config)
+        .args(["--learners", "1"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -87,6 +88,7 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
         .arg(&out)
         .arg("--config")
         .arg(&config)
+        .args(["--learners", "1"])
         .output()
         .unwrap();
     assert!(again.status.success());
@@ -219,6 +221,19 @@ fn train_spreads_over_a_directory_of_maps_and_generated_floors() {
         String::from_utf8_lossy(&output.stderr)
     );
     let eval = json(&out.join("eval.json"));
+    // One learner per core by default (at most 4), each in its own directory; the best one's
+    // policy is the run's.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get().min(4));
+    assert_eq!(eval["learners"], cores, "{eval}");
+    if cores > 1 {
+        let chosen = eval["chosen_learner"].as_u64().expect("chosen") as usize;
+        assert_eq!(eval["learner_selection"].as_array().unwrap().len(), cores);
+        assert_eq!(
+            std::fs::read(out.join("policy.safetensors")).unwrap(),
+            std::fs::read(out.join(format!("learners/{chosen}/policy.safetensors"))).unwrap()
+        );
+        assert!(out.join("learners/0/checkpoint/state.json").is_file());
+    }
     let trained: Vec<&str> = eval["extra_maps"]
         .as_array()
         .unwrap()
@@ -268,7 +283,11 @@ fn train_spreads_over_a_directory_of_maps_and_generated_floors() {
 #[test]
 fn train_and_eval_refuse_bad_input_naming_it() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 9] = [
+        (
+            &["train", "--learners", "0", "--map", "x.yaml", "--out"],
+            "--learners must be between 1 and 16, got 0",
+        ),
         (
             &["train", "--maps", "/nonexistent/maps", "--out"],
             "not a directory",

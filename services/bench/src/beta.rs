@@ -211,6 +211,8 @@ fn train_one(
         fresh: false,
         eval_episodes: options.eval_episodes,
         goals: Goals::InView,
+        // One learner per (β, seed): the study is about the seeds.
+        learners: 1,
     };
     if run.resumes() {
         eprintln!("resuming the run checkpointed in {}", out.display());

@@ -45,13 +45,47 @@ pub struct TrainRun {
     pub eval_episodes: usize,
     /// Which held-out goals the headline figures are about.
     pub goals: Goals,
+    /// Learners trained side by side, one per core, each with its own seed, replay buffer and
+    /// checkpoint (`out/learners/<k>/`); the one whose exported policy does best on selection
+    /// missions (drawn from a seed neither training nor the held-out evaluation uses) is the
+    /// run's policy. 1: a single learner in `out`.
+    pub learners: usize,
 }
+
+/// Most learners a run trains side by side.
+pub const MAX_LEARNERS: usize = 16;
 
 impl TrainRun {
     /// Whether the run continues the one checkpointed in `out`.
     pub fn resumes(&self) -> bool {
-        !self.fresh && Trainer::has_checkpoint(&self.out)
+        !self.fresh && Trainer::has_checkpoint(&self.learner_dir(0))
     }
+
+    /// Where learner `k` keeps its checkpoint, curves and exported policy: `out` itself for a
+    /// single learner.
+    pub fn learner_dir(&self, k: usize) -> PathBuf {
+        if self.learners <= 1 {
+            self.out.clone()
+        } else {
+            self.out.join("learners").join(k.to_string())
+        }
+    }
+}
+
+/// The files of a learner's directory that make the run's policy and curves.
+const CHOSEN_FILES: [&str; 5] = [
+    crate::policy::WEIGHTS_FILE,
+    crate::policy::METADATA_FILE,
+    "curves.csv",
+    "curves.png",
+    "evals.csv",
+];
+
+/// One learner's training, exported into its directory.
+struct Learned {
+    counters: crate::trainer::Counters,
+    config: TrainConfig,
+    interrupted: bool,
 }
 
 /// Why a run failed.
@@ -97,8 +131,9 @@ pub fn map_name(map: &Path) -> String {
 
 /// Trains, writes the curves, exports the policy into `run.out`, evaluates it on held-out
 /// missions and writes `eval.json`; returns what `eval.json` says. `on_progress` is called a
-/// few times a second; returning false stops the run early, with a checkpoint, and the policy
-/// learned so far is still exported and evaluated (`interrupted` says so).
+/// few times a second (with the first learner's progress); returning false stops the run early,
+/// with a checkpoint, and the policy learned so far is still exported and evaluated
+/// (`interrupted` says so).
 pub fn run(
     run: TrainRun,
     on_progress: &mut dyn FnMut(&Progress) -> bool,
@@ -114,17 +149,147 @@ pub fn run(
             "at least one held-out mission is needed".into(),
         ));
     }
-    std::fs::create_dir_all(&run.out).map_err(|error| RunError::Io {
-        path: run.out.clone(),
+    if !(1..=MAX_LEARNERS).contains(&run.learners) {
+        return Err(RunError::Invalid(format!(
+            "learners must be between 1 and {MAX_LEARNERS}, got {}",
+            run.learners
+        )));
+    }
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let results: Vec<Result<Learned, RunError>> = std::thread::scope(|scope| {
+        let others: Vec<_> = (1..run.learners)
+            .map(|k| {
+                let (run, stop) = (&run, &stop);
+                scope.spawn(move || {
+                    train_one(run, k, &mut |_| {
+                        !stop.load(std::sync::atomic::Ordering::Relaxed)
+                    })
+                })
+            })
+            .collect();
+        let first = train_one(&run, 0, &mut |p| {
+            let go_on = on_progress(p);
+            if !go_on {
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+            go_on
+        });
+        // Should the first learner fail, the others stop too.
+        if first.is_err() {
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+        let mut all = vec![first];
+        all.extend(others.into_iter().map(|h| {
+            h.join()
+                .unwrap_or_else(|_| Err(RunError::Invalid("a learner's thread panicked".into())))
+        }));
+        all
+    });
+    let learned: Vec<Learned> = results.into_iter().collect::<Result<_, _>>()?;
+    // The run's policy: the only learner's, or the one that does best on selection missions
+    // (success, then time), from a seed that neither training nor the held-out report uses.
+    let eval_seed = learned[0].config.eval_seed;
+    let (chosen, selection) = if learned.len() == 1 {
+        (0, Vec::new())
+    } else {
+        let mut scores = Vec::new();
+        for k in 0..learned.len() {
+            let policy = Policy::load(&run.learner_dir(k))?;
+            let h = held_out(
+                &policy,
+                &run.world,
+                run.eval_episodes,
+                eval_seed.wrapping_add(2),
+                run.goals,
+            )?;
+            scores.push((h.report.success_rate, h.report.mean_time_to_goal_s));
+        }
+        let best = (0..scores.len())
+            .max_by(|&a, &b| {
+                scores[a]
+                    .0
+                    .total_cmp(&scores[b].0)
+                    .then(scores[b].1.total_cmp(&scores[a].1))
+                    .then(b.cmp(&a))
+            })
+            .unwrap_or(0);
+        for name in CHOSEN_FILES {
+            let from = run.learner_dir(best).join(name);
+            let to = run.out.join(name);
+            std::fs::copy(&from, &to).map_err(|error| RunError::Io { path: to, error })?;
+        }
+        (best, scores)
+    };
+    let counters = learned[chosen].counters.clone();
+    let config = learned[chosen].config.clone();
+    let interrupted = learned.iter().any(|l| l.interrupted);
+    let policy = Policy::load(&run.out)?;
+    let held_out_seed = config.eval_seed.wrapping_add(1);
+    let evaluation = held_out(
+        &policy,
+        &run.world,
+        run.eval_episodes,
+        held_out_seed,
+        run.goals,
+    )?;
+    let summary = TrainSummary {
+        episodes: counters.episodes,
+        env_steps: counters.env_steps,
+        grad_steps: counters.grad_steps,
+        wall_s: counters.wall_s,
+        sessions: counters.sessions,
+        interrupted,
+        map: run.map.display().to_string(),
+        extra_maps: run
+            .extra_maps
+            .iter()
+            .map(|m| m.display().to_string())
+            .collect(),
+        learners: learned.len(),
+        chosen_learner: (learned.len() > 1).then_some(chosen),
+        learner_selection: selection
+            .iter()
+            .map(
+                |&(success_rate, mean_time_to_goal_s)| crate::summary::LearnerScore {
+                    success_rate,
+                    mean_time_to_goal_s,
+                },
+            )
+            .collect(),
+        ..TrainSummary::new(evaluation, config)
+    };
+    // Through `Value`, whose keys are sorted: the file reads the same run after run.
+    let json = serde_json::to_value(&summary).and_then(|v| serde_json::to_string_pretty(&v));
+    let json = json.map_err(|e| RunError::Io {
+        path: run.out.join("eval.json"),
+        error: e.into(),
+    })?;
+    write(run.out.join("eval.json"), format!("{json}\n"))?;
+    Ok(summary)
+}
+
+/// Learner `k` of `run`: trains (resuming its checkpoint unless the run is fresh), writes its
+/// curves and exports its policy into [`TrainRun::learner_dir`]. Learner `k` has the seed
+/// `config.seed + k`.
+fn train_one(
+    run: &TrainRun,
+    k: usize,
+    on_progress: &mut dyn FnMut(&Progress) -> bool,
+) -> Result<Learned, RunError> {
+    let dir = run.learner_dir(k);
+    std::fs::create_dir_all(&dir).map_err(|error| RunError::Io {
+        path: dir.clone(),
         error,
     })?;
+    let mut config = run.config.clone();
+    config.seed = config.seed.wrapping_add(k as u64);
     let options = TrainOptions {
-        config: run.config.clone(),
+        config,
         env: EnvConfig::default(),
         scaling: Scaling::default(),
-        out_dir: run.out.clone(),
+        out_dir: dir.clone(),
     };
-    let trainer = if run.resumes() {
+    let trainer = if !run.fresh && Trainer::has_checkpoint(&dir) {
         Trainer::resume(Arc::clone(&run.world), options)?
     } else {
         Trainer::new(Arc::clone(&run.world), options)?
@@ -154,7 +319,7 @@ pub fn run(
         map_name(&run.map),
         config.td3.beta1
     );
-    curves::write_curves(&run.out, &title, episodes)?;
+    curves::write_curves(&dir, &title, episodes)?;
     let mut evals_csv = String::from(
         "env_steps,wall_s,success_rate,collision_rate,timeout_rate,mean_time_to_goal_s,mean_return\n",
     );
@@ -170,44 +335,14 @@ pub fn run(
             e.report.mean_return
         ));
     }
-    write(run.out.join("evals.csv"), evals_csv)?;
-
-    // Export, then evaluate the exported policy on held-out missions drawn from a seed
-    // training never used.
+    write(dir.join("evals.csv"), evals_csv)?;
     trainer.export(
-        &run.out,
+        &dir,
         serde_json::json!({ "map": run.map.display().to_string() }),
     )?;
-    let policy = Policy::load(&run.out)?;
-    let held_out_seed = config.eval_seed.wrapping_add(1);
-    let evaluation = held_out(
-        &policy,
-        &run.world,
-        run.eval_episodes,
-        held_out_seed,
-        run.goals,
-    )?;
-    let summary = TrainSummary {
-        episodes: counters.episodes,
-        env_steps: counters.env_steps,
-        grad_steps: counters.grad_steps,
-        wall_s: counters.wall_s,
-        sessions: counters.sessions,
+    Ok(Learned {
+        counters,
+        config,
         interrupted,
-        map: run.map.display().to_string(),
-        extra_maps: run
-            .extra_maps
-            .iter()
-            .map(|m| m.display().to_string())
-            .collect(),
-        ..TrainSummary::new(evaluation, config)
-    };
-    // Through `Value`, whose keys are sorted: the file reads the same run after run.
-    let json = serde_json::to_value(&summary).and_then(|v| serde_json::to_string_pretty(&v));
-    let json = json.map_err(|e| RunError::Io {
-        path: run.out.join("eval.json"),
-        error: e.into(),
-    })?;
-    write(run.out.join("eval.json"), format!("{json}\n"))?;
-    Ok(summary)
+    })
 }

@@ -163,8 +163,25 @@ pub struct TrainSummary {
     pub beta: f64,
     /// The headline evaluation in full.
     pub evaluation: EvalReport,
-    /// The training configuration.
+    /// The training configuration (of the chosen learner: its seed).
     pub config: TrainConfig,
+    /// Learners trained side by side (one per core).
+    pub learners: usize,
+    /// Which of them made the policy, when there were several.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chosen_learner: Option<usize>,
+    /// Each learner's exported policy on the selection missions, when there were several.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub learner_selection: Vec<LearnerScore>,
+}
+
+/// A learner's exported policy on the selection missions.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct LearnerScore {
+    /// Share of selection missions that reached the goal.
+    pub success_rate: f64,
+    /// Mean simulated time to goal over successes, seconds.
+    pub mean_time_to_goal_s: f64,
 }
 
 impl TrainSummary {
@@ -201,6 +218,9 @@ impl TrainSummary {
             beta: config.td3.beta1,
             evaluation: report,
             config,
+            learners: 1,
+            chosen_learner: None,
+            learner_selection: Vec::new(),
         }
     }
 

@@ -501,6 +501,7 @@ fn a_run_writes_curves_policy_and_an_eval_json_that_is_its_summary() {
         fresh: false,
         eval_episodes: 4,
         goals: learning::Goals::InView,
+        learners: 1,
     };
     assert!(!spec.resumes());
     let summary = run(spec.clone(), &mut |_| true).unwrap();
@@ -531,6 +532,70 @@ fn a_run_writes_curves_policy_and_an_eval_json_that_is_its_summary() {
     let again = run(spec, &mut |_| true).unwrap();
     assert_eq!(again.sessions, 2);
     assert_eq!(again.env_steps, summary.env_steps);
+}
+
+/// Two learners side by side (one per core): each trains in its own directory with its own
+/// seed, the one whose policy does best on the selection missions is the run's policy (its
+/// files in `out`), `eval.json` says which and how each did, and a second run resumes both.
+#[test]
+fn learners_side_by_side_train_their_own_seeds_and_the_better_policy_is_the_runs() {
+    use learning::run::{TrainRun, run};
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let spec = TrainRun {
+        world: room(),
+        extra_worlds: Vec::new(),
+        hold_out: false,
+        map: "maps/room/map.yaml".into(),
+        extra_maps: Vec::new(),
+        config: small_options(&out).config,
+        out: out.clone(),
+        minutes: 0.03,
+        fresh: false,
+        eval_episodes: 4,
+        goals: learning::Goals::InView,
+        learners: 2,
+    };
+    assert!(!spec.resumes());
+    let summary = run(spec.clone(), &mut |_| true).unwrap();
+    assert_eq!(summary.learners, 2);
+    assert_eq!(summary.learner_selection.len(), 2);
+    let chosen = summary.chosen_learner.expect("a chosen learner");
+    let best = summary
+        .learner_selection
+        .iter()
+        .map(|s| s.success_rate)
+        .fold(0.0, f64::max);
+    assert_eq!(summary.learner_selection[chosen].success_rate, best);
+    assert_eq!(summary.seed, spec.config.seed + chosen as u64);
+    for k in 0..2 {
+        let d = out.join("learners").join(k.to_string());
+        assert!(d.join("checkpoint/state.json").is_file(), "learner {k}");
+        assert!(d.join("policy.safetensors").is_file(), "learner {k}");
+    }
+    // The run's policy is the chosen learner's, byte for byte; the learners differ.
+    let weights = |d: &std::path::Path| std::fs::read(d.join("policy.safetensors")).unwrap();
+    let learner = |k: usize| out.join("learners").join(k.to_string());
+    assert_eq!(weights(&out), weights(&learner(chosen)));
+    assert_ne!(weights(&learner(0)), weights(&learner(1)));
+    let eval: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(eval, serde_json::to_value(&summary).unwrap());
+    assert_eq!(eval["learners"], 2);
+    // A second run resumes both learners.
+    assert!(spec.resumes());
+    let again = run(spec.clone(), &mut |_| true).unwrap();
+    assert_eq!(again.sessions, 2);
+    // Out of range is refused by name.
+    let e = run(
+        TrainRun {
+            learners: 0,
+            ..spec
+        },
+        &mut |_| true,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("learners"), "{e}");
 }
 
 /// The warm start: behaviour cloning moves the actor onto the demonstrator's actions, and the
