@@ -551,6 +551,46 @@ fn edge_eval(
     Ok(out)
 }
 
+/// The map with every roadmap edge in the colour of what the controller made of it: green
+/// where both directions are kept (≥ the keep threshold), orange where one is, red where
+/// neither is (drawn last, on top).
+fn edge_map_png(
+    world: &World,
+    roadmap: &planning::Roadmap,
+    report: &rehearsal::EdgeReport,
+) -> anyhow::Result<Vec<u8>> {
+    let nodes: Vec<planning::Point2> = roadmap.nodes().collect();
+    let keep = report.params.keep_threshold;
+    let mut segments: Vec<(usize, sim::render::Segment)> = report
+        .edges
+        .chunks(2)
+        .map(|pair| {
+            let kept = pair.iter().filter(|e| e.success_rate() >= keep).count();
+            let (a, b) = (nodes[pair[0].from], nodes[pair[0].to]);
+            let rgb = match kept {
+                2 => [40, 160, 70],
+                1 => [240, 150, 0],
+                _ => [220, 30, 30],
+            };
+            (
+                kept,
+                sim::render::Segment {
+                    from: (a.x, a.y),
+                    to: (b.x, b.y),
+                    rgb,
+                },
+            )
+        })
+        .collect();
+    segments.sort_by_key(|(kept, _)| std::cmp::Reverse(*kept));
+    let overlay = sim::render::Overlay {
+        segments: segments.into_iter().map(|(_, s)| s).collect(),
+        ..sim::render::Overlay::default()
+    };
+    sim::render::png(world, &overlay, &sim::render::RenderOptions::default())
+        .map_err(|e| anyhow::anyhow!("cannot draw the edge map: {e}"))
+}
+
 /// One row of `bench edges`: a controller on every roadmap edge of one map.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct EdgeBenchRow {
@@ -627,8 +667,17 @@ pub fn bench_edges(
             })
             .collect();
         controllers.push(("follower".into(), EdgeDriver::Follower));
+        std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
         for (name, driver) in controllers {
             let (report, wall_s) = drive_roadmap(&world, &roadmap, driver, seed, rollouts)?;
+            let slug = name
+                .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .filter(|w| !w.is_empty())
+                .collect::<Vec<_>>()
+                .join("-");
+            let png_path = out.join(format!("{map}-{slug}.png"));
+            std::fs::write(&png_path, edge_map_png(&world, &roadmap, &report)?)
+                .with_context(|| format!("cannot write {}", png_path.display()))?;
             let row = EdgeBenchRow {
                 map: map.clone(),
                 controller: name,

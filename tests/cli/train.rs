@@ -174,6 +174,56 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
     assert!(g["edges_dropped_worst"].is_array(), "{g}");
     // Beside the in-view figures of the same policy and missions.
     assert_eq!(g["success_rate"], e["success_rate"]);
+    assert!(
+        (0.0..=1.0).contains(&g["edge_handover_share"].as_f64().unwrap()),
+        "{g}"
+    );
+
+    // The same policy in `bench edges`: as plans drive it, behind the shield alone, and the
+    // follower, on every edge of every map under the directory; tables and edge maps.
+    let bench = dir.path().join("bench-edges");
+    let output = mentalsim()
+        .args(["bench", "edges", "--rollouts", "1", "--maps"])
+        .arg(other.parent().unwrap())
+        .arg("--policy")
+        .arg(&out)
+        .arg("--out")
+        .arg(&bench)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let csv = std::fs::read_to_string(bench.join("edges.csv")).unwrap();
+    let controllers: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap())
+        .collect();
+    assert_eq!(
+        controllers,
+        ["run", "run (shield only)", "follower"],
+        "{csv}"
+    );
+    let md = std::fs::read_to_string(bench.join("edges.md")).unwrap();
+    assert!(
+        md.contains("| handover |") && md.contains("## Pooled"),
+        "{md}"
+    );
+    for name in ["run", "run-shield-only", "follower"] {
+        let png = bench.join(format!("aws_bookstore-{name}.png"));
+        let img = image::open(&png)
+            .unwrap_or_else(|e| panic!("{}: {e}", png.display()))
+            .to_rgb8();
+        // Kept edges are drawn green.
+        assert!(
+            img.pixels().any(|p| p.0 == [40, 160, 70]),
+            "{} has no kept edge",
+            png.display()
+        );
+    }
 }
 
 /// Many buildings by default: generated floors (one held out for the evaluation) and every map

@@ -22,6 +22,20 @@ pub struct Overlay {
     pub goal: Option<(f64, f64)>,
     /// Whether to tint the free region that starts and goals are sampled from.
     pub show_free_region: bool,
+    /// Line segments in their own colours (a roadmap's edges), drawn in order over the world
+    /// and under the beams.
+    pub segments: Vec<Segment>,
+}
+
+/// A coloured line segment between two world points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    /// One end, metres.
+    pub from: (f64, f64),
+    /// The other end, metres.
+    pub to: (f64, f64),
+    /// Its colour.
+    pub rgb: [u8; 3],
 }
 
 impl Overlay {
@@ -197,6 +211,10 @@ pub fn png(
                 img.fill_circle(cx, cy, round_radius(&p) * view.ppm, col);
             }
         }
+    }
+    for g in &overlay.segments {
+        let (p, q) = (view.to_px(g.from.0, g.from.1), view.to_px(g.to.0, g.to.1));
+        img.line(p, q, g.rgb);
     }
     for (a, b) in &overlay.beams {
         let (p, q) = (view.to_px(a.0, a.1), view.to_px(b.0, b.1));
@@ -468,6 +486,18 @@ pub fn svg(
                 );
             }
         }
+    }
+    for g in &overlay.segments {
+        let (p1, p2) = (view.to_px(g.from.0, g.from.1), view.to_px(g.to.0, g.to.1));
+        let _ = writeln!(
+            s,
+            r#"<line x1="{:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{}" stroke-width="1.5"/>"#,
+            p1.0,
+            p1.1,
+            p2.0,
+            p2.1,
+            hex(g.rgb)
+        );
     }
     for (a, b) in &overlay.beams {
         let (p1, p2) = (view.to_px(a.0, a.1), view.to_px(b.0, b.1));

@@ -60,6 +60,28 @@ fn png_decodes_with_the_expected_size_and_colours() {
     assert_eq!(px(7.0, 2.0), [220, 0, 0]);
     assert_eq!(px(0.01, 3.0), [30, 30, 30]);
     assert_eq!(overlay.beams.len(), 23);
+    // A segment in its own colour, in free space away from the beams.
+    let with_edge = Overlay {
+        segments: vec![sim::render::Segment {
+            from: (8.5, 1.0),
+            to: (9.5, 1.0),
+            rgb: [1, 2, 3],
+        }],
+        ..overlay.clone()
+    };
+    let img = image::load_from_memory(&png(&world, &with_edge, &RenderOptions::default()).unwrap())
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(
+        img.get_pixel((9.0 / 0.05) as u32, ((6.0 - 1.0) / 0.05) as u32)
+            .0,
+        [1, 2, 3]
+    );
+    let text = svg(&world, &with_edge, &RenderOptions::default()).unwrap();
+    assert!(
+        text.contains(r##"stroke="#010203""##),
+        "the segment in the SVG"
+    );
     // Scaled down to fit.
     let small = png(
         &world,
