@@ -222,6 +222,11 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<TrainSummary
         eval_episodes: args.eval_episodes,
         goals: args.goals.into(),
         learners: args.learners.unwrap_or_else(default_learners),
+        selector: Some(learning::run::Selector(Arc::new(
+            |policy: &Policy, world: &Arc<World>| {
+                edge_selection_score(policy, world).map_err(|e| format!("{e:#}"))
+            },
+        ))),
     };
     if run.resumes() {
         eprintln!("resuming the run checkpointed in {}", args.out.display());
@@ -370,6 +375,25 @@ pub fn eval(
         out.extend(edges);
     }
     Ok(json)
+}
+
+/// Learners of a run are compared by the measure the product needs of a policy: per-edge
+/// success, as plans drive it, on every edge of the held-out world's roadmap (10 rollouts per
+/// direction, seed of the selection). In-view missions saturate at 96–99% for every learner;
+/// on the shared maps two learners of one run scored 99.42% and 99.85% per edge while in-view
+/// selection preferred the first, and per-edge success on the held-out floor the second.
+fn edge_selection_score(policy: &Policy, world: &Arc<World>) -> anyhow::Result<f64> {
+    const SELECTION_SEED: u64 = 0x5e1e_c7;
+    let roadmap = eval_roadmap(world, SELECTION_SEED)?;
+    let policy = Arc::new(policy.clone());
+    let (report, _) = drive_roadmap(
+        world,
+        &roadmap,
+        EdgeDriver::Policy(&policy),
+        SELECTION_SEED,
+        10,
+    )?;
+    Ok(report.edge_success_rate())
 }
 
 /// Which missions `mentalsim eval` measures.

@@ -213,6 +213,7 @@ fn train_one(
         goals: Goals::InView,
         // One learner per (β, seed): the study is about the seeds.
         learners: 1,
+        selector: None,
     };
     if run.resumes() {
         eprintln!("resuming the run checkpointed in {}", out.display());

@@ -50,6 +50,20 @@ pub struct TrainRun {
     /// missions (drawn from a seed neither training nor the held-out evaluation uses) is the
     /// run's policy. 1: a single learner in `out`.
     pub learners: usize,
+    /// How learners are compared: by default their success (then time) on selection
+    /// missions; a caller that can drive roadmaps passes a better measure (per-edge success on
+    /// the held-out world, which in-view missions saturate before).
+    pub selector: Option<Selector>,
+}
+
+/// A score of a learner's exported policy (higher is better) on `world`, the held-out world.
+#[derive(Clone)]
+pub struct Selector(pub Arc<dyn Fn(&Policy, &Arc<World>) -> Result<f64, String> + Send + Sync>);
+
+impl std::fmt::Debug for Selector {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Selector(..)")
+    }
 }
 
 /// Most learners a run trains side by side.
@@ -202,7 +216,11 @@ pub fn run(
                 eval_seed.wrapping_add(2),
                 run.goals,
             )?;
-            scores.push((h.report.success_rate, h.report.mean_time_to_goal_s));
+            let score = match &run.selector {
+                Some(Selector(score)) => score(&policy, &run.world).map_err(RunError::Invalid)?,
+                None => h.report.success_rate,
+            };
+            scores.push((score, h.report.mean_time_to_goal_s));
         }
         let best = (0..scores.len())
             .max_by(|&a, &b| {
@@ -250,8 +268,8 @@ pub fn run(
         learner_selection: selection
             .iter()
             .map(
-                |&(success_rate, mean_time_to_goal_s)| crate::summary::LearnerScore {
-                    success_rate,
+                |&(score, mean_time_to_goal_s)| crate::summary::LearnerScore {
+                    score,
                     mean_time_to_goal_s,
                 },
             )

@@ -178,9 +178,11 @@ pub struct TrainSummary {
 /// A learner's exported policy on the selection missions.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct LearnerScore {
-    /// Share of selection missions that reached the goal.
-    pub success_rate: f64,
-    /// Mean simulated time to goal over successes, seconds.
+    /// What the learners were compared by: the run's selector's score (`mentalsim train`:
+    /// per-edge success on the held-out world's roadmap), else the share of selection missions
+    /// that reached the goal.
+    pub score: f64,
+    /// Mean simulated time to goal on the selection missions over successes, seconds.
     pub mean_time_to_goal_s: f64,
 }
 

@@ -502,6 +502,7 @@ fn a_run_writes_curves_policy_and_an_eval_json_that_is_its_summary() {
         eval_episodes: 4,
         goals: learning::Goals::InView,
         learners: 1,
+        selector: None,
     };
     assert!(!spec.resumes());
     let summary = run(spec.clone(), &mut |_| true).unwrap();
@@ -555,6 +556,7 @@ fn learners_side_by_side_train_their_own_seeds_and_the_better_policy_is_the_runs
         eval_episodes: 4,
         goals: learning::Goals::InView,
         learners: 2,
+        selector: None,
     };
     assert!(!spec.resumes());
     let summary = run(spec.clone(), &mut |_| true).unwrap();
@@ -564,9 +566,9 @@ fn learners_side_by_side_train_their_own_seeds_and_the_better_policy_is_the_runs
     let best = summary
         .learner_selection
         .iter()
-        .map(|s| s.success_rate)
+        .map(|s| s.score)
         .fold(0.0, f64::max);
-    assert_eq!(summary.learner_selection[chosen].success_rate, best);
+    assert_eq!(summary.learner_selection[chosen].score, best);
     assert_eq!(summary.seed, spec.config.seed + chosen as u64);
     for k in 0..2 {
         let d = out.join("learners").join(k.to_string());
