@@ -56,9 +56,12 @@ pub struct TrainRun {
     pub selector: Option<Selector>,
 }
 
+/// Scores a learner's exported policy (higher is better) on the held-out world.
+pub type ScoreFn = dyn Fn(&Policy, &Arc<World>) -> Result<f64, String> + Send + Sync;
+
 /// A score of a learner's exported policy (higher is better) on `world`, the held-out world.
 #[derive(Clone)]
-pub struct Selector(pub Arc<dyn Fn(&Policy, &Arc<World>) -> Result<f64, String> + Send + Sync>);
+pub struct Selector(pub Arc<ScoreFn>);
 
 impl std::fmt::Debug for Selector {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
