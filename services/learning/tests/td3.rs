@@ -482,28 +482,33 @@ fn the_actor_climbs_the_critic_to_the_best_action() {
     );
 }
 
-/// A whole run into a directory (what `mentalsim train` does): curves, the exported policy
-/// and `eval.json`, whose figures are the returned summary's; a second run resumes.
-#[test]
-fn a_run_writes_curves_policy_and_an_eval_json_that_is_its_summary() {
-    use learning::run::{TrainRun, run};
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("run");
-    let spec = TrainRun {
+/// A short run in the room into `out` with `learners` learners.
+fn run_spec(out: &std::path::Path, learners: usize) -> learning::run::TrainRun {
+    learning::run::TrainRun {
         world: room(),
         extra_worlds: Vec::new(),
         hold_out: false,
         map: "maps/room/map.yaml".into(),
         extra_maps: Vec::new(),
-        config: small_options(&out).config,
-        out: out.clone(),
+        config: small_options(out).config,
+        out: out.to_path_buf(),
         minutes: 0.03,
         fresh: false,
         eval_episodes: 4,
         goals: learning::Goals::InView,
-        learners: 1,
+        learners,
         selector: None,
-    };
+    }
+}
+
+/// A whole run into a directory (what `mentalsim train` does): curves, the exported policy
+/// and `eval.json`, whose figures are the returned summary's; a second run resumes.
+#[test]
+fn a_run_writes_curves_policy_and_an_eval_json_that_is_its_summary() {
+    use learning::run::run;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let spec = run_spec(&out, 1);
     assert!(!spec.resumes());
     let summary = run(spec.clone(), &mut |_| true).unwrap();
     for file in [
@@ -543,21 +548,7 @@ fn learners_side_by_side_train_their_own_seeds_and_the_better_policy_is_the_runs
     use learning::run::{TrainRun, run};
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
-    let spec = TrainRun {
-        world: room(),
-        extra_worlds: Vec::new(),
-        hold_out: false,
-        map: "maps/room/map.yaml".into(),
-        extra_maps: Vec::new(),
-        config: small_options(&out).config,
-        out: out.clone(),
-        minutes: 0.03,
-        fresh: false,
-        eval_episodes: 4,
-        goals: learning::Goals::InView,
-        learners: 2,
-        selector: None,
-    };
+    let spec = run_spec(&out, 2);
     assert!(!spec.resumes());
     let summary = run(spec.clone(), &mut |_| true).unwrap();
     assert_eq!(summary.learners, 2);

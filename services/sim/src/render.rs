@@ -487,29 +487,23 @@ pub fn svg(
             }
         }
     }
-    for g in &overlay.segments {
-        let (p1, p2) = (view.to_px(g.from.0, g.from.1), view.to_px(g.to.0, g.to.1));
-        let _ = writeln!(
-            s,
-            r#"<line x1="{:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{}" stroke-width="1.5"/>"#,
-            p1.0,
-            p1.1,
-            p2.0,
-            p2.1,
-            hex(g.rgb)
-        );
-    }
-    for (a, b) in &overlay.beams {
+    let mut line = |a: (f64, f64), b: (f64, f64), colour: [u8; 3], width: f64| {
         let (p1, p2) = (view.to_px(a.0, a.1), view.to_px(b.0, b.1));
         let _ = writeln!(
             s,
-            r#"<line x1="{:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{}" stroke-width="1"/>"#,
+            r#"<line x1="{:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{}" stroke-width="{width}"/>"#,
             p1.0,
             p1.1,
             p2.0,
             p2.1,
-            hex(BEAM)
+            hex(colour)
         );
+    };
+    for g in &overlay.segments {
+        line(g.from, g.to, g.rgb, 1.5);
+    }
+    for (a, b) in &overlay.beams {
+        line(*a, *b, BEAM, 1.0);
     }
     if overlay.trajectory.len() > 1 {
         let pts: Vec<String> = overlay
