@@ -38,6 +38,7 @@ fn room() -> Arc<World> {
         walls: vec![],
         objects: vec![],
         robot: RobotSpec::example_differential(),
+        people: Default::default(),
         notes: vec![],
     })
     .expect("the room builds")

@@ -445,6 +445,7 @@ fn a_real_map_validates_a_multi_goal_plan() {
         walls: vec![],
         objects: vec![],
         robot: RobotSpec::example_differential(),
+        people: Default::default(),
         notes: vec![],
     })
     .expect("world");

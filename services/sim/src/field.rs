@@ -240,6 +240,7 @@ mod tests {
             walls: vec![],
             objects: vec![],
             robot: RobotSpec::example_differential(),
+            people: Default::default(),
             notes: vec![],
         })
         .expect("world")

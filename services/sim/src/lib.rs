@@ -49,8 +49,8 @@ pub use kinematics::{Action, CommandLimits, DiffDrive};
 pub use library::{LibraryModel, Model};
 pub use parse::{parse_floor, parse_on_demand, parse_robot};
 pub use spec::{
-    CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec, Occupancy, OccupancyGrid,
-    Pose2, Pose3, RobotPartSpec, RobotSpec, Severity, Shape, Size3, SpecProblem, SpecProblems,
-    WallSpec, WheelSpec, WorldSpec,
+    AttractorSpec, CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec, Occupancy,
+    OccupancyGrid, PeoplePlaceSpec, PeopleSpec, Pose2, Pose3, RobotPartSpec, RobotSpec, RouteSpec,
+    Severity, Shape, Size3, SpecProblem, SpecProblems, WallSpec, WheelSpec, WorldSpec,
 };
 pub use world::{BuildOptions, FreeRegion, World};

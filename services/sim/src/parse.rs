@@ -156,12 +156,15 @@ fn parse(
     }
     // Only warnings are left: they travel with the description.
     notes.extend(out.0);
+    // People: the knowledge service does not carry them yet.
+    let people = crate::spec::PeopleSpec::default();
     let spec = WorldSpec {
         id: floor.map_or_else(String::new, |f| f.iri.clone()),
         floor: spec_floor,
         walls,
         objects: world_objects,
         robot,
+        people,
         notes,
     };
     // The description's own checks (sizes, ranges, …) belong to the same list.

@@ -187,6 +187,76 @@ pub struct ObjectSpec {
     pub open: bool,
 }
 
+/// What the knowledge says about people on a floor (TOSM's symbolic and implicit models of a
+/// place): how many to expect where, and where they walk. The simulation spawns people from it
+/// ([`crate::crowd`]); nothing here is a person, only what the fleet knows about people.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PeopleSpec {
+    /// Places with a known expected number of people.
+    pub places: Vec<PeoplePlaceSpec>,
+    /// Usual walking routes: people walk them end to end and back.
+    pub routes: Vec<RouteSpec>,
+    /// Attractors (a vending machine, a desk): people walk to one and linger.
+    pub attractors: Vec<AttractorSpec>,
+}
+
+impl PeopleSpec {
+    /// Whether the knowledge says nothing about people.
+    pub fn is_empty(&self) -> bool {
+        self.places.is_empty() && self.routes.is_empty() && self.attractors.is_empty()
+    }
+
+    /// The number of people expected on the floor at `hour` (0–23; `None`: no time of day
+    /// given): the sum over its places of [`PeoplePlaceSpec::expected_at`].
+    pub fn expected_at(&self, hour: Option<u8>) -> f64 {
+        self.places.iter().map(|p| p.expected_at(hour)).sum()
+    }
+}
+
+/// A place's expected number of people.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeoplePlaceSpec {
+    /// Identifier (the place's IRI).
+    pub id: String,
+    /// Expected number of people at any time of day (an engineer's figure, or the running
+    /// estimate from robots' observations when there is one).
+    pub expected: f64,
+    /// Expected number by hour of the day where known: (hour 0–23, people).
+    pub by_hour: Vec<(u8, f64)>,
+    /// The place's boundary on the floor, metres (x, y), when it has one: people of this place
+    /// spawn inside it. Without one they spawn anywhere on the floor.
+    pub boundary: Vec<[f64; 2]>,
+}
+
+impl PeoplePlaceSpec {
+    /// The expected number at `hour`: the hour's own figure when there is one, else
+    /// [`Self::expected`].
+    pub fn expected_at(&self, hour: Option<u8>) -> f64 {
+        hour.and_then(|h| self.by_hour.iter().find(|(k, _)| *k == h))
+            .map_or(self.expected, |(_, n)| *n)
+    }
+}
+
+/// A usual walking route: a polyline on the floor, metres.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RouteSpec {
+    /// Identifier (the route's IRI).
+    pub id: String,
+    /// The points walked in order, at least two.
+    pub points: Vec<[f64; 2]>,
+}
+
+/// A point people walk to and linger at.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AttractorSpec {
+    /// Identifier (the attractor's IRI: an object or a place).
+    pub id: String,
+    /// Where people stand, metres.
+    pub position: [f64; 2],
+    /// How long people linger there, seconds.
+    pub dwell_s: f64,
+}
+
 /// Differential-drive kinematics from the robot's active wheels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DiffDriveSpec {
@@ -452,6 +522,8 @@ pub struct WorldSpec {
     pub objects: Vec<ObjectSpec>,
     /// The robot.
     pub robot: RobotSpec,
+    /// What knowledge says about the people on the floor; empty when it says nothing.
+    pub people: PeopleSpec,
     /// Problems found while reading the description that did not stop it (an object skipped,
     /// a value assumed); [`crate::World`] reports them with its own warnings.
     pub notes: Vec<SpecProblem>,

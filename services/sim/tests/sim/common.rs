@@ -38,6 +38,7 @@ pub fn room_at(w: f64, h: f64, origin: Pose2) -> WorldSpec {
         walls: vec![],
         objects: vec![],
         robot: RobotSpec::example_differential(),
+        people: Default::default(),
         notes: vec![],
     }
 }

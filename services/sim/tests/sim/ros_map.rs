@@ -45,6 +45,7 @@ fn a_world_from_a_real_ros_map() {
         walls: vec![],
         objects: vec![],
         robot: RobotSpec::example_differential(),
+        people: Default::default(),
         notes: vec![],
     };
     let world = World::build(spec).expect("builds");
