@@ -5,7 +5,7 @@
 //!
 //! - [`occupancy`]: ROS map_server maps (YAML + PGM/PNG) to occupancy grids and back to PNG.
 //! - [`vocab`]: the IRIs of the ontology in `ontologies/tosm.ttl`.
-//! - [`model`]: typed places, objects and robots.
+//! - [`model`]: typed places, objects, robots and what is known about people.
 //! - [`read`](mod@crate::read) and [`write`](mod@crate::write): RDF graph to typed values and back, each reporting [`Problems`].
 
 // Casts that can lose a sign, wrap or truncate hide bugs: each one here says why it cannot.
@@ -25,16 +25,19 @@ pub mod vocab;
 pub mod write;
 
 pub use model::{
-    Camera, CameraKind, Colour, DEFAULT_MAP_FRAME, Joint, JointKind, Laser, MetricMap, Object,
-    ObjectClass, Part, Physical, Place, PlaceKind, Pose3, Relation, RelationKind, Robot, Shape,
-    StructuralPart, Symbol, Wheel, is_ros_frame_name,
+    Attractor, Camera, CameraKind, Colour, DEFAULT_MAP_FRAME, ESTIMATE_MIN_WEIGHT, Joint,
+    JointKind, Laser, MetricMap, Object, ObjectClass, Part, People, PeopleEstimate, Physical,
+    Place, PlaceKind, PlacePeople, Pose3, Relation, RelationKind, Robot, Shape, StructuralPart,
+    Symbol, WalkingRoute, Wheel, is_ros_frame_name,
 };
 pub use occupancy::{Occupancy, OccupancyGrid, Pose2, RosMapError, RosMapMeta};
 pub use problems::{Problem, Problems};
 pub use read::{
-    read_objects, read_objects_lenient, read_places, read_places_lenient, read_robot, read_robots,
+    read_objects, read_objects_lenient, read_people, read_people_estimates, read_people_lenient,
+    read_places, read_places_lenient, read_robot, read_robots,
 };
 pub use write::{
-    metric_map_to_triples, object_to_triples, occupancy_grid_to_triples, place_to_triples,
-    robot_to_triples,
+    attractor_to_triples, metric_map_to_triples, object_to_triples, occupancy_grid_to_triples,
+    people_estimate_to_triples, place_people_to_triples, place_to_triples, robot_to_triples,
+    walking_route_to_triples,
 };

@@ -506,3 +506,151 @@ impl Robot {
             .chain(self.cameras.iter().map(|c| &c.part))
     }
 }
+
+/// The weight a new count has at least in a running people estimate: each count moves the
+/// estimate by `max(1/n, ESTIMATE_MIN_WEIGHT)` of the way to it, `n` the number of counts so
+/// far (this one included). The first five counts give their plain mean; after that the
+/// estimate is an exponentially weighted mean in which the latest count weighs 0.2, so it
+/// follows a place that gets busier or quieter within about ten counts.
+pub const ESTIMATE_MIN_WEIGHT: f64 = 0.2;
+
+/// What robots' counts of people in a place add up to (`tosm:PeopleEstimate`): over the whole
+/// day, or for one hour of the day.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeopleEstimate {
+    /// The hour of day (0–23) the estimate is for; `None`: the whole day.
+    pub hour: Option<u8>,
+    /// The estimated number of people (`tosm:estimatedPeople`), >= 0.
+    pub people: f64,
+    /// How many counts it is made of (`tosm:observationCount`), >= 1.
+    pub observations: u64,
+    /// When the latest of them was observed, as an `xsd:dateTime` lexical form.
+    pub last_observed_at: Option<String>,
+}
+
+impl PeopleEstimate {
+    /// `previous` (if any) moved towards `count` people observed at `observed_at`, by the
+    /// weight [`ESTIMATE_MIN_WEIGHT`] documents. The estimate is for `hour` (`None`: all day).
+    pub fn observe(
+        previous: Option<&PeopleEstimate>,
+        hour: Option<u8>,
+        count: f64,
+        observed_at: &str,
+    ) -> PeopleEstimate {
+        let (people, observations) = match previous {
+            None => (count, 1),
+            Some(p) => {
+                let n = p.observations.saturating_add(1);
+                let weight = (1.0 / n as f64).max(ESTIMATE_MIN_WEIGHT);
+                (p.people + weight * (count - p.people), n)
+            }
+        };
+        PeopleEstimate {
+            hour,
+            people,
+            observations,
+            last_observed_at: Some(observed_at.to_owned()),
+        }
+    }
+
+    /// The estimate's IRI for `place`: `<place>/people/estimate`, or
+    /// `<place>/people/estimate/hour/<h>` for one hour.
+    pub fn iri_for(place: &str, hour: Option<u8>) -> String {
+        match hour {
+            None => format!("{place}/people/estimate"),
+            Some(h) => format!("{place}/people/estimate/hour/{h}"),
+        }
+    }
+}
+
+/// What is known about people in one place: an engineer's expected numbers
+/// (`tosm:expectedPeople`, all day and by hour) and robots' running estimates.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct PlacePeople {
+    /// The place's IRI.
+    pub place: String,
+    /// The engineer's expected number over the whole day (`tosm:expectedPeople` on the place).
+    pub expected: Option<f64>,
+    /// The engineer's expected numbers by hour of day (`tosm:HourlyPeopleCount`): (hour 0–23,
+    /// people), sorted by hour.
+    pub by_hour: Vec<(u8, f64)>,
+    /// Robots' estimates (`tosm:PeopleEstimate`): at most one for the whole day and one per
+    /// hour, the whole day's first, then by hour.
+    pub estimates: Vec<PeopleEstimate>,
+}
+
+impl PlacePeople {
+    /// The figures a simulation uses: (all day, by hour sorted by hour).
+    ///
+    /// Robots' counts win over an engineer's figure: they are what was seen in the building.
+    /// For each hour, the hour's estimate, else the engineer's figure for the hour; over the
+    /// whole day, the all-day estimate, else the engineer's all-day figure, else the mean of
+    /// the hourly figures (engineers' and robots' by hour, as above); 0 when nothing is known.
+    pub fn figures(&self) -> (f64, Vec<(u8, f64)>) {
+        let mut hours: std::collections::BTreeMap<u8, f64> = self.by_hour.iter().copied().collect();
+        let mut all_day_estimate = None;
+        for e in &self.estimates {
+            match e.hour {
+                Some(h) => {
+                    hours.insert(h, e.people);
+                }
+                None => all_day_estimate = Some(e.people),
+            }
+        }
+        let by_hour: Vec<(u8, f64)> = hours.into_iter().collect();
+        let all_day = all_day_estimate.or(self.expected).unwrap_or_else(|| {
+            if by_hour.is_empty() {
+                0.0
+            } else {
+                by_hour.iter().map(|(_, n)| n).sum::<f64>() / by_hour.len() as f64
+            }
+        });
+        (all_day, by_hour)
+    }
+
+    /// The conventional IRI of the engineer's figure for `hour` in `place`.
+    pub fn hour_iri(place: &str, hour: u8) -> String {
+        format!("{place}/people/hour/{hour}")
+    }
+}
+
+/// A path people usually walk (`tosm:WalkingRoute`): from door to door along corridors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WalkingRoute {
+    /// The route's IRI.
+    pub iri: String,
+    /// Its name (`tosm:name`), when it has one.
+    pub name: Option<String>,
+    /// The place it lies in (`tosm:isDirectlyInsideOf`): a corridor, or the floor.
+    pub inside_of: String,
+    /// The points walked, in order, `(x, y)` in the floor's frame; at least two.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A point people walk to and linger at (`tosm:Attractor`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Attractor {
+    /// The attractor's IRI.
+    pub iri: String,
+    /// Its name (`tosm:name`), when it has one.
+    pub name: Option<String>,
+    /// The place it is in (`tosm:isDirectlyInsideOf`).
+    pub inside_of: String,
+    /// Where people stand, in the floor's frame.
+    pub pose: Pose3,
+    /// How long they linger, seconds (`tosm:dwellTimeS`), >= 0.
+    pub dwell_s: f64,
+    /// What draws them (`tosm:isInFrontOf`, `tosm:isNextTo` an object), sorted.
+    pub relations: Vec<Relation>,
+}
+
+/// Everything known about people in a graph, each list sorted by IRI.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct People {
+    /// Places with an expected number of people or an estimate.
+    pub places: Vec<PlacePeople>,
+    /// Walking routes.
+    pub routes: Vec<WalkingRoute>,
+    /// Attractors.
+    pub attractors: Vec<Attractor>,
+}

@@ -112,6 +112,16 @@ terms! {
     OCCUPANCY_GRID_MAP = "OccupancyGridMap",
     /// `tosm:Material` (class).
     MATERIAL = "Material",
+    /// `tosm:WalkingRoute` (class).
+    WALKING_ROUTE = "WalkingRoute",
+    /// `tosm:Attractor` (class).
+    ATTRACTOR = "Attractor",
+    /// `tosm:RoutePoint` (class).
+    ROUTE_POINT = "RoutePoint",
+    /// `tosm:HourlyPeopleCount` (class).
+    HOURLY_PEOPLE_COUNT = "HourlyPeopleCount",
+    /// `tosm:PeopleEstimate` (class).
+    PEOPLE_ESTIMATE = "PeopleEstimate",
     /// `tosm:Wood` (individual).
     WOOD = "Wood",
     /// `tosm:Steel` (individual).
@@ -164,6 +174,12 @@ terms! {
     IS_IN_FRONT_OF = "isInFrontOf",
     /// `tosm:connectsPlace` (object property).
     CONNECTS_PLACE = "connectsPlace",
+    /// `tosm:hasRoutePoint` (object property).
+    HAS_ROUTE_POINT = "hasRoutePoint",
+    /// `tosm:hasHourlyPeopleCount` (object property).
+    HAS_HOURLY_PEOPLE_COUNT = "hasHourlyPeopleCount",
+    /// `tosm:hasPeopleEstimate` (object property).
+    HAS_PEOPLE_ESTIMATE = "hasPeopleEstimate",
     /// `tosm:reportedBy` (object property).
     REPORTED_BY = "reportedBy",
     /// `tosm:hasPart` (object property).
@@ -238,6 +254,18 @@ terms! {
     IS_OPEN = "isOpen",
     /// `tosm:reportedAt` (datatype property).
     REPORTED_AT = "reportedAt",
+    /// `tosm:expectedPeople` (datatype property).
+    EXPECTED_PEOPLE = "expectedPeople",
+    /// `tosm:hourOfDay` (datatype property).
+    HOUR_OF_DAY = "hourOfDay",
+    /// `tosm:estimatedPeople` (datatype property).
+    ESTIMATED_PEOPLE = "estimatedPeople",
+    /// `tosm:observationCount` (datatype property).
+    OBSERVATION_COUNT = "observationCount",
+    /// `tosm:lastObservedAt` (datatype property).
+    LAST_OBSERVED_AT = "lastObservedAt",
+    /// `tosm:dwellTimeS` (datatype property).
+    DWELL_TIME_S = "dwellTimeS",
     /// `tosm:wheelRadiusM` (datatype property).
     WHEEL_RADIUS_M = "wheelRadiusM",
     /// `tosm:wheelWidthM` (datatype property).

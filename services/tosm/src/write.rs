@@ -1,4 +1,4 @@
-//! Writing typed places, objects and robots as RDF triples, after validating them.
+//! Writing typed places, objects, robots and people knowledge as RDF triples, after validating them.
 //!
 //! Descriptors get IRIs derived from their owner (`<owner>/pose`, `<owner>/shape`,
 //! `<place>/boundary/<i>`, `<floor>/map`), never blank nodes, so that two writes of the same
@@ -10,8 +10,9 @@ use oxrdf::vocab::{rdf, xsd};
 use oxrdf::{Literal, NamedNode, NamedNodeRef, Term, Triple};
 
 use crate::model::{
-    Camera, CameraKind, Colour, Joint, JointKind, MetricMap, Object, ObjectClass, Part, Physical,
-    Place, PlaceKind, Pose3, Relation, RelationKind, Robot, Shape, Symbol, Wheel,
+    Attractor, Camera, CameraKind, Colour, Joint, JointKind, MetricMap, Object, ObjectClass, Part,
+    PeopleEstimate, Physical, Place, PlaceKind, PlacePeople, Pose3, Relation, RelationKind, Robot,
+    Shape, Symbol, WalkingRoute, Wheel,
 };
 use crate::occupancy::OccupancyGrid;
 use crate::problems::{Problem, Problems};
@@ -38,6 +39,42 @@ pub fn object_to_triples(object: &Object) -> Result<Vec<Triple>, Problems> {
 pub fn robot_to_triples(robot: &Robot) -> Result<Vec<Triple>, Problems> {
     let mut w = Writer::default();
     w.robot(robot);
+    w.finish()
+}
+
+/// The triples of what is known about people in a place: the engineer's expected numbers
+/// (`tosm:expectedPeople` on the place, `<place>/people/hour/<h>` by hour) and robots'
+/// estimates (as [`people_estimate_to_triples`]). The place itself is not described.
+pub fn place_people_to_triples(people: &PlacePeople) -> Result<Vec<Triple>, Problems> {
+    let mut w = Writer::default();
+    w.place_people(people);
+    w.finish()
+}
+
+/// The triples of one people estimate of `place`: `<place> tosm:hasPeopleEstimate <e>` and
+/// the estimate `<e>` ([`PeopleEstimate::iri_for`]).
+pub fn people_estimate_to_triples(
+    place: &str,
+    estimate: &PeopleEstimate,
+) -> Result<Vec<Triple>, Problems> {
+    let mut w = Writer::default();
+    if let Some(s) = w.node(place, place, v::HAS_PEOPLE_ESTIMATE) {
+        w.estimate(&s, estimate);
+    }
+    w.finish()
+}
+
+/// The triples describing a walking route (with its points `<route>/point/<i>`).
+pub fn walking_route_to_triples(route: &WalkingRoute) -> Result<Vec<Triple>, Problems> {
+    let mut w = Writer::default();
+    w.walking_route(route);
+    w.finish()
+}
+
+/// The triples describing an attractor (with its pose).
+pub fn attractor_to_triples(attractor: &Attractor) -> Result<Vec<Triple>, Problems> {
+    let mut w = Writer::default();
+    w.attractor(attractor);
     w.finish()
 }
 
@@ -452,6 +489,164 @@ impl Writer {
                 v::REPORTED_AT,
                 Literal::new_typed_literal(at.clone(), xsd::DATE_TIME),
             );
+        }
+    }
+
+    fn hour(&mut self, s: &NamedNode, hour: u8) {
+        if hour <= 23 {
+            self.integer(s, v::HOUR_OF_DAY, i64::from(hour));
+        } else {
+            self.problem(
+                s.as_str(),
+                v::HOUR_OF_DAY,
+                format!("must be an hour of the day, 0 to 23, found {hour}"),
+            );
+        }
+    }
+
+    fn place_people(&mut self, people: &PlacePeople) {
+        let Some(s) = self.node(&people.place, &people.place, v::EXPECTED_PEOPLE) else {
+            return;
+        };
+        if let Some(n) = people.expected {
+            self.non_negative(&s, v::EXPECTED_PEOPLE, n);
+        }
+        let mut hours = std::collections::BTreeSet::new();
+        for &(hour, n) in &people.by_hour {
+            if !hours.insert(hour) {
+                self.problem(
+                    &people.place,
+                    v::HAS_HOURLY_PEOPLE_COUNT,
+                    format!("two hourly people counts are for hour {hour}"),
+                );
+            }
+            let Some(h) = self.node(
+                &PlacePeople::hour_iri(&people.place, hour),
+                &people.place,
+                v::HAS_HOURLY_PEOPLE_COUNT,
+            ) else {
+                continue;
+            };
+            self.add(&s, v::HAS_HOURLY_PEOPLE_COUNT, h.clone());
+            self.typed(&h, v::HOURLY_PEOPLE_COUNT);
+            self.hour(&h, hour);
+            self.non_negative(&h, v::EXPECTED_PEOPLE, n);
+        }
+        let mut estimated = std::collections::BTreeSet::new();
+        for e in &people.estimates {
+            if !estimated.insert(e.hour) {
+                self.problem(
+                    &people.place,
+                    v::HAS_PEOPLE_ESTIMATE,
+                    "two people estimates are for the same hours",
+                );
+            }
+            self.estimate(&s, e);
+        }
+    }
+
+    fn estimate(&mut self, place: &NamedNode, e: &PeopleEstimate) {
+        let Some(node) = self.node(
+            &PeopleEstimate::iri_for(place.as_str(), e.hour),
+            place.as_str(),
+            v::HAS_PEOPLE_ESTIMATE,
+        ) else {
+            return;
+        };
+        self.add(place, v::HAS_PEOPLE_ESTIMATE, node.clone());
+        self.typed(&node, v::PEOPLE_ESTIMATE);
+        if let Some(hour) = e.hour {
+            self.hour(&node, hour);
+        }
+        self.non_negative(&node, v::ESTIMATED_PEOPLE, e.people);
+        if e.observations == 0 {
+            self.problem(
+                node.as_str(),
+                v::OBSERVATION_COUNT,
+                "must be a whole number >= 1, found 0",
+            );
+        }
+        self.integer(
+            &node,
+            v::OBSERVATION_COUNT,
+            i64::try_from(e.observations).unwrap_or(i64::MAX),
+        );
+        if let Some(at) = &e.last_observed_at {
+            self.add(
+                &node,
+                v::LAST_OBSERVED_AT,
+                Literal::new_typed_literal(at.clone(), xsd::DATE_TIME),
+            );
+        }
+    }
+
+    fn optional_name(&mut self, s: &NamedNode, name: Option<&str>) {
+        match name {
+            Some(n) if n.trim().is_empty() => {
+                self.problem(s.as_str(), v::NAME, "must not be blank when given");
+            }
+            Some(n) => self.string(s, v::NAME, n),
+            None => {}
+        }
+    }
+
+    fn walking_route(&mut self, route: &WalkingRoute) {
+        let Some(s) = self.node(&route.iri, &route.iri, rdf::TYPE) else {
+            return;
+        };
+        self.typed(&s, v::WALKING_ROUTE);
+        self.optional_name(&s, route.name.as_deref());
+        self.link(&s, v::IS_DIRECTLY_INSIDE_OF, &route.inside_of);
+        if route.points.len() < 2 {
+            self.problem(
+                &route.iri,
+                v::HAS_ROUTE_POINT,
+                format!(
+                    "a walking route needs at least 2 points, found {}",
+                    route.points.len()
+                ),
+            );
+        }
+        for (i, (x, y)) in route.points.iter().enumerate() {
+            let iri = format!("{}/point/{i}", route.iri);
+            let Some(point) = self.node(&iri, &route.iri, v::HAS_ROUTE_POINT) else {
+                continue;
+            };
+            self.add(&s, v::HAS_ROUTE_POINT, point.clone());
+            self.typed(&point, v::ROUTE_POINT);
+            self.integer(&point, v::POINT_INDEX, i64::try_from(i).unwrap_or(i64::MAX));
+            self.any(&point, v::X_M, *x);
+            self.any(&point, v::Y_M, *y);
+        }
+    }
+
+    fn attractor(&mut self, a: &Attractor) {
+        let Some(s) = self.node(&a.iri, &a.iri, rdf::TYPE) else {
+            return;
+        };
+        self.typed(&s, v::ATTRACTOR);
+        self.optional_name(&s, a.name.as_deref());
+        self.link(&s, v::IS_DIRECTLY_INSIDE_OF, &a.inside_of);
+        self.pose(&s, v::HAS_POSE, &a.pose);
+        self.non_negative(&s, v::DWELL_TIME_S, a.dwell_s);
+        for Relation { kind, target } in &a.relations {
+            let p = match kind {
+                RelationKind::InFrontOf => v::IS_IN_FRONT_OF,
+                RelationKind::NextTo => v::IS_NEXT_TO,
+                RelationKind::InsideOf => {
+                    self.problem(
+                        &a.iri,
+                        v::IS_INSIDE_OF,
+                        "an attractor's place is its inside_of; other relations are isInFrontOf and isNextTo",
+                    );
+                    continue;
+                }
+            };
+            if target == &a.iri {
+                self.problem(&a.iri, p, "an attractor cannot be related to itself");
+            } else {
+                self.link(&s, p, target);
+            }
         }
     }
 

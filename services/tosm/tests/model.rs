@@ -714,9 +714,14 @@ fn mangled_graphs_never_panic() {
         let graph = graph_of(triples);
         let (_, place_problems) = tosm::read_places_lenient(&graph);
         let (_, object_problems) = tosm::read_objects_lenient(&graph);
+        let (people, people_problems) = tosm::read_people_lenient(&graph);
         let robot = tosm::read_robot(&graph, ROBOT);
         let _ = tosm::read_robots(&graph);
-        for p in place_problems.iter().chain(object_problems.iter()) {
+        for p in place_problems
+            .iter()
+            .chain(object_problems.iter())
+            .chain(people_problems.iter())
+        {
             assert!(
                 !p.individual.is_empty() && !p.property.is_empty(),
                 "round {round}: {p}"
@@ -725,6 +730,15 @@ fn mangled_graphs_never_panic() {
         if let Ok(robot) = robot {
             // Whatever reads back without problems also writes without problems.
             tosm::robot_to_triples(&robot).unwrap_or_else(|p| panic!("round {round}: {p}"));
+        }
+        for p in &people.places {
+            tosm::place_people_to_triples(p).unwrap_or_else(|e| panic!("round {round}: {e}"));
+        }
+        for r in &people.routes {
+            tosm::walking_route_to_triples(r).unwrap_or_else(|e| panic!("round {round}: {e}"));
+        }
+        for a in &people.attractors {
+            tosm::attractor_to_triples(a).unwrap_or_else(|e| panic!("round {round}: {e}"));
         }
     }
 }
@@ -823,4 +837,7 @@ fn reading_is_unchanged_by_materialised_entailments() {
         tosm::read_robots(&inferred).expect("robots"),
         tosm::read_robots(&plain).expect("robots")
     );
+    let people = tosm::read_people(&plain).expect("people");
+    assert!(!people.routes.is_empty() && !people.attractors.is_empty());
+    assert_eq!(tosm::read_people(&inferred).expect("people"), people);
 }

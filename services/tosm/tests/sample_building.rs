@@ -6,15 +6,18 @@
 //! the TUM kitchen lab; both maps are real and copied unchanged with their sources and licences.
 //! Room polygons are given in map pixels (image row 0 at the top) and converted with the map's
 //! own geometry; the test checks that every vertex and every object's centre lies on a free cell.
+//! What is known about people (expected numbers, two walking routes and an attractor) is given
+//! the same way; every route point and the attractor keep 0.2 m from anything not free.
 
 use std::collections::BTreeMap;
-use std::f64::consts::{FRAC_PI_2, PI};
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::path::PathBuf;
 
 use oxrdf::{Graph, Triple};
 use tosm::{
-    Colour, MetricMap, Object, ObjectClass, Occupancy, OccupancyGrid, Physical, Place, PlaceKind,
-    Pose3, Relation, RelationKind, RosMapMeta, Shape, Symbol, vocab,
+    Attractor, Colour, MetricMap, Object, ObjectClass, Occupancy, OccupancyGrid, Physical, Place,
+    PlaceKind, PlacePeople, Pose3, Relation, RelationKind, RosMapMeta, Shape, Symbol, WalkingRoute,
+    vocab,
 };
 
 const BUILDING: &str = "https://mentalsim.dev/data/buildings/sample-building";
@@ -342,6 +345,71 @@ fn object_specs() -> Vec<ObjectSpec> {
     ]
 }
 
+/// Expected people in a place: (floor level, place slug, all day, by hour of day).
+type PeopleSpec = (i64, &'static str, f64, Vec<(u8, f64)>);
+
+fn people_specs() -> Vec<PeopleSpec> {
+    vec![
+        // Someone at the desk most of the working day.
+        (0, "office", 1.0, vec![]),
+        // Passers-by, busier when people arrive, go to lunch and leave.
+        (0, "hallway", 0.5, vec![(8, 1.5), (12, 2.0), (17, 1.5)]),
+        (0, "hall", 1.0, vec![(12, 3.0), (13, 2.0)]),
+        // The vending machine draws people at lunch and in the afternoon break.
+        (0, "living-room", 1.5, vec![(12, 4.0), (13, 3.0), (15, 2.0)]),
+        (1, "kitchen", 2.0, vec![(7, 3.0), (12, 5.0), (18, 3.0)]),
+    ]
+}
+
+/// Walking routes on floor 0: (slug, name, points in image pixels (column, row from the top)).
+type RouteSpec = (&'static str, &'static str, Vec<(u32, u32)>);
+
+fn route_specs() -> Vec<RouteSpec> {
+    vec![
+        (
+            "bedroom-door-to-hall",
+            "From the bedroom door along the hallway to the hall",
+            vec![
+                (168, 110),
+                (168, 250),
+                (156, 275),
+                (155, 330),
+                (135, 365),
+                (120, 420),
+            ],
+        ),
+        (
+            "hall-to-vending-machine",
+            "From the hall through the vestibule to the vending machine",
+            vec![
+                (190, 455),
+                (250, 457),
+                (310, 456),
+                (345, 456),
+                (380, 445),
+                (445, 423),
+            ],
+        ),
+    ]
+}
+
+/// Clearance every route point and attractor keeps from cells that are not free, metres.
+const PEOPLE_CLEARANCE_M: f64 = 0.2;
+
+/// Whether every cell within `PEOPLE_CLEARANCE_M` of `(x, y)` is free.
+fn clear_around(grid: &OccupancyGrid, (x, y): (f64, f64)) -> bool {
+    let reach = (PEOPLE_CLEARANCE_M / grid.resolution).ceil() as i64;
+    let Some((col, row)) = grid.cell_of(x, y) else {
+        return false;
+    };
+    (-reach..=reach).all(|dr| {
+        (-reach..=reach).all(|dc| {
+            let (c, r) = (col as i64 + dc, row as i64 + dr);
+            c >= 0 && r >= 0 && grid.is_free(c as usize, r as usize)
+        })
+    })
+}
+
 /// World coordinates of the centre of image pixel `(column, row from the top)`.
 fn pixel_to_world(grid: &OccupancyGrid, (col, row): (u32, u32)) -> (f64, f64) {
     let grid_row = grid.height - 1 - row as usize;
@@ -387,6 +455,9 @@ fn complexity(grid: &OccupancyGrid, polygon: Option<&[(f64, f64)]>) -> f64 {
 struct Generated {
     places: Vec<Place>,
     objects: Vec<Object>,
+    people: Vec<PlacePeople>,
+    routes: Vec<WalkingRoute>,
+    attractors: Vec<Attractor>,
 }
 
 fn generate() -> Generated {
@@ -577,7 +648,93 @@ fn generate() -> Generated {
     }
     places.sort_by(|a, b| a.iri.cmp(&b.iri));
     objects.sort_by(|a, b| a.iri.cmp(&b.iri));
-    Generated { places, objects }
+    let mut people: Vec<PlacePeople> = people_specs()
+        .into_iter()
+        .map(|(level, slug, expected, by_hour)| {
+            let place = place_iri(level, slug);
+            assert!(polygons.contains_key(&place), "people in unknown {place}");
+            PlacePeople {
+                place,
+                expected: Some(expected),
+                by_hour,
+                estimates: vec![],
+            }
+        })
+        .collect();
+    people.sort_by(|a, b| a.place.cmp(&b.place));
+    let floor0 = &grids[&0];
+    let mut routes: Vec<WalkingRoute> = route_specs()
+        .into_iter()
+        .map(|(slug, name, pixels)| {
+            let points: Vec<(f64, f64)> =
+                pixels.iter().map(|p| pixel_to_world(floor0, *p)).collect();
+            // Walkable: every point along every segment (sampled at a quarter cell) is clear.
+            for pair in points.windows(2) {
+                let ((ax, ay), (bx, by)) = (pair[0], pair[1]);
+                let steps = ((bx - ax).hypot(by - ay) / (floor0.resolution / 4.0)).ceil() as usize;
+                for k in 0..=steps {
+                    let t = k as f64 / steps.max(1) as f64;
+                    let at = (ax + t * (bx - ax), ay + t * (by - ay));
+                    assert!(
+                        clear_around(floor0, at),
+                        "{slug}: {at:?} is within {PEOPLE_CLEARANCE_M} m of a wall"
+                    );
+                }
+            }
+            WalkingRoute {
+                iri: format!("{}/routes/{slug}", floor_iri(0)),
+                name: Some(name.to_owned()),
+                inside_of: floor_iri(0),
+                points,
+            }
+        })
+        .collect();
+    routes.sort_by(|a, b| a.iri.cmp(&b.iri));
+    // People stand half a metre in front of the vending machine (its front faces along its
+    // own +x, the world's -x at yaw pi) and linger a minute.
+    let vending = objects
+        .iter()
+        .find(|o| o.iri == object_iri("vending-machine-1"))
+        .expect("the vending machine");
+    let [length, _, _] = vending.shape.size();
+    let reach = length / 2.0 + 0.5;
+    let stand = (
+        vending.pose.x + reach * vending.pose.yaw.cos(),
+        vending.pose.y + reach * vending.pose.yaw.sin(),
+    );
+    let stand = (
+        (stand.0 * 1000.0).round() / 1000.0,
+        (stand.1 * 1000.0).round() / 1000.0,
+    );
+    let living_room = place_iri(0, "living-room");
+    assert!(point_in_polygon(&polygons[&living_room].1, stand));
+    assert!(
+        clear_around(floor0, stand),
+        "the attractor is too close to a wall"
+    );
+    let attractors = vec![Attractor {
+        iri: format!("{}/attractors/vending-machine", floor_iri(0)),
+        name: Some("In front of the vending machine".to_owned()),
+        inside_of: living_room,
+        pose: Pose3::new(
+            stand.0,
+            stand.1,
+            0.0,
+            (vending.pose.yaw + PI).rem_euclid(TAU),
+        ),
+        dwell_s: 60.0,
+        relations: vec![Relation {
+            kind: RelationKind::InFrontOf,
+            target: vending.iri.clone(),
+        }],
+    }];
+    Generated {
+        places,
+        objects,
+        people,
+        routes,
+        attractors,
+    }
 }
 
 fn to_turtle(g: &Generated) -> String {
@@ -587,6 +744,15 @@ fn to_turtle(g: &Generated) -> String {
     }
     for o in &g.objects {
         triples.extend(tosm::object_to_triples(o).expect("valid object"));
+    }
+    for p in &g.people {
+        triples.extend(tosm::place_people_to_triples(p).expect("valid people figures"));
+    }
+    for r in &g.routes {
+        triples.extend(tosm::walking_route_to_triples(r).expect("valid route"));
+    }
+    for a in &g.attractors {
+        triples.extend(tosm::attractor_to_triples(a).expect("valid attractor"));
     }
     // The door connects the two places it stands between.
     let door = oxrdf::NamedNode::new_unchecked(object_iri("door-1"));
@@ -657,6 +823,18 @@ fn sample_building_reads_back_to_the_same_values() {
     assert_eq!(places, generated.places);
     let objects = tosm::read_objects(&graph).unwrap_or_else(|p| panic!("{p}"));
     assert_eq!(objects, generated.objects);
+    let people = tosm::read_people(&graph).unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(people.places, generated.people);
+    assert_eq!(people.routes, generated.routes);
+    assert_eq!(people.attractors, generated.attractors);
+    assert_eq!(
+        (
+            people.places.len(),
+            people.routes.len(),
+            people.attractors.len()
+        ),
+        (5, 2, 1)
+    );
     let vending = objects
         .iter()
         .find(|o| o.class == ObjectClass::VendingMachine)

@@ -1,4 +1,4 @@
-//! Reading typed places, objects and robots out of an RDF graph, with validation.
+//! Reading typed places, objects, robots and people knowledge out of an RDF graph, with validation.
 //!
 //! The graph needs no reasoning: an individual is recognised by its asserted `rdf:type`, using
 //! the ontology's class hierarchy (built in) plus any `rdfs:subClassOf` triples in the graph
@@ -13,19 +13,20 @@
 //!
 //! The `Reader` walks the graph: this module holds what it knows of classes and references;
 //! `literals` reads single values and the small descriptions built of them (pose, shape,
-//! colour); `places`, `objects` and `robots` read the individuals.
+//! colour); `places`, `objects`, `people` and `robots` read the individuals.
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use oxrdf::vocab::{rdf, rdfs};
 use oxrdf::{Graph, NamedNodeRef, NamedOrBlankNodeRef, TermRef};
 
-use crate::model::{Object, Place, Robot};
+use crate::model::{Object, People, PeopleEstimate, Place, Robot};
 use crate::problems::{Problem, Problems};
 use crate::vocab as v;
 
 mod literals;
 mod objects;
+mod people;
 mod places;
 mod robots;
 
@@ -61,6 +62,47 @@ pub fn read_objects_lenient(graph: &Graph) -> (Vec<Object>, Problems) {
         .filter_map(|iri| r.object(&iri))
         .collect();
     (objects, Problems(r.problems).normalise())
+}
+
+/// Reads everything `graph` says about people: places' expected numbers and estimates,
+/// walking routes and attractors, each sorted by IRI.
+pub fn read_people(graph: &Graph) -> Result<People, Problems> {
+    let (people, problems) = read_people_lenient(graph);
+    problems.into_result(people)
+}
+
+/// Like [`read_people`], but returns what could be read along with every problem.
+pub fn read_people_lenient(graph: &Graph) -> (People, Problems) {
+    let mut r = Reader::new(graph);
+    let places = r
+        .people_subjects()
+        .into_iter()
+        .filter_map(|iri| r.place_people(&iri))
+        .collect();
+    let routes = r
+        .individuals_of(v::WALKING_ROUTE)
+        .into_iter()
+        .filter_map(|iri| r.walking_route(&iri))
+        .collect();
+    let attractors = r
+        .individuals_of(v::ATTRACTOR)
+        .into_iter()
+        .filter_map(|iri| r.attractor(&iri))
+        .collect();
+    let people = People {
+        places,
+        routes,
+        attractors,
+    };
+    (people, Problems(r.problems).normalise())
+}
+
+/// The people estimates `graph` holds for `place` (`tosm:hasPeopleEstimate`), the all-day one
+/// first, then by hour; whether `place` is described as a place is not checked.
+pub fn read_people_estimates(graph: &Graph, place: &str) -> Result<Vec<PeopleEstimate>, Problems> {
+    let mut r = Reader::new(graph);
+    let estimates = r.estimates(place);
+    Problems(r.problems).into_result(estimates)
 }
 
 /// Reads the robot `iri` from `graph`.
@@ -134,6 +176,11 @@ const BUILT_IN_SUBCLASSES: &[(NamedNodeRef<'static>, NamedNodeRef<'static>)] = &
     (v::METRIC_MAP, v::DESCRIPTOR),
     (v::OCCUPANCY_GRID_MAP, v::METRIC_MAP),
     (v::MATERIAL, v::DESCRIPTOR),
+    (v::WALKING_ROUTE, v::ENTITY),
+    (v::ATTRACTOR, v::ENTITY),
+    (v::ROUTE_POINT, v::DESCRIPTOR),
+    (v::HOURLY_PEOPLE_COUNT, v::DESCRIPTOR),
+    (v::PEOPLE_ESTIMATE, v::DESCRIPTOR),
 ];
 
 /// Numbers closer than this are equal when checking a cylinder's or sphere's extents.

@@ -1,7 +1,5 @@
 //! Places: buildings, floors, corridors, rooms and halls, with their boundaries and metric maps.
 
-use std::collections::BTreeMap;
-
 use oxrdf::vocab::rdf;
 
 use super::Reader;
@@ -79,25 +77,7 @@ impl<'g> Reader<'g> {
     }
 
     pub(super) fn boundary(&mut self, iri: &str, kind: PlaceKind) -> Vec<(f64, f64)> {
-        let points = self.iris(iri, v::HAS_BOUNDARY_POINT);
-        let mut indexed = BTreeMap::new();
-        for point in points {
-            let index = self.integer(&point, v::POINT_INDEX, true);
-            let x = self.number(&point, v::X_M, true);
-            let y = self.number(&point, v::Y_M, true);
-            if let (Some(i), Some(x), Some(y)) = (index, x, y) {
-                if i < 0 {
-                    self.problem(&point, v::POINT_INDEX, format!("must be >= 0, found {i}"));
-                } else if indexed.insert(i, (x, y)).is_some() {
-                    self.problem(
-                        &point,
-                        v::POINT_INDEX,
-                        format!("index {i} is used by two boundary points of <{iri}>"),
-                    );
-                }
-            }
-        }
-        let polygon: Vec<(f64, f64)> = indexed.values().copied().collect();
+        let polygon = self.indexed_points(iri, v::HAS_BOUNDARY_POINT, "boundary point");
         let needs_polygon = matches!(
             kind,
             PlaceKind::Corridor | PlaceKind::Room | PlaceKind::Hall
