@@ -193,6 +193,9 @@ pub enum BenchCommand {
         /// Python with `irsim-x` installed, to run it side by side.
         #[arg(long)]
         irsim_x_python: Option<PathBuf>,
+        /// Numbers of people walking about to time one core with, one run each.
+        #[arg(long, value_delimiter = ',', default_values_t = [0, 10, 50])]
+        people: Vec<usize>,
     },
     /// The paper's §5.2: one policy per (β1 = β2, seed), final success and reward curves.
     Beta {
@@ -832,12 +835,20 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             beams,
             irsim_python,
             irsim_x_python,
+            people,
         } => {
+            if let Some(n) = people.iter().find(|n| **n > sim::crowd::MAX_PEOPLE) {
+                anyhow::bail!(
+                    "--people: at most {} people in a simulation, got {n}",
+                    sim::crowd::MAX_PEOPLE
+                );
+            }
             let map = map.unwrap_or_else(|| {
                 PathBuf::from("../shared/maps/ros/cob_ipa_production_plant/map.yaml")
             });
             let mut options = bench::sim::SimBenchOptions::new(map);
             options.beams = beams;
+            options.people = people;
             options.irsim = irsim_python.map(|python| bench::sim::PeerOptions { python });
             options.irsim_x = irsim_x_python.map(|python| bench::sim::PeerOptions { python });
             let report = bench::sim::run_sim_bench(options)?;

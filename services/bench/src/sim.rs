@@ -75,6 +75,8 @@ pub struct SimBenchOptions {
     pub robot_ttl: PathBuf,
     /// The robot's IRI in that file.
     pub robot_iri: String,
+    /// Numbers of people to time one core with, each in its own run (0 is the empty building).
+    pub people: Vec<usize>,
 }
 
 impl SimBenchOptions {
@@ -98,6 +100,7 @@ impl SimBenchOptions {
             render_png: None,
             robot_ttl: crate::bench_dir().join("../../ontologies/robots/differential-robot.ttl"),
             robot_iri: "https://mentalsim.dev/data/robots/differential-robot".to_owned(),
+            people: vec![0, 10, 50],
         }
     }
 }
@@ -121,6 +124,21 @@ pub struct PeerReport {
     pub obstacles: Option<u64>,
     /// Why there are no figures, when there are none.
     pub error: Option<String>,
+}
+
+/// Steps per second on one core with a number of people.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PeopleSteps {
+    /// People in the world.
+    pub people: usize,
+    /// Environment steps per second on one core.
+    pub steps_per_s_one_core: f64,
+    /// The same per second of the thread's CPU time (Linux).
+    pub steps_per_cpu_s_one_core: Option<f64>,
+    /// This run's steps per second divided by the empty building's (the first run with 0).
+    pub ratio_vs_empty: Option<f64>,
+    /// Episodes that ended in a collision with a person or anything else, of all that ended.
+    pub collision_share: f64,
 }
 
 /// What the benchmark measured.
@@ -179,6 +197,8 @@ pub struct SimBenchReport {
     pub ratio_vs_paper_gazebo: f64,
     /// Our one-core steps per second divided by a bare C grid ray caster's.
     pub ratio_vs_c_grid_raycaster: f64,
+    /// One core with people walking about ([`sim::crowd`]), one run per number of people.
+    pub with_people: Vec<PeopleSteps>,
     /// Whether both targets are met (≥ 100,000 steps/s on one core, world build ≤ 1 s).
     pub targets_met: bool,
 }
@@ -220,7 +240,19 @@ impl SimBenchReport {
             self.ratio_vs_paper_gazebo,
             self.ratio_vs_c_grid_raycaster,
             self.targets_met
-        )
+        ) + &self
+            .with_people
+            .iter()
+            .map(|p| {
+                format!(
+                    "\nwith {} people: {:.0} steps/s one core ({} of the empty building's)",
+                    p.people,
+                    p.steps_per_s_one_core,
+                    p.ratio_vs_empty
+                        .map_or_else(|| "n/a".to_owned(), |r| format!("{r:.2}x"))
+                )
+            })
+            .collect::<String>()
     }
 }
 
@@ -589,6 +621,50 @@ pub fn run_sim_bench(opts: SimBenchOptions) -> Result<SimBenchReport, BenchError
     let one_s = t.elapsed().as_secs_f64();
     let one_cpu_s = thread_cpu_s().zip(cpu0).map(|(b, a)| b - a);
 
+    // One core again, with people: the same episodes' driver, one run per number of people.
+    let mut with_people: Vec<PeopleSteps> = Vec::new();
+    for &people in &opts.people {
+        let config = EnvConfig {
+            people: sim::PeopleConfig {
+                count: Some(people),
+                ..sim::PeopleConfig::default()
+            },
+            ..config.clone()
+        };
+        if people > 0 {
+            // The people's path fields are made once per world; not part of a step.
+            world.people_targets().prepare(&world);
+        }
+        let mut env = NavEnv::new(Arc::clone(&world), config, opts.seed).map_err(env_err)?;
+        let mut obs = env.reset_random().map_err(env_err)?;
+        let mut ends = [0u64; 3];
+        run(&mut env, &mut obs, 2_000, &mut [0; 3])?;
+        let cpu0 = thread_cpu_s();
+        let t = Instant::now();
+        run(&mut env, &mut obs, opts.steps_one_core, &mut ends)?;
+        let s = opts.steps_one_core as f64 / t.elapsed().as_secs_f64();
+        let cpu = thread_cpu_s()
+            .zip(cpu0)
+            .map(|(b, a)| opts.steps_one_core as f64 / (b - a));
+        let ended = ends.iter().sum::<u64>().max(1) as f64;
+        with_people.push(PeopleSteps {
+            people,
+            steps_per_s_one_core: s,
+            steps_per_cpu_s_one_core: cpu,
+            ratio_vs_empty: None,
+            collision_share: ends[1] as f64 / ended,
+        });
+    }
+    if let Some(empty) = with_people
+        .iter()
+        .find(|p| p.people == 0)
+        .map(|p| p.steps_per_s_one_core)
+    {
+        for p in &mut with_people {
+            p.ratio_vs_empty = Some(p.steps_per_s_one_core / empty);
+        }
+    }
+
     // All cores: a rayon batch with auto-reset.
     let mut batch = EnvBatch::new(
         Arc::clone(&world),
@@ -686,6 +762,7 @@ pub fn run_sim_bench(opts: SimBenchOptions) -> Result<SimBenchReport, BenchError
         targets_met: one >= TARGET_STEPS_PER_S_ONE_CORE && world_build_s <= TARGET_WORLD_BUILD_S,
         irsim,
         irsim_x,
+        with_people,
     })
 }
 

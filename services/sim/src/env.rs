@@ -9,6 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
+use crate::crowd::{Crowd, PeopleConfig, Person, RobotDisc};
 use crate::field::PathField;
 use crate::kinematics::{Action, CommandLimits, DiffDrive, integrate, wrap_angle};
 use crate::spec::Pose2;
@@ -150,6 +151,8 @@ pub struct EnvConfig {
     pub goals_in_view: bool,
     /// Whether to keep the poses of the episode (for renders and plan validation).
     pub record_trajectory: bool,
+    /// People walking about ([`crate::crowd`]); none by default.
+    pub people: PeopleConfig,
 }
 
 impl Default for EnvConfig {
@@ -166,6 +169,7 @@ impl Default for EnvConfig {
             goal_distance: (2.0, 10.0),
             goals_in_view: false,
             record_trajectory: false,
+            people: PeopleConfig::default(),
         }
     }
 }
@@ -235,6 +239,9 @@ pub struct StepInfo {
     pub steps: u32,
     /// Simulated time of this episode, seconds.
     pub time_s: f64,
+    /// Smallest gap between the footprint and a person during the step, metres (infinite with
+    /// no one about); a collision with a person when below the collision clearance.
+    pub person_clearance: f64,
 }
 
 /// The result of [`NavEnv::step`].
@@ -328,7 +335,15 @@ pub struct NavEnv {
     field: Option<PathField>,
     /// The progress reward's potential at the current pose: path or straight distance, metres.
     potential: f64,
+    /// People, when the configuration has any.
+    crowd: Option<Crowd>,
+    /// Smallest gap to a person in the last step.
+    person_clearance: f64,
 }
+
+/// Mixed into an environment's seed for its people's own generator, so that people leave the
+/// robot's noise as it was without them.
+const CROWD_STREAM: u64 = 0xc0ff_ee00_9e37_79b9;
 
 impl NavEnv {
     /// An environment in `world` whose randomness all comes from `seed`.
@@ -346,7 +361,13 @@ impl NavEnv {
             })?;
         let dirs = angles.iter().map(|a| (a.cos(), a.sin())).collect();
         let drive = DiffDrive::new(world.spec().robot.drive.clone());
+        let crowd = config
+            .people
+            .any()
+            .then(|| Crowd::new(&world, config.people.clone(), seed ^ CROWD_STREAM));
         Ok(NavEnv {
+            crowd,
+            person_clearance: f64::INFINITY,
             drive,
             dirs,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -386,6 +407,29 @@ impl NavEnv {
         check_config(&config)?;
         self.config = config;
         Ok(())
+    }
+
+    /// Changes who walks about (a training curriculum raises the density). Takes effect at the
+    /// next reset; the people's generator is kept, so a run stays deterministic.
+    pub fn set_people(&mut self, people: PeopleConfig) -> Result<(), EnvError> {
+        let mut config = self.config.clone();
+        config.people = people.clone();
+        check_config(&config)?;
+        self.config = config;
+        match &mut self.crowd {
+            Some(c) => c.set_config(people),
+            None if people.any() => {
+                let seed = self.rng.random::<u64>() ^ CROWD_STREAM;
+                self.crowd = Some(Crowd::new(&self.world, people, seed));
+            }
+            None => {}
+        }
+        Ok(())
+    }
+
+    /// The people about now (none without people in the configuration).
+    pub fn people(&self) -> &[Person] {
+        self.crowd.as_ref().map_or(&[], |c| c.people())
     }
 
     /// True pose of the robot.
@@ -576,6 +620,15 @@ impl NavEnv {
         self.distance = (goal.0 - start.x).hypot(goal.1 - start.y);
         self.outcome = Outcome::Running;
         self.started = true;
+        self.person_clearance = f64::INFINITY;
+        if let Some(crowd) = &mut self.crowd {
+            let robot = RobotDisc {
+                position: (start.x, start.y),
+                velocity: (0.0, 0.0),
+                radius: self.world.spec().robot.footprint_radius,
+            };
+            crowd.spawn(&self.world, robot);
+        }
         self.refresh_field();
         self.trajectory.clear();
         if self.config.record_trajectory {
@@ -616,11 +669,22 @@ impl NavEnv {
             angular: wanted.angular + gauss(&mut self.rng, cfg.noise.angular),
         };
         let exec = self.drive.execute(self.executed, noisy, dt);
+        let radius = self.world.spec().robot.footprint_radius;
+        if let Some(crowd) = &mut self.crowd {
+            // People move first, seeing the robot as it was moving.
+            let (s, c) = self.pose.yaw.sin_cos();
+            let v = self.executed.linear;
+            let robot = RobotDisc {
+                position: (self.pose.x, self.pose.y),
+                velocity: (v * c, v * s),
+                radius,
+            };
+            crowd.step(&self.world, robot, dt);
+        }
         self.executed = exec;
 
         // Check the footprint along the arc often enough that no wall thinner than the robot can
         // be crossed between two checks: every half radius of travel.
-        let radius = self.world.spec().robot.footprint_radius;
         let travel = exec.linear.abs() * dt;
         #[allow(
             clippy::cast_possible_truncation,
@@ -633,9 +697,15 @@ impl NavEnv {
         let potential_before = self.potential;
         let mut min_clearance = f64::INFINITY;
         let mut collided = false;
+        self.person_clearance = f64::INFINITY;
         for k in 1..=n {
             let p = integrate(start, exec, dt * k as f64 / n as f64);
-            let c = self.world.clearance(p.x, p.y);
+            let mut c = self.world.clearance(p.x, p.y);
+            if let Some(crowd) = &self.crowd {
+                let to_people = crowd.clearance(p.x, p.y, radius);
+                self.person_clearance = self.person_clearance.min(to_people);
+                c = c.min(to_people);
+            }
             min_clearance = min_clearance.min(c);
             self.pose = p;
             if c < cfg.collision_clearance {
@@ -749,6 +819,7 @@ impl NavEnv {
             distance_to_goal: self.distance,
             steps: self.steps,
             time_s: f64::from(self.steps) * self.config.control_period,
+            person_clearance: self.person_clearance,
         }
     }
 
@@ -760,6 +831,15 @@ impl NavEnv {
     fn observe(&mut self) -> Observation {
         self.world
             .scan_dirs(self.pose, &self.dirs, &mut self.ranges);
+        if let Some(crowd) = &self.crowd {
+            let (lx, ly, heading) = self.world.laser_origin(self.pose);
+            let (s, c) = heading.sin_cos();
+            let dirs = self
+                .dirs
+                .iter()
+                .map(|(bc, bs)| (c * bc - s * bs, s * bc + c * bs));
+            crowd.occlude((lx, ly), dirs, &mut self.ranges);
+        }
         let laser = &self.world.spec().robot.laser;
         let (lo, hi) = (laser.range_min, laser.range_max);
         let noise = self.config.noise;
@@ -866,6 +946,9 @@ fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
     }
     if c.max_steps == 0 {
         return bad("max_steps", "an episode needs at least one step".into());
+    }
+    if let Some((field, message)) = c.people.problem() {
+        return bad(field, message);
     }
     let (a, b) = c.goal_distance;
     if !(nonneg(a) && b.is_finite() && a <= b && b > 0.0) {

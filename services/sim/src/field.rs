@@ -150,6 +150,25 @@ impl PathField {
         Some(self.centre(n))
     }
 
+    /// As [`PathField::lookahead`], but from the cell holding `(x, y)` alone when it is
+    /// reachable (one lookup instead of a search of the cells around): for people, who walk
+    /// inside the free region and ask every step.
+    pub fn lookahead_quick(&self, x: f64, y: f64) -> Option<(f64, f64)> {
+        match self.coarse_index(x, y) {
+            Some(i) if self.dist[i].is_finite() => {
+                let n = self.next[i] as usize;
+                let (dx, dy) = (self.goal.0 - x, self.goal.1 - y);
+                let near = 2.0 * self.cell;
+                if n == i || self.next[n] as usize == n || dx * dx + dy * dy <= near * near {
+                    Some(self.goal)
+                } else {
+                    Some(self.centre(n))
+                }
+            }
+            _ => self.lookahead(x, y),
+        }
+    }
+
     fn best_cell(&self, x: f64, y: f64) -> Option<(usize, f64)> {
         let (gx, gy) = self.frame.to_grid(x, y);
         let k = self.k as f64;

@@ -9,6 +9,7 @@
 //! - [`kinematics`]: differential drive;
 //! - [`env`](mod@crate::env) and [`batch`]: the reinforcement-learning environment of the
 //!   paper's §4.1.1;
+//! - [`crowd`]: people walking about, avoiding each other and the robot (ORCA);
 //! - [`field`]: path distances to a goal (the shaped reward's navigation function);
 //! - [`render`]: top-down PNG and SVG pictures;
 //! - [`parse`]: the simulation parser, on-demand database (RDF) to [`WorldSpec`];
@@ -24,6 +25,7 @@
 )]
 
 pub mod batch;
+pub mod crowd;
 pub mod env;
 pub mod export;
 pub mod field;
@@ -38,6 +40,7 @@ pub mod spec;
 pub mod world;
 
 pub use batch::{EnvBatch, env_seed};
+pub use crowd::{Crowd, PeopleConfig, Person};
 pub use env::{
     CLEARANCE_BAND_M, EnvConfig, EnvError, NavEnv, NoiseConfig, Observation, Outcome, RewardConfig,
     StepInfo, StepResult,

@@ -185,6 +185,8 @@ pub struct World {
     laser_z: f64,
     robot_radius: f64,
     robot_height: f64,
+    /// Where people walk ([`crate::crowd`]), made when a simulation first has people.
+    people_targets: std::sync::OnceLock<Arc<crate::crowd::Targets>>,
 }
 
 /// Why a world could not be built.
@@ -346,7 +348,26 @@ impl World {
             laser_buckets,
             collision_buckets,
             region: FreeRegion { cells, member },
+            people_targets: std::sync::OnceLock::new(),
         }))
+    }
+
+    /// Where people walk in this world: the knowledge's routes and attractors and points spread
+    /// over the free region, with their path fields; made on first use, then shared.
+    pub fn people_targets(&self) -> &Arc<crate::crowd::Targets> {
+        self.people_targets
+            .get_or_init(|| Arc::new(crate::crowd::Targets::new(self)))
+    }
+
+    /// Origin and heading of the laser of a robot at `pose`: (x, y, yaw).
+    pub fn laser_origin(&self, pose: Pose2) -> (f64, f64, f64) {
+        let m = self.spec.robot.laser.mount;
+        let (s, c) = pose.yaw.sin_cos();
+        (
+            pose.x + c * m.x - s * m.y,
+            pose.y + s * m.x + c * m.y,
+            pose.yaw + m.yaw,
+        )
     }
 
     /// The description the world was built from.

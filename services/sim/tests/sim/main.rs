@@ -5,6 +5,7 @@ mod common;
 mod env;
 mod export;
 mod parse;
+mod people;
 mod raycast;
 mod render;
 mod ros_map;
