@@ -2,14 +2,21 @@
 //! knowledge service returns for a mission) to a [`WorldSpec`], through the typed TOSM values of
 //! the `tosm` crate. Anything missing or contradictory becomes a problem naming the individual
 //! and the property; nothing here panics on bad data.
+//!
+//! What the knowledge says about people on the chosen floor becomes [`PeopleSpec`]: the places
+//! on it with an expected number of people (robots' running estimate where they have counted,
+//! else the engineer's figure: [`tosm::PlacePeople::figures`]), its walking routes and its
+//! attractors. People knowledge that does not read (a route with one point, a negative count)
+//! is left out with a warning: the world is still built, without it.
 
 use std::collections::HashMap;
 
 use oxrdf::Graph;
 
 use crate::spec::{
-    CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec, RobotPartSpec, RobotSpec,
-    Shape, Size3, SpecProblem, SpecProblems, WallSpec, WheelSpec, WorldSpec,
+    AttractorSpec, CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec,
+    PeoplePlaceSpec, PeopleSpec, RobotPartSpec, RobotSpec, RouteSpec, Shape, Size3, SpecProblem,
+    SpecProblems, WallSpec, WheelSpec, WorldSpec,
 };
 
 /// Height of the walls that occupied map cells and boundaries become, metres: a storey.
@@ -75,12 +82,24 @@ fn parse(
     from_tosm(place_problems, &mut out);
     let (objects, object_problems) = tosm::read_objects_lenient(graph);
     from_tosm(object_problems, &mut out);
+    let (people_knowledge, people_problems) = tosm::read_people_lenient(graph);
 
     let floor = choose_floor(&places, floor_iri, &mut out);
     let mut spec_floor = None;
     let mut walls = Vec::new();
     let mut notes = Vec::new();
     let mut world_objects = Vec::new();
+    let mut people = PeopleSpec::default();
+    for p in people_problems.0 {
+        notes.push(SpecProblem::warning(
+            p.individual,
+            p.property,
+            format!(
+                "{}; this people knowledge is left out of the simulation",
+                p.message
+            ),
+        ));
+    }
     if let Some(floor) = floor {
         let parents: HashMap<&str, Option<&str>> = places
             .iter()
@@ -147,6 +166,7 @@ fn parse(
                 world_objects.push(object_spec(o, &mut notes));
             }
         }
+        people = people_spec(&people_knowledge, &places, &floor.iri, &containers);
     }
     let Some(robot) = robot else {
         return Err(out);
@@ -156,8 +176,6 @@ fn parse(
     }
     // Only warnings are left: they travel with the description.
     notes.extend(out.0);
-    // People: the knowledge service does not carry them yet.
-    let people = crate::spec::PeopleSpec::default();
     let spec = WorldSpec {
         id: floor.map_or_else(String::new, |f| f.iri.clone()),
         floor: spec_floor,
@@ -173,6 +191,54 @@ fn parse(
         return Err(problems);
     }
     Ok(spec)
+}
+
+/// What `people` says about the floor `floor`: its places (the floor itself included) with
+/// their figures and boundaries, and the routes and attractors inside it, each sorted by IRI.
+fn people_spec(
+    people: &tosm::People,
+    places: &[tosm::Place],
+    floor: &str,
+    up: &HashMap<&str, Option<&str>>,
+) -> PeopleSpec {
+    let point = |&(x, y): &(f64, f64)| [x, y];
+    PeopleSpec {
+        places: people
+            .places
+            .iter()
+            .filter(|p| reaches(&p.place, floor, up))
+            .filter_map(|p| {
+                // A place that did not read is an error of its own already.
+                let place = places.iter().find(|q| q.iri == p.place)?;
+                let (expected, by_hour) = p.figures();
+                Some(PeoplePlaceSpec {
+                    id: p.place.clone(),
+                    expected,
+                    by_hour,
+                    boundary: place.boundary.iter().map(point).collect(),
+                })
+            })
+            .collect(),
+        routes: people
+            .routes
+            .iter()
+            .filter(|r| reaches(&r.inside_of, floor, up))
+            .map(|r| RouteSpec {
+                id: r.iri.clone(),
+                points: r.points.iter().map(point).collect(),
+            })
+            .collect(),
+        attractors: people
+            .attractors
+            .iter()
+            .filter(|a| reaches(&a.inside_of, floor, up))
+            .map(|a| AttractorSpec {
+                id: a.iri.clone(),
+                position: [a.pose.x, a.pose.y],
+                dwell_s: a.dwell_s,
+            })
+            .collect(),
+    }
 }
 
 /// Whether following `up` from `iri` reaches `target` (an individual reaches itself).

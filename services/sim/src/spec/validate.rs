@@ -1,8 +1,8 @@
 //! Checks of a world description: every problem named by item and field, never a panic.
 
 use super::{
-    FloorMap, MAX_GRID_CELLS, ObjectSpec, Occupancy, Pose3, RobotSpec, Shape, Size3, SpecProblem,
-    SpecProblems, WorldSpec,
+    FloorMap, MAX_GRID_CELLS, ObjectSpec, Occupancy, PeopleSpec, Pose3, RobotSpec, Shape, Size3,
+    SpecProblem, SpecProblems, WorldSpec,
 };
 
 /// Collects problems for one item, so each check is one line.
@@ -43,6 +43,28 @@ impl Checker<'_> {
             field,
             format!("every component of a pose must be finite, got {pose:?}"),
         ));
+        false
+    }
+
+    fn non_negative(&mut self, field: &str, value: f64, what: &str) {
+        if !(value.is_finite() && value >= 0.0) {
+            self.out.push(SpecProblem::error(
+                self.item,
+                field,
+                format!("{what} must be a finite number >= 0, got {value}"),
+            ));
+        }
+    }
+
+    /// Whether `point` is finite; an error naming `field` when not.
+    fn point(&mut self, field: &str, point: [f64; 2]) -> bool {
+        if point.iter().all(|v| v.is_finite()) {
+            return true;
+        }
+        self.error(
+            field,
+            format!("a point's x and y must be finite, got {point:?}"),
+        );
         false
     }
 
@@ -94,6 +116,7 @@ impl WorldSpec {
             }
         }
         validate_robot(&self.robot, &mut out);
+        validate_people(&self.people, self.floor.as_ref(), &mut out);
         if self.floor.is_none() && self.walls.is_empty() {
             out.push(SpecProblem::warning(
                 &self.id,
@@ -205,6 +228,112 @@ fn validate_object(obj: &ObjectSpec, out: &mut SpecProblems) {
             )
         }
         _ => {}
+    }
+}
+
+/// Counts finite and >= 0, hours 0–23 and each once, boundaries of none or at least 3 finite
+/// points, routes of at least 2 finite points, dwell times finite and >= 0, identifiers unique
+/// per kind; points off the floor's map are warned about (people there cannot reach them).
+fn validate_people(people: &PeopleSpec, floor: Option<&FloorMap>, out: &mut SpecProblems) {
+    let off_map = |p: [f64; 2]| floor.is_some_and(|f| f.grid.cell_of(p[0], p[1]).is_none());
+    let mut ids = std::collections::HashSet::new();
+    for place in &people.places {
+        let mut c = Checker {
+            out,
+            item: &place.id,
+        };
+        if place.id.trim().is_empty() {
+            c.error(
+                "id",
+                "a place with people needs a non-empty identifier".into(),
+            );
+        } else if !ids.insert(place.id.as_str()) {
+            c.error("id", "two people places share this identifier".into());
+        }
+        c.non_negative("expected", place.expected, "an expected number of people");
+        let mut hours = std::collections::HashSet::new();
+        for (i, &(hour, n)) in place.by_hour.iter().enumerate() {
+            if hour > 23 {
+                c.error(
+                    &format!("by_hour[{i}].hour"),
+                    format!("an hour of the day is 0 to 23, got {hour}"),
+                );
+            } else if !hours.insert(hour) {
+                c.error(
+                    &format!("by_hour[{i}].hour"),
+                    format!("hour {hour} has two figures"),
+                );
+            }
+            c.non_negative(
+                &format!("by_hour[{i}].people"),
+                n,
+                "an expected number of people",
+            );
+        }
+        if matches!(place.boundary.len(), 1 | 2) {
+            c.error(
+                "boundary",
+                format!(
+                    "a boundary needs at least 3 points (or none: people then spawn anywhere on the floor), got {}",
+                    place.boundary.len()
+                ),
+            );
+        }
+        for (i, &p) in place.boundary.iter().enumerate() {
+            c.point(&format!("boundary[{i}]"), p);
+        }
+    }
+    let mut ids = std::collections::HashSet::new();
+    for route in &people.routes {
+        let mut c = Checker {
+            out,
+            item: &route.id,
+        };
+        if route.id.trim().is_empty() {
+            c.error("id", "a walking route needs a non-empty identifier".into());
+        } else if !ids.insert(route.id.as_str()) {
+            c.error("id", "two walking routes share this identifier".into());
+        }
+        if route.points.len() < 2 {
+            c.error(
+                "points",
+                format!(
+                    "a walking route needs at least 2 points, got {}",
+                    route.points.len()
+                ),
+            );
+        }
+        for (i, &p) in route.points.iter().enumerate() {
+            let field = format!("points[{i}]");
+            if c.point(&field, p) && off_map(p) {
+                c.warning(
+                    &field,
+                    format!("the point {p:?} lies off the floor's map: people cannot walk there"),
+                );
+            }
+        }
+    }
+    let mut ids = std::collections::HashSet::new();
+    for attractor in &people.attractors {
+        let mut c = Checker {
+            out,
+            item: &attractor.id,
+        };
+        if attractor.id.trim().is_empty() {
+            c.error("id", "an attractor needs a non-empty identifier".into());
+        } else if !ids.insert(attractor.id.as_str()) {
+            c.error("id", "two attractors share this identifier".into());
+        }
+        if c.point("position", attractor.position) && off_map(attractor.position) {
+            c.warning(
+                "position",
+                format!(
+                    "the attractor at {:?} lies off the floor's map: people cannot reach it",
+                    attractor.position
+                ),
+            );
+        }
+        c.non_negative("dwell_s", attractor.dwell_s, "a dwell time");
     }
 }
 

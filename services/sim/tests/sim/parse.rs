@@ -181,3 +181,121 @@ fn a_drive_with_three_active_wheels_is_refused() {
     let err = parse_floor(&g, ROBOT, FLOOR0).expect_err("three drive wheels");
     assert!(err.has_errors(), "{err}");
 }
+
+/// Turtle triples added to a graph (prefixes `tosm:` and `xsd:` declared).
+fn add_turtle(graph: &mut Graph, turtle: &str) {
+    let text = format!(
+        "@prefix tosm: <{TOSM}> .\n@prefix xsd: <http://www.w3.org/2001/XMLSchema#> .\n{turtle}"
+    );
+    for t in oxttl::TurtleParser::new().for_slice(text.as_bytes()) {
+        graph.insert(&t.expect("valid Turtle"));
+    }
+}
+
+#[test]
+fn the_sample_floor_carries_what_is_known_about_its_people() {
+    let g = building_and_robot();
+    let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    let people = &spec.people;
+    // Floor 0's places with people, sorted by IRI; the kitchen is on floor 1.
+    let ids: Vec<&str> = people.places.iter().map(|p| p.id.as_str()).collect();
+    assert_eq!(
+        ids,
+        ["hall", "hallway", "living-room", "office"]
+            .map(|s| format!("{FLOOR0}/{s}"))
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>()
+    );
+    let living = &people.places[2];
+    assert_eq!(living.expected, 1.5);
+    assert_eq!(living.by_hour, vec![(12, 4.0), (13, 3.0), (15, 2.0)]);
+    assert_eq!(living.boundary.len(), 4, "people spawn inside its polygon");
+    // At noon: hall 3 + hallway 2 + living room 4 + office 1 (its all-day figure).
+    assert_eq!(people.expected_at(Some(12)), 10.0);
+    assert_eq!(people.expected_at(None), 1.0 + 0.5 + 1.5 + 1.0);
+    assert_eq!(people.routes.len(), 2);
+    assert!(people.routes.iter().all(|r| r.points.len() == 6));
+    let to_machine = people
+        .routes
+        .iter()
+        .find(|r| r.id.ends_with("hall-to-vending-machine"))
+        .expect("the route to the vending machine");
+    assert_eq!(to_machine.points.last(), Some(&[3.075, -1.975]));
+    assert_eq!(people.attractors.len(), 1);
+    let a = &people.attractors[0];
+    assert_eq!((a.position, a.dwell_s), ([3.3, -2.0], 60.0));
+    assert!(spec.validate().is_empty(), "{}", spec.validate());
+
+    let kitchen =
+        parse_floor(&g, ROBOT, &FLOOR0.replace("/0", "/1")).unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(kitchen.people.places.len(), 1);
+    assert_eq!(kitchen.people.places[0].expected_at(Some(12)), 5.0);
+    assert!(kitchen.people.routes.is_empty() && kitchen.people.attractors.is_empty());
+}
+
+#[test]
+fn robots_counts_replace_the_engineers_figures_in_the_world() {
+    let mut g = building_and_robot();
+    add_turtle(
+        &mut g,
+        &format!(
+            "<{FLOOR0}/hall> tosm:hasPeopleEstimate <{FLOOR0}/hall/people/estimate>, <{FLOOR0}/hall/people/estimate/hour/12> .
+<{FLOOR0}/hall/people/estimate> a tosm:PeopleEstimate ; tosm:estimatedPeople 2.6 ; tosm:observationCount 9 .
+<{FLOOR0}/hall/people/estimate/hour/12> a tosm:PeopleEstimate ; tosm:hourOfDay 12 ;
+    tosm:estimatedPeople 6 ; tosm:observationCount 3 ;
+    tosm:lastObservedAt \"2025-05-06T12:40:00+02:00\"^^xsd:dateTime .
+"
+        ),
+    );
+    let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    let hall = spec
+        .people
+        .places
+        .iter()
+        .find(|p| p.id == format!("{FLOOR0}/hall"))
+        .expect("the hall");
+    // The engineer said 1 all day and 3 at noon; robots counted 2.6 and 6.
+    assert_eq!(hall.expected, 2.6);
+    assert_eq!(hall.by_hour, vec![(12, 6.0), (13, 2.0)]);
+}
+
+#[test]
+fn people_knowledge_that_does_not_read_is_left_out_with_a_warning() {
+    let mut g = building_and_robot();
+    add_turtle(
+        &mut g,
+        &format!(
+            "<{FLOOR0}/routes/stub> a tosm:WalkingRoute ; tosm:isDirectlyInsideOf <{FLOOR0}> ;
+    tosm:hasRoutePoint <{FLOOR0}/routes/stub/point/0> .
+<{FLOOR0}/routes/stub/point/0> a tosm:RoutePoint ; tosm:pointIndex 0 ; tosm:xM 1 ; tosm:yM 1 .
+<{FLOOR0}/office> tosm:hasHourlyPeopleCount <{FLOOR0}/office/people/hour/25> .
+<{FLOOR0}/office/people/hour/25> a tosm:HourlyPeopleCount ; tosm:hourOfDay 25 ; tosm:expectedPeople 2 .
+"
+        ),
+    );
+    let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    let warned = |item: &str, field: &str| {
+        spec.notes.iter().any(|p| {
+            p.severity == Severity::Warning
+                && p.item == item
+                && p.field == format!("{TOSM}{field}")
+                && p.message.contains("left out")
+        })
+    };
+    assert!(
+        warned(&format!("{FLOOR0}/routes/stub"), "hasRoutePoint"),
+        "{:?}",
+        spec.notes
+    );
+    assert!(
+        warned(&format!("{FLOOR0}/office/people/hour/25"), "hourOfDay"),
+        "{:?}",
+        spec.notes
+    );
+    assert_eq!(spec.people.routes.len(), 2, "the stub is left out");
+    assert!(
+        spec.people.places.iter().all(|p| !p.id.ends_with("office")),
+        "the office's figures are left out"
+    );
+}

@@ -156,3 +156,83 @@ fn a_world_without_a_map_is_bounded_around_its_items() {
         "floor"
     ));
 }
+
+#[test]
+fn bad_people_knowledge_is_named_with_its_fields() {
+    use sim::{AttractorSpec, PeoplePlaceSpec, RouteSpec};
+    let mut spec = room(5.0, 5.0);
+    let place = |id: &str| PeoplePlaceSpec {
+        id: id.into(),
+        expected: 1.0,
+        by_hour: vec![(9, 2.0)],
+        boundary: vec![[1.0, 1.0], [4.0, 1.0], [4.0, 4.0]],
+    };
+    let fine = place("fine");
+    let mut counts = place("counts");
+    counts.expected = f64::NAN;
+    counts.by_hour = vec![(24, 1.0), (9, -1.0), (9, 2.0)];
+    counts.boundary = vec![[1.0, 1.0], [f64::INFINITY, 2.0]];
+    spec.people.places = vec![fine.clone(), counts, fine];
+    spec.people.routes = vec![
+        RouteSpec {
+            id: "short".into(),
+            points: vec![[1.0, 1.0]],
+        },
+        RouteSpec {
+            id: "wild".into(),
+            points: vec![[1.0, 1.0], [f64::NAN, 2.0], [40.0, 2.0]],
+        },
+    ];
+    spec.people.attractors = vec![
+        AttractorSpec {
+            id: "idle".into(),
+            position: [2.0, 2.0],
+            dwell_s: -3.0,
+        },
+        AttractorSpec {
+            id: "lost".into(),
+            position: [-7.0, 2.0],
+            dwell_s: 10.0,
+        },
+    ];
+    let p = problems_of(&spec);
+    assert!(has(&p, Severity::Error, "fine", "id"), "duplicate: {p:?}");
+    assert!(has(&p, Severity::Error, "counts", "expected"), "{p:?}");
+    assert!(
+        has(&p, Severity::Error, "counts", "by_hour[0].hour"),
+        "{p:?}"
+    );
+    assert!(
+        has(&p, Severity::Error, "counts", "by_hour[1].people"),
+        "{p:?}"
+    );
+    assert!(
+        has(&p, Severity::Error, "counts", "by_hour[2].hour"),
+        "hour twice: {p:?}"
+    );
+    assert!(has(&p, Severity::Error, "counts", "boundary"), "{p:?}");
+    assert!(has(&p, Severity::Error, "counts", "boundary[1]"), "{p:?}");
+    assert!(has(&p, Severity::Error, "short", "points"), "{p:?}");
+    assert!(has(&p, Severity::Error, "wild", "points[1]"), "{p:?}");
+    assert!(
+        has(&p, Severity::Warning, "wild", "points[2]"),
+        "off the map: {p:?}"
+    );
+    assert!(has(&p, Severity::Error, "idle", "dwell_s"), "{p:?}");
+    assert!(
+        has(&p, Severity::Warning, "lost", "position"),
+        "off the map: {p:?}"
+    );
+    assert!(!has(&p, Severity::Error, "lost", "dwell_s"), "{p:?}");
+    let err = World::build(spec).expect_err("errors stop the build");
+    assert!(err.to_string().contains("counts by_hour[0].hour"), "{err}");
+
+    // Knowledge that says nothing, or says it well, is no problem.
+    let mut spec = room(5.0, 5.0);
+    spec.people.places = vec![place("fine")];
+    spec.people.routes = vec![RouteSpec {
+        id: "along".into(),
+        points: vec![[1.0, 1.0], [4.0, 4.0]],
+    }];
+    assert!(spec.validate().is_empty(), "{}", spec.validate());
+}
