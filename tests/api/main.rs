@@ -11,5 +11,6 @@ mod health;
 mod helpers;
 mod jobs;
 mod knowledge;
+mod people;
 mod plan;
 mod remote_store;

@@ -1,7 +1,13 @@
 //! On-demand databases (thesis §3.4): for one robot and one mission, the subset of the graph a
 //! mental simulation of that mission needs — the places the route crosses (found through place
-//! connectivity), their parents, their metric maps and boundaries, the objects in them, and the
-//! full robot model — and nothing else.
+//! connectivity), their parents, their metric maps and boundaries, the objects in them, the
+//! full robot model, and what is known about people on the route's floors — and nothing else.
+//!
+//! People walk in from anywhere on a floor, so a mission's database carries the people
+//! knowledge of its whole floors: every place on them with an expected number of people or a
+//! robots' estimate (with its boundary, where people of that place appear, and the places it is
+//! inside of), and every walking route and attractor inside them. Places off the route come
+//! without their objects.
 //!
 //! Only asserted triples are included (not the materialised entailments), sorted, with the
 //! stable IRIs of the graph, so two downloads of overlapping missions merge cleanly.
@@ -274,6 +280,48 @@ impl Reader {
         Ok(())
     }
 
+    /// Whether `place` states an expected number of people or has a people estimate
+    /// (asserted, in any graph but the inferred one).
+    fn knows_people_in(&self, place: &str) -> Result<bool, StoreError> {
+        let node = NamedNodeRef::new_unchecked(place);
+        for p in [
+            vocab::EXPECTED_PEOPLE,
+            vocab::HAS_HOURLY_PEOPLE_COUNT,
+            vocab::HAS_PEOPLE_ESTIMATE,
+        ] {
+            for quad in self
+                .store
+                .quads_for_pattern(Some(node.into()), Some(p), None, None)
+            {
+                let quad = quad.map_err(|e| self.err(e))?;
+                if quad.graph_name.as_ref() != GraphNameRef::NamedNode(INFERRED_GRAPH) {
+                    return Ok(true);
+                }
+            }
+        }
+        Ok(false)
+    }
+
+    /// The asserted IRI value of `subject`'s `property`, if any (the first, in store order).
+    fn asserted_object(
+        &self,
+        subject: NamedNodeRef<'_>,
+        property: NamedNodeRef<'_>,
+    ) -> Result<Option<String>, StoreError> {
+        for quad in self
+            .store
+            .quads_for_pattern(Some(subject.into()), Some(property), None, None)
+        {
+            let quad = quad.map_err(|e| self.err(e))?;
+            if quad.graph_name.as_ref() != GraphNameRef::NamedNode(INFERRED_GRAPH)
+                && let Term::NamedNode(n) = quad.object
+            {
+                return Ok(Some(n.into_string()));
+            }
+        }
+        Ok(None)
+    }
+
     /// The individual named `name`: an IRI, or the subject of `tosm:identifier "name"`.
     fn resolve(&self, name: &str) -> Result<Option<NamedNode>, StoreError> {
         if name.contains("://") || name.starts_with("urn:") {
@@ -403,7 +451,8 @@ pub fn build_until(
     }
 
     check()?;
-    let triples = assemble(&reader, &included, &robot, &check)?;
+    let people = people_on_floors(&reader, &index, &floors, &included)?;
+    let triples = assemble(&reader, &included, &people, &robot, &check)?;
     Ok(OnDemandDatabase {
         triples,
         robot: robot.into_string(),
@@ -412,11 +461,65 @@ pub fn build_until(
     })
 }
 
-/// The triples of the `included` places, the objects inside them (recursively), and the
-/// robot, sorted by their N-Triples form so the same input gives byte-identical output.
+/// What a database adds for the people on its floors: places (off the route) with people
+/// knowledge and the places they are inside of, and the walking routes and attractors.
+#[derive(Debug, Default)]
+struct PeopleKnowledge {
+    /// Places not already included, described without their objects.
+    places: BTreeSet<String>,
+    /// Walking routes and attractors.
+    individuals: BTreeSet<NamedNode>,
+}
+
+/// The people knowledge of `floors` that `included` does not hold yet.
+fn people_on_floors(
+    reader: &Reader,
+    index: &HashMap<&str, &Place>,
+    floors: &[String],
+    included: &BTreeSet<String>,
+) -> Result<PeopleKnowledge, OnDemandError> {
+    let on_one_of_the_floors = |place: &Place| {
+        floors
+            .iter()
+            .any(|f| place.iri == *f || on_floor(index, place, f))
+    };
+    let mut out = PeopleKnowledge::default();
+    let add_place = |place: &Place, out: &mut PeopleKnowledge| -> Result<(), OnDemandError> {
+        for p in containers(|iri| index.get(iri).copied(), place)? {
+            if !included.contains(&p.iri) {
+                out.places.insert(p.iri.clone());
+            }
+        }
+        Ok(())
+    };
+    for place in index.values() {
+        if on_one_of_the_floors(place) && reader.knows_people_in(&place.iri)? {
+            add_place(place, &mut out)?;
+        }
+    }
+    for class in [vocab::WALKING_ROUTE, vocab::ATTRACTOR] {
+        for individual in reader.instances(class)? {
+            let container =
+                reader.asserted_object(individual.as_ref(), vocab::IS_DIRECTLY_INSIDE_OF)?;
+            let Some(place) = container.as_deref().and_then(|c| index.get(c).copied()) else {
+                continue;
+            };
+            if on_one_of_the_floors(place) {
+                add_place(place, &mut out)?;
+                out.individuals.insert(individual);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The triples of the `included` places, the objects inside them (recursively), the `people`
+/// knowledge, and the robot, sorted by their N-Triples form so the same input gives
+/// byte-identical output.
 fn assemble(
     reader: &Reader,
     included: &BTreeSet<String>,
+    people: &PeopleKnowledge,
     robot: &NamedNode,
     check: &dyn Fn() -> Result<(), OnDemandError>,
 ) -> Result<Vec<Triple>, OnDemandError> {
@@ -452,6 +555,19 @@ fn assemble(
                 containers.push_back(object.into_string());
             }
         }
+    }
+    // People knowledge: its places without their objects, its routes and attractors.
+    for iri in &people.places {
+        check()?;
+        reader.closure(
+            NamedNodeRef::new_unchecked(iri),
+            false,
+            &mut triples,
+            &mut seen,
+        )?;
+    }
+    for individual in &people.individuals {
+        reader.closure(individual.as_ref(), false, &mut triples, &mut seen)?;
     }
     reader.closure(robot.as_ref(), true, &mut triples, &mut seen)?;
 
@@ -500,12 +616,14 @@ pub fn floor_database(
         included.insert(p.iri.clone());
     }
     let route: Vec<String> = included.iter().cloned().collect();
-    let triples = assemble(&reader, &included, &robot, &|| Ok(()))?;
+    let floors = vec![floor.to_owned()];
+    let people = people_on_floors(&reader, &index, &floors, &included)?;
+    let triples = assemble(&reader, &included, &people, &robot, &|| Ok(()))?;
     Ok(OnDemandDatabase {
         triples,
         robot: robot.into_string(),
         route,
-        floors: vec![floor.to_owned()],
+        floors,
     })
 }
 
@@ -845,21 +963,36 @@ mod tests {
         tosm::read_robot(&graph, &robot()).unwrap();
         let read = tosm::read_places(&graph).unwrap();
         assert!(read.iter().any(|p| p.map.is_some()));
-        // Nothing else: no place off the route except ancestors.
+        // Nothing else: no place off the route except ancestors and the places people are
+        // expected in, and no object off the route.
+        let about = |iri: &str| {
+            graph
+                .iter()
+                .any(|t| t.subject.to_string() == format!("<{iri}>"))
+        };
+        let people = tosm::read_people(&graph).unwrap();
         let off_route = places.iter().filter(|p| {
             !db.route.contains(&p.iri)
                 && p.kind != PlaceKind::Floor
                 && p.kind != PlaceKind::Building
         });
+        let mut people_places = 0;
         for p in off_route {
-            assert!(
-                !graph
-                    .iter()
-                    .any(|t| t.subject.to_string() == format!("<{}>", p.iri)),
-                "{} leaked",
-                p.iri
-            );
+            let has_people = people.places.iter().any(|q| q.place == p.iri);
+            people_places += usize::from(has_people);
+            assert_eq!(about(&p.iri), has_people, "{} leaked or is missing", p.iri);
         }
+        assert!(
+            people_places > 0,
+            "the sample expects people off this route"
+        );
+        let objects = tosm::read_objects(&graph).unwrap();
+        assert!(
+            objects.iter().all(|o| db.route.contains(&o.inside_of)),
+            "objects off the route: {objects:?}"
+        );
+        // The floor's walking routes and attractor, whichever places they are in.
+        assert_eq!((people.routes.len(), people.attractors.len()), (2, 1));
         // Deterministic.
         let again = build(&store, &mission).unwrap();
         assert_eq!(again.triples, db.triples);

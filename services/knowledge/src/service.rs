@@ -63,6 +63,30 @@ pub const REPORTS_PER_SECOND: f64 = 20.0;
 /// Object reports one robot may make at once.
 pub const REPORT_BURST: f64 = 100.0;
 
+/// People counts one robot may report per second, on average (a batch of n counts costs n).
+pub const OBSERVATIONS_PER_SECOND: f64 = 20.0;
+/// People counts one robot may report at once; also the most one request may carry.
+pub const OBSERVATION_BURST: f64 = 100.0;
+
+/// A robot's allowance of one kind of report: tokens left and when they were last counted.
+type Buckets = Mutex<HashMap<String, (f64, std::time::Instant)>>;
+
+/// Takes `n` tokens from `robot`'s bucket (refilled at `rate` per second up to `burst`); `Err`
+/// with the seconds until `n` are there.
+fn take(buckets: &Buckets, robot: &str, n: f64, rate: f64, burst: f64) -> Result<(), f64> {
+    let now = std::time::Instant::now();
+    let mut buckets = buckets.lock().unwrap_or_else(PoisonError::into_inner);
+    let (tokens, at) = buckets.entry(robot.to_owned()).or_insert((burst, now));
+    *tokens = (*tokens + now.duration_since(*at).as_secs_f64() * rate).min(burst);
+    *at = now;
+    if *tokens >= n {
+        *tokens -= n;
+        Ok(())
+    } else {
+        Err((n - *tokens) / rate)
+    }
+}
+
 /// Everything a knowledge handler needs. Shared behind an `Arc`.
 ///
 /// The store may open late: when the data directory is unusable at start, handlers answer
@@ -78,7 +102,12 @@ pub struct Knowledge {
     /// What this service's SPARQL reads cost last time, which run in place, and its watchdog.
     reads: Arc<ReadState>,
     /// Object reports per robot: a token bucket by principal name (bounded by the tokens).
-    reports: Mutex<HashMap<String, (f64, std::time::Instant)>>,
+    reports: Buckets,
+    /// People counts per robot, the same way.
+    observations: Buckets,
+    /// Held while a people estimate is read, moved and written back, so that two requests
+    /// about one place cannot both start from the same estimate and lose a count.
+    estimates: Mutex<()>,
     /// The free-space reserve of the store's disk, when it is on one.
     disk: Option<edge::disk::DiskWatch>,
     /// Whether `opener` can open the store again (false for a store handed over open).
@@ -127,6 +156,8 @@ impl Knowledge {
             refresh_lock: Mutex::new(()),
             reads: Arc::new(ReadState::new()),
             reports: Mutex::new(HashMap::new()),
+            observations: Mutex::new(HashMap::new()),
+            estimates: Mutex::new(()),
             disk: None,
             reopenable: true,
         }
@@ -148,20 +179,27 @@ impl Knowledge {
     /// Takes one object report from `robot`'s allowance ([`REPORTS_PER_SECOND`], bursts of
     /// [`REPORT_BURST`]); `Err` with the seconds until the next one is allowed.
     pub fn take_report(&self, robot: &str) -> Result<(), f64> {
-        let now = std::time::Instant::now();
-        let mut buckets = self.reports.lock().unwrap_or_else(PoisonError::into_inner);
-        let (tokens, at) = buckets
-            .entry(robot.to_owned())
-            .or_insert((REPORT_BURST, now));
-        *tokens = (*tokens + now.duration_since(*at).as_secs_f64() * REPORTS_PER_SECOND)
-            .min(REPORT_BURST);
-        *at = now;
-        if *tokens >= 1.0 {
-            *tokens -= 1.0;
-            Ok(())
-        } else {
-            Err((1.0 - *tokens) / REPORTS_PER_SECOND)
-        }
+        take(&self.reports, robot, 1.0, REPORTS_PER_SECOND, REPORT_BURST)
+    }
+
+    /// Takes `n` people counts from `robot`'s allowance ([`OBSERVATIONS_PER_SECOND`], bursts
+    /// of [`OBSERVATION_BURST`]); `Err` with the seconds until they are allowed.
+    pub fn take_observations(&self, robot: &str, n: usize) -> Result<(), f64> {
+        take(
+            &self.observations,
+            robot,
+            n as f64,
+            OBSERVATIONS_PER_SECOND,
+            OBSERVATION_BURST,
+        )
+    }
+
+    /// Serialises the updates of people estimates (see `api/people.rs`): hold the guard from
+    /// reading an estimate to writing it back.
+    pub fn estimates_lock(&self) -> std::sync::MutexGuard<'_, ()> {
+        self.estimates
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
     }
 
     /// The store, opening it if needed. Blocking the first time (RocksDB opens its files).

@@ -1,12 +1,14 @@
 //! The knowledge service's REST API for robots and operators: browse places and robots, fetch
-//! a floor's map, import maps, report perceived objects, and get on-demand databases. One
-//! module per resource; this one assembles their routes and the OpenAPI document.
+//! a floor's map, import maps, report perceived objects and people counts, and get on-demand
+//! databases. One module per resource; this one assembles their routes and the OpenAPI
+//! document.
 //!
 //! Wire types live here and are converted from the core types on purpose.
 
 mod maps;
 mod objects;
 mod on_demand;
+mod people;
 mod places;
 mod robots;
 mod task;
@@ -27,6 +29,10 @@ use self::objects::{
 use self::on_demand::{
     __path_floor_on_demand_database, __path_on_demand_database, OnDemandRequest, WaypointDoc,
 };
+use self::people::{
+    __path_report_people_observations, EstimateView, PeopleEstimates, PeopleObservation,
+    PeopleObservations,
+};
 use self::places::{
     __path_get_place, __path_list_objects, __path_list_places, __path_place_map,
     __path_place_map_pgm, __path_place_map_yaml, __path_world_sdf, MapServerYaml, ObjectPose,
@@ -41,10 +47,10 @@ use crate::service::Knowledge;
 /// The OpenAPI document of the REST API, generated from the handlers of the resource modules.
 #[derive(OpenApi)]
 #[openapi(
-    info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
-    paths(me, list_places, get_place, place_map, place_map_yaml, place_map_pgm, world_sdf, list_objects, list_robots, get_robot, robot_urdf, robot_sdf, bridge_yaml, import_map, report_object, on_demand_database, floor_on_demand_database),
+    info(title = "Mentalsim knowledge service", description = "TOSM knowledge for robot fleets: places, robots, maps, perceived objects, people counts and on-demand databases. SPARQL 1.1 Protocol at /sparql and Graph Store Protocol at /store are described by their W3C specifications."),
+    paths(me, list_places, get_place, place_map, place_map_yaml, place_map_pgm, world_sdf, list_objects, list_robots, get_robot, robot_urdf, robot_sdf, bridge_yaml, import_map, report_object, report_people_observations, on_demand_database, floor_on_demand_database),
     components(
-        schemas(Me, PlaceView, ObjectView, ObjectPose, MapServerYaml, BridgeEntry, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
+        schemas(Me, PlaceView, ObjectView, ObjectPose, MapServerYaml, BridgeEntry, RobotView, ImportedMap, MapUpload, ObjectReport, PoseInput, ShapeInput, ColourInput, ReportedObject, PeopleObservations, PeopleObservation, PeopleEstimates, EstimateView, OnDemandRequest, WaypointDoc, ErrorBody, ErrorDetail, edge::ErrorCode),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
@@ -64,6 +70,10 @@ pub fn router(knowledge: Arc<Knowledge>) -> Router {
             "/v1/places/{id}/objects",
             get(places::list_objects).post(objects::report_object),
         )
+        .route(
+            "/v1/places/{id}/observations",
+            post(people::report_people_observations),
+        )
         .route("/v1/me", get(me))
         .route("/v1/places/{id}/world.sdf", get(places::world_sdf))
         .route("/v1/robots/{id}/robot.urdf", get(robots::robot_urdf))
@@ -80,12 +90,31 @@ pub fn router(knowledge: Arc<Knowledge>) -> Router {
         .with_state(knowledge)
 }
 
+/// 429 `too_many_requests` saying `message`, with `Retry-After` the whole seconds of `wait_s`
+/// rounded up (at least 1).
+fn too_many_requests(message: String, wait_s: f64) -> axum::response::Response {
+    use axum::response::IntoResponse;
+    let mut response =
+        edge::ApiError::new(edge::ErrorCode::TooManyRequests, message).into_response();
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a wait of at most a few seconds, rounded up"
+    )]
+    let retry = wait_s.ceil().max(1.0) as u64;
+    response
+        .headers_mut()
+        .insert(axum::http::header::RETRY_AFTER, retry.into());
+    response
+}
+
 /// Who a token belongs to.
 #[derive(serde::Serialize, utoipa::ToSchema)]
 pub struct Me {
     /// The token holder's name (a robot's id, a person's name).
     name: String,
-    /// `engineer` (reads and writes everything) or `robot` (reads, plans, reports objects).
+    /// `engineer` (reads and writes everything) or `robot` (reads, plans, reports objects and
+    /// people counts).
     role: &'static str,
 }
 

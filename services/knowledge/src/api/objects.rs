@@ -174,26 +174,15 @@ pub(super) async fn report_object(
     let is_robot = principal.role == Role::Robot;
     k.check_space(0)?;
     if is_robot && let Err(wait_s) = k.take_report(&principal.name) {
-        let mut response = ApiError::new(
-            ErrorCode::TooManyRequests,
+        return Ok(super::too_many_requests(
             format!(
                 "{} sent more than {} object reports in a burst ({} per second on average); retry in {wait_s:.1} s",
                 principal.name,
                 crate::service::REPORT_BURST,
                 crate::service::REPORTS_PER_SECOND
             ),
-        )
-        .into_response();
-        #[allow(
-            clippy::cast_possible_truncation,
-            clippy::cast_sign_loss,
-            reason = "a wait of at most a few seconds, rounded up"
-        )]
-        let retry = wait_s.ceil().max(1.0) as u64;
-        response
-            .headers_mut()
-            .insert(axum::http::header::RETRY_AFTER, retry.into());
-        return Ok(response);
+            wait_s,
+        ));
     }
     blocking(move || {
         let store = k.store()?;
