@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import inspect
 import json
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Any, Callable
 
@@ -29,6 +30,7 @@ from mentalsim_client import (
     Colour,
     Cylinder,
     MentalsimError,
+    PeopleCount,
     PlanOptions,
     Sphere,
 )
@@ -117,6 +119,9 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         ),
         "report_object (cylinder)": lambda c: c.report_object("F0-hall", "Bin", (1.0, 2.0), Cylinder(0.3, 0.5)),
         "report_object (sphere)": lambda c: c.report_object("F0-hall", "Object", (1.0, 2.0), Sphere(0.2), colour=Colour(1, 0, 0)),
+        "report_people": lambda c: c.report_people(
+            "F0-hall", [PeopleCount(2, datetime(2025, 5, 6, 12, 30, tzinfo=timezone(timedelta(hours=2)))), PeopleCount(1.5, "2025-05-06T12:40:00Z"), 3]
+        ),
         "on_demand_database": lambda c: c.on_demand_database("R-001", "F0-living-room", ["F0-hall", (1.0, 2.0)], floor="F0", format="jsonld"),
         "floor_database": lambda c: c.floor_database("F0", "R-001", format="ntriples"),
         "plan": lambda c: c.plan("R-001", "F0", (0.5, -2.0, 1.57), (-12.0, -1.0), policy="p-1", options=options),
@@ -194,11 +199,14 @@ def test_the_request_bodies_are_what_the_api_documents(tmp_path: Path) -> None:
         client.report_object("F0-hall", "Chair", (1.0, 2.0, 0.25), Box(0.5, 0.5, 0.9), id="c-1")
     with pytest.raises(MentalsimError):
         client.on_demand_database("R-001", (1.0, 2.0), ["F0-hall"], floor="F0")
+    with pytest.raises(MentalsimError):
+        client.report_people("F0-hall", [PeopleCount(2, datetime(2025, 5, 6, 12, 30, tzinfo=timezone.utc)), 0.5])
     bodies = [json.loads(r.content) for r in transport.requests]
     assert bodies == [
         {"robot": "R-001", "place": "F0", "start": {"x": 0.5, "y": -2.0, "yaw": 0.0}, "goal": {"x": -12.0, "y": -1.0}, "options": {"seed": 3, "trace": True}},
         {"class": "Chair", "pose": {"x": 1.0, "y": 2.0, "yaw": 0.25}, "shape": {"type": "box", "length": 0.5, "width": 0.5, "height": 0.9}, "id": "c-1"},
         {"robot": "R-001", "start": {"x": 1.0, "y": 2.0, "floor": "F0"}, "goals": [{"place": "F0-hall"}]},
+        {"observations": [{"count": 2, "observed_at": "2025-05-06T12:30:00+00:00"}, {"count": 0.5}]},
     ]
 
 

@@ -1,15 +1,16 @@
 """The knowledge service through the client, against the real binary: who a token is, places
 and robots, a shared ROS map imported and downloaded again, SDF and URDF, on-demand databases
-parsed into rdflib graphs and queried with SPARQL, and object reports."""
+parsed into rdflib graphs and queried with SPARQL, object reports and people counts."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import rdflib
 from conftest import KITCHEN, ROBOT_IRI, read_pgm
 
-from mentalsim_client import Box, Client, Colour, Cylinder, ImportedMap, Sphere
+from mentalsim_client import Box, Client, Colour, Cylinder, ImportedMap, MentalsimError, PeopleCount, Sphere
 
 TOSM = rdflib.Namespace("https://mentalsim.dev/ontology/tosm#")
 SAMPLE_F0 = "https://mentalsim.dev/data/buildings/sample-building/floors/0"
@@ -131,3 +132,35 @@ def test_a_robot_reports_objects_and_they_reach_the_database(robot: Client, kitc
         )
     )
     assert [(str(r[0]), str(r[1])) for r in rows] == [(first.iri, ROBOT_IRI)]  # type: ignore[index]
+
+
+def test_a_robot_reports_people_counts_and_the_estimate_reaches_the_database(robot: Client) -> None:
+    # Counts in the sample building's office: 3 at 09:15 local time, then 1 made now.
+    first = robot.report_people("F0-office", [PeopleCount(3, "2025-05-06T09:15:00+02:00"), 1])
+    office = f"{SAMPLE_F0}/office"
+    assert first.place == office and first.accepted == 2
+    assert (first.estimate.people, first.estimate.observations, first.estimate.hour) == (2.0, 2, None)
+    assert [(h.hour, h.people, h.observations) for h in first.by_hour] == [(9, 3.0, 1)]
+    assert first.by_hour[0].last_observed_at == "2025-05-06T09:15:00+02:00"
+    # The mean of the first five counts, then each new one weighs 0.2.
+    then = robot.report_people("F0-office", [2, 6, 3, 13])
+    assert then.estimate.observations == 6 and abs(then.estimate.people - (3.0 + 0.2 * 10.0)) < 1e-9
+    # The floor's database carries the estimate to the simulation.
+    db = robot.floor_database("F0")
+    rows = list(
+        db.query(
+            """
+            PREFIX tosm: <https://mentalsim.dev/ontology/tosm#>
+            SELECT ?n ?count WHERE { ?place tosm:hasPeopleEstimate ?e . ?e tosm:estimatedPeople ?n ;
+                                     tosm:observationCount ?count . FILTER NOT EXISTS { ?e tosm:hourOfDay ?h } }
+            """,
+            initBindings={"place": rdflib.URIRef(office)},
+        )
+    )
+    assert [(str(r[0]), str(r[1])) for r in rows] == [("5", "6")]  # type: ignore[index]
+    # A negative count is refused, naming it, and changes nothing.
+    with pytest.raises(MentalsimError) as e:
+        robot.report_people("F0-office", [1, -2])
+    assert (e.value.status, e.value.code) == (422, "unprocessable")
+    assert "observations[1].count" in e.value.message
+    assert robot.report_people("F0-office", [5]).estimate.observations == 7

@@ -71,6 +71,7 @@ OPERATIONS: Final[dict[str, Operation]] = dict(
         _op("world_sdf", "GET", "/v1/places/{id}/world.sdf", "knowledge", query=("robot", "x", "y", "yaw"), accept=("application/xml",)),
         _op("list_objects", "GET", "/v1/places/{id}/objects", "knowledge"),
         _op("report_object", "POST", "/v1/places/{id}/objects", "knowledge", body="ObjectReport", body_type=JSON),
+        _op("report_people_observations", "POST", "/v1/places/{id}/observations", "knowledge", body="PeopleObservations", body_type=JSON),
         _op("floor_on_demand_database", "GET", "/v1/places/{id}/on-demand", "knowledge", query=("robot",), accept=RDF_TYPES),
         _op("on_demand_database", "POST", "/v1/on-demand", "knowledge", body="OnDemandRequest", body_type=JSON, accept=RDF_TYPES),
         _op("import_map", "POST", "/v1/maps", "knowledge", body="MapUpload", body_type=MULTIPART),

@@ -30,6 +30,8 @@ from .models import (
     JobState,
     JsonObject,
     Me,
+    PeopleCount,
+    PeopleEstimates,
     Place,
     PlanOptions,
     PlanResult,
@@ -259,7 +261,7 @@ class Client:
         """The token's holder and role (``engineer`` or ``robot``)."""
         return Me.from_json(self._object("me"))
 
-    # ---- knowledge: places, robots, maps, objects ----
+    # ---- knowledge: places, robots, maps, objects, people counts ----
 
     def places(self) -> list[Place]:
         """Every place, buildings to rooms."""
@@ -377,6 +379,18 @@ class Client:
         if mass_kg is not None:
             body["mass_kg"] = mass_kg
         return ReportedObject.from_json(self._object("report_object", path={"id": place}, json_body=body))
+
+    def report_people(self, place: str, counts: Sequence[PeopleCount | float]) -> PeopleEstimates:
+        """Reports how many people the robot saw in ``place`` (a floor, room, corridor or hall):
+        1 to 100 counts, in the order they were made, each a :class:`PeopleCount` or a bare
+        number (made now). The service keeps a running estimate per place, over the whole day and
+        per hour of day: each count moves it max(1/n, 0.2) of the way, n the counts so far (the
+        mean of the first five, then an exponentially weighted mean); simulations of the floor use
+        it instead of the engineer's figure. Returns the place's estimates. Robots (20 counts per
+        second, bursts of 100) and engineers."""
+        observations = [(c if isinstance(c, PeopleCount) else PeopleCount(c)).to_json() for c in counts]
+        body: JsonObject = {"observations": observations}
+        return PeopleEstimates.from_json(self._object("report_people_observations", path={"id": place}, json_body=body))
 
     # ---- on-demand databases ----
 

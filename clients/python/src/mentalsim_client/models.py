@@ -11,6 +11,7 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
+from datetime import datetime
 from typing import Any, Literal, TypeAlias
 
 from .errors import MentalsimError
@@ -687,6 +688,67 @@ class ReportedObject:
             _str(d, "reported_by"),
             _str(d, "reported_at"),
             _bool(d, "updated"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PeopleCount:
+    """How many people a robot saw in a place (schema ``PeopleObservation``): ``count``, 0 to
+    10000, and when (``observed_at``: a timezone-aware :class:`datetime.datetime` or an
+    ``xsd:dateTime`` string such as ``2025-05-06T12:30:00+02:00``). The hour of day of
+    ``observed_at``, as written, also moves that hour's estimate: give the building's local time;
+    without it the count moves the all-day estimate only."""
+
+    count: float
+    observed_at: datetime | str | None = None
+
+    def to_json(self) -> JsonObject:
+        out: JsonObject = {"count": self.count}
+        if isinstance(self.observed_at, datetime):
+            out["observed_at"] = self.observed_at.isoformat()
+        elif self.observed_at is not None:
+            out["observed_at"] = self.observed_at
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class PeopleEstimate:
+    """A running estimate of the people in a place (schema ``EstimateView``): over the whole day
+    (``hour`` None) or for one hour of day."""
+
+    people: float
+    #: How many counts it is made of.
+    observations: int
+    hour: int | None = None
+    last_observed_at: str | None = None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> PeopleEstimate:
+        hour = d.get("hour")
+        if hour is not None and (isinstance(hour, bool) or not isinstance(hour, int)):
+            raise ResponseShapeError(f"`hour`: expected an integer, got {hour!r}")
+        return cls(_float(d, "people"), _int(d, "observations"), hour, _opt_str(d, "last_observed_at"))
+
+
+@dataclass(frozen=True, slots=True)
+class PeopleEstimates:
+    """A place's people estimates after a robot's counts (schema ``PeopleEstimates``)."""
+
+    place: str
+    #: How many counts the request added.
+    accepted: int
+    #: Over the whole day.
+    estimate: PeopleEstimate
+    #: For every hour of day robots have counted in, sorted by hour.
+    by_hour: list[PeopleEstimate]
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> PeopleEstimates:
+        return cls(
+            _str(d, "place"),
+            _int(d, "accepted"),
+            PeopleEstimate.from_json(_obj(d.get("estimate"), "estimate")),
+            [PeopleEstimate.from_json(_obj(h, "by_hour[]")) for h in _list(d.get("by_hour"), "by_hour")],
         )
 
 
