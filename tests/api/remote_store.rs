@@ -468,3 +468,55 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
     assert_eq!(places.status(), 503);
     app.stop().await;
 }
+
+/// People counts with the graph in a remote store: each request reads the estimate the last one
+/// wrote (not a stale copy of the remote) and the estimate lands in the remote's perceived graph.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn people_counts_accumulate_in_an_oxigraph_server() {
+    let Some(binary) = oxigraph_binary() else {
+        fixtures::missing(
+            "the `oxigraph` binary (pip install oxigraph into .venv, or set OXIGRAPH_BIN)",
+        );
+        return;
+    };
+    let remote = OxigraphServer::start(&binary).await;
+    let temp = tempfile::tempdir().unwrap();
+    let data_dir = temp.path().join("data");
+    let url = remote.url.clone();
+    let app = spawn_app_with(
+        |c| {
+            c.data_dir = data_dir.clone();
+            c.store_url = Some(url.clone());
+        },
+        Some(temp),
+    )
+    .await;
+    let mut estimate = Vec::new();
+    for count in [2.0, 4.0, 9.0] {
+        let r = app
+            .request(Method::POST, "/v1/places/F0-hall/observations")
+            .json(&json!({"observations": [{"count": count, "observed_at": "2025-05-06T12:30:00+02:00"}]}))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 200);
+        let body: Value = r.json().await.unwrap();
+        estimate.push((
+            body["estimate"]["people"].as_f64().unwrap(),
+            body["by_hour"][0]["observations"].as_u64().unwrap(),
+        ));
+    }
+    // The mean of 2, 4 and 9 at each step: 2, 3, 5.
+    for ((people, n), (want, want_n)) in estimate.iter().zip([(2.0, 1), (3.0, 2), (5.0, 3)]) {
+        assert!((people - want).abs() < 1e-9 && *n == want_n, "{estimate:?}");
+    }
+    let hall = "https://mentalsim.dev/data/buildings/sample-building/floors/0/hall";
+    assert!(
+        remote
+            .ask(&format!(
+                "ASK {{ GRAPH <https://mentalsim.dev/graph/perceived> {{ <{hall}/people/estimate/hour/12> <{TOSM}observationCount> 3 }} }}"
+            ))
+            .await
+    );
+    app.stop().await;
+}
