@@ -259,6 +259,10 @@ pub enum BenchCommand {
         /// `options.safety_margin_m`).
         #[arg(long, default_value_t = 0.1)]
         safety_margin_m: f64,
+        /// People walking about in every rehearsal, per 100 m² of free region (0: the empty
+        /// building; the table runs 0, 1, 2 and 4).
+        #[arg(long, default_value_t = 0.0)]
+        people: f64,
     },
     /// Per-edge success of policies on every roadmap edge of every map under a directory (both
     /// directions, K rollouts each), the classical follower beside them with the same seeds
@@ -746,9 +750,13 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             out,
             mission_length_m,
             safety_margin_m,
+            people,
         } => {
             if !(safety_margin_m.is_finite() && (0.0..=5.0).contains(&safety_margin_m)) {
                 anyhow::bail!("--safety-margin-m must lie in [0, 5] metres, got {safety_margin_m}");
+            }
+            if !(people.is_finite() && (0.0..=50.0).contains(&people)) {
+                anyhow::bail!("--people must lie in [0, 50] people per 100 m², got {people}");
             }
             let options = bench::navigation::NavigationBenchOptions {
                 maps_dir: maps,
@@ -757,6 +765,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 out_dir: out,
                 mission_length_m,
                 safety_margin_m,
+                people,
                 verbose: true,
                 ..Default::default()
             };

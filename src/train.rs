@@ -79,6 +79,11 @@ pub struct TrainArgs {
     /// β1 = β2 of Eq. 18.
     #[arg(long)]
     pub beta: Option<f64>,
+    /// People walking about in training, at most this many per 100 m² (a curriculum raises
+    /// the density from 0 once the goals' range is full; the configuration's
+    /// `people_density`).
+    #[arg(long)]
+    pub people: Option<f64>,
     /// Start from scratch even if --out holds a checkpoint.
     #[arg(long)]
     pub fresh: bool,
@@ -136,6 +141,9 @@ pub fn train_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
     if let Some(beta) = args.beta {
         config.td3.beta1 = beta;
         config.td3.beta2 = beta;
+    }
+    if let Some(people) = args.people {
+        config.people_density = people;
     }
     config
         .validate()

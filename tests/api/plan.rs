@@ -690,3 +690,72 @@ async fn the_map_frame_stated_in_the_graph_names_every_pose_of_the_floor() {
     let message = body["error"]["message"].as_str().unwrap();
     assert!(message.contains("frameId"), "{message}");
 }
+
+#[tokio::test]
+async fn plans_rehearse_among_people_and_say_how_close_they_came() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let ask = |people: Value| {
+        json!({
+            "robot": "R-001",
+            "place": "F0",
+            "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+            "goal": {"x": goal.0, "y": goal.1},
+            "options": {"seed": 4, "people": people}
+        })
+    };
+    // A density: people drawn afresh per attempt, the closest approach in every attempt.
+    let (status, body) = plan(&app, &ask(json!(1.0))).await;
+    assert!(status == 200 || status == 409, "{body}");
+    let (report, attempts) = if status == 200 {
+        (
+            &body["people"],
+            body["attempts"].as_array().unwrap().clone(),
+        )
+    } else {
+        (
+            &Value::Null,
+            body["error"]["details"]["attempts"]
+                .as_array()
+                .unwrap()
+                .clone(),
+        )
+    };
+    for a in &attempts {
+        assert!(a["min_person_clearance_m"].is_number(), "{a}");
+    }
+    if status == 200 {
+        assert_eq!(report["source"], "density", "{body}");
+        assert!(report["people"].as_u64().unwrap() >= 1, "{body}");
+        assert_eq!(
+            report["attempts"].as_u64(),
+            Some(attempts.len() as u64),
+            "{body}"
+        );
+        assert!(report["min_person_clearance_m"].as_f64().unwrap() > 0.0);
+    }
+    // `none`: the empty building, nothing about people in the answer.
+    let (status, body) = plan(&app, &ask(json!("none"))).await;
+    assert_eq!(status, 200, "{body}");
+    assert!(body.get("people").is_none(), "{body}");
+    assert!(body["attempts"][0].get("min_person_clearance_m").is_none());
+    // `auto` (the default): the people the bundled building's knowledge expects.
+    let (status, body) = plan(&app, &ask(json!("auto"))).await;
+    let people = if status == 200 {
+        body["people"].clone()
+    } else {
+        Value::Null
+    };
+    assert!(status == 200 || status == 409, "{body}");
+    if status == 200 {
+        assert_eq!(people["source"], "knowledge", "{body}");
+        assert!(people["people"].as_u64().unwrap() >= 1, "{body}");
+    }
+    // Nonsense is refused, naming the option.
+    for bad in [json!("lots"), json!(-1), json!(99), json!(true)] {
+        let (status, body) = plan(&app, &ask(bad.clone())).await;
+        assert!(status == 400 || status == 422, "{bad} -> {status} {body}");
+        assert!(body.to_string().contains("people"), "{bad} -> {body}");
+    }
+}

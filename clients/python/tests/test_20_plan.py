@@ -162,3 +162,15 @@ def test_the_readme_shows_the_example_script() -> None:
     script = (CLIENT_DIR / "examples" / "plan.py").read_text()
     code = script[script.index('"""', 3) + 3 :].strip()
     assert shown.strip() == code, "README.md's Python client example and examples/plan.py differ"
+
+
+def test_a_plan_among_people_says_how_close_they_came(robot: Client, kitchen: str, mission: tuple[Point, Point]) -> None:
+    start, goal = mission
+    plan = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal, options=PlanOptions(people=5.0, seed=3))
+    assert plan.people is not None and plan.people.source == "density"
+    assert plan.people.people >= 1 and plan.people.attempts == len(plan.attempts)
+    assert plan.people.attempts_reached >= 1
+    assert all(a.min_person_clearance_m is not None for a in plan.attempts)
+    # The empty building: nothing about people.
+    empty = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal, options=PlanOptions(people="none", seed=3))
+    assert empty.people is None and all(a.min_person_clearance_m is None for a in empty.attempts)

@@ -79,6 +79,9 @@ pub struct NavigationBenchOptions {
     pub robot_iri: String,
     /// Progress lines on stderr.
     pub verbose: bool,
+    /// People walking about in every rehearsal, per 100 m² of free region (0: the empty
+    /// building). Each run and attempt draws them afresh.
+    pub people: f64,
 }
 
 impl Default for NavigationBenchOptions {
@@ -99,6 +102,7 @@ impl Default for NavigationBenchOptions {
             robot_ttl: crate::bench_dir().join("../../ontologies/robots/differential-robot.ttl"),
             robot_iri: "https://mentalsim.dev/data/robots/differential-robot".to_owned(),
             verbose: false,
+            people: 0.0,
         }
     }
 }
@@ -117,8 +121,10 @@ impl Default for NavigationBenchOptions {
 /// risk; directions under 90% success only where the kept ones join no route, at 100 m more),
 /// first attempt and with re-tries (same roadmap, new noise). `pure_rl` is the policy behind
 /// the shield driving straight at the goal (no handover: the follower's segment would cross
-/// walls).
-pub const METHODS: [&str; 10] = [
+/// walls). `classical_prm_shielded` is the classical follower behind the same shield: what a
+/// robot with a path follower and a collision monitor would do, the fair baseline among people.
+/// With people the ablations (`hybrid_prm_rl_no_handover`, `hybrid_unshielded*`) do not run.
+pub const METHODS: [&str; 11] = [
     "hybrid_policy_roadmap",
     "hybrid_policy_roadmap_resampled",
     "hybrid_prm_rl",
@@ -129,6 +135,7 @@ pub const METHODS: [&str; 10] = [
     "hybrid_unshielded_resampled",
     "pure_rl",
     "classical_prm",
+    "classical_prm_shielded",
 ];
 
 /// One run of one method (one CSV row).
@@ -150,6 +157,10 @@ pub struct NavigationRow {
     pub reason: String,
     /// `plan_endpoint` only: legs the classical follower validated because the policy did not.
     pub fallback_legs: usize,
+    /// Whether the run ended by touching a person.
+    pub person_collision: bool,
+    /// Closest approach of the footprint to a person, metres (`None` without people).
+    pub min_person_clearance_m: Option<f64>,
 }
 
 /// The mission chosen on one map.
@@ -475,6 +486,10 @@ fn run_map(
     let start = Pose2::new(mission.start.x, mission.start.y, yaw);
     let space = rehearsal::config_space(world, cache, name, opts.safety_margin_m)
         .map_err(|e| plan_err(name, &e))?;
+    let people = sim::PeopleConfig {
+        density: opts.people,
+        ..sim::PeopleConfig::default()
+    };
     let mut rows = Vec::new();
     let mut validate_ms: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
     let mut build_ms = Vec::new();
@@ -536,6 +551,7 @@ fn run_map(
                 safety_margin_m: opts.safety_margin_m,
                 seed,
                 trajectory_stride: 0,
+                people: people.clone(),
                 ..PlanOptions::default()
             },
             stop: rehearsal::Stop::default(),
@@ -567,6 +583,9 @@ fn run_map(
             );
         }
         drop(last);
+        let mut shielded = rehearsal::ShieldedFollower::default();
+        let (first, _, _) = timed_validate(world, cache, name, &request, &mut shielded)?;
+        rows.push(row("classical_prm_shielded", name, run, &first));
 
         let Some(policy) = policy else {
             continue;
@@ -601,6 +620,8 @@ fn run_map(
                         time_s: 0.0,
                         reason: e.to_string(),
                         fallback_legs: 0,
+                        person_collision: false,
+                        min_person_clearance_m: None,
                     };
                     rows.push(failed.clone());
                     rows.push(NavigationRow {
@@ -615,17 +636,23 @@ fn run_map(
             rows.push(row("hybrid_policy_roadmap_resampled", name, run, &last));
         }
         let mut shield_only = PolicyController::without_handover(Arc::clone(policy));
-        let (first_s, _, _) = timed_validate(world, cache, name, &request, &mut shield_only)?;
-        rows.push(row("hybrid_prm_rl_no_handover", name, run, &first_s));
-        let mut unshielded = PolicyController::without_shield(Arc::clone(policy));
-        let (first_u, last_u, _) = timed_validate(world, cache, name, &request, &mut unshielded)?;
-        rows.push(row("hybrid_unshielded", name, run, &first_u));
-        rows.push(row("hybrid_unshielded_resampled", name, run, &last_u));
+        if !people.any() {
+            let (first_s, _, _) = timed_validate(world, cache, name, &request, &mut shield_only)?;
+            rows.push(row("hybrid_prm_rl_no_handover", name, run, &first_s));
+            let mut unshielded = PolicyController::without_shield(Arc::clone(policy));
+            let (first_u, last_u, _) =
+                timed_validate(world, cache, name, &request, &mut unshielded)?;
+            rows.push(row("hybrid_unshielded", name, run, &first_u));
+            rows.push(row("hybrid_unshielded_resampled", name, run, &last_u));
+        }
 
         // Pure RL: the policy straight at the final goal.
         let timeout = (opts.pure_rl_seconds_per_10m * mission.prm_length_m / 10.0)
             .max(opts.pure_rl_seconds_per_10m);
-        let env = rehearsal::env_config(policy.scaling().beams, true);
+        let env = sim::EnvConfig {
+            people: people.clone(),
+            ..rehearsal::env_config(policy.scaling().beams, true)
+        };
         let pure = rehearsal::drive(
             world,
             &env,
@@ -650,8 +677,10 @@ fn run_map(
             success: pure.outcome == AttemptOutcome::Reached,
             distance_m: pure.distance_m,
             time_s: pure.time_s,
+            person_collision: pure.reason.starts_with("collision with a person"),
             reason: pure.reason,
             fallback_legs: 0,
+            min_person_clearance_m: pure.min_person_clearance_m,
         });
         if opts.verbose {
             eprintln!(
@@ -765,6 +794,13 @@ fn endpoint_row(
                     report.legs.len()
                 ),
                 fallback_legs,
+                person_collision: false,
+                min_person_clearance_m: report
+                    .attempts
+                    .iter()
+                    .filter(|a| a.outcome == AttemptOutcome::Reached)
+                    .filter_map(|a| a.min_person_clearance_m)
+                    .reduce(f64::min),
             }
         }
         Err(PlanError::NotValidated { attempts }) => {
@@ -782,6 +818,8 @@ fn endpoint_row(
 
 fn row(method: &'static str, map: &str, run: usize, a: &AttemptReport) -> NavigationRow {
     NavigationRow {
+        person_collision: a.reason.starts_with("collision with a person"),
+        min_person_clearance_m: a.min_person_clearance_m,
         method,
         map: map.to_owned(),
         run,
@@ -808,9 +846,12 @@ pub fn percentile(v: &mut [f64], q: f64) -> f64 {
     v[rank - 1]
 }
 
-/// `navigation.csv`: method, map, run, success, distance_m, time_s.
+/// `navigation.csv`: method, map, run, success, distance_m, time_s, person_collision,
+/// min_person_clearance_m (empty without people).
 pub fn to_csv(rows: &[NavigationRow]) -> String {
-    let mut s = String::from("method,map,run,success,distance_m,time_s\n");
+    let mut s = String::from(
+        "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m\n",
+    );
     for r in rows {
         let map = if r.map.contains([',', '"', '\n']) {
             format!("\"{}\"", r.map.replace('"', "\"\""))
@@ -819,8 +860,16 @@ pub fn to_csv(rows: &[NavigationRow]) -> String {
         };
         let _ = writeln!(
             s,
-            "{},{},{},{},{:.3},{:.3}",
-            r.method, map, r.run, r.success, r.distance_m, r.time_s
+            "{},{},{},{},{:.3},{:.3},{},{}",
+            r.method,
+            map,
+            r.run,
+            r.success,
+            r.distance_m,
+            r.time_s,
+            r.person_collision,
+            r.min_person_clearance_m
+                .map_or_else(String::new, |c| format!("{c:.3}"))
         );
     }
     s
@@ -839,6 +888,10 @@ pub struct Stats {
     pub success_time: Option<f64>,
     /// Mean distance over failures, metres.
     pub failure_distance: Option<f64>,
+    /// Runs that ended by touching a person.
+    pub person_collisions: usize,
+    /// Runs that came within [`rehearsal::NEAR_MISS_M`] of a person without touching one.
+    pub person_near_misses: usize,
 }
 
 impl Stats {
@@ -846,8 +899,17 @@ impl Stats {
     pub fn of<'a>(rows: impl Iterator<Item = &'a NavigationRow>) -> Stats {
         let (mut n, mut ok) = (0usize, 0usize);
         let (mut sd, mut st, mut fd) = (0.0, 0.0, 0.0);
+        let (mut hit, mut near) = (0usize, 0usize);
         for r in rows {
             n += 1;
+            if r.person_collision {
+                hit += 1;
+            } else if r
+                .min_person_clearance_m
+                .is_some_and(|c| c < rehearsal::NEAR_MISS_M)
+            {
+                near += 1;
+            }
             if r.success {
                 ok += 1;
                 sd += r.distance_m;
@@ -863,6 +925,8 @@ impl Stats {
             success_distance: mean(sd, ok),
             success_time: mean(st, ok),
             failure_distance: mean(fd, n - ok),
+            person_collisions: hit,
+            person_near_misses: near,
         }
     }
 
@@ -902,15 +966,19 @@ fn cell(v: Option<f64>) -> String {
     v.map_or_else(|| "—".to_owned(), |v| format!("{v:.2}"))
 }
 
-fn table(out: &mut String, rows: &[&NavigationRow]) {
-    out.push_str("| Method | Success: avg distance (m) | Success: avg time (s) | Failure: avg distance (m) | Success rate |\n");
-    out.push_str("|---|---|---|---|---|\n");
+fn table(out: &mut String, rows: &[&NavigationRow], people: bool) {
+    out.push_str("| Method | Success: avg distance (m) | Success: avg time (s) | Failure: avg distance (m) | Success rate |");
+    out.push_str(if people {
+        " Collisions with people | Near misses (< 10 cm of a person) |\n|---|---|---|---|---|---|---|\n"
+    } else {
+        "\n|---|---|---|---|---|\n"
+    });
     for m in METHODS {
         let st = Stats::of(rows.iter().copied().filter(|r| r.method == m));
         if st.runs == 0 {
             continue;
         }
-        let _ = writeln!(
+        let _ = write!(
             out,
             "| {m} | {} | {} | {} | {:.0}% ({}/{}) |",
             cell(st.success_distance),
@@ -920,6 +988,14 @@ fn table(out: &mut String, rows: &[&NavigationRow]) {
             st.successes,
             st.runs
         );
+        if people {
+            let _ = write!(
+                out,
+                " {} | {} |",
+                st.person_collisions, st.person_near_misses
+            );
+        }
+        out.push('\n');
     }
 }
 
@@ -935,13 +1011,14 @@ fn to_markdown(
         String::from("# Long-range navigation (paper Table 3) in the mental simulation\n\n");
     let _ = writeln!(
         s,
-        "{} runs per method and map; one mission per map of about {} m of roadmap path where the map allows (otherwise the longest route among {} sampled points of the largest free region); waypoint timer {} s; safety margin {} m; {} furniture objects; seed {}.\n",
+        "{} runs per method and map; one mission per map of about {} m of roadmap path where the map allows (otherwise the longest route among {} sampled points of the largest free region); waypoint timer {} s; safety margin {} m; {} furniture objects; {} people per 100 m² of free region (drawn afresh per run and attempt; radius 0.2–0.3 m, 0.6–1.3 m/s, ORCA sharing the avoidance with the robot); seed {}.\n",
         opts.runs,
         opts.mission_length_m,
         opts.candidates,
         opts.waypoint_timeout_s,
         opts.safety_margin_m,
         opts.objects,
+        opts.people,
         opts.seed
     );
     match &opts.policy {
@@ -949,7 +1026,7 @@ fn to_markdown(
             let _ = writeln!(s, "Policy: `{}`.\n", p.display());
         }
         None => s.push_str(
-            "**No policy given: only the classical follower (`classical_prm`) ran.** Pass an exported policy directory to run hybrid PRM-RL and pure RL.\n\n",
+            "**No policy given: only the classical follower (`classical_prm`, `classical_prm_shielded`) ran.** Pass an exported policy directory to run hybrid PRM-RL and pure RL.\n\n",
         ),
     }
     s.push_str(
@@ -963,7 +1040,7 @@ fn to_markdown(
 
     s.push_str("## All maps\n\n");
     let all: Vec<&NavigationRow> = rows.iter().collect();
-    table(&mut s, &all);
+    table(&mut s, &all, opts.people > 0.0);
     if let Some(line) = fallback_line(rows) {
         let _ = writeln!(s, "\n{line}.");
     }
@@ -1018,7 +1095,7 @@ fn to_markdown(
             m.map, m.prm_length_m
         );
         let mine: Vec<&NavigationRow> = rows.iter().filter(|r| r.map == m.map).collect();
-        table(&mut s, &mine);
+        table(&mut s, &mine, opts.people > 0.0);
         let failures: Vec<&&NavigationRow> = mine.iter().filter(|r| !r.success).collect();
         if !failures.is_empty() {
             s.push_str("\nFailures:\n\n");
@@ -1055,15 +1132,19 @@ mod tests {
             time_s: 2.0 * d,
             reason: String::new(),
             fallback_legs: 0,
+            person_collision: !success,
+            min_person_clearance_m: Some(0.05),
         };
         let rows = [r(true, 10.0), r(true, 20.0), r(false, 4.0)];
         let st = Stats::of(rows.iter());
         assert_eq!(st.successes, 2);
         assert_eq!(st.success_distance, Some(15.0));
         assert_eq!(st.success_time, Some(30.0));
+        assert_eq!((st.person_collisions, st.person_near_misses), (1, 2));
         assert_eq!(st.failure_distance, Some(4.0));
         assert!(to_csv(&rows).starts_with(
-            "method,map,run,success,distance_m,time_s\npure_rl,m,0,true,10.000,20.000\n"
+            "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m\n\
+             pure_rl,m,0,true,10.000,20.000,false,0.050\n"
         ));
     }
 }

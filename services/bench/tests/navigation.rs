@@ -33,8 +33,8 @@ fn write_map(dir: &Path) {
     .expect("yaml");
 }
 
-#[test]
-fn the_benchmark_writes_table_3_for_every_method() {
+/// A scratch directory with a map under `maps/` and a goal-seeking policy in `policy/`.
+fn map_and_policy() -> tempfile::TempDir {
     let tmp = tempfile::tempdir().expect("tmp");
     write_map(&tmp.path().join("maps"));
     write_goal_seeking_policy(
@@ -43,6 +43,12 @@ fn the_benchmark_writes_table_3_for_every_method() {
         serde_json::json!({"test": true}),
     )
     .expect("policy");
+    tmp
+}
+
+#[test]
+fn the_benchmark_writes_table_3_for_every_method() {
+    let tmp = map_and_policy();
     let report = run_navigation_bench(NavigationBenchOptions {
         maps_dir: tmp.path().join("maps"),
         runs: 2,
@@ -55,10 +61,10 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.missions.len(), 1, "{:?}", report.skipped);
     let m = &report.missions[0];
     assert!(!m.full_length && m.prm_length_m > 5.0, "{m:?}");
-    // Ten methods (the policy-aware roadmap, the shielded and unshielded hybrids, each first
+    // Eleven methods (the policy-aware roadmap, the shielded and unshielded hybrids, each first
     // attempt and re-tried; the shielded hybrid without the handover; the plan endpoint; pure
-    // RL; classical), two runs each.
-    assert_eq!(report.rows.len(), 20);
+    // RL; classical, bare and shielded), two runs each.
+    assert_eq!(report.rows.len(), 22);
     for method in bench::navigation::METHODS {
         assert_eq!(
             report.rows.iter().filter(|r| r.method == method).count(),
@@ -88,9 +94,9 @@ fn the_benchmark_writes_table_3_for_every_method() {
     let mut lines = csv.lines();
     assert_eq!(
         lines.next(),
-        Some("method,map,run,success,distance_m,time_s")
+        Some("method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m")
     );
-    assert_eq!(lines.count(), 20);
+    assert_eq!(lines.count(), 22);
     // The classical follower on the roadmap path reaches the goal.
     assert!(
         report
@@ -115,7 +121,8 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.latency.len(), 2);
     assert!(report.summary().contains("plan latency"));
 
-    // Without a policy only the classical follower runs, and the summary says so.
+    // Without a policy only the classical follower runs (bare and shielded), and the summary
+    // says so.
     let report = run_navigation_bench(NavigationBenchOptions {
         maps_dir: tmp.path().join("maps"),
         runs: 1,
@@ -124,7 +131,58 @@ fn the_benchmark_writes_table_3_for_every_method() {
         ..NavigationBenchOptions::default()
     })
     .expect("runs");
-    assert!(report.rows.iter().all(|r| r.method == "classical_prm"));
+    assert!(
+        report
+            .rows
+            .iter()
+            .all(|r| r.method.starts_with("classical_prm"))
+    );
     assert!(report.markdown.contains("No policy given"));
     assert!(report.summary().contains("no policy given"));
+}
+
+#[test]
+fn with_people_the_table_counts_collisions_and_near_misses_with_them() {
+    let tmp = map_and_policy();
+    let report = run_navigation_bench(NavigationBenchOptions {
+        maps_dir: tmp.path().join("maps"),
+        runs: 2,
+        policy: Some(tmp.path().join("policy")),
+        out_dir: tmp.path().join("out"),
+        candidates: 8,
+        people: 4.0,
+        ..NavigationBenchOptions::default()
+    })
+    .expect("runs");
+    // The ablations do not run among people; everything else does, two runs each.
+    for method in bench::navigation::METHODS {
+        let expected = if method.starts_with("hybrid_unshielded") || method.ends_with("no_handover")
+        {
+            0
+        } else {
+            2
+        };
+        assert_eq!(
+            report.rows.iter().filter(|r| r.method == method).count(),
+            expected,
+            "{method}"
+        );
+    }
+    // Every drive had people about: each row knows its closest approach to one.
+    assert!(
+        report
+            .rows
+            .iter()
+            .filter(|r| r.method != "hybrid_policy_roadmap" || r.distance_m > 0.0)
+            .all(|r| r.min_person_clearance_m.is_some()),
+        "{:?}",
+        report.rows
+    );
+    for row in &report.rows {
+        if row.person_collision {
+            assert!(!row.success && row.reason.starts_with("collision with a person"));
+        }
+    }
+    assert!(report.markdown.contains("Collisions with people"));
+    assert!(report.markdown.contains("4 people per 100 m²"));
 }

@@ -142,6 +142,11 @@ pub struct TrainConfig {
     /// whenever 60% of the last 100 training episodes reached their goal, up to
     /// `goal_distance`. Evaluation always uses the full range.
     pub curriculum: bool,
+    /// People walking about in training, at most this many per 100 m² of free region (0:
+    /// none). A curriculum on density: none at first; once the goal curriculum has reached its
+    /// full range, a quarter of this more whenever 60% of the last 100 episodes reached their
+    /// goal. The policy sees people only through its laser.
+    pub people_density: f64,
     /// Weight of the heading term of the progress reward (`sim::RewardConfig::heading`).
     pub heading_reward: f64,
     /// Measure progress along the shortest path through the free region rather than in a
@@ -207,6 +212,7 @@ impl Default for TrainConfig {
             progress_reward: true,
             time_per_step_reward: true,
             curriculum: true,
+            people_density: 0.0,
             heading_reward: 0.5,
             geodesic_reward: true,
             clearance_reward: 0.0,
@@ -309,7 +315,7 @@ impl TrainConfig {
         let t = &self.td3;
         let pos = |v: f64| v.is_finite() && v > 0.0;
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
-        let checks: [(bool, &str); 22] = [
+        let checks: [(bool, &str); 23] = [
             (
                 !t.hidden.is_empty() && !t.hidden.contains(&0),
                 "td3.hidden: at least one layer, no zero width",
@@ -371,6 +377,10 @@ impl TrainConfig {
             ),
             (nonneg(t.bc_alpha), "td3.bc_alpha must not be negative"),
             (nonneg(self.demo_noise), "demo_noise must not be negative"),
+            (
+                nonneg(self.people_density) && self.people_density <= 50.0,
+                "people_density must lie in [0, 50] people per 100 m²",
+            ),
         ];
         if let Some((_, msg)) = checks.iter().find(|(ok, _)| !ok) {
             return Err((*msg).to_owned());

@@ -160,6 +160,9 @@ pub struct Counters {
     /// Episodes finished when the curriculum last widened.
     #[serde(default)]
     pub curriculum_mark: u64,
+    /// The people curriculum's current density, people per 100 m² (0: nobody yet).
+    #[serde(default)]
+    pub people_density: f64,
     /// Whether the behaviour-cloning warm start has run.
     #[serde(default)]
     pub warm_started: bool,
@@ -510,8 +513,10 @@ impl Trainer {
             self.counters.goal_max = (c.goal_distance.0 + 2.0).min(c.goal_distance.1);
         }
         let range = self.training_range();
+        let people = self.training_people();
         for (i, env) in self.envs.iter_mut().enumerate() {
             env.set_goal_distance(range)?;
+            env.set_people(people.clone())?;
             let obs = env.reset_random()?;
             self.options
                 .scaling
@@ -531,23 +536,43 @@ impl Trainer {
         }
     }
 
-    /// Widens the curriculum when the last 100 episodes mostly succeeded.
+    /// People in training episodes now: the people curriculum's density.
+    fn training_people(&self) -> sim::PeopleConfig {
+        sim::PeopleConfig {
+            density: self.counters.people_density,
+            ..self.env_config.people.clone()
+        }
+    }
+
+    /// Widens the curriculum when the last 100 episodes mostly succeeded: the goal range
+    /// first, then the people's density.
     fn advance_curriculum(&mut self) -> Result<(), TrainError> {
         let c = &self.options.config;
-        if !c.curriculum
-            || self.counters.goal_max >= c.goal_distance.1
+        let goals_done = !c.curriculum || self.counters.goal_max >= c.goal_distance.1;
+        let people_done = self.counters.people_density >= c.people_density;
+        if (goals_done && people_done)
             || self.counters.episodes < self.counters.curriculum_mark + 100
         {
             return Ok(());
         }
         let last = &self.episodes[self.episodes.len().saturating_sub(100)..];
         let successes = last.iter().filter(|e| e.outcome == "goal").count();
-        if successes * 10 >= last.len() * 6 {
+        if successes * 10 < last.len() * 6 {
+            return Ok(());
+        }
+        self.counters.curriculum_mark = self.counters.episodes;
+        if !goals_done {
             self.counters.goal_max = (self.counters.goal_max + 1.0).min(c.goal_distance.1);
-            self.counters.curriculum_mark = self.counters.episodes;
             let range = self.training_range();
             for env in &mut self.envs {
                 env.set_goal_distance(range)?;
+            }
+        } else {
+            self.counters.people_density =
+                (self.counters.people_density + c.people_density / 4.0).min(c.people_density);
+            let people = self.training_people();
+            for env in &mut self.envs {
+                env.set_people(people.clone())?;
             }
         }
         Ok(())
@@ -816,6 +841,7 @@ impl Trainer {
             sim::env_seed(base, index),
         )?;
         env.set_goal_distance(self.training_range())?;
+        env.set_people(self.training_people())?;
         self.envs[i] = env;
         Ok(())
     }

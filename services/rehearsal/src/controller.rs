@@ -48,6 +48,9 @@ pub trait Controller {
     fn attach(&mut self, _world: &World, _beams: usize) {}
 }
 
+/// The rehearsal's control period, seconds: the time between the scans a shield sees.
+const CONTROL_PERIOD_S: f64 = 0.1;
+
 /// Bearing of the waypoint beyond which the policy controller turns on the spot first, radians
 /// (100°).
 pub const ALIGN_START_RAD: f64 = 1.75;
@@ -108,8 +111,9 @@ pub const HANDOVER_MARGIN_M: f64 = 0.3;
 
 /// Revision of what [`PolicyController`] does with a policy's commands: stored measurements of
 /// a policy's edges (policy-aware roadmaps) name it, so that those driven by an older
-/// controller are rebuilt. 2: the handover to the follower.
-pub const POLICY_CONTROLLER_REVISION: u32 = 2;
+/// controller are rebuilt. 2: the handover to the follower. 3: the shield rolls returns that
+/// move forward with their velocity (from consecutive scans).
+pub const POLICY_CONTROLLER_REVISION: u32 = 3;
 
 /// The classical follower a [`PolicyController`] hands over to.
 #[derive(Clone, Copy, Debug)]
@@ -168,6 +172,10 @@ impl PolicyController {
 
 impl Controller for PolicyController {
     fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
+        // The shield sees every scan, so it knows what moves.
+        if let Some(shield) = &mut self.shield {
+            shield.observe(obs, CONTROL_PERIOD_S);
+        }
         // The follower sees every step, so its segment starts where the last waypoint was.
         let follow = self
             .handover
@@ -219,6 +227,9 @@ impl Controller for PolicyController {
     fn start_attempt(&mut self, attempt: u32) {
         self.aligning = None;
         self.handed_over = false;
+        if let Some(shield) = &mut self.shield {
+            shield.reset_motion();
+        }
         if let Some(h) = &mut self.handover {
             h.follower.start_attempt(attempt);
             h.until = None;
@@ -332,6 +343,65 @@ impl Controller for ClassicalFollower {
         format!(
             "classical rotate-then-go follower with pure pursuit on the roadmap's segments (turn on the spot beyond {:.2} rad of heading error, lookahead {} m, up to {} m/s and {} rad/s, waypoints reached within {} m)",
             p.rotate_threshold, p.lookahead_m, p.linear_max, p.angular_max, p.tolerance_m
+        )
+    }
+}
+
+/// The classical follower behind the same collision shield as the policy: what a robot with
+/// a path follower and a collision monitor (nav2's, say) would do. The fair baseline among
+/// moving people, where the bare follower, blind to them, drives on.
+#[derive(Clone, Debug, Default)]
+pub struct ShieldedFollower {
+    follower: ClassicalFollower,
+    shield: Option<Shield>,
+}
+
+impl ShieldedFollower {
+    /// The follower with `params` behind the shield.
+    pub fn new(params: FollowerParams) -> Self {
+        Self {
+            follower: ClassicalFollower::new(params),
+            shield: None,
+        }
+    }
+}
+
+impl Controller for ShieldedFollower {
+    fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
+        let wanted = self.follower.command(obs, pose, waypoint);
+        match &mut self.shield {
+            Some(shield) => {
+                shield.observe(obs, CONTROL_PERIOD_S);
+                shield.filter(wanted, obs, self.follower.params.angular_max)
+            }
+            None => wanted,
+        }
+    }
+
+    fn kind(&self) -> ControllerKind {
+        ControllerKind::Classical
+    }
+
+    fn goal_tolerance(&self) -> Option<f64> {
+        self.follower.goal_tolerance()
+    }
+
+    fn start_attempt(&mut self, attempt: u32) {
+        self.follower.start_attempt(attempt);
+        if let Some(shield) = &mut self.shield {
+            shield.reset_motion();
+        }
+    }
+
+    fn attach(&mut self, world: &World, beams: usize) {
+        self.shield = Shield::new(world, beams);
+    }
+
+    fn description(&self) -> String {
+        format!(
+            "{}, behind a collision shield (forward speed limited to keep {SHIELD_MARGIN_M} m \
+             from what the laser sees within {SHIELD_HORIZON_S} s)",
+            self.follower.description()
         )
     }
 }

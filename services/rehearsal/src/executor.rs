@@ -21,7 +21,7 @@ use planning::{ConfigSpace, Point2, PrmParams, QueryError, QueryOptions, Roadmap
 use sim::{Action, EnvConfig, NavEnv, NoiseConfig, Outcome, Pose2, World};
 
 use crate::cache::{RoadmapCache, SpaceEntry};
-use crate::controller::{ClassicalFollower, Controller, PolicyController};
+use crate::controller::{ClassicalFollower, Controller, PolicyController, ShieldedFollower};
 use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
 use crate::types::{
     AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, LaserTrace, LegReport,
@@ -41,7 +41,8 @@ const START_ESCAPE_M: f64 = 1.0;
 /// Validates the plan of `request` in `world`: with `policy` (hybrid PRM-RL) when given, with
 /// the [`ClassicalFollower`] otherwise. A leg the policy validates in no attempt is validated
 /// with the follower (robots carry both), so a plan is never worse than the follower's; the
-/// report says which controller validated each leg.
+/// report says which controller validated each leg. Among people the follower runs behind the
+/// collision shield ([`follower_for`]).
 ///
 /// `map_version` identifies the world's map for the roadmap cache: equal strings must mean equal
 /// maps (and objects).
@@ -52,6 +53,7 @@ pub fn validate(
     request: &PlanRequest,
     policy: Option<Arc<Policy>>,
 ) -> Result<PlanReport, PlanError> {
+    let mut follower = follower_for(&request.options);
     match policy {
         Some(p) => validate_with_fallback(
             world,
@@ -59,16 +61,21 @@ pub fn validate(
             map_version,
             request,
             &mut PolicyController::new(p),
-            Some(&mut ClassicalFollower::default()),
+            Some(&mut *follower),
             None,
         ),
-        None => validate_with(
-            world,
-            roadmaps,
-            map_version,
-            request,
-            &mut ClassicalFollower::default(),
-        ),
+        None => validate_with(world, roadmaps, map_version, request, &mut *follower),
+    }
+}
+
+/// The classical follower a plan falls back on: the bare follower in an empty building; behind
+/// the collision shield ([`ShieldedFollower`]) among people, whom the bare follower cannot see
+/// (robots run a collision monitor under their path follower for that).
+pub fn follower_for(options: &PlanOptions) -> Box<dyn Controller> {
+    if options.people.any() {
+        Box::new(ShieldedFollower::default())
+    } else {
+        Box::new(ClassicalFollower::default())
     }
 }
 
@@ -107,6 +114,7 @@ impl<'c> Driver<'c> {
         let beams = controller_beams(world, controller)?;
         controller.attach(world, beams);
         let mut env = env_config(beams, opts.noise);
+        env.people = opts.people.clone();
         if let Some(t) = controller.goal_tolerance() {
             env.goal_tolerance = t;
         }
@@ -286,6 +294,7 @@ pub fn validate_with_fallback(
                     prm_path_length_m: legs.length_m,
                     end_pose: run.end_pose,
                     handover_share: run.handover_share(),
+                    min_person_clearance_m: run.min_person_clearance_m,
                     trace: opts.trace.then(|| {
                         attempt_trace(&run, &legs.waypoints, driver.env.control_period, opts)
                     }),
@@ -494,6 +503,9 @@ pub fn check_request(request: &PlanRequest) -> Result<(), PlanError> {
 }
 
 fn check_options(o: &PlanOptions) -> Result<(), PlanError> {
+    if let Some((field, message)) = o.people.problem() {
+        return Err(invalid(format!("options.{field}"), message));
+    }
     if o.max_attempts == 0 || o.max_attempts > MAX_ATTEMPTS {
         return Err(invalid(
             "options.max_attempts",
@@ -821,6 +833,8 @@ pub struct DriveRun {
     pub steps: u64,
     /// Of those, the steps a fallback inside the controller drove ([`Controller::handed_over`]).
     pub handover_steps: u64,
+    /// Closest approach of the footprint to a person, metres (`None` without people).
+    pub min_person_clearance_m: Option<f64>,
 }
 
 impl DriveRun {
@@ -884,6 +898,7 @@ pub fn drive(
     let mut steps_on_waypoint = 0u64;
     let (mut steps, mut handover_steps) = (0u64, 0u64);
     let mut min_clearance = world.clearance(start.x, start.y);
+    let mut min_person = (!env.people().is_empty()).then_some(f64::INFINITY);
     let mut replans = 0u32;
     let mut reached = Vec::new();
     let mut goal_indices = Vec::new();
@@ -909,14 +924,22 @@ pub fn drive(
         if step.info.min_clearance.is_finite() {
             min_clearance = min_clearance.min(step.info.min_clearance);
         }
+        if let Some(m) = &mut min_person {
+            *m = m.min(step.info.person_clearance);
+        }
         steps_on_waypoint += 1;
         match step.info.outcome {
             Outcome::Collision => {
                 let p = step.info.pose;
+                let with = if step.info.person_clearance < env_config.collision_clearance {
+                    "collision with a person"
+                } else {
+                    "collision"
+                };
                 break (
                     AttemptOutcome::Collision,
                     format!(
-                        "collision at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2})",
+                        "{with} at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2})",
                         p.x,
                         p.y,
                         time_s,
@@ -1021,6 +1044,7 @@ pub fn drive(
         ranges,
         steps,
         handover_steps,
+        min_person_clearance_m: min_person,
     })
 }
 

@@ -35,7 +35,7 @@ pub mod types;
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
 pub use controller::{
     ClassicalFollower, Controller, FollowerParams, HANDOVER_MARGIN_M, POLICY_CONTROLLER_REVISION,
-    PolicyController, Shield,
+    PolicyController, Shield, ShieldedFollower,
 };
 pub use edges::{
     EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, UNKEPT_PENALTY_M, drive_edges,
@@ -43,8 +43,8 @@ pub use edges::{
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
-    DriveLimits, DriveRun, Replanner, check_request, config_space, drive, env_config, validate,
-    validate_with, validate_with_fallback,
+    DriveLimits, DriveRun, Replanner, check_request, config_space, drive, env_config, follower_for,
+    validate, validate_with, validate_with_fallback,
 };
 pub use planning_grid::planning_grid;
 pub use types::{

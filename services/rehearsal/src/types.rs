@@ -32,6 +32,9 @@ pub struct PlanOptions {
     /// Record every attempt's drive (poses, the laser ranges the controller saw, the planned
     /// path) in its report, for replaying the rehearsal (default false).
     pub trace: bool,
+    /// People walking about in the rehearsal (default none). Each attempt draws them afresh
+    /// (its own simulation seed), so attempts are different draws of the same crowd.
+    pub people: sim::PeopleConfig,
 }
 
 /// Which roadmap the policy plans on.
@@ -61,6 +64,7 @@ impl Default for PlanOptions {
             trajectory_stride: 1,
             roadmap: RoadmapChoice::Auto,
             trace: false,
+            people: sim::PeopleConfig::default(),
         }
     }
 }
@@ -156,6 +160,8 @@ pub struct AttemptReport {
     /// Share of the control steps the classical follower drove inside a policy controller
     /// (its handover near obstacles); 0 for the follower's own attempts.
     pub handover_share: f64,
+    /// Closest approach of the footprint to a person, metres (`None` without people).
+    pub min_person_clearance_m: Option<f64>,
     /// The drive step by step, when [`PlanOptions::trace`] asked for it.
     pub trace: Option<AttemptTrace>,
 }

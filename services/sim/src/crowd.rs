@@ -9,8 +9,9 @@
 //! defaults: radius 0.2–0.3 m (half a shoulder breadth plus the swing of the arms; Fruin's
 //! "body ellipse" of 0.6 m × 0.45 m), speed 0.6–1.3 m/s (indoor walking; the free walking speed
 //! outdoors averages 1.34 m/s, Weidmann 1993). People share the avoidance of the robot with it,
-//! as ORCA's reciprocity assumes ([`PeopleConfig::yield_to_robot`] = 0.5): a robot that does not
-//! react can still be walked into.
+//! as ORCA's reciprocity assumes ([`PeopleConfig::yield_to_robot`] = 0.5), and keep 0.15 m of
+//! personal space from it; a robot standing still they walk round on their own. A robot that
+//! drives on without reacting can still be walked into.
 //!
 //! Everything is deterministic for a seed: people draw from their own generator, and the
 //! avoidance is computed for all people from the same state before anyone moves.
@@ -44,6 +45,13 @@ const NEIGHBOUR_M: f64 = 5.0;
 /// Kept between a person's bound on the room to walls and their radius before the world is
 /// asked again, metres (the wall clearance is exact to the grid's cell corners, not beyond).
 const ROOM_SLACK_M: f64 = 0.02;
+
+/// Room people keep from the robot beyond touching, metres (ORCA alone lets agents pass at a
+/// hair's breadth).
+const PERSONAL_SPACE_M: f64 = 0.15;
+
+/// A robot slower than this stands still to the people about it, m/s.
+const ROBOT_STANDING_MS: f64 = 0.05;
 
 /// How far right of the way ahead people walk, radians.
 const KEEP_RIGHT_RAD: f64 = 0.1;
@@ -552,16 +560,21 @@ impl Crowd {
             time_horizon: f32_of(cfg.time_horizon),
             obstacle_time_horizon: f32_of(cfg.time_horizon),
         };
-        // A person takes `yield` of the avoidance with the robot: responsibility p / (p + r).
+        // A person takes `yield` of the avoidance with a moving robot (responsibility
+        // p / (p + r)), and all of it with one standing still, which takes none; people keep
+        // their personal space from it.
+        let standing = robot.velocity.0.hypot(robot.velocity.1) < ROBOT_STANDING_MS;
         let robot_share = if cfg.yield_to_robot <= 0.0 {
             f32::MAX
+        } else if standing {
+            0.0
         } else {
             f32_of((1.0 - cfg.yield_to_robot) / cfg.yield_to_robot)
         };
         let robot_agent = Agent {
             position: vec2(robot.position),
             velocity: vec2(robot.velocity),
-            radius: f32_of(robot.radius),
+            radius: f32_of(robot.radius + PERSONAL_SPACE_M),
             avoidance_responsibility: robot_share.max(1e-6),
         };
         let agents: Vec<Agent> = self

@@ -14,6 +14,20 @@ pub const SHIELD_HORIZON_S: f64 = 1.5;
 const SHIELD_SCALES: [f64; 6] = [1.0, 0.7, 0.45, 0.25, 0.1, 0.0];
 /// Time step of the shield's look-ahead, seconds.
 const SHIELD_STEP_S: f64 = 0.1;
+/// Consecutive returns farther apart than this belong to different things, metres.
+const CLUSTER_GAP_M: f64 = 0.3;
+/// Things wider than this are taken to stand still (walls, shelves), metres: a person seen by
+/// the laser spans half a metre or so.
+const MOVER_MAX_WIDTH_M: f64 = 0.9;
+/// A thing seen in two consecutive scans has moved at most this far between them, metres (a
+/// brisk walk for one control period, plus the centroid's noise).
+const MOVER_MAX_STEP_M: f64 = 0.35;
+/// Estimated speeds below this are the laser's noise, m/s.
+const MOVER_MIN_SPEED: f64 = 0.25;
+/// Estimated speeds are capped at this, m/s.
+const MOVER_MAX_SPEED: f64 = 2.0;
+/// Weight of a new velocity measurement in the running estimate.
+const MOVER_SMOOTHING: f64 = 0.5;
 
 /// A collision monitor for a differential robot with a round footprint: it rolls the wanted
 /// command forward for [`SHIELD_HORIZON_S`] against the current laser returns and keeps the
@@ -32,6 +46,18 @@ pub struct Shield {
     range_max: f64,
     /// The footprint's radius, metres.
     radius: f64,
+    /// What moves, from consecutive scans ([`Shield::observe`]); empty for a shield that only
+    /// ever sees single scans.
+    motion: Motion,
+}
+
+/// Things the laser sees move, from consecutive scans.
+#[derive(Clone, Debug, Default)]
+struct Motion {
+    /// The last scan's small clusters: centroid and velocity in that scan's robot frame.
+    last: Vec<((f64, f64), (f64, f64))>,
+    /// Velocity of each of the current scan's returns (beam order, returns only), robot frame.
+    velocities: Vec<(f64, f64)>,
 }
 
 impl Shield {
@@ -50,7 +76,143 @@ impl Shield {
             dirs,
             range_max: laser.range_max,
             radius: robot.footprint_radius,
+            motion: Motion::default(),
         })
+    }
+
+    /// Takes in a new scan `dt` seconds after the last one, so the shield knows what moves:
+    /// consecutive returns cluster into things; a thing narrower than a person's reach is
+    /// matched with the nearest one of the last scan (moved by the robot's own motion, from
+    /// the odometry in `obs`), and its velocity is the smoothed displacement of its centroid.
+    /// [`Shield::filter`] and [`Shield::keeps_margin`] then roll such returns forward with
+    /// their velocity. Wide things (walls) and things seen once stand still.
+    pub fn observe(&mut self, obs: &Observation, dt: f64) {
+        let points: Vec<Option<(f64, f64)>> = obs
+            .ranges
+            .iter()
+            .zip(&self.dirs)
+            .map(|(r, (c, s))| {
+                let r = f64::from(*r);
+                (r < self.range_max - 1e-3).then(|| (self.origin.0 + r * c, self.origin.1 + r * s))
+            })
+            .collect();
+        // Clusters: runs of returns with no gap between neighbours. Far away, neighbouring beams
+        // hit one surface further apart than a gap near by: the gap allowed grows with the
+        // spacing of the beams there, so a wall stays one (wide) thing.
+        let spacing = self
+            .dirs
+            .windows(2)
+            .map(|w| (w[0].0 * w[1].0 + w[0].1 * w[1].1).clamp(-1.0, 1.0).acos())
+            .fold(0.0, f64::max);
+        // Each cluster with the beam index of its first return.
+        let mut clusters: Vec<(usize, Vec<(f64, f64)>)> = Vec::new();
+        let mut last: Option<(f64, f64)> = None;
+        for (i, p) in points.iter().enumerate() {
+            let gap_allowed = |p: (f64, f64)| {
+                let r = (p.0 - self.origin.0).hypot(p.1 - self.origin.1);
+                CLUSTER_GAP_M.max(1.5 * r * spacing)
+            };
+            match (p, last) {
+                (Some(p), Some(q)) if (p.0 - q.0).hypot(p.1 - q.1) <= gap_allowed(*p) => {
+                    if let Some((_, c)) = clusters.last_mut() {
+                        c.push(*p);
+                    }
+                }
+                (Some(p), _) => clusters.push((i, vec![*p])),
+                (None, _) => {}
+            }
+            last = *p;
+        }
+        let range_of = |p: (f64, f64)| (p.0 - self.origin.0).hypot(p.1 - self.origin.1);
+        // A thing in front of what is behind it: the beams either side of it reach farther
+        // (or nothing). The end of a wall seen at a grazing angle is not: the wall goes on
+        // nearer on one side.
+        let in_front = |first: usize, len: usize, cluster: &[(f64, f64)]| {
+            let near = cluster
+                .iter()
+                .map(|p| range_of(*p))
+                .fold(f64::INFINITY, f64::min);
+            let beyond = |j: Option<usize>| {
+                j.and_then(|j| points.get(j).copied().flatten())
+                    .is_none_or(|q| range_of(q) > near + CLUSTER_GAP_M)
+            };
+            beyond(first.checked_sub(1)) && beyond(Some(first + len))
+        };
+        // The robot's motion since the last scan, from odometry: the last scan's frame seen
+        // from this one.
+        let (v, w) = (f64::from(obs.velocity[0]), f64::from(obs.velocity[1]));
+        let dtheta = w * dt;
+        let (mx, my) = (v * dt * (dtheta / 2.0).cos(), v * dt * (dtheta / 2.0).sin());
+        let (s, c) = (-dtheta).sin_cos();
+        let to_now = |p: (f64, f64)| {
+            let (x, y) = (p.0 - mx, p.1 - my);
+            (c * x - s * y, s * x + c * y)
+        };
+        let rotate = |u: (f64, f64)| (c * u.0 - s * u.1, s * u.0 + c * u.1);
+        let previous: Vec<((f64, f64), (f64, f64))> = self
+            .motion
+            .last
+            .iter()
+            .map(|(p, u)| (to_now(*p), rotate(*u)))
+            .collect();
+        let mut now_small = Vec::new();
+        let mut velocities = Vec::new();
+        for (start, cluster) in &clusters {
+            let (first, end) = (cluster[0], cluster[cluster.len() - 1]);
+            let small = (first.0 - end.0).hypot(first.1 - end.1) <= MOVER_MAX_WIDTH_M
+                && in_front(*start, cluster.len(), cluster);
+            let n = cluster.len() as f64;
+            let centroid = (
+                cluster.iter().map(|p| p.0).sum::<f64>() / n,
+                cluster.iter().map(|p| p.1).sum::<f64>() / n,
+            );
+            let mut velocity = (0.0, 0.0);
+            if small && dt > 0.0 {
+                let nearest = previous.iter().min_by(|a, b| {
+                    let d = |q: &(f64, f64)| (q.0 - centroid.0).hypot(q.1 - centroid.1);
+                    d(&a.0).total_cmp(&d(&b.0))
+                });
+                if let Some((q, u)) = nearest
+                    && (q.0 - centroid.0).hypot(q.1 - centroid.1) <= MOVER_MAX_STEP_M
+                {
+                    let raw = ((centroid.0 - q.0) / dt, (centroid.1 - q.1) / dt);
+                    let k = MOVER_SMOOTHING;
+                    velocity = (k * raw.0 + (1.0 - k) * u.0, k * raw.1 + (1.0 - k) * u.1);
+                    let speed = velocity.0.hypot(velocity.1);
+                    if speed > MOVER_MAX_SPEED {
+                        velocity = (
+                            velocity.0 * MOVER_MAX_SPEED / speed,
+                            velocity.1 * MOVER_MAX_SPEED / speed,
+                        );
+                    }
+                }
+                now_small.push((centroid, velocity));
+            }
+            let moving = velocity.0.hypot(velocity.1) >= MOVER_MIN_SPEED;
+            velocities.extend(std::iter::repeat_n(
+                if moving { velocity } else { (0.0, 0.0) },
+                cluster.len(),
+            ));
+        }
+        self.motion = Motion {
+            last: now_small,
+            velocities,
+        };
+    }
+
+    /// Forgets what it saw move (a new drive).
+    pub fn reset_motion(&mut self) {
+        self.motion = Motion::default();
+    }
+
+    /// The velocity of each return [`Shield::returns`] gives, robot frame: zero for what
+    /// stands still, and for all when the last [`Shield::observe`] was of another scan.
+    fn velocities(&self, returns: usize) -> Vec<(f64, f64)> {
+        if self.motion.velocities.len() == returns {
+            self.motion.velocities.clone()
+        } else {
+            vec![(0.0, 0.0); returns]
+        }
     }
 
     /// The laser returns in the robot frame.
@@ -71,6 +233,14 @@ impl Shield {
         self.keeps(command, points, SHIELD_MARGIN_M)
     }
 
+    /// Whether anything the shield sees is moving.
+    pub fn sees_motion(&self) -> bool {
+        self.motion
+            .velocities
+            .iter()
+            .any(|v| v.0 != 0.0 || v.1 != 0.0)
+    }
+
     /// Whether driving `command` for the horizon keeps the footprint `margin` clear of what
     /// the laser sees (returns it is not approaching excepted), as the shield checks its own
     /// margin.
@@ -80,14 +250,16 @@ impl Shield {
     }
 
     fn keeps(&self, command: Action, points: &[(f64, f64)], margin: f64) -> bool {
-        let gap = |x: f64, y: f64| {
+        let velocities = self.velocities(points.len());
+        let gap_at = |x: f64, y: f64, t: f64| {
             points
                 .iter()
-                .map(|(px, py)| (px - x).hypot(py - y))
+                .zip(&velocities)
+                .map(|((px, py), (vx, vy))| (px + vx * t - x).hypot(py + vy * t - y))
                 .fold(f64::INFINITY, f64::min)
                 - self.radius
         };
-        let now = gap(0.0, 0.0);
+        let now = gap_at(0.0, 0.0, 0.0);
         let (mut x, mut y, mut yaw) = (0.0_f64, 0.0_f64, 0.0_f64);
         let mut t = 0.0;
         while t < SHIELD_HORIZON_S {
@@ -95,7 +267,7 @@ impl Shield {
             y += command.linear * yaw.sin() * SHIELD_STEP_S;
             yaw += command.angular * SHIELD_STEP_S;
             t += SHIELD_STEP_S;
-            let g = gap(x, y);
+            let g = gap_at(x, y, t);
             if g < margin && g < now - 1e-3 {
                 return false;
             }
@@ -170,6 +342,7 @@ mod tests {
                 .collect(),
             range_max: 10.0,
             radius: 0.2,
+            motion: Motion::default(),
         }
     }
 
@@ -218,5 +391,59 @@ mod tests {
             ..scan(&s, Some(0.25), None)
         };
         assert_eq!(s.filter(go, &right, 0.5).angular, -0.5);
+    }
+
+    /// A person-sized thing straight ahead: returns 0.2 m wide at `distance`.
+    #[allow(clippy::cast_possible_truncation, reason = "test ranges are small")]
+    fn person_ahead(s: &Shield, distance: f64, velocity: [f32; 2]) -> Observation {
+        let ranges = s
+            .dirs
+            .iter()
+            .map(|&(c, sn)| {
+                let hit = (c > 1e-9 && (distance / c * sn).abs() <= 0.1).then(|| distance / c);
+                hit.unwrap_or(10.0) as f32
+            })
+            .collect();
+        Observation {
+            ranges,
+            velocity,
+            ..obs()
+        }
+    }
+
+    #[test]
+    fn the_shield_slows_for_someone_walking_at_it_that_a_single_scan_lets_pass() {
+        let mut s = shield();
+        let go = Action::new(0.5, 0.0);
+        // Someone 2.0 m ahead: 0.5 m/s for 1.5 s stays 1.05 m short of them if they stand.
+        let first = person_ahead(&s, 2.1, [0.5, 0.0]);
+        assert_eq!(s.filter(go, &first, 0.5), go);
+        s.observe(&first, 0.1);
+        assert!(!s.sees_motion(), "one scan shows no motion");
+        // 0.1 s later they are 0.15 m closer: 0.05 m of it the robot's own motion, 0.1 m theirs
+        // (1 m/s towards the robot). Twice, so the smoothed estimate settles.
+        let mut d = 2.1;
+        for _ in 0..3 {
+            d -= 0.15;
+            let next = person_ahead(&s, d, [0.5, 0.0]);
+            s.observe(&next, 0.1);
+        }
+        assert!(s.sees_motion());
+        let now = person_ahead(&s, d, [0.5, 0.0]);
+        let slowed = s.filter(go, &now, 0.5);
+        assert!(slowed.linear < go.linear, "{slowed:?} at {d:.2} m");
+        // The same scan on its own (a fresh shield): nothing moves, full speed.
+        assert_eq!(shield().filter(go, &now, 0.5), go);
+        // A wall is no mover: a wide thing approached at the robot's own speed stays still.
+        let mut w = shield();
+        for k in 0..4 {
+            let wall = scan(&w, Some(3.0 - 0.05 * f64::from(k)), None);
+            let wall = Observation {
+                velocity: [0.5, 0.0],
+                ..wall
+            };
+            w.observe(&wall, 0.1);
+        }
+        assert!(!w.sees_motion());
     }
 }

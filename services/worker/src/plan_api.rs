@@ -40,8 +40,9 @@ use crate::runner::JobError;
 
 pub use self::error::PlanErrorResponse;
 pub use self::types::{
-    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PlanOptions, PlanReport, PlanRequest,
-    Point, Pose, RoadmapChoice, RoadmapInfo, RoadmapKind,
+    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PeopleChoice, PeopleMode,
+    PeopleReport, PlanOptions, PlanReport, PlanRequest, Point, Pose, RoadmapChoice, RoadmapInfo,
+    RoadmapKind,
 };
 
 /// What a robot asks.
@@ -539,6 +540,7 @@ async fn plan(
     }
 
     let api2 = Arc::clone(&api);
+    let people_choice = req.options.people;
     let request = PlanRequest {
         start: req.start,
         goals,
@@ -549,16 +551,20 @@ async fn plan(
     // rehearsal on the blocking thread sees the stop at its next check and ends.
     let stop = rehearsal::Stop::new();
     let _stop_on_drop = rehearsal::StopOnDrop(stop.clone());
-    let (report, world) = tokio::task::spawn_blocking(move || -> Result<(PlanReport, Arc<World>), ApiError> {
+    let (mut report, world, people) = tokio::task::spawn_blocking(move || -> Result<(PlanReport, Arc<World>, sim::PeopleConfig), ApiError> {
         let _running = Rehearsing::start();
         let world = db
             .world()
             .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
         let mut request = rehearsal::PlanRequest::from(request);
         request.stop = stop;
+        if people_choice == PeopleChoice::Named(PeopleMode::Auto) {
+            request.options.people = knowledge_people(&world);
+        }
+        let people = request.options.people.clone();
         let Some(LoadedPolicy { policy, .. }) = policy else {
             return rehearsal::validate(&world, api2.roadmaps(), &db.version, &request, None)
-                .map(|r| (PlanReport::from(r), world))
+                .map(|r| (PlanReport::from(r), world, people))
                 .map_err(|e| e.to_api_error());
         };
         // `auto` plans on every measured direction (the unkept ones only where the kept ones
@@ -607,17 +613,17 @@ async fn plan(
             ));
         }
         let mut primary = rehearsal::PolicyController::new(policy);
-        let mut follower = rehearsal::ClassicalFollower::default();
+        let mut follower = rehearsal::follower_for(&request.options);
         rehearsal::validate_with_fallback(
             &world,
             api2.roadmaps(),
             &db.version,
             &request,
             &mut primary,
-            Some(&mut follower),
+            Some(&mut *follower),
             policy_roadmap.as_ref(),
         )
-        .map(|r| (PlanReport::from(r), Arc::clone(&world)))
+        .map(|r| (PlanReport::from(r), Arc::clone(&world), people))
         .map_err(|e| match e {
             // Only the policy-aware roadmap was asked for, and no kept edge joins the leg.
             PlanError::Unreachable { .. } if choice == RoadmapChoice::Policy => ApiError::new(
@@ -630,6 +636,18 @@ async fn plan(
     })
     .await
     .map_err(|e| ApiError::internal(format!("plan task failed: {e}")))??;
+    if people.any() {
+        let source = if people_choice == PeopleChoice::Named(PeopleMode::Auto) {
+            "knowledge"
+        } else {
+            "density"
+        };
+        report.people = Some(people_report(
+            source,
+            people.count_for(world.free_region_area_m2()),
+            &report.attempts,
+        ));
+    }
     let fallback_legs = report
         .legs
         .iter()
@@ -667,6 +685,52 @@ async fn plan(
         bytes,
     )
         .into_response())
+}
+
+/// The people the floor's knowledge expects (its places' expected numbers, summed; none where
+/// it says nothing), walking its routes and attractors.
+fn knowledge_people(world: &World) -> sim::PeopleConfig {
+    let expected = world.spec().people.expected_at(None);
+    if !(expected.is_finite() && expected >= 0.5) {
+        return sim::PeopleConfig::default();
+    }
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a rounded positive count, capped"
+    )]
+    let count = (expected.round() as usize).min(sim::crowd::MAX_PEOPLE);
+    sim::PeopleConfig {
+        count: Some(count),
+        ..sim::PeopleConfig::default()
+    }
+}
+
+/// How a plan fared among people: over every attempt (each its own draw), and its validating
+/// runs' closest approach.
+fn people_report(source: &str, people: usize, attempts: &[AttemptReport]) -> PeopleReport {
+    let reached = |a: &&AttemptReport| a.outcome == AttemptOutcome::Reached;
+    let hit = |a: &&AttemptReport| a.reason.starts_with("collision with a person");
+    PeopleReport {
+        source: source.to_owned(),
+        people,
+        min_person_clearance_m: attempts
+            .iter()
+            .filter(reached)
+            .filter_map(|a| a.min_person_clearance_m)
+            .reduce(f64::min),
+        attempts: attempts.len(),
+        attempts_reached: attempts.iter().filter(reached).count(),
+        attempts_hit_person: attempts.iter().filter(hit).count(),
+        attempts_near_miss: attempts
+            .iter()
+            .filter(|a| !hit(a))
+            .filter(|a| {
+                a.min_person_clearance_m
+                    .is_some_and(|c| c < rehearsal::NEAR_MISS_M)
+            })
+            .count(),
+    }
 }
 
 /// The answer as an MCAP recording ([`rosbag`]).

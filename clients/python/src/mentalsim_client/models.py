@@ -264,6 +264,9 @@ class PlanOptions:
     trajectory_stride: int | None = None
     #: Simulated seconds per waypoint before replanning, (0, 600] (default 15).
     waypoint_timeout_s: float | None = None
+    #: People walking about in the rehearsal: ``"auto"`` (default: as many as the knowledge
+    #: expects), ``"none"``, or people per 100 m² of free region (0-50).
+    people: Literal["auto", "none"] | float | None = None
 
     def to_json(self) -> JsonObject:
         out: JsonObject = {}
@@ -325,6 +328,8 @@ class AttemptReport:
     #: Share of the control steps the classical follower drove inside the policy controller
     #: (its handover near obstacles); 0 for the follower's own attempts.
     handover_share: float = 0.0
+    #: Closest approach of the footprint to a person, metres; ``None`` without people.
+    min_person_clearance_m: float | None = None
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> AttemptReport:
@@ -345,6 +350,7 @@ class AttemptReport:
             Pose.from_json(_obj(d.get("end_pose"), "end_pose")),
             _opt_obj(d, "trace"),
             _float(d, "handover_share"),
+            _opt_float(d, "min_person_clearance_m"),
         )
 
 
@@ -368,6 +374,35 @@ class RoadmapInfo:
             _int(d, "seed"),
             _float(d, "inflation_m"),
             _bool(d, "cached"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PeopleReport:
+    """Who walked about in a plan's rehearsal and how it fared (schema ``PeopleReport``)."""
+
+    #: ``knowledge`` (``people="auto"``) or ``density``.
+    source: str
+    #: People drawn in each attempt.
+    people: int
+    #: Closest approach to a person in the validating runs, metres.
+    min_person_clearance_m: float | None
+    #: Attempts, each its own draw of people; of those reached, hit a person, near misses.
+    attempts: int
+    attempts_reached: int
+    attempts_hit_person: int
+    attempts_near_miss: int
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> PeopleReport:
+        return cls(
+            _str(d, "source"),
+            _int(d, "people"),
+            _opt_float(d, "min_person_clearance_m"),
+            _int(d, "attempts"),
+            _int(d, "attempts_reached"),
+            _int(d, "attempts_hit_person"),
+            _int(d, "attempts_near_miss"),
         )
 
 
@@ -405,6 +440,8 @@ class PlanResult:
     #: The laser the traces read (``PlanOptions(trace=True)``).
     laser: JsonObject | None
     raw: JsonObject = field(repr=False, compare=False)
+    #: Who walked about in the rehearsal; ``None`` when nobody did.
+    people: PeopleReport | None = None
 
     @classmethod
     def from_json(cls, d: JsonObject) -> PlanResult:
@@ -431,6 +468,7 @@ class PlanResult:
             roadmap=RoadmapInfo.from_json(_obj(d.get("roadmap"), "roadmap")),
             laser=_opt_obj(d, "laser"),
             raw=d,
+            people=None if d.get("people") is None else PeopleReport.from_json(_obj(d["people"], "people")),
         )
 
 

@@ -953,3 +953,71 @@ fn the_sample_building_and_robot_export_to_files_gazebo_and_ros_load() {
         load_with_libsdformat("sample-building-floor-0-robot.sdf", &with_robot).expect("checker");
     assert_eq!(parsed.models.len(), 3 + spec.objects.len());
 }
+
+#[test]
+fn people_the_knowledge_expects_walk_as_gz_actors() {
+    let mut spec = furnished_spec();
+    spec.people = sim::PeopleSpec {
+        places: vec![sim::PeoplePlaceSpec {
+            id: "hall".into(),
+            expected: 3.0,
+            by_hour: vec![],
+            boundary: vec![],
+        }],
+        routes: vec![sim::RouteSpec {
+            id: "corridor".into(),
+            points: vec![[1.0, 1.0], [4.0, 1.0], [4.0, 3.0]],
+        }],
+        attractors: vec![
+            sim::AttractorSpec {
+                id: "vending".into(),
+                position: [2.0, 2.0],
+                dwell_s: 20.0,
+            },
+            sim::AttractorSpec {
+                id: "desk".into(),
+                position: [3.0, 3.0],
+                dwell_s: 0.0,
+            },
+        ],
+    };
+    let text = world_sdf(&spec);
+    let doc = roxmltree::Document::parse(&text).expect("well-formed XML");
+    let actors: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("actor"))
+        .collect();
+    assert_eq!(actors.len(), 3, "as many as expected");
+    for actor in &actors {
+        let times: Vec<f64> = actor
+            .descendants()
+            .filter(|n| n.has_tag_name("time"))
+            .map(|n| n.text().expect("time").parse().expect("number"))
+            .collect();
+        assert!(times.len() >= 3);
+        assert!(times.windows(2).all(|w| w[1] > w[0]), "{times:?}");
+    }
+    // The first walks the route there and back at 1 m/s: 3 m, 2 m, 2 m, 3 m.
+    let first_times: Vec<&str> = actors[0]
+        .descendants()
+        .filter(|n| n.has_tag_name("time"))
+        .filter_map(|n| n.text())
+        .collect();
+    assert_eq!(first_times, ["0.000", "3.000", "5.000", "7.000", "10.000"]);
+    // The attractors' walker lingers 20 s at the vending machine.
+    assert!(
+        text.contains("<time>0.000</time><pose>2.0000 2.0000"),
+        "{text}"
+    );
+    assert!(
+        text.contains("<time>20.000</time><pose>2.0000 2.0000"),
+        "{text}"
+    );
+    if let Some(parsed) = load_with_libsdformat("world-people.sdf", &text) {
+        assert_eq!(parsed.world, Some(world_name(&spec)));
+    }
+    // No routes or attractors: no trajectory to give, no actor.
+    spec.people.routes.clear();
+    spec.people.attractors.clear();
+    assert!(!world_sdf(&spec).contains("<actor"));
+}

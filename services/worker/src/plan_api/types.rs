@@ -112,6 +112,98 @@ pub struct PlanOptions {
     /// the controller saw, the planned path; thinned by `trajectory_stride`) and the laser's
     /// beam angles (`laser`), to replay the rehearsal (default false).
     pub trace: bool,
+    /// People walking about in the rehearsal: `auto` (default: as many as the knowledge
+    /// expects on the floor, walking its routes and attractors; none where it says nothing),
+    /// `none` (the empty building), or a number of people per 100 m² of free region, 0-50.
+    /// Each attempt draws them afresh, so attempts are different draws of the same crowd.
+    pub people: PeopleChoice,
+}
+
+/// Who walks about in a rehearsal: `"auto"`, `"none"` or people per 100 m² of free region.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(untagged, try_from = "serde_json::Value")]
+pub enum PeopleChoice {
+    /// `auto` or `none`.
+    Named(PeopleMode),
+    /// People per 100 m² of the floor's free region, 0-50.
+    Density(f64),
+}
+
+/// `auto`: the knowledge's expected people; `none`: nobody.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PeopleMode {
+    /// As many as the knowledge expects.
+    Auto,
+    /// Nobody.
+    None,
+}
+
+impl Default for PeopleChoice {
+    fn default() -> Self {
+        PeopleChoice::Named(PeopleMode::Auto)
+    }
+}
+
+/// Densest crowd a rehearsal takes, people per 100 m².
+pub const MAX_PEOPLE_DENSITY: f64 = 50.0;
+
+impl TryFrom<serde_json::Value> for PeopleChoice {
+    type Error = String;
+
+    fn try_from(v: serde_json::Value) -> Result<Self, String> {
+        match &v {
+            serde_json::Value::String(s) if s == "auto" => {
+                Ok(PeopleChoice::Named(PeopleMode::Auto))
+            }
+            serde_json::Value::String(s) if s == "none" => {
+                Ok(PeopleChoice::Named(PeopleMode::None))
+            }
+            serde_json::Value::Number(n) => match n.as_f64() {
+                Some(d) if (0.0..=MAX_PEOPLE_DENSITY).contains(&d) => Ok(PeopleChoice::Density(d)),
+                _ => Err(format!(
+                    "`people` as a density must lie in [0, {MAX_PEOPLE_DENSITY}] people per 100 m², got {n}"
+                )),
+            },
+            other => Err(format!(
+                "`people` is `auto`, `none` or a number of people per 100 m², got {other}"
+            )),
+        }
+    }
+}
+
+impl PeopleChoice {
+    /// The simulation's people for an explicit choice; `auto` and `none` give nobody (the plan
+    /// handler resolves `auto` from the floor's knowledge).
+    pub fn config(self) -> sim::PeopleConfig {
+        match self {
+            PeopleChoice::Density(d) => sim::PeopleConfig {
+                density: d,
+                ..sim::PeopleConfig::default()
+            },
+            PeopleChoice::Named(_) => sim::PeopleConfig::default(),
+        }
+    }
+}
+
+/// Who walked about in a plan's rehearsal, and how the plan fared among them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PeopleReport {
+    /// `knowledge` (`options.people`: `auto`) or `density`.
+    pub source: String,
+    /// People drawn in each attempt.
+    pub people: usize,
+    /// Closest approach of the footprint to a person in the validating runs, metres.
+    pub min_person_clearance_m: Option<f64>,
+    /// Attempts run, each with its own draw of people.
+    pub attempts: usize,
+    /// Of those, the attempts whose drive reached its leg's goal: how robust the plan was
+    /// across draws.
+    pub attempts_reached: usize,
+    /// Attempts that ended touching a person.
+    pub attempts_hit_person: usize,
+    /// Attempts that came within 10 cm of a person without touching one (near misses).
+    pub attempts_near_miss: usize,
 }
 
 /// Which roadmap the policy plans on.
@@ -168,6 +260,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             trajectory_stride,
             roadmap,
             trace,
+            people,
         } = o;
         Self {
             max_attempts,
@@ -181,6 +274,12 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             trajectory_stride,
             roadmap: roadmap.into(),
             trace,
+            // Nobody by the executor's default is the API's `auto` (the knowledge's people).
+            people: if people.any() {
+                PeopleChoice::Density(people.density)
+            } else {
+                PeopleChoice::default()
+            },
         }
     }
 }
@@ -199,6 +298,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             trajectory_stride,
             roadmap,
             trace,
+            people,
         } = o;
         Self {
             max_attempts,
@@ -212,6 +312,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             trajectory_stride,
             roadmap: roadmap.into(),
             trace,
+            people: people.config(),
         }
     }
 }
@@ -372,6 +473,10 @@ pub struct AttemptReport {
     #[serde(default)]
     #[schema(minimum = 0.0, maximum = 1.0)]
     pub handover_share: f64,
+    /// Closest approach of the footprint to a person in this attempt, metres; absent without
+    /// people in the rehearsal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_person_clearance_m: Option<f64>,
     /// The drive step by step, with `options.trace`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trace: Option<AttemptTrace>,
@@ -441,6 +546,7 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
             prm_path_length_m,
             end_pose,
             handover_share,
+            min_person_clearance_m,
             trace,
         } = a;
         Self {
@@ -459,6 +565,7 @@ impl From<rehearsal::AttemptReport> for AttemptReport {
             prm_path_length_m,
             end_pose: end_pose.into(),
             handover_share,
+            min_person_clearance_m,
             trace: trace.map(Into::into),
         }
     }
@@ -501,6 +608,9 @@ pub struct PlanReport {
     /// The laser as `attempts[].trace` reads it, with `options.trace`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub laser: Option<LaserTrace>,
+    /// Who walked about in the rehearsal; absent when nobody did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub people: Option<PeopleReport>,
 }
 
 impl From<rehearsal::PlanReport> for PlanReport {
@@ -538,6 +648,7 @@ impl From<rehearsal::PlanReport> for PlanReport {
             trajectory: trajectory.into_iter().map(Into::into).collect(),
             roadmap: roadmap.into(),
             laser: laser.map(Into::into),
+            people: None,
         }
     }
 }
