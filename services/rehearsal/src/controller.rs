@@ -81,10 +81,8 @@ pub const ALIGN_DONE_RAD: f64 = 0.35;
 /// segment (which the roadmap checked to be clear), and the policy gets the next waypoint
 /// again. A shield that only slows a policy pressing on a wall turns a tight spot into a
 /// stall (the policy's failures on unseen buildings were such stalls, not collisions); the
-/// follower tracks the segment through it. Where the shield sees something move (a person),
-/// the follower's commands go through the shield too: the segment was clear of walls, not of
-/// people. The executor counts the steps each drove ([`Controller::handed_over`]), so a report
-/// says how much of a drive was the policy's.
+/// follower tracks the segment through it. The executor counts the steps each drove
+/// ([`Controller::handed_over`]), so a report says how much of a drive was the policy's.
 ///
 /// [`PolicyController::without_handover`] runs the policy behind the shield alone,
 /// [`PolicyController::without_shield`] the policy alone.
@@ -179,17 +177,10 @@ impl Controller for PolicyController {
             shield.observe(obs, CONTROL_PERIOD_S);
         }
         // The follower sees every step, so its segment starts where the last waypoint was.
-        // The follower cannot see people: where the shield sees something move, its command
-        // goes through the shield too (in a still building the roadmap's segment is clear).
-        let angular_max = f64::from(self.policy.scaling().angular_max);
-        let shield = self.shield.as_ref();
-        let follow = self.handover.as_mut().map(|h| {
-            let fc = h.follower.command(obs, pose, waypoint);
-            match shield {
-                Some(s) if s.sees_motion() => s.filter(fc, obs, angular_max),
-                _ => fc,
-            }
-        });
+        let follow = self
+            .handover
+            .as_mut()
+            .map(|h| h.follower.command(obs, pose, waypoint));
         self.handed_over = false;
         if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
             if h.until == Some(waypoint) {
