@@ -677,7 +677,7 @@ fn run_map(
             success: pure.outcome == AttemptOutcome::Reached,
             distance_m: pure.distance_m,
             time_s: pure.time_s,
-            person_collision: pure.reason.starts_with("collision with a person"),
+            person_collision: rehearsal::hit_person(&pure.reason),
             reason: pure.reason,
             fallback_legs: 0,
             min_person_clearance_m: pure.min_person_clearance_m,
@@ -818,7 +818,7 @@ fn endpoint_row(
 
 fn row(method: &'static str, map: &str, run: usize, a: &AttemptReport) -> NavigationRow {
     NavigationRow {
-        person_collision: a.reason.starts_with("collision with a person"),
+        person_collision: rehearsal::hit_person(&a.reason),
         min_person_clearance_m: a.min_person_clearance_m,
         method,
         map: map.to_owned(),

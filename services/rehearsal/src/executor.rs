@@ -782,6 +782,14 @@ fn replan(
     Ok(subdivide(from, out, max_segment_m))
 }
 
+/// How the reason of a drive that ended touching a person begins.
+pub const PERSON_COLLISION: &str = "collision with a person";
+
+/// Whether a drive's (or attempt's) `reason` says it ended touching a person.
+pub fn hit_person(reason: &str) -> bool {
+    reason.starts_with(PERSON_COLLISION)
+}
+
 /// Bounds of one simulated drive.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DriveLimits {
@@ -932,7 +940,7 @@ pub fn drive(
             Outcome::Collision => {
                 let p = step.info.pose;
                 let with = if step.info.person_clearance < env_config.collision_clearance {
-                    "collision with a person"
+                    PERSON_COLLISION
                 } else {
                     "collision"
                 };

@@ -43,8 +43,8 @@ pub use edges::{
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
-    DriveLimits, DriveRun, Replanner, check_request, config_space, drive, env_config, follower_for,
-    validate, validate_with, validate_with_fallback,
+    DriveLimits, DriveRun, PERSON_COLLISION, Replanner, check_request, config_space, drive,
+    env_config, follower_for, hit_person, validate, validate_with, validate_with_fallback,
 };
 pub use planning_grid::planning_grid;
 pub use types::{

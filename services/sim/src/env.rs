@@ -337,6 +337,8 @@ pub struct NavEnv {
     potential: f64,
     /// People, when the configuration has any.
     crowd: Option<Crowd>,
+    /// The people's own seed, so that they leave the robot's noise as it was without them.
+    crowd_seed: u64,
     /// Smallest gap to a person in the last step.
     person_clearance: f64,
 }
@@ -361,12 +363,14 @@ impl NavEnv {
             })?;
         let dirs = angles.iter().map(|a| (a.cos(), a.sin())).collect();
         let drive = DiffDrive::new(world.spec().robot.drive.clone());
+        let crowd_seed = seed ^ CROWD_STREAM;
         let crowd = config
             .people
             .any()
-            .then(|| Crowd::new(&world, config.people.clone(), seed ^ CROWD_STREAM));
+            .then(|| Crowd::new(&world, config.people.clone(), crowd_seed));
         Ok(NavEnv {
             crowd,
+            crowd_seed,
             person_clearance: f64::INFINITY,
             drive,
             dirs,
@@ -419,8 +423,7 @@ impl NavEnv {
         match &mut self.crowd {
             Some(c) => c.set_config(people),
             None if people.any() => {
-                let seed = self.rng.random::<u64>() ^ CROWD_STREAM;
-                self.crowd = Some(Crowd::new(&self.world, people, seed));
+                self.crowd = Some(Crowd::new(&self.world, people, self.crowd_seed));
             }
             None => {}
         }

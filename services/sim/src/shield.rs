@@ -205,14 +205,11 @@ impl Shield {
         self.motion = Motion::default();
     }
 
-    /// The velocity of each return [`Shield::returns`] gives, robot frame: zero for what
-    /// stands still, and for all when the last [`Shield::observe`] was of another scan.
-    fn velocities(&self, returns: usize) -> Vec<(f64, f64)> {
-        if self.motion.velocities.len() == returns {
-            self.motion.velocities.clone()
-        } else {
-            vec![(0.0, 0.0); returns]
-        }
+    /// The velocity of each return [`Shield::returns`] gives, robot frame (zero for what
+    /// stands still); `None` when the last [`Shield::observe`] was of another scan (or none):
+    /// then all stand still.
+    fn velocities(&self, returns: usize) -> Option<&[(f64, f64)]> {
+        (self.motion.velocities.len() == returns).then_some(self.motion.velocities.as_slice())
     }
 
     /// The laser returns in the robot frame.
@@ -254,8 +251,11 @@ impl Shield {
         let gap_at = |x: f64, y: f64, t: f64| {
             points
                 .iter()
-                .zip(&velocities)
-                .map(|((px, py), (vx, vy))| (px + vx * t - x).hypot(py + vy * t - y))
+                .enumerate()
+                .map(|(i, (px, py))| {
+                    let (vx, vy) = velocities.map_or((0.0, 0.0), |v| v[i]);
+                    (px + vx * t - x).hypot(py + vy * t - y)
+                })
                 .fold(f64::INFINITY, f64::min)
                 - self.radius
         };

@@ -710,7 +710,7 @@ fn knowledge_people(world: &World) -> sim::PeopleConfig {
 /// runs' closest approach.
 fn people_report(source: &str, people: usize, attempts: &[AttemptReport]) -> PeopleReport {
     let reached = |a: &&AttemptReport| a.outcome == AttemptOutcome::Reached;
-    let hit = |a: &&AttemptReport| a.reason.starts_with("collision with a person");
+    let hit = |a: &&AttemptReport| rehearsal::hit_person(&a.reason);
     PeopleReport {
         source: source.to_owned(),
         people,
