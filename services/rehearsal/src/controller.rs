@@ -44,8 +44,9 @@ pub trait Controller {
     fn start_attempt(&mut self, _attempt: u32) {}
 
     /// Called once before the first attempt with the world it will drive in and the beams it
-    /// reads, so a controller can learn the robot's geometry (footprint, laser mounting).
-    fn attach(&mut self, _world: &World, _beams: usize) {}
+    /// reads, so a controller can learn the robot's geometry (footprint, laser mounting) and
+    /// the map (what its laser should see).
+    fn attach(&mut self, _world: &Arc<World>, _beams: usize) {}
 }
 
 /// The rehearsal's control period, seconds: the time between the scans a shield sees.
@@ -81,7 +82,9 @@ pub const ALIGN_DONE_RAD: f64 = 0.35;
 /// segment (which the roadmap checked to be clear), and the policy gets the next waypoint
 /// again. A shield that only slows a policy pressing on a wall turns a tight spot into a
 /// stall (the policy's failures on unseen buildings were such stalls, not collisions); the
-/// follower tracks the segment through it. The executor counts the steps each drove
+/// follower tracks the segment through it, held back only by what the map does not know
+/// ([`Shield::filter_unknown`]: a person on the segment stops it, a wall beside it does not).
+/// The executor counts the steps each drove
 /// ([`Controller::handed_over`]), so a report says how much of a drive was the policy's.
 ///
 /// [`PolicyController::without_handover`] runs the policy behind the shield alone,
@@ -94,10 +97,20 @@ pub struct PolicyController {
     /// Whether to run the shield, and the shield once the robot is known.
     shielded: bool,
     shield: Option<Shield>,
+    /// The map the shield tells known returns from unknown ones (people) by.
+    world: Option<Arc<World>>,
     /// The follower that takes over near obstacles, and the margin that decides it.
     handover: Option<Handover>,
     /// Whether the last command was the follower's.
     handed_over: bool,
+}
+
+/// Shows `shield` the scan of a robot at `pose`, on the map when there is one.
+fn observe(shield: &mut Shield, obs: &Observation, pose: Pose2, world: Option<&World>) {
+    match world {
+        Some(w) => shield.observe_on_map(obs, CONTROL_PERIOD_S, pose, w),
+        None => shield.observe(obs, CONTROL_PERIOD_S),
+    }
 }
 
 /// Closest the policy may plan to bring the footprint to a laser return it approaches before
@@ -112,8 +125,10 @@ pub const HANDOVER_MARGIN_M: f64 = 0.3;
 /// Revision of what [`PolicyController`] does with a policy's commands: stored measurements of
 /// a policy's edges (policy-aware roadmaps) name it, so that those driven by an older
 /// controller are rebuilt. 2: the handover to the follower. 3: the shield rolls returns that
-/// move forward with their velocity (from consecutive scans).
-pub const POLICY_CONTROLLER_REVISION: u32 = 3;
+/// move forward with their velocity (from consecutive scans). 4: the shield tells what the map
+/// knows from what it does not (people), keeps further from the latter and lets them stop
+/// anywhere on their way, and the follower a policy hands over to stops for them.
+pub const POLICY_CONTROLLER_REVISION: u32 = 4;
 
 /// The classical follower a [`PolicyController`] hands over to.
 #[derive(Clone, Copy, Debug)]
@@ -138,6 +153,7 @@ impl PolicyController {
             aligning: None,
             shielded: true,
             shield: None,
+            world: None,
             handover: Some(Handover {
                 follower: ClassicalFollower::default(),
                 margin_m,
@@ -172,9 +188,9 @@ impl PolicyController {
 
 impl Controller for PolicyController {
     fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
-        // The shield sees every scan, so it knows what moves.
+        // The shield sees every scan, so it knows what moves and what the map does not know.
         if let Some(shield) = &mut self.shield {
-            shield.observe(obs, CONTROL_PERIOD_S);
+            observe(shield, obs, pose, self.world.as_deref());
         }
         // The follower sees every step, so its segment starts where the last waypoint was.
         let follow = self
@@ -185,7 +201,10 @@ impl Controller for PolicyController {
         if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
             if h.until == Some(waypoint) {
                 self.handed_over = true;
-                return fc;
+                return self
+                    .shield
+                    .as_ref()
+                    .map_or(fc, |s| s.filter_unknown(fc, obs));
             }
             h.until = None;
         }
@@ -215,7 +234,7 @@ impl Controller for PolicyController {
         {
             h.until = Some(waypoint);
             self.handed_over = true;
-            return fc;
+            return shield.filter_unknown(fc, obs);
         }
         filtered
     }
@@ -236,8 +255,9 @@ impl Controller for PolicyController {
         }
     }
 
-    fn attach(&mut self, world: &World, beams: usize) {
+    fn attach(&mut self, world: &Arc<World>, beams: usize) {
         self.shield = self.shielded.then(|| Shield::new(world, beams)).flatten();
+        self.world = Some(Arc::clone(world));
     }
 
     fn kind(&self) -> ControllerKind {
@@ -354,6 +374,7 @@ impl Controller for ClassicalFollower {
 pub struct ShieldedFollower {
     follower: ClassicalFollower,
     shield: Option<Shield>,
+    world: Option<Arc<World>>,
 }
 
 impl ShieldedFollower {
@@ -362,6 +383,7 @@ impl ShieldedFollower {
         Self {
             follower: ClassicalFollower::new(params),
             shield: None,
+            world: None,
         }
     }
 }
@@ -371,7 +393,7 @@ impl Controller for ShieldedFollower {
         let wanted = self.follower.command(obs, pose, waypoint);
         match &mut self.shield {
             Some(shield) => {
-                shield.observe(obs, CONTROL_PERIOD_S);
+                observe(shield, obs, pose, self.world.as_deref());
                 shield.filter(wanted, obs, self.follower.params.angular_max)
             }
             None => wanted,
@@ -393,8 +415,9 @@ impl Controller for ShieldedFollower {
         }
     }
 
-    fn attach(&mut self, world: &World, beams: usize) {
+    fn attach(&mut self, world: &Arc<World>, beams: usize) {
         self.shield = Shield::new(world, beams);
+        self.world = Some(Arc::clone(world));
     }
 
     fn description(&self) -> String {

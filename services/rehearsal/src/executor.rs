@@ -107,7 +107,7 @@ struct Driver<'c> {
 
 impl<'c> Driver<'c> {
     fn new(
-        world: &World,
+        world: &Arc<World>,
         opts: &PlanOptions,
         controller: &'c mut dyn Controller,
     ) -> Result<Self, PlanError> {
@@ -790,6 +790,41 @@ pub fn hit_person(reason: &str) -> bool {
     reason.starts_with(PERSON_COLLISION)
 }
 
+/// The person nearest to the robot, in words (for a drive that ended touching one, or stuck):
+/// how far and where relative to the robot's heading, how fast they walked and closed in, how
+/// fast the robot drove, and whether the laser could see them (empty without people).
+fn person_contact(env: &NavEnv, robot_linear: f32) -> String {
+    let pose = env.pose();
+    let gap = |q: &sim::Person| (q.position.0 - pose.x).hypot(q.position.1 - pose.y) - q.radius;
+    let Some(q) = env.people().iter().min_by(|a, b| gap(a).total_cmp(&gap(b))) else {
+        return String::new();
+    };
+    let (dx, dy) = (q.position.0 - pose.x, q.position.1 - pose.y);
+    let bearing = sim::kinematics::wrap_angle(dy.atan2(dx) - pose.yaw);
+    let v = f64::from(robot_linear);
+    let (rvx, rvy) = (v * pose.yaw.cos(), v * pose.yaw.sin());
+    let dist = dx.hypot(dy).max(1e-9);
+    let closing = -((q.velocity.0 - rvx) * dx + (q.velocity.1 - rvy) * dy) / dist;
+    let view = env.beam_angles().iter().fold(0.0f64, |m, a| m.max(a.abs()));
+    let gap = gap(q) - env.world().spec().robot.footprint_radius;
+    let side = match bearing.to_degrees() {
+        d if d.abs() <= 15.0 => "ahead".to_owned(),
+        d if d.abs() >= 165.0 => "behind".to_owned(),
+        d if d > 0.0 => format!("{d:.0}° left"),
+        d => format!("{:.0}° right", -d),
+    };
+    let seen = if bearing.abs() > view {
+        ", outside the laser's view"
+    } else {
+        ""
+    };
+    format!(
+        "; the nearest person was {gap:.2} m away {side}{seen}, walking {:.2} m/s and closing \
+         at {closing:.2} m/s, the robot driving {v:.2} m/s",
+        q.velocity.0.hypot(q.velocity.1)
+    )
+}
+
 /// Bounds of one simulated drive.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DriveLimits {
@@ -944,10 +979,23 @@ pub fn drive(
                 } else {
                     "collision"
                 };
+                let contact = if with == PERSON_COLLISION {
+                    let driver = if controller.handed_over() {
+                        ", the fallback driving"
+                    } else {
+                        ""
+                    };
+                    format!(
+                        "{}{driver}",
+                        person_contact(&env, step.observation.velocity[0])
+                    )
+                } else {
+                    String::new()
+                };
                 break (
                     AttemptOutcome::Collision,
                     format!(
-                        "{with} at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2})",
+                        "{with} at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2}){contact}",
                         p.x,
                         p.y,
                         time_s,
@@ -980,13 +1028,14 @@ pub fn drive(
                 }
                 let p = env.pose();
                 let late = format!(
-                    "waypoint {} ({:.2}, {:.2}) not reached within {} s from ({:.2}, {:.2})",
+                    "waypoint {} ({:.2}, {:.2}) not reached within {} s from ({:.2}, {:.2}){}",
                     reached.len() + 1,
                     current.0.x,
                     current.0.y,
                     limits.waypoint_timeout_s,
                     p.x,
-                    p.y
+                    p.y,
+                    person_contact(&env, obs.velocity[0])
                 );
                 let Some(replan) = replanner.as_mut() else {
                     break (AttemptOutcome::Stalled, late);

@@ -45,7 +45,7 @@ impl Controller for BadOnTheLeft {
     fn description(&self) -> String {
         "bad on the left".into()
     }
-    fn attach(&mut self, world: &World, beams: usize) {
+    fn attach(&mut self, world: &Arc<World>, beams: usize) {
         self.0.attach(world, beams);
     }
 }

@@ -56,8 +56,13 @@ const ROBOT_STANDING_MS: f64 = 0.05;
 /// How far right of the way ahead people walk, radians.
 const KEEP_RIGHT_RAD: f64 = 0.1;
 
-/// A person who has not moved for this long picks another target, seconds.
+/// A person who has made no headway for this long picks another target, seconds: someone
+/// who cannot get past (a robot waiting in a corridor, a knot of people) turns away rather
+/// than shuffling on the spot for ever.
 const STUCK_S: f64 = 4.0;
+
+/// Slower than this share of their own walking speed, a person makes no headway.
+const HEADWAY_SHARE: f64 = 0.25;
 
 /// People as the simulation draws them.
 #[derive(Clone, Debug, PartialEq)]
@@ -452,6 +457,61 @@ impl Crowd {
         }
     }
 
+    /// The plan of someone who made no headway towards `blocked_target` from `at`: on a route,
+    /// back the way they came; otherwise the wander target whose way from here leads most
+    /// directly away from the blocked one (ties to the nearer in the points' order).
+    fn turn_back(
+        &mut self,
+        world: &World,
+        t: &Targets,
+        plan: Plan,
+        at: (f64, f64),
+        blocked_target: usize,
+    ) -> Plan {
+        if let Plan::Route {
+            route,
+            index,
+            forward,
+        } = plan
+        {
+            let len = t.routes[route].len();
+            let index = if forward {
+                index.saturating_sub(1)
+            } else {
+                (index + 1).min(len - 1)
+            };
+            return Plan::Route {
+                route,
+                index,
+                forward: !forward,
+            };
+        }
+        let heading = |target: usize| {
+            let goal = t.points[target];
+            let ahead = t
+                .field(world, target)
+                .lookahead_quick(at.0, at.1)
+                .unwrap_or(goal);
+            let (dx, dy) = (ahead.0 - at.0, ahead.1 - at.1);
+            let d = norm(dx, dy);
+            (d > 1e-9).then(|| (dx / d, dy / d))
+        };
+        let Some(blocked) = heading(blocked_target) else {
+            return self.wander_plan(t, Some(blocked_target));
+        };
+        let away = t
+            .wander
+            .iter()
+            .copied()
+            .filter(|&w| w != blocked_target)
+            .filter_map(|w| heading(w).map(|h| (w, h.0 * blocked.0 + h.1 * blocked.1)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match away {
+            Some((target, _)) => Plan::Wander { target },
+            None => self.wander_plan(t, Some(blocked_target)),
+        }
+    }
+
     /// The plan after arriving (or giving up).
     fn next_plan(&mut self, t: &Targets, plan: Plan) -> Plan {
         match plan {
@@ -515,12 +575,15 @@ impl Crowd {
                 continue;
             };
             let goal = t.points[target];
-            if norm(goal.0 - p.position.0, goal.1 - p.position.1) < ARRIVAL_M || p.stuck > STUCK_S {
-                if let (Plan::Attractor { attractor }, false) = (p.plan, p.stuck > STUCK_S) {
+            let stuck = p.stuck > STUCK_S;
+            if norm(goal.0 - p.position.0, goal.1 - p.position.1) < ARRIVAL_M || stuck {
+                if let (Plan::Attractor { attractor }, false) = (p.plan, stuck) {
                     p.dwell = t.attractors[attractor].1;
                 }
                 p.stuck = 0.0;
-                if p.dwell <= 0.0 {
+                if stuck {
+                    p.plan = self.turn_back(world, &t, p.plan, p.position, target);
+                } else if p.dwell <= 0.0 {
                     p.plan = self.next_plan(&t, p.plan);
                 }
                 match Crowd::target_of(&t, p.plan) {
@@ -644,7 +707,7 @@ impl Crowd {
             p.room = room;
             p.velocity = ((to.0 - from.0) / dt, (to.1 - from.1) / dt);
             let moved = norm(to.0 - from.0, to.1 - from.1);
-            if p.dwell <= 0.0 && moved < 0.02 * p.speed * dt {
+            if p.dwell <= 0.0 && moved < HEADWAY_SHARE * p.speed * dt {
                 p.stuck += dt;
             } else {
                 p.stuck = 0.0;

@@ -3,7 +3,7 @@
 //! policy behind it, and training can run behind it too, so that a policy learns what the
 //! shield will do to its commands.
 
-use crate::{Action, Observation, World};
+use crate::{Action, Observation, Pose2, World};
 
 /// Closest the shield lets the footprint come to a laser return, metres (the simulation counts
 /// a collision below 0.02 m).
@@ -28,6 +28,13 @@ const MOVER_MIN_SPEED: f64 = 0.25;
 const MOVER_MAX_SPEED: f64 = 2.0;
 /// Weight of a new velocity measurement in the running estimate.
 const MOVER_SMOOTHING: f64 = 0.5;
+/// A return farther than this from every wall and object the map knows is something the map
+/// does not know (a person, most likely), metres: a few grid cells plus the laser's noise.
+const UNKNOWN_M: f64 = 0.15;
+/// Closest the shield lets the footprint come to a return the map does not know, metres: a
+/// person may step or turn between two scans, and the laser samples a body's curve only at
+/// its beams.
+pub const PERSON_MARGIN_M: f64 = 0.12;
 
 /// A collision monitor for a differential robot with a round footprint: it rolls the wanted
 /// command forward for [`SHIELD_HORIZON_S`] against the current laser returns and keeps the
@@ -58,6 +65,19 @@ struct Motion {
     last: Vec<((f64, f64), (f64, f64))>,
     /// Velocity of each of the current scan's returns (beam order, returns only), robot frame.
     velocities: Vec<(f64, f64)>,
+    /// Whether each of the current scan's returns is something the map does not know (all
+    /// `false` without a map: [`Shield::observe`]).
+    unknown: Vec<bool>,
+}
+
+/// A laser return as the shield's look-ahead treats it.
+#[derive(Copy, Clone, Debug)]
+struct Return {
+    at: (f64, f64),
+    velocity: (f64, f64),
+    /// Something the map does not know: kept [`PERSON_MARGIN_M`] from, and, when it moves,
+    /// avoided anywhere between where it is and where it would be (a walker may stop).
+    unknown: bool,
 }
 
 impl Shield {
@@ -87,6 +107,18 @@ impl Shield {
     /// [`Shield::filter`] and [`Shield::keeps_margin`] then roll such returns forward with
     /// their velocity. Wide things (walls) and things seen once stand still.
     pub fn observe(&mut self, obs: &Observation, dt: f64) {
+        self.observe_with(obs, dt, None);
+    }
+
+    /// [`Shield::observe`] for a robot at `pose` on the map of `world`: the returns the map
+    /// explains (walls, known objects) stand still, and everything else counts as a possible
+    /// person, whatever its shape and wherever it stands (beside a wall, too): only those are
+    /// tracked, kept [`PERSON_MARGIN_M`] from, and seen by [`Shield::filter_unknown`].
+    pub fn observe_on_map(&mut self, obs: &Observation, dt: f64, pose: Pose2, world: &World) {
+        self.observe_with(obs, dt, Some((pose, world)));
+    }
+
+    fn observe_with(&mut self, obs: &Observation, dt: f64, map: Option<(Pose2, &World)>) {
         let points: Vec<Option<(f64, f64)>> = obs
             .ranges
             .iter()
@@ -96,6 +128,23 @@ impl Shield {
                 (r < self.range_max - 1e-3).then(|| (self.origin.0 + r * c, self.origin.1 + r * s))
             })
             .collect();
+        // Which returns the map does not explain.
+        let unknown: Vec<bool> = match map {
+            Some((pose, world)) => {
+                let (sy, cy) = pose.yaw.sin_cos();
+                let robot_radius = world.spec().robot.footprint_radius;
+                points
+                    .iter()
+                    .map(|p| {
+                        p.is_some_and(|(x, y)| {
+                            let (wx, wy) = (pose.x + cy * x - sy * y, pose.y + sy * x + cy * y);
+                            world.clearance(wx, wy) + robot_radius > UNKNOWN_M
+                        })
+                    })
+                    .collect()
+            }
+            None => vec![false; points.len()],
+        };
         // Clusters: runs of returns with no gap between neighbours. Far away, neighbouring beams
         // hit one surface further apart than a gap near by: the gap allowed grows with the
         // spacing of the beams there, so a wall stays one (wide) thing.
@@ -112,8 +161,13 @@ impl Shield {
                 let r = (p.0 - self.origin.0).hypot(p.1 - self.origin.1);
                 CLUSTER_GAP_M.max(1.5 * r * spacing)
             };
+            // On a map, what it knows and what it does not are different things.
+            let same_kind = i > 0 && unknown[i] == unknown[i - 1];
             match (p, last) {
-                (Some(p), Some(q)) if (p.0 - q.0).hypot(p.1 - q.1) <= gap_allowed(*p) => {
+                (Some(p), Some(q))
+                    if (map.is_none() || same_kind)
+                        && (p.0 - q.0).hypot(p.1 - q.1) <= gap_allowed(*p) =>
+                {
                     if let Some((_, c)) = clusters.last_mut() {
                         c.push(*p);
                     }
@@ -159,8 +213,12 @@ impl Shield {
         let mut velocities = Vec::new();
         for (start, cluster) in &clusters {
             let (first, end) = (cluster[0], cluster[cluster.len() - 1]);
-            let small = (first.0 - end.0).hypot(first.1 - end.1) <= MOVER_MAX_WIDTH_M
-                && in_front(*start, cluster.len(), cluster);
+            let small = if map.is_some() {
+                unknown[*start]
+            } else {
+                (first.0 - end.0).hypot(first.1 - end.1) <= MOVER_MAX_WIDTH_M
+                    && in_front(*start, cluster.len(), cluster)
+            };
             let n = cluster.len() as f64;
             let centroid = (
                 cluster.iter().map(|p| p.0).sum::<f64>() / n,
@@ -197,6 +255,12 @@ impl Shield {
         self.motion = Motion {
             last: now_small,
             velocities,
+            unknown: unknown
+                .iter()
+                .zip(&points)
+                .filter(|(_, p)| p.is_some())
+                .map(|(u, _)| *u)
+                .collect(),
         };
     }
 
@@ -205,29 +269,31 @@ impl Shield {
         self.motion = Motion::default();
     }
 
-    /// The velocity of each return [`Shield::returns`] gives, robot frame (zero for what
-    /// stands still); `None` when the last [`Shield::observe`] was of another scan (or none):
-    /// then all stand still.
-    fn velocities(&self, returns: usize) -> Option<&[(f64, f64)]> {
-        (self.motion.velocities.len() == returns).then_some(self.motion.velocities.as_slice())
-    }
-
-    /// The laser returns in the robot frame.
-    fn returns(&self, obs: &Observation) -> Vec<(f64, f64)> {
-        obs.ranges
+    /// The laser returns in the robot frame, with what the last [`Shield::observe`] learnt of
+    /// them when it was of this scan (else all standing, all known).
+    fn returns(&self, obs: &Observation) -> Vec<Return> {
+        let mut out: Vec<Return> = obs
+            .ranges
             .iter()
             .zip(&self.dirs)
             .filter(|(r, _)| f64::from(**r) < self.range_max - 1e-3)
             .map(|(r, (c, s))| {
                 let r = f64::from(*r);
-                (self.origin.0 + r * c, self.origin.1 + r * s)
+                Return {
+                    at: (self.origin.0 + r * c, self.origin.1 + r * s),
+                    velocity: (0.0, 0.0),
+                    unknown: false,
+                }
             })
-            .collect()
-    }
-
-    /// Whether driving `command` for the horizon keeps the footprint clear of `points`.
-    fn safe(&self, command: Action, points: &[(f64, f64)]) -> bool {
-        self.keeps(command, points, SHIELD_MARGIN_M)
+            .collect();
+        let m = &self.motion;
+        if m.velocities.len() == out.len() && m.unknown.len() == out.len() {
+            for ((p, v), u) in out.iter_mut().zip(&m.velocities).zip(&m.unknown) {
+                p.velocity = *v;
+                p.unknown = *u;
+            }
+        }
+        out
     }
 
     /// Whether anything the shield sees is moving.
@@ -239,27 +305,32 @@ impl Shield {
     }
 
     /// Whether driving `command` for the horizon keeps the footprint `margin` clear of what
-    /// the laser sees (returns it is not approaching excepted), as the shield checks its own
-    /// margin.
+    /// the laser sees (returns it is not approaching excepted; unknown ones at least
+    /// [`PERSON_MARGIN_M`]), as the shield checks its own margin.
     pub fn keeps_margin(&self, command: Action, obs: &Observation, margin: f64) -> bool {
         let points = self.returns(obs);
         points.is_empty() || self.keeps(command, &points, margin)
     }
 
-    fn keeps(&self, command: Action, points: &[(f64, f64)], margin: f64) -> bool {
-        let velocities = self.velocities(points.len());
-        let gap_at = |x: f64, y: f64, t: f64| {
+    /// Whether driving `command` for [`SHIELD_HORIZON_S`] keeps the footprint clear of
+    /// `points`: `margin` from known returns and at least [`PERSON_MARGIN_M`] from unknown ones,
+    /// unless it is not getting any closer to them than it is now (driving along a wall). A
+    /// moving return is rolled forward with its velocity, and since a walker may stop at any
+    /// moment, the whole stretch it would walk counts, not only where it would be.
+    fn keeps(&self, command: Action, points: &[Return], margin: f64) -> bool {
+        let person_margin = margin.max(PERSON_MARGIN_M);
+        // Room beyond the margins at (x, y) after t seconds: negative inside one.
+        let excess_at = |x: f64, y: f64, t: f64| {
             points
                 .iter()
-                .enumerate()
-                .map(|(i, (px, py))| {
-                    let (vx, vy) = velocities.map_or((0.0, 0.0), |v| v[i]);
-                    (px + vx * t - x).hypot(py + vy * t - y)
+                .map(|p| {
+                    let ahead = (p.at.0 + p.velocity.0 * t, p.at.1 + p.velocity.1 * t);
+                    let keep = if p.unknown { person_margin } else { margin };
+                    segment_distance((x, y), p.at, ahead) - keep - self.radius
                 })
                 .fold(f64::INFINITY, f64::min)
-                - self.radius
         };
-        let now = gap_at(0.0, 0.0, 0.0);
+        let now = excess_at(0.0, 0.0, 0.0);
         let (mut x, mut y, mut yaw) = (0.0_f64, 0.0_f64, 0.0_f64);
         let mut t = 0.0;
         while t < SHIELD_HORIZON_S {
@@ -267,12 +338,48 @@ impl Shield {
             y += command.linear * yaw.sin() * SHIELD_STEP_S;
             yaw += command.angular * SHIELD_STEP_S;
             t += SHIELD_STEP_S;
-            let g = gap_at(x, y, t);
-            if g < margin && g < now - 1e-3 {
+            let e = excess_at(x, y, t);
+            if e < 0.0 && e < now - 1e-3 {
                 return false;
             }
         }
         true
+    }
+
+    /// The fastest share of `wanted`'s forward speed that keeps the shield's margins from
+    /// `points`, `None` when not even a crawl does.
+    fn fastest_safe(&self, wanted: Action, points: &[Return]) -> Option<Action> {
+        SHIELD_SCALES
+            .into_iter()
+            .filter(|scale| *scale > 0.0)
+            .map(|scale| Action {
+                linear: wanted.linear * scale,
+                angular: wanted.angular,
+            })
+            .find(|command| self.keeps(*command, points, SHIELD_MARGIN_M))
+    }
+
+    /// `wanted` held back only by what the map does not know (the returns the last
+    /// [`Shield::observe_on_map`] found unexplained): slowed as [`Shield::filter`] slows, and
+    /// where not even a crawl is safe, stopped (turning as wanted, which a round robot may).
+    /// For a controller that keeps to the map's free space on its own, as a path follower on a
+    /// roadmap does: walls never stop it, people do.
+    pub fn filter_unknown(&self, wanted: Action, obs: &Observation) -> Action {
+        if wanted.linear <= 0.0 {
+            return wanted;
+        }
+        let points: Vec<Return> = self
+            .returns(obs)
+            .into_iter()
+            .filter(|p| p.unknown)
+            .collect();
+        if points.is_empty() {
+            return wanted;
+        }
+        self.fastest_safe(wanted, &points).unwrap_or(Action {
+            linear: 0.0,
+            angular: wanted.angular,
+        })
     }
 
     /// The command to send instead of `wanted`, given the observation and the angular limit.
@@ -284,14 +391,8 @@ impl Shield {
         if points.is_empty() {
             return wanted;
         }
-        for scale in SHIELD_SCALES {
-            let command = Action {
-                linear: wanted.linear * scale,
-                angular: wanted.angular,
-            };
-            if scale > 0.0 && self.safe(command, &points) {
-                return command;
-            }
+        if let Some(command) = self.fastest_safe(wanted, &points) {
+            return command;
         }
         // Blocked: turn in place, towards the waypoint when it is to one side, else towards
         // the side with more room.
@@ -314,6 +415,18 @@ impl Shield {
             angular: side * angular_max,
         }
     }
+}
+
+/// Distance from `p` to the segment from `a` to `b`.
+fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a.0 + t * dx - p.0).hypot(a.1 + t * dy - p.1)
 }
 
 #[cfg(test)]

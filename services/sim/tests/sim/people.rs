@@ -3,9 +3,10 @@
 
 use std::sync::Arc;
 
+use sim::shield::Shield;
 use sim::{
-    Action, EnvConfig, NavEnv, NoiseConfig, Outcome, PeopleConfig, PeopleSpec, Pose2, RouteSpec,
-    World, WorldSpec,
+    Action, EnvConfig, NavEnv, NoiseConfig, Observation, Outcome, PeopleConfig, PeopleSpec, Pose2,
+    RouteSpec, World, WorldSpec,
 };
 
 use crate::common::room;
@@ -186,9 +187,6 @@ fn people_walk_the_routes_knowledge_names() {
     for _ in 0..900 {
         env.step(Action::new(0.0, 0.0));
         let p = env.people()[0].position;
-        if std::env::var("DBG").is_ok() {
-            eprintln!("{:?}", env.people()[0]);
-        }
         west |= (p.0 - 1.0).hypot(p.1 - 3.0) < 0.6;
         east |= (p.0 - 13.0).hypot(p.1 - 3.0) < 0.6;
     }
@@ -214,4 +212,167 @@ fn without_people_nothing_walks() {
     };
     let err = NavEnv::new(Arc::clone(env.world()), bad, 1).unwrap_err();
     assert!(err.to_string().contains("people.speed"), "{err}");
+}
+
+#[test]
+fn someone_a_standing_robot_blocks_in_a_corridor_turns_back() {
+    // A corridor 1 m wide: a person (0.4-0.6 m across) cannot pass a 0.4 m robot and the
+    // personal space they keep from it.
+    let mut spec = room(16.0, 1.1);
+    spec.people = PeopleSpec {
+        routes: vec![RouteSpec {
+            id: "corridor".into(),
+            points: vec![[1.0, 0.55], [15.0, 0.55]],
+        }],
+        ..PeopleSpec::default()
+    };
+    let mut env = env_in(spec, people(1), 3);
+    env.reset(Pose2::new(8.0, 0.55, 0.0), (14.0, 0.55)).unwrap();
+    let side = (env.people()[0].position.0 - 8.0).signum();
+    let mut walked_late = 0.0;
+    let mut last = env.people()[0].position;
+    for step in 0..1200 {
+        let r = env.step(Action::new(0.0, 0.0));
+        assert_ne!(
+            r.info.outcome,
+            Outcome::Collision,
+            "someone walked into the robot"
+        );
+        let p = env.people()[0].position;
+        assert_eq!(
+            (p.0 - 8.0).signum(),
+            side,
+            "the person got past a robot that fills the corridor"
+        );
+        if step >= 600 {
+            walked_late += (p.0 - last.0).hypot(p.1 - last.1);
+        }
+        last = p;
+    }
+    // Blocked, they turn back and walk the route the other way (and come back, and turn
+    // again) rather than shuffle in front of the robot for ever.
+    assert!(
+        walked_late > 10.0,
+        "the person walked {walked_late:.1} m in the last minute"
+    );
+}
+
+/// What the robot's laser sees at `pose` in `world` with a person of radius 0.25 m at each of
+/// `people` (no noise).
+#[allow(clippy::cast_possible_truncation, reason = "ranges are small")]
+fn scan_with(
+    world: &World,
+    env: &NavEnv,
+    pose: Pose2,
+    people: &[(f64, f64)],
+    v: f32,
+) -> Observation {
+    let angles = env.beam_angles();
+    let mut ranges = vec![0.0; angles.len()];
+    world.scan(pose, &angles, &mut ranges);
+    let (lx, ly, heading) = world.laser_origin(pose);
+    for (a, range) in angles.iter().zip(ranges.iter_mut()) {
+        let (s, c) = (heading + a).sin_cos();
+        for &(px, py) in people {
+            // Ray-circle: |o + t d - p| = r.
+            let (ox, oy) = (lx - px, ly - py);
+            let b = ox * c + oy * s;
+            let disc = b * b - (ox * ox + oy * oy - 0.25 * 0.25);
+            if disc >= 0.0 {
+                let t = -b - disc.sqrt();
+                if t > 0.0 {
+                    *range = range.min(t);
+                }
+            }
+        }
+    }
+    Observation {
+        ranges: ranges.iter().map(|r| *r as f32).collect(),
+        goal_distance: 3.0,
+        goal_angle: 0.0,
+        velocity: [v, 0.0],
+    }
+}
+
+#[test]
+fn the_shield_on_a_map_holds_a_follower_back_for_people_not_for_walls() {
+    let spec = room(12.0, 8.0);
+    let world = World::build(spec.clone()).unwrap();
+    let env = env_in(spec, PeopleConfig::default(), 1);
+    let beams = env.beam_angles().len();
+    let go = Action::new(0.5, 0.0);
+    let fresh = || Shield::new(&world, beams).expect("the laser gives the beams");
+
+    // A wall 0.35 m ahead of the footprint: the full shield slows, the people's shield not.
+    let at_wall = Pose2::new(11.4, 4.0, 0.0);
+    let obs = scan_with(&world, &env, at_wall, &[], 0.0);
+    let mut s = fresh();
+    s.observe_on_map(&obs, 0.1, at_wall, &world);
+    assert!(s.filter(go, &obs, 0.5).linear < go.linear);
+    assert_eq!(s.filter_unknown(go, &obs), go);
+    assert!(!s.sees_motion());
+
+    // A person standing 0.25 m ahead of the footprint in the open: held back, and without a
+    // map nothing counts as a person.
+    let open = Pose2::new(6.0, 4.0, 0.0);
+    let obs = scan_with(&world, &env, open, &[(6.7, 4.0)], 0.0);
+    let mut s = fresh();
+    s.observe_on_map(&obs, 0.1, open, &world);
+    assert!(s.filter_unknown(go, &obs).linear < go.linear);
+    let mut blind = fresh();
+    blind.observe(&obs, 0.1);
+    assert_eq!(blind.filter_unknown(go, &obs), go);
+
+    // Someone against the wall the robot drives along, 2 m ahead, stepping off it: the laser
+    // alone sees them merge with the wall at that grazing angle, one wide thing that never
+    // moves; on the map they are a person, tracked as they step out.
+    let near_wall = Pose2::new(4.0, 7.4, 0.0);
+    let (mut s, mut blind) = (fresh(), fresh());
+    for k in 0..4 {
+        let person = (6.0, 7.68 - 0.1 * f64::from(k));
+        let obs = scan_with(&world, &env, near_wall, &[person], 0.0);
+        s.observe_on_map(&obs, 0.1, near_wall, &world);
+        blind.observe(&obs, 0.1);
+    }
+    assert!(
+        s.sees_motion(),
+        "the person stepping off the wall is seen to move"
+    );
+    assert!(
+        !blind.sees_motion(),
+        "the laser alone tells them from the wall"
+    );
+}
+
+#[test]
+fn the_shield_lets_a_walker_stop_anywhere_on_their_way() {
+    let spec = room(12.0, 8.0);
+    let world = World::build(spec.clone()).unwrap();
+    let env = env_in(spec, PeopleConfig::default(), 1);
+    let beams = env.beam_angles().len();
+    let go = Action::new(0.8, 0.0);
+    let pose = Pose2::new(4.0, 4.0, 0.0);
+    let mut s = Shield::new(&world, beams).unwrap();
+    // Someone 1.2 m ahead and 0.7 m to the right, walking across the robot's way at 1 m/s:
+    // rolled forward alone, they would be gone from the way by the time the robot got there;
+    // but they may stop in it, so the robot slows.
+    let mut y = 3.0;
+    for _ in 0..4 {
+        let obs = scan_with(&world, &env, pose, &[(5.2, y)], 0.0);
+        s.observe_on_map(&obs, 0.1, pose, &world);
+        y += 0.1;
+    }
+    let obs = scan_with(&world, &env, pose, &[(5.2, y)], 0.0);
+    s.observe_on_map(&obs, 0.1, pose, &world);
+    assert!(s.sees_motion());
+    assert!(s.filter_unknown(go, &obs).linear < go.linear);
+    // Once across and walking away, the way is free again.
+    let mut s = Shield::new(&world, beams).unwrap();
+    let mut obs = scan_with(&world, &env, pose, &[(5.2, 5.0)], 0.0);
+    for k in 0..6 {
+        obs = scan_with(&world, &env, pose, &[(5.2, 5.0 + 0.1 * f64::from(k))], 0.0);
+        s.observe_on_map(&obs, 0.1, pose, &world);
+    }
+    assert!(s.sees_motion());
+    assert_eq!(s.filter_unknown(go, &obs), go);
 }
