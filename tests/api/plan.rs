@@ -752,10 +752,62 @@ async fn plans_rehearse_among_people_and_say_how_close_they_came() {
         assert_eq!(people["source"], "knowledge", "{body}");
         assert!(people["people"].as_u64().unwrap() >= 1, "{body}");
     }
+    // At noon the bundled building's knowledge expects more people than over the whole day.
+    let with = |options: Value| {
+        let mut request = ask(json!("auto"));
+        request["options"] = options;
+        request
+    };
+    let all_day = people["people"].as_u64();
+    let (status, body) = plan(&app, &with(json!({"seed": 4, "people_hour": 12}))).await;
+    assert!(status == 200 || status == 409, "{body}");
+    if status == 200 {
+        let noon = body["people"]["people"].as_u64().unwrap();
+        assert!(
+            all_day.is_none_or(|n| noon > n),
+            "{noon} at noon vs {all_day:?}"
+        );
+    }
+    // The validated plan driven again among fresh draws: each reached or named as failed.
+    let (status, body) = plan(
+        &app,
+        &with(json!({"seed": 4, "people": 1.0, "people_draws": 3})),
+    )
+    .await;
+    assert!(status == 200 || status == 409, "{body}");
+    if status == 200 {
+        let draws = &body["people"]["draws"];
+        assert_eq!(draws["draws"], 3, "{body}");
+        let reached = draws["reached"].as_u64().unwrap();
+        let failures = draws["failures"].as_array().unwrap();
+        assert_eq!(reached + failures.len() as u64, 3, "{body}");
+        assert!(
+            draws["min_person_clearance_m"].as_f64().unwrap() > -0.05,
+            "{body}"
+        );
+    }
+    // Without people there is nothing to draw, and no `people` in the answer.
+    let (status, body) = plan(
+        &app,
+        &with(json!({"seed": 4, "people": "none", "people_draws": 3})),
+    )
+    .await;
+    assert_eq!(status, 200, "{body}");
+    assert!(body.get("people").is_none(), "{body}");
     // Nonsense is refused, naming the option.
     for bad in [json!("lots"), json!(-1), json!(99), json!(true)] {
         let (status, body) = plan(&app, &ask(bad.clone())).await;
         assert!(status == 400 || status == 422, "{bad} -> {status} {body}");
         assert!(body.to_string().contains("people"), "{bad} -> {body}");
+    }
+    for (bad, field) in [
+        (json!({"people_hour": 24}), "people_hour"),
+        (json!({"people_hour": -1}), "people_hour"),
+        (json!({"people_draws": 21}), "people_draws"),
+        (json!({"people_draws": "many"}), "people_draws"),
+    ] {
+        let (status, body) = plan(&app, &with(bad.clone())).await;
+        assert!(status == 400 || status == 422, "{bad} -> {status} {body}");
+        assert!(body.to_string().contains(field), "{bad} -> {body}");
     }
 }

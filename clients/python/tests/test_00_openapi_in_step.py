@@ -96,6 +96,9 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         trace=True,
         trajectory_stride=5,
         waypoint_timeout_s=20.0,
+        people=1.5,
+        people_hour=12,
+        people_draws=2,
     )
     config = {"td3": {"hidden": [16, 16]}}
     return {

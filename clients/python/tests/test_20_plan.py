@@ -171,6 +171,11 @@ def test_a_plan_among_people_says_how_close_they_came(robot: Client, kitchen: st
     assert plan.people.people >= 1 and plan.people.attempts == len(plan.attempts)
     assert plan.people.attempts_reached >= 1
     assert all(a.min_person_clearance_m is not None for a in plan.attempts)
+    # Driven again among three fresh draws: each reached or named as failed.
+    again = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal, options=PlanOptions(people=5.0, seed=3, people_draws=3))
+    assert again.people is not None and again.people.draws is not None
+    assert again.people.draws.draws == 3
+    assert again.people.draws.reached + len(again.people.draws.failures) == 3
     # The empty building: nothing about people.
     empty = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal, options=PlanOptions(people="none", seed=3))
     assert empty.people is None and all(a.min_person_clearance_m is None for a in empty.attempts)

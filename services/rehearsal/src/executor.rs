@@ -24,14 +24,17 @@ use crate::cache::{RoadmapCache, SpaceEntry};
 use crate::controller::{ClassicalFollower, Controller, PolicyController, ShieldedFollower};
 use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
 use crate::types::{
-    AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, LaserTrace, LegReport,
-    PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
+    AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, DrawsReport, LaserTrace,
+    LegReport, PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
 };
 
 /// Most goals one request may carry.
 pub const MAX_GOALS: usize = 1000;
 /// Most attempts one request may ask for.
 pub const MAX_ATTEMPTS: u32 = 50;
+
+/// Most draws of people a validated plan is driven again among ([`PlanOptions::people_draws`]).
+pub const MAX_PEOPLE_DRAWS: u32 = 20;
 /// Longest waypoint timer, simulated seconds.
 pub const MAX_WAYPOINT_TIMEOUT_S: f64 = 600.0;
 /// Farthest the start may be from free configuration space and still be driven out of it
@@ -323,6 +326,17 @@ pub fn validate_with_fallback(
         pose = leg_run.run.end_pose;
         validated.push(leg_run);
     }
+    let draws = if opts.people_draws > 0 && opts.people.any() {
+        Some(drive_draws(
+            world,
+            &mut drivers,
+            start,
+            &validated,
+            request,
+        )?)
+    } else {
+        None
+    };
     let roadmap = validated[0].roadmap.clone();
     let mut report = assemble(
         start,
@@ -333,6 +347,7 @@ pub fn validate_with_fallback(
         attempts,
         roadmap,
     );
+    report.people_draws = draws;
     if opts.trace {
         let laser = &world.spec().robot.laser;
         report.laser = Some(LaserTrace {
@@ -366,6 +381,85 @@ fn attempt_trace(
             .filter_map(|&i| run.ranges.get(i).cloned())
             .collect(),
     }
+}
+
+/// Drives the validated legs again, each with the controller that validated it through the
+/// waypoints it reached, among `options.people_draws` fresh draws of people (no replanning:
+/// a waypoint not reached within the timer fails the draw).
+fn drive_draws(
+    world: &Arc<World>,
+    drivers: &mut [Driver<'_>],
+    start: Pose2,
+    validated: &[ValidatedLeg],
+    request: &PlanRequest,
+) -> Result<DrawsReport, PlanError> {
+    let opts = &request.options;
+    let mut report = DrawsReport {
+        draws: opts.people_draws,
+        reached: 0,
+        hit_person: 0,
+        near_miss: 0,
+        min_person_clearance_m: None,
+        failures: Vec::new(),
+    };
+    for draw in 1..=opts.people_draws {
+        let mut pose = start;
+        let mut closest = f64::INFINITY;
+        let mut failure = None;
+        for (leg, v) in validated.iter().enumerate() {
+            let Some(driver) = drivers
+                .iter_mut()
+                .find(|d| d.controller.kind() == v.controller)
+            else {
+                continue;
+            };
+            driver.controller.start_attempt(opts.max_attempts + draw);
+            let run = drive(
+                world,
+                &driver.env,
+                pose,
+                std::slice::from_ref(&v.run.reached),
+                &mut *driver.controller,
+                DriveLimits {
+                    waypoint_timeout_s: opts.waypoint_timeout_s,
+                    max_replans: 0,
+                    sim_seed: mix(leg_seed(opts.seed, 0, leg), u64::from(draw)),
+                    initial_velocity: Action::default(),
+                    stop: request.stop.clone(),
+                    trace: false,
+                },
+                None,
+            )?;
+            closest = closest.min(run.min_person_clearance_m.unwrap_or(f64::INFINITY));
+            if run.outcome != AttemptOutcome::Reached {
+                failure = Some((leg, run.reason));
+                break;
+            }
+            pose = run.end_pose;
+        }
+        if closest.is_finite() {
+            report.min_person_clearance_m = Some(
+                report
+                    .min_person_clearance_m
+                    .map_or(closest, |m| m.min(closest)),
+            );
+        }
+        let hit = failure
+            .as_ref()
+            .is_some_and(|(_, reason)| hit_person(reason));
+        if hit {
+            report.hit_person += 1;
+        } else if closest < crate::NEAR_MISS_M {
+            report.near_miss += 1;
+        }
+        match failure {
+            None => report.reached += 1,
+            Some((leg, reason)) => report
+                .failures
+                .push(format!("draw {draw}, leg {leg}: {reason}")),
+        }
+    }
+    Ok(report)
 }
 
 /// The simulation seed of one attempt on one leg: the first leg's are those of a one-leg plan.
@@ -433,6 +527,7 @@ fn assemble(
         legs: leg_reports,
         attempts,
         laser: None,
+        people_draws: None,
     }
 }
 
@@ -505,6 +600,15 @@ pub fn check_request(request: &PlanRequest) -> Result<(), PlanError> {
 fn check_options(o: &PlanOptions) -> Result<(), PlanError> {
     if let Some((field, message)) = o.people.problem() {
         return Err(invalid(format!("options.{field}"), message));
+    }
+    if o.people_draws > MAX_PEOPLE_DRAWS {
+        return Err(invalid(
+            "options.people_draws",
+            format!(
+                "must lie in [0, {MAX_PEOPLE_DRAWS}], got {}",
+                o.people_draws
+            ),
+        ));
     }
     if o.max_attempts == 0 || o.max_attempts > MAX_ATTEMPTS {
         return Err(invalid(

@@ -43,13 +43,14 @@ pub use edges::{
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
-    DriveLimits, DriveRun, PERSON_COLLISION, Replanner, check_request, config_space, drive,
-    env_config, follower_for, hit_person, validate, validate_with, validate_with_fallback,
+    DriveLimits, DriveRun, MAX_PEOPLE_DRAWS, PERSON_COLLISION, Replanner, check_request,
+    config_space, drive, env_config, follower_for, hit_person, validate, validate_with,
+    validate_with_fallback,
 };
 pub use planning_grid::planning_grid;
 pub use types::{
-    AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, LaserTrace, LegReport,
-    PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
+    AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, DrawsReport, LaserTrace,
+    LegReport, PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
 };
 
 pub use grid::{Stop, StopOnDrop};

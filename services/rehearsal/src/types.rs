@@ -35,6 +35,11 @@ pub struct PlanOptions {
     /// People walking about in the rehearsal (default none). Each attempt draws them afresh
     /// (its own simulation seed), so attempts are different draws of the same crowd.
     pub people: sim::PeopleConfig,
+    /// Once validated, drive the plan's waypoints again among this many fresh draws of the
+    /// people (each leg with the controller that validated it, without replanning), to say how
+    /// robust the plan is across crowds ([`PlanReport::people_draws`]); 0 (default) for none,
+    /// at most [`crate::MAX_PEOPLE_DRAWS`]. Ignored without people.
+    pub people_draws: u32,
 }
 
 /// Which roadmap the policy plans on.
@@ -65,6 +70,7 @@ impl Default for PlanOptions {
             roadmap: RoadmapChoice::Auto,
             trace: false,
             people: sim::PeopleConfig::default(),
+            people_draws: 0,
         }
     }
 }
@@ -225,6 +231,26 @@ pub struct PlanReport {
     pub roadmap: RoadmapInfo,
     /// The laser as the attempts' traces read it, when [`PlanOptions::trace`] asked for them.
     pub laser: Option<LaserTrace>,
+    /// The validated plan driven again among fresh draws of people, when
+    /// [`PlanOptions::people_draws`] asked for it.
+    pub people_draws: Option<DrawsReport>,
+}
+
+/// The validated plan driven again among fresh draws of people.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DrawsReport {
+    /// Draws driven.
+    pub draws: u32,
+    /// Of those, the draws in which every goal was reached.
+    pub reached: u32,
+    /// Draws that ended touching a person.
+    pub hit_person: u32,
+    /// Draws that came within [`crate::NEAR_MISS_M`] of a person without touching one.
+    pub near_miss: u32,
+    /// Closest approach of the footprint to a person over all draws, metres.
+    pub min_person_clearance_m: Option<f64>,
+    /// Why each failed draw failed, in draw order.
+    pub failures: Vec<String>,
 }
 
 /// One leg of a validated plan: from the start (leg 0) or the previous goal to goal

@@ -541,6 +541,16 @@ async fn plan(
 
     let api2 = Arc::clone(&api);
     let people_choice = req.options.people;
+    let people_hour = req.options.people_hour;
+    if people_hour.is_some_and(|h| h > 23) {
+        return Err(ApiError::new(
+            ErrorCode::BadRequest,
+            format!(
+                "`options.people_hour` is an hour of day in [0, 23], got {}",
+                people_hour.unwrap_or_default()
+            ),
+        ));
+    }
     let request = PlanRequest {
         start: req.start,
         goals,
@@ -551,7 +561,13 @@ async fn plan(
     // rehearsal on the blocking thread sees the stop at its next check and ends.
     let stop = rehearsal::Stop::new();
     let _stop_on_drop = rehearsal::StopOnDrop(stop.clone());
-    let (mut report, world, people) = tokio::task::spawn_blocking(move || -> Result<(PlanReport, Arc<World>, sim::PeopleConfig), ApiError> {
+    type Rehearsed = (
+        PlanReport,
+        Arc<World>,
+        sim::PeopleConfig,
+        Option<rehearsal::DrawsReport>,
+    );
+    let (mut report, world, people, draws) = tokio::task::spawn_blocking(move || -> Result<Rehearsed, ApiError> {
         let _running = Rehearsing::start();
         let world = db
             .world()
@@ -559,12 +575,15 @@ async fn plan(
         let mut request = rehearsal::PlanRequest::from(request);
         request.stop = stop;
         if people_choice == PeopleChoice::Named(PeopleMode::Auto) {
-            request.options.people = knowledge_people(&world);
+            request.options.people = knowledge_people(&world, people_hour);
         }
         let people = request.options.people.clone();
         let Some(LoadedPolicy { policy, .. }) = policy else {
             return rehearsal::validate(&world, api2.roadmaps(), &db.version, &request, None)
-                .map(|r| (PlanReport::from(r), world, people))
+                .map(|r| {
+                    let draws = r.people_draws.clone();
+                    (PlanReport::from(r), world, people, draws)
+                })
                 .map_err(|e| e.to_api_error());
         };
         // `auto` plans on every measured direction (the unkept ones only where the kept ones
@@ -623,7 +642,10 @@ async fn plan(
             Some(&mut *follower),
             policy_roadmap.as_ref(),
         )
-        .map(|r| (PlanReport::from(r), Arc::clone(&world), people))
+        .map(|r| {
+            let draws = r.people_draws.clone();
+            (PlanReport::from(r), Arc::clone(&world), people, draws)
+        })
         .map_err(|e| match e {
             // Only the policy-aware roadmap was asked for, and no kept edge joins the leg.
             PlanError::Unreachable { .. } if choice == RoadmapChoice::Policy => ApiError::new(
@@ -642,11 +664,13 @@ async fn plan(
         } else {
             "density"
         };
-        report.people = Some(people_report(
+        let mut summary = people_report(
             source,
             people.count_for(world.free_region_area_m2()),
             &report.attempts,
-        ));
+        );
+        summary.draws = draws.map(Into::into);
+        report.people = Some(summary);
     }
     let fallback_legs = report
         .legs
@@ -687,10 +711,11 @@ async fn plan(
         .into_response())
 }
 
-/// The people the floor's knowledge expects (its places' expected numbers, summed; none where
-/// it says nothing), walking its routes and attractors.
-fn knowledge_people(world: &World) -> sim::PeopleConfig {
-    let expected = world.spec().people.expected_at(None);
+/// The people the floor's knowledge expects (its places' expected numbers, summed, at `hour`
+/// where a place has one for it; none where it says nothing), walking its routes and
+/// attractors.
+fn knowledge_people(world: &World, hour: Option<u8>) -> sim::PeopleConfig {
+    let expected = world.spec().people.expected_at(hour);
     if !(expected.is_finite() && expected >= 0.5) {
         return sim::PeopleConfig::default();
     }
@@ -730,6 +755,7 @@ fn people_report(source: &str, people: usize, attempts: &[AttemptReport]) -> Peo
                     .is_some_and(|c| c < rehearsal::NEAR_MISS_M)
             })
             .count(),
+        draws: None,
     }
 }
 

@@ -267,6 +267,12 @@ class PlanOptions:
     #: People walking about in the rehearsal: ``"auto"`` (default: as many as the knowledge
     #: expects), ``"none"``, or people per 100 m² of free region (0-50).
     people: Literal["auto", "none"] | float | None = None
+    #: With ``people="auto"``: the hour of day (0-23, the building's local time) whose expected
+    #: numbers to use where the knowledge has them by hour (default: the all-day figures).
+    people_hour: int | None = None
+    #: Drive the validated plan again among this many fresh draws of the people, 0-20
+    #: (default 0): how robust it is across crowds (``PeopleReport.draws``).
+    people_draws: int | None = None
 
     def to_json(self) -> JsonObject:
         out: JsonObject = {}
@@ -378,6 +384,32 @@ class RoadmapInfo:
 
 
 @dataclass(frozen=True, slots=True)
+class PeopleDraws:
+    """The validated plan driven again among fresh draws of the people (schema ``PeopleDraws``)."""
+
+    #: Draws driven; of those, reached every goal, hit a person, came within 10 cm of one.
+    draws: int
+    reached: int
+    hit_person: int
+    near_miss: int
+    #: Closest approach to a person over all draws, metres.
+    min_person_clearance_m: float | None
+    #: Why each failed draw failed (``draw K, leg L: ...``).
+    failures: list[str]
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> PeopleDraws:
+        return cls(
+            _int(d, "draws"),
+            _int(d, "reached"),
+            _int(d, "hit_person"),
+            _int(d, "near_miss"),
+            _opt_float(d, "min_person_clearance_m"),
+            [str(f) for f in _list(d.get("failures"), "failures")],
+        )
+
+
+@dataclass(frozen=True, slots=True)
 class PeopleReport:
     """Who walked about in a plan's rehearsal and how it fared (schema ``PeopleReport``)."""
 
@@ -392,6 +424,8 @@ class PeopleReport:
     attempts_reached: int
     attempts_hit_person: int
     attempts_near_miss: int
+    #: The plan driven again among fresh draws, with ``PlanOptions.people_draws``.
+    draws: PeopleDraws | None = None
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> PeopleReport:
@@ -403,6 +437,7 @@ class PeopleReport:
             _int(d, "attempts_reached"),
             _int(d, "attempts_hit_person"),
             _int(d, "attempts_near_miss"),
+            None if d.get("draws") is None else PeopleDraws.from_json(_obj(d["draws"], "draws")),
         )
 
 

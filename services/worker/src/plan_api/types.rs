@@ -117,6 +117,16 @@ pub struct PlanOptions {
     /// `none` (the empty building), or a number of people per 100 m² of free region, 0-50.
     /// Each attempt draws them afresh, so attempts are different draws of the same crowd.
     pub people: PeopleChoice,
+    /// With `people`: `auto`, the hour of day (0-23, the building's local time) whose expected
+    /// numbers to use where the knowledge has them by hour (places without count all day);
+    /// `null` (default) for the all-day figures.
+    #[schema(minimum = 0, maximum = 23)]
+    pub people_hour: Option<u8>,
+    /// Once validated, drive the plan's waypoints again among this many fresh draws of the
+    /// people (each leg with the controller that validated it, without replanning), to say how
+    /// robust it is across crowds (`people.draws`); 0-20, default 0. Ignored without people.
+    #[schema(minimum = 0, maximum = 20)]
+    pub people_draws: u32,
 }
 
 /// Who walks about in a rehearsal: `"auto"`, `"none"` or people per 100 m² of free region.
@@ -204,6 +214,48 @@ pub struct PeopleReport {
     pub attempts_hit_person: usize,
     /// Attempts that came within 10 cm of a person without touching one (near misses).
     pub attempts_near_miss: usize,
+    /// The validated plan driven again among fresh draws of the people, with
+    /// `options.people_draws`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub draws: Option<PeopleDraws>,
+}
+
+/// The validated plan driven again among fresh draws of the people.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PeopleDraws {
+    /// Draws driven.
+    pub draws: u32,
+    /// Of those, the draws in which every goal was reached.
+    pub reached: u32,
+    /// Draws that ended touching a person.
+    pub hit_person: u32,
+    /// Draws that came within 10 cm of a person without touching one.
+    pub near_miss: u32,
+    /// Closest approach of the footprint to a person over all draws, metres.
+    pub min_person_clearance_m: Option<f64>,
+    /// Why each failed draw failed (`draw K, leg L: …`), in draw order.
+    pub failures: Vec<String>,
+}
+
+impl From<rehearsal::DrawsReport> for PeopleDraws {
+    fn from(d: rehearsal::DrawsReport) -> Self {
+        let rehearsal::DrawsReport {
+            draws,
+            reached,
+            hit_person,
+            near_miss,
+            min_person_clearance_m,
+            failures,
+        } = d;
+        Self {
+            draws,
+            reached,
+            hit_person,
+            near_miss,
+            min_person_clearance_m,
+            failures,
+        }
+    }
 }
 
 /// Which roadmap the policy plans on.
@@ -261,6 +313,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             roadmap,
             trace,
             people,
+            people_draws,
         } = o;
         Self {
             max_attempts,
@@ -274,6 +327,8 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             trajectory_stride,
             roadmap: roadmap.into(),
             trace,
+            people_hour: None,
+            people_draws,
             // Nobody by the executor's default is the API's `auto` (the knowledge's people).
             people: if people.any() {
                 PeopleChoice::Density(people.density)
@@ -299,6 +354,8 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             roadmap,
             trace,
             people,
+            people_hour: _,
+            people_draws,
         } = o;
         Self {
             max_attempts,
@@ -313,6 +370,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             roadmap: roadmap.into(),
             trace,
             people: people.config(),
+            people_draws,
         }
     }
 }
@@ -631,6 +689,7 @@ impl From<rehearsal::PlanReport> for PlanReport {
             trajectory,
             roadmap,
             laser,
+            people_draws: _,
         } = r;
         Self {
             waypoints: waypoints.into_iter().map(Into::into).collect(),
