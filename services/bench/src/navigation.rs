@@ -1098,9 +1098,21 @@ fn to_markdown(
         table(&mut s, &mine, opts.people > 0.0);
         let failures: Vec<&&NavigationRow> = mine.iter().filter(|r| !r.success).collect();
         if !failures.is_empty() {
-            s.push_str("\nFailures:\n\n");
-            for r in failures.iter().take(12) {
-                let _ = writeln!(s, "- {} run {}: {}", r.method, r.run, r.reason);
+            // Up to a few per method, so no method's failures hide another's.
+            s.push_str("\nFailures (at most 5 per method):\n\n");
+            let mut shown: Vec<(&str, usize)> = Vec::new();
+            for r in failures {
+                let n = match shown.iter_mut().find(|(m, _)| *m == r.method) {
+                    Some((_, n)) => n,
+                    None => {
+                        shown.push((r.method, 0));
+                        &mut shown.last_mut().expect("just pushed").1
+                    }
+                };
+                *n += 1;
+                if *n <= 5 {
+                    let _ = writeln!(s, "- {} run {}: {}", r.method, r.run, r.reason);
+                }
             }
         }
     }

@@ -11,7 +11,10 @@
 //! outdoors averages 1.34 m/s, Weidmann 1993). People share the avoidance of the robot with it,
 //! as ORCA's reciprocity assumes ([`PeopleConfig::yield_to_robot`] = 0.5), and keep 0.15 m of
 //! personal space from it; a robot standing still they walk round on their own. A robot that
-//! drives on without reacting can still be walked into.
+//! drives on without reacting can still be walked into. Someone who makes no headway for a few
+//! seconds (a robot waiting in a corridor too narrow to pass, a knot of people) turns back, as
+//! people do, rather than shuffling on the spot: on a route the way they came, otherwise to the
+//! target whose way leads most directly away.
 //!
 //! Everything is deterministic for a seed: people draw from their own generator, and the
 //! avoidance is computed for all people from the same state before anyone moves.
