@@ -263,6 +263,10 @@ pub enum BenchCommand {
         /// building; the table runs 0, 1, 2 and 4).
         #[arg(long, default_value_t = 0.0)]
         people: f64,
+        /// Base seed of the missions, roadmaps, noise and people: another seed, other
+        /// missions and crowds.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
     },
     /// Per-edge success of policies on every roadmap edge of every map under a directory (both
     /// directions, K rollouts each), the classical follower beside them with the same seeds
@@ -751,6 +755,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             mission_length_m,
             safety_margin_m,
             people,
+            seed,
         } => {
             if !(safety_margin_m.is_finite() && (0.0..=5.0).contains(&safety_margin_m)) {
                 anyhow::bail!("--safety-margin-m must lie in [0, 5] metres, got {safety_margin_m}");
@@ -766,6 +771,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 mission_length_m,
                 safety_margin_m,
                 people,
+                seed,
                 verbose: true,
                 ..Default::default()
             };

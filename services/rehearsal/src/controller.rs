@@ -83,8 +83,8 @@ pub const ALIGN_DONE_RAD: f64 = 0.35;
 /// again. A shield that only slows a policy pressing on a wall turns a tight spot into a
 /// stall (the policy's failures on unseen buildings were such stalls, not collisions); the
 /// follower tracks the segment through it, held back only by what the map does not know
-/// ([`Shield::filter_unknown`]: a person on the segment stops it, a wall beside it does not).
-/// The executor counts the steps each drove
+/// ([`Shield::filter_follower`]: a person on the segment stops it, a wall only at the last
+/// moment, on the map). The executor counts the steps each drove
 /// ([`Controller::handed_over`]), so a report says how much of a drive was the policy's.
 ///
 /// [`PolicyController::without_handover`] runs the policy behind the shield alone,
@@ -127,7 +127,8 @@ pub const HANDOVER_MARGIN_M: f64 = 0.3;
 /// controller are rebuilt. 2: the handover to the follower. 3: the shield rolls returns that
 /// move forward with their velocity (from consecutive scans). 4: the shield tells what the map
 /// knows from what it does not (people), keeps further from the latter and lets them stop
-/// anywhere on their way, and the follower a policy hands over to stops for them.
+/// anywhere on their way, and the follower a policy hands over to stops for them (and for walls
+/// at the last moment).
 pub const POLICY_CONTROLLER_REVISION: u32 = 4;
 
 /// The classical follower a [`PolicyController`] hands over to.
@@ -201,10 +202,10 @@ impl Controller for PolicyController {
         if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
             if h.until == Some(waypoint) {
                 self.handed_over = true;
-                return self
-                    .shield
-                    .as_ref()
-                    .map_or(fc, |s| s.filter_unknown(fc, obs));
+                return match (&self.shield, &self.world) {
+                    (Some(s), Some(w)) => s.filter_follower(fc, obs, pose, w),
+                    _ => fc,
+                };
             }
             h.until = None;
         }
@@ -234,7 +235,10 @@ impl Controller for PolicyController {
         {
             h.until = Some(waypoint);
             self.handed_over = true;
-            return shield.filter_unknown(fc, obs);
+            return match &self.world {
+                Some(w) => shield.filter_follower(fc, obs, pose, w),
+                None => fc,
+            };
         }
         filtered
     }

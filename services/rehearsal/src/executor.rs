@@ -1083,19 +1083,14 @@ pub fn drive(
                 } else {
                     "collision"
                 };
-                let contact = if with == PERSON_COLLISION {
-                    let driver = if controller.handed_over() {
-                        ", the fallback driving"
-                    } else {
-                        ""
-                    };
-                    format!(
-                        "{}{driver}",
-                        person_contact(&env, step.observation.velocity[0])
-                    )
+                let mut contact = if with == PERSON_COLLISION {
+                    person_contact(&env, step.observation.velocity[0])
                 } else {
                     String::new()
                 };
+                if controller.handed_over() {
+                    contact.push_str(", the fallback driving");
+                }
                 break (
                     AttemptOutcome::Collision,
                     format!(

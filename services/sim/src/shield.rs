@@ -28,6 +28,11 @@ const MOVER_MIN_SPEED: f64 = 0.25;
 const MOVER_MAX_SPEED: f64 = 2.0;
 /// Weight of a new velocity measurement in the running estimate.
 const MOVER_SMOOTHING: f64 = 0.5;
+/// Closest [`Shield::filter_follower`] lets the footprint come to a wall, metres (the
+/// simulation counts a collision below 0.02 m).
+pub const WALL_GUARD_M: f64 = 0.03;
+/// How far ahead [`Shield::filter_follower`] looks for walls, seconds: the last moment.
+pub const WALL_GUARD_S: f64 = 0.3;
 /// A return farther than this from every wall and object the map knows is something the map
 /// does not know (a person, most likely), metres: a few grid cells plus the laser's noise.
 const UNKNOWN_M: f64 = 0.15;
@@ -113,7 +118,7 @@ impl Shield {
     /// [`Shield::observe`] for a robot at `pose` on the map of `world`: the returns the map
     /// explains (walls, known objects) stand still, and everything else counts as a possible
     /// person, whatever its shape and wherever it stands (beside a wall, too): only those are
-    /// tracked, kept [`PERSON_MARGIN_M`] from, and seen by [`Shield::filter_unknown`].
+    /// tracked, kept [`PERSON_MARGIN_M`] from, and seen by [`Shield::filter_follower`].
     pub fn observe_on_map(&mut self, obs: &Observation, dt: f64, pose: Pose2, world: &World) {
         self.observe_with(obs, dt, Some((pose, world)));
     }
@@ -318,6 +323,11 @@ impl Shield {
     /// moving return is rolled forward with its velocity, and since a walker may stop at any
     /// moment, the whole stretch it would walk counts, not only where it would be.
     fn keeps(&self, command: Action, points: &[Return], margin: f64) -> bool {
+        self.keeps_for(command, points, margin, SHIELD_HORIZON_S)
+    }
+
+    /// [`Shield::keeps`] over `horizon_s` seconds.
+    fn keeps_for(&self, command: Action, points: &[Return], margin: f64, horizon_s: f64) -> bool {
         let person_margin = margin.max(PERSON_MARGIN_M);
         // Room beyond the margins at (x, y) after t seconds: negative inside one.
         let excess_at = |x: f64, y: f64, t: f64| {
@@ -333,7 +343,7 @@ impl Shield {
         let now = excess_at(0.0, 0.0, 0.0);
         let (mut x, mut y, mut yaw) = (0.0_f64, 0.0_f64, 0.0_f64);
         let mut t = 0.0;
-        while t < SHIELD_HORIZON_S {
+        while t < horizon_s - 1e-9 {
             x += command.linear * yaw.cos() * SHIELD_STEP_S;
             y += command.linear * yaw.sin() * SHIELD_STEP_S;
             yaw += command.angular * SHIELD_STEP_S;
@@ -359,27 +369,53 @@ impl Shield {
             .find(|command| self.keeps(*command, points, SHIELD_MARGIN_M))
     }
 
-    /// `wanted` held back only by what the map does not know (the returns the last
-    /// [`Shield::observe_on_map`] found unexplained): slowed as [`Shield::filter`] slows, and
-    /// where not even a crawl is safe, stopped (turning as wanted, which a round robot may).
-    /// For a controller that keeps to the map's free space on its own, as a path follower on a
-    /// roadmap does: walls never stop it, people do.
-    pub fn filter_unknown(&self, wanted: Action, obs: &Observation) -> Action {
+    /// `wanted` for a controller that keeps to the map's free space on its own, as a path
+    /// follower on a roadmap does, at `pose` on the map of `world`: held back by what the map
+    /// does not know (the returns the last [`Shield::observe_on_map`] found unexplained) as
+    /// [`Shield::filter`] holds back, and by the map's walls and objects only at the last
+    /// moment (the footprint within [`WALL_GUARD_M`] over the next [`WALL_GUARD_S`], on any
+    /// side, seen by the laser or not), so a tight spot never stalls it; where it may not go
+    /// on, it stops, turning as wanted (which a round robot may).
+    pub fn filter_follower(
+        &self,
+        wanted: Action,
+        obs: &Observation,
+        pose: Pose2,
+        world: &World,
+    ) -> Action {
         if wanted.linear <= 0.0 {
             return wanted;
         }
-        let points: Vec<Return> = self
+        let stop = Action {
+            linear: 0.0,
+            angular: wanted.angular,
+        };
+        let people: Vec<Return> = self
             .returns(obs)
             .into_iter()
             .filter(|p| p.unknown)
             .collect();
-        if points.is_empty() {
-            return wanted;
+        let held = if people.is_empty() {
+            wanted
+        } else {
+            match self.fastest_safe(wanted, &people) {
+                Some(command) => command,
+                None => return stop,
+            }
+        };
+        // The last moment, on the map: the arc of the command, every control step.
+        let now = world.clearance(pose.x, pose.y);
+        let mut p = pose;
+        let mut t = 0.0;
+        while t < WALL_GUARD_S - 1e-9 {
+            p = crate::kinematics::integrate(p, held, SHIELD_STEP_S / 2.0);
+            t += SHIELD_STEP_S / 2.0;
+            let c = world.clearance(p.x, p.y);
+            if c < WALL_GUARD_M && c < now - 1e-3 {
+                return stop;
+            }
         }
-        self.fastest_safe(wanted, &points).unwrap_or(Action {
-            linear: 0.0,
-            angular: wanted.angular,
-        })
+        held
     }
 
     /// The command to send instead of `wanted`, given the observation and the angular limit.

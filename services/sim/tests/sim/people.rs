@@ -295,7 +295,7 @@ fn scan_with(
 }
 
 #[test]
-fn the_shield_on_a_map_holds_a_follower_back_for_people_not_for_walls() {
+fn the_shield_on_a_map_holds_a_follower_back_for_people_and_for_walls_only_at_the_last_moment() {
     let spec = room(12.0, 8.0);
     let world = World::build(spec.clone()).unwrap();
     let env = env_in(spec, PeopleConfig::default(), 1);
@@ -309,8 +309,29 @@ fn the_shield_on_a_map_holds_a_follower_back_for_people_not_for_walls() {
     let mut s = fresh();
     s.observe_on_map(&obs, 0.1, at_wall, &world);
     assert!(s.filter(go, &obs, 0.5).linear < go.linear);
-    assert_eq!(s.filter_unknown(go, &obs), go);
+    assert_eq!(s.filter_follower(go, &obs, at_wall, &world), go);
     assert!(!s.sees_motion());
+    // At the last moment (5 cm from the wall) it stops the follower too, turning as wanted.
+    let touching = Pose2::new(11.7, 4.0, 0.0);
+    let obs = scan_with(&world, &env, touching, &[], 0.0);
+    let mut s = fresh();
+    s.observe_on_map(&obs, 0.1, touching, &world);
+    let turn = Action::new(0.5, 0.3);
+    assert_eq!(
+        s.filter_follower(turn, &obs, touching, &world),
+        Action::new(0.0, 0.3)
+    );
+    // Beside a wall (3.5 cm off, facing along it): on along it, but not curving into it.
+    let beside = Pose2::new(11.715, 4.0, std::f64::consts::FRAC_PI_2);
+    let obs = scan_with(&world, &env, beside, &[], 0.0);
+    let mut s = fresh();
+    s.observe_on_map(&obs, 0.1, beside, &world);
+    assert_eq!(s.filter_follower(go, &obs, beside, &world), go);
+    let into = Action::new(0.5, -0.5);
+    assert_eq!(
+        s.filter_follower(into, &obs, beside, &world),
+        Action::new(0.0, -0.5)
+    );
 
     // A person standing 0.25 m ahead of the footprint in the open: held back, and without a
     // map nothing counts as a person.
@@ -318,10 +339,10 @@ fn the_shield_on_a_map_holds_a_follower_back_for_people_not_for_walls() {
     let obs = scan_with(&world, &env, open, &[(6.7, 4.0)], 0.0);
     let mut s = fresh();
     s.observe_on_map(&obs, 0.1, open, &world);
-    assert!(s.filter_unknown(go, &obs).linear < go.linear);
+    assert!(s.filter_follower(go, &obs, open, &world).linear < go.linear);
     let mut blind = fresh();
     blind.observe(&obs, 0.1);
-    assert_eq!(blind.filter_unknown(go, &obs), go);
+    assert_eq!(blind.filter_follower(go, &obs, open, &world), go);
 
     // Someone against the wall the robot drives along, 2 m ahead, stepping off it: the laser
     // alone sees them merge with the wall at that grazing angle, one wide thing that never
@@ -365,7 +386,7 @@ fn the_shield_lets_a_walker_stop_anywhere_on_their_way() {
     let obs = scan_with(&world, &env, pose, &[(5.2, y)], 0.0);
     s.observe_on_map(&obs, 0.1, pose, &world);
     assert!(s.sees_motion());
-    assert!(s.filter_unknown(go, &obs).linear < go.linear);
+    assert!(s.filter_follower(go, &obs, pose, &world).linear < go.linear);
     // Once across and walking away, the way is free again.
     let mut s = Shield::new(&world, beams).unwrap();
     let mut obs = scan_with(&world, &env, pose, &[(5.2, 5.0)], 0.0);
@@ -374,5 +395,5 @@ fn the_shield_lets_a_walker_stop_anywhere_on_their_way() {
         s.observe_on_map(&obs, 0.1, pose, &world);
     }
     assert!(s.sees_motion());
-    assert_eq!(s.filter_unknown(go, &obs), go);
+    assert_eq!(s.filter_follower(go, &obs, pose, &world), go);
 }
