@@ -245,6 +245,48 @@ impl Targets {
     pub fn points(&self) -> &[(f64, f64)] {
         &self.points
     }
+
+    /// A round through `stops` of the wander targets (people on neither a route nor an
+    /// attractor walk between them), from the `first`-th on in turn and back to it, each leg
+    /// the shortest way through the free region, as points about `spacing_m` apart: where such
+    /// a walker goes, for a trajectory given ahead of time (an SDF actor). Empty with fewer than
+    /// two wander targets.
+    pub fn wander_round(
+        &self,
+        world: &World,
+        first: usize,
+        stops: usize,
+        spacing_m: f64,
+    ) -> Vec<(f64, f64)> {
+        let n = self.wander.len();
+        if n < 2 || stops < 2 {
+            return Vec::new();
+        }
+        let order: Vec<usize> = (0..=stops.min(n))
+            .map(|k| self.wander[(first + k % stops.min(n)) % n])
+            .collect();
+        let mut out = vec![self.points[order[0]]];
+        for leg in order.windows(2) {
+            let (goal, field) = (self.points[leg[1]], self.field(world, leg[1]));
+            let mut at = *out.last().unwrap_or(&goal);
+            let mut since = 0.0;
+            // A leg crosses at most every coarse cell once; the bound only guards the loop.
+            for _ in 0..100_000 {
+                let next = field.lookahead(at.0, at.1).unwrap_or(goal);
+                since += norm(next.0 - at.0, next.1 - at.1);
+                at = next;
+                if at == goal {
+                    break;
+                }
+                if since >= spacing_m {
+                    out.push(at);
+                    since = 0.0;
+                }
+            }
+            out.push(goal);
+        }
+        out
+    }
 }
 
 /// `n` points of the free region far from each other: farthest-point sampling over a fixed

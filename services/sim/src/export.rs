@@ -303,10 +303,13 @@ fn world_document(spec: &WorldSpec, robot_at: Option<Pose2>) -> String {
             let _ = writeln!(s, "    {line}");
         }
     }
-    s.push_str(&people_actors(&spec.people));
+    s.push_str(&people_actors(spec));
     s.push_str("  </world>\n</sdf>\n");
     s
 }
+
+/// Stops in the round of an actor that walks between the wanderers' points.
+const WANDER_STOPS: usize = 4;
 
 /// Walking speed of the exported actors, m/s (the middle of the simulation's range).
 const ACTOR_SPEED: f64 = 1.0;
@@ -317,8 +320,10 @@ const ACTOR_MESH: &str =
 /// The people the knowledge expects, as gz-sim actors: as many as expected (rounded, at least
 /// one per route when routes are known), each walking a known route there and back, or the
 /// attractors in turn lingering at each; their trajectories loop. Without routes or attractors
-/// the knowledge gives no trajectory, and no actor is written.
-fn people_actors(people: &crate::spec::PeopleSpec) -> String {
+/// they walk rounds between the points the simulation's wanderers walk between
+/// ([`crate::crowd::Targets::wander_round`]), the shortest way through the free region.
+fn people_actors(spec: &WorldSpec) -> String {
+    let people = &spec.people;
     let mut tracks: Vec<Vec<[f64; 2]>> = people
         .routes
         .iter()
@@ -334,10 +339,32 @@ fn people_actors(people: &crate::spec::PeopleSpec) -> String {
         tour.push(people.attractors[0].position);
         tracks.push(tour);
     }
+    let expected = people.expected_at(None);
+    if tracks.is_empty() && expected >= 0.5 {
+        // No known way to walk: rounds between the wanderers' points, as many as people.
+        if let Ok(world) = crate::World::build(spec.clone()) {
+            let targets = world.people_targets();
+            #[allow(
+                clippy::cast_possible_truncation,
+                clippy::cast_sign_loss,
+                reason = "a rounded count, capped"
+            )]
+            let count = (expected.round() as usize).min(crate::crowd::MAX_PEOPLE);
+            tracks = (0..count)
+                .map(|k| {
+                    targets
+                        .wander_round(&world, k * WANDER_STOPS, WANDER_STOPS, 1.0)
+                        .into_iter()
+                        .map(|(x, y)| [x, y])
+                        .collect::<Vec<_>>()
+                })
+                .filter(|t| t.len() >= 2)
+                .collect();
+        }
+    }
     if tracks.is_empty() {
         return String::new();
     }
-    let expected = people.expected_at(None);
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
@@ -352,7 +379,7 @@ fn people_actors(people: &crate::spec::PeopleSpec) -> String {
             .map_or(0.0, |a| a.dwell_s.max(0.0))
     };
     let mut s = String::from(
-        "    <!-- People the knowledge expects, walking its routes and attractors. -->\n",
+        "    <!-- People the knowledge expects, walking its routes and attractors (else about the floor). -->\n",
     );
     for k in 0..count {
         let track = &tracks[k % tracks.len()];

@@ -1016,8 +1016,57 @@ fn people_the_knowledge_expects_walk_as_gz_actors() {
     if let Some(parsed) = load_with_libsdformat("world-people.sdf", &text) {
         assert_eq!(parsed.world, Some(world_name(&spec)));
     }
-    // No routes or attractors: no trajectory to give, no actor.
+    // No routes or attractors: as many actors walk rounds between points spread over the
+    // floor, the shortest way through the free region (never through a wall).
     spec.people.routes.clear();
     spec.people.attractors.clear();
+    let text = world_sdf(&spec);
+    let doc = roxmltree::Document::parse(&text).expect("well-formed XML");
+    let actors: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("actor"))
+        .collect();
+    assert_eq!(actors.len(), 3, "{text}");
+    let world = sim::World::build(spec.clone()).unwrap();
+    for actor in &actors {
+        let poses: Vec<(f64, f64)> = actor
+            .descendants()
+            .filter(|n| n.has_tag_name("pose"))
+            .map(|n| {
+                let v: Vec<f64> = n
+                    .text()
+                    .expect("pose")
+                    .split_whitespace()
+                    .map(|x| x.parse().expect("number"))
+                    .collect();
+                (v[0], v[1])
+            })
+            .collect();
+        assert!(poses.len() >= 4, "{poses:?}");
+        let spread = poses
+            .iter()
+            .map(|p| (p.0 - poses[0].0).hypot(p.1 - poses[0].1))
+            .fold(0.0, f64::max);
+        assert!(spread > 2.0, "a round that goes nowhere: {poses:?}");
+        for w in poses.windows(2) {
+            for k in 0..=10 {
+                let t = f64::from(k) / 10.0;
+                let (x, y) = (
+                    w[0].0 + t * (w[1].0 - w[0].0),
+                    w[0].1 + t * (w[1].1 - w[0].1),
+                );
+                let room = world.clearance(x, y) + spec.robot.footprint_radius;
+                assert!(
+                    room > 0.0,
+                    "an actor walks through a wall at ({x:.2}, {y:.2})"
+                );
+            }
+        }
+    }
+    if let Some(parsed) = load_with_libsdformat("world-wanderers.sdf", &text) {
+        assert_eq!(parsed.world, Some(world_name(&spec)));
+    }
+    // Nobody expected: no actor.
+    spec.people.places.clear();
     assert!(!world_sdf(&spec).contains("<actor"));
 }
