@@ -29,9 +29,9 @@ pub struct NoiseConfig {
     pub goal_distance: f64,
     /// On the goal angle, radians.
     pub goal_angle: f64,
-    /// On the executed linear velocity, m/s.
+    /// On the executed linear velocity, m/s (none on a zero command: standing still is exact).
     pub linear: f64,
-    /// On the executed angular velocity, rad/s.
+    /// On the executed angular velocity, rad/s (none on a zero command).
     pub angular: f64,
 }
 
@@ -667,9 +667,23 @@ impl NavEnv {
         let cfg = &self.config;
         let dt = cfg.control_period;
         let wanted = cfg.limits.clamp(action);
+        // Noise on what moves: a wheel told to stand still stands still (a robot stopped a
+        // few centimetres from a wall does not creep into it), a moving one slips.
+        let (dv, dw) = (
+            gauss(&mut self.rng, cfg.noise.linear),
+            gauss(&mut self.rng, cfg.noise.angular),
+        );
         let noisy = Action {
-            linear: wanted.linear + gauss(&mut self.rng, cfg.noise.linear),
-            angular: wanted.angular + gauss(&mut self.rng, cfg.noise.angular),
+            linear: if wanted.linear == 0.0 {
+                0.0
+            } else {
+                wanted.linear + dv
+            },
+            angular: if wanted.angular == 0.0 {
+                0.0
+            } else {
+                wanted.angular + dw
+            },
         };
         let exec = self.drive.execute(self.executed, noisy, dt);
         let radius = self.world.spec().robot.footprint_radius;

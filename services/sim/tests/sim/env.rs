@@ -454,3 +454,47 @@ fn a_reached_goal_can_be_followed_by_the_next_from_the_same_pose() {
     let obs = env.continue_random().expect("a random reset");
     assert_eq!(obs.velocity, [0.0, 0.0]);
 }
+
+#[test]
+fn a_robot_told_to_stand_still_stands_still_and_a_moving_one_slips() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let config = EnvConfig {
+        max_steps: 10_000,
+        ..EnvConfig::default()
+    };
+    let start = Pose2::new(6.0, 4.0, 0.3);
+    let mut env = NavEnv::new(Arc::clone(&world), config.clone(), 3).expect("env");
+    env.reset(start, (10.0, 4.0)).expect("reset");
+    for _ in 0..300 {
+        env.step(Action::new(0.0, 0.0));
+    }
+    assert_eq!(env.pose(), start, "noise moved a robot told to stand still");
+    // Turning on the spot: the heading changes, the position does not.
+    for _ in 0..20 {
+        env.step(Action::new(0.0, 0.3));
+    }
+    let turned = env.pose();
+    assert!((turned.x, turned.y) == (start.x, start.y) && turned.yaw != start.yaw);
+    // Driving: the noise shows against the same drive without it.
+    let drive = |noise: NoiseConfig| {
+        let mut env = NavEnv::new(
+            Arc::clone(&world),
+            EnvConfig {
+                noise,
+                ..config.clone()
+            },
+            3,
+        )
+        .expect("env");
+        env.reset(start, (10.0, 4.0)).expect("reset");
+        for _ in 0..20 {
+            env.step(Action::new(0.5, 0.1));
+        }
+        env.pose()
+    };
+    let (noisy, exact) = (drive(NoiseConfig::default()), drive(NoiseConfig::none()));
+    assert!(
+        (noisy.x - exact.x).hypot(noisy.y - exact.y) > 1e-4,
+        "{noisy:?} {exact:?}"
+    );
+}
