@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use learning::Policy;
 pub use sim::FollowerParams;
-pub use sim::shield::{SHIELD_HORIZON_S, SHIELD_MARGIN_M, Shield};
+pub use sim::shield::{PERSON_MARGIN_M, SHIELD_HORIZON_S, SHIELD_MARGIN_M, Shield};
 use sim::{Action, Observation, Pose2, World};
 
 use crate::types::ControllerKind;
@@ -103,6 +103,15 @@ pub struct PolicyController {
     handover: Option<Handover>,
     /// Whether the last command was the follower's.
     handed_over: bool,
+}
+
+/// What the collision shield of both controllers does, in words.
+fn shield_description() -> String {
+    format!(
+        "a collision shield (forward speed limited to keep {SHIELD_MARGIN_M} m from what the \
+         laser sees and the map knows, {PERSON_MARGIN_M} m from what it does not, people, within \
+         {SHIELD_HORIZON_S} s)"
+    )
 }
 
 /// Shows `shield` the scan of a robot at `pose`, on the map when there is one.
@@ -280,10 +289,7 @@ impl Controller for PolicyController {
             .and_then(|v| v.as_u64())
             .map_or_else(String::new, |s| format!(", {s} training steps"));
         let mut shield = if self.shielded {
-            format!(
-                ", behind a collision shield (forward speed limited to keep {SHIELD_MARGIN_M} m \
-                 from what the laser sees within {SHIELD_HORIZON_S} s)"
-            )
+            format!(", behind {}", shield_description())
         } else {
             String::new()
         };
@@ -426,9 +432,9 @@ impl Controller for ShieldedFollower {
 
     fn description(&self) -> String {
         format!(
-            "{}, behind a collision shield (forward speed limited to keep {SHIELD_MARGIN_M} m \
-             from what the laser sees within {SHIELD_HORIZON_S} s)",
-            self.follower.description()
+            "{}, behind {}",
+            self.follower.description(),
+            shield_description()
         )
     }
 }

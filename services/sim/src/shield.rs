@@ -45,7 +45,8 @@ pub const PERSON_MARGIN_M: f64 = 0.12;
 /// command forward for [`SHIELD_HORIZON_S`] against the current laser returns and keeps the
 /// fastest share of its forward speed that never brings the footprint closer than
 /// [`SHIELD_MARGIN_M`] to a return it is approaching (moving along a wall, or away from it,
-/// stays allowed). When even a crawl is unsafe the robot stops and turns on the spot (a
+/// stays allowed), nor closer than [`PERSON_MARGIN_M`] to one the map does not know (after
+/// [`Shield::observe_on_map`]: people, rolled forward as they move). When even a crawl is unsafe the robot stops and turns on the spot (a
 /// round robot cannot hit anything turning in place): towards the waypoint when it is off to
 /// one side, else towards the side the laser sees more room on.
 #[derive(Clone, Debug)]
