@@ -67,6 +67,9 @@ pub(crate) struct CoarseGrid {
     pub width: usize,
     pub height: usize,
     pub free: Vec<bool>,
+    /// 4-connected region of free blocks per block (1-based, 0 where not free): bridging joins
+    /// only components whose nodes' blocks share one, so it knows in advance which it can join.
+    pub region: Vec<u32>,
 }
 
 /// Block side of the coarse grid: about 0.15 m, so that a door the robot fits through with a
@@ -82,19 +85,29 @@ fn coarse_grid(w: usize, h: usize, free: &[bool], factor: usize) -> CoarseGrid {
     for by in 0..ch {
         for bx in 0..cw {
             let (x0, y0) = (bx * factor, by * factor);
-            // Blocks hanging over the map edge are not free: they hold no map cells there.
-            if x0 + factor > w || y0 + factor > h {
+            // Blocks hanging over the map edge are not free: they hold no map cells there. Nor
+            // are the blocks on the grid's border, so that a free block's four neighbours are
+            // always inside the grid (the bridging flood reads them without bounds checks).
+            if x0 + factor > w
+                || y0 + factor > h
+                || bx == 0
+                || by == 0
+                || bx + 1 == cw
+                || by + 1 == ch
+            {
                 continue;
             }
             out[by * cw + bx] =
                 (y0..y0 + factor).all(|y| free[y * w + x0..y * w + x0 + factor].iter().all(|&f| f));
         }
     }
+    let region = grid::regions::label(&out, cw, ch).labels;
     CoarseGrid {
         factor,
         width: cw,
         height: ch,
         free: out,
+        region,
     }
 }
 
@@ -244,9 +257,13 @@ impl ConfigSpace {
     }
     /// The cell index containing grid point `g`, if inside the map.
     pub(crate) fn cell_index(&self, g: [f64; 2]) -> Option<usize> {
-        let (cx, cy) = (g[0].floor(), g[1].floor());
-        if cx >= 0.0 && cy >= 0.0 && (cx as usize) < self.width && (cy as usize) < self.height {
-            Some(cy as usize * self.width + cx as usize)
+        // For g >= 0 truncation is the floor (and `floor` is a library call); NaN fails the test.
+        if g[0] >= 0.0
+            && g[1] >= 0.0
+            && (g[0] as usize) < self.width
+            && (g[1] as usize) < self.height
+        {
+            Some(g[1] as usize * self.width + g[0] as usize)
         } else {
             None
         }
@@ -518,8 +535,8 @@ pub(crate) fn jitter<R: Rng + ?Sized>(idx: usize, width: usize, rng: &mut R) -> 
 /// Where the segment passes exactly through a cell corner, both side cells are visited too, so
 /// a path never squeezes diagonally between two blocked cells. Stops early when `visit` says so.
 pub(crate) fn walk_supercover(a: [f64; 2], b: [f64; 2], mut visit: impl FnMut(i64, i64) -> bool) {
-    let (mut cx, mut cy) = (a[0].floor() as i64, a[1].floor() as i64);
-    let (ex, ey) = (b[0].floor() as i64, b[1].floor() as i64);
+    let (mut cx, mut cy) = (cell_of(a[0]), cell_of(a[1]));
+    let (ex, ey) = (cell_of(b[0]), cell_of(b[1]));
     if !visit(cx, cy) {
         return;
     }
@@ -580,6 +597,13 @@ pub(crate) fn walk_supercover(a: [f64; 2], b: [f64; 2], mut visit: impl FnMut(i6
             return;
         }
     }
+}
+
+/// `v.floor()` as an integer. Without SSE4.1 `floor` is a library call, and segment walks
+/// start two per jump; coordinates inside the map are never negative, where truncation is
+/// the floor.
+fn cell_of(v: f64) -> i64 {
+    if v >= 0.0 { v as i64 } else { v.floor() as i64 }
 }
 
 /// Free cells that are ridges of the distance field along some direction: an approximate

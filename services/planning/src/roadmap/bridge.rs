@@ -5,7 +5,7 @@ use std::collections::HashMap;
 
 use super::build::UnionFind;
 use super::shortcut::thin_line_of_sight;
-use super::waves::{CellTables, neighbours4};
+use super::waves::CellTables;
 use super::{BuildStats, dist};
 use crate::cspace::ConfigSpace;
 
@@ -16,8 +16,13 @@ const FLOOD_CELL_BUDGET: usize = 4_000_000;
 /// Joins every roadmap component to the largest one of its free region: waves grow over the
 /// coarse grid from the other components' nodes until they touch another component; each
 /// meeting becomes a chain of blocks, thinned to straight segments, whose corners are added as
-/// nodes. Only the smaller components radiate, so the flood stays local to the gaps; the
-/// region's largest component waits for them.
+/// nodes. Components are grouped by the coarse region (4-connected free blocks) of their
+/// nodes' blocks, which is all a wave can cross: per coarse region, the component with the
+/// most nodes waits and the others radiate, and a wave stops growing once its component has
+/// joined the waiting one. So the flood stays local to the gaps it closes, and it ends as soon
+/// as every component that can be joined is, rather than filling the region looking for
+/// components no wave can reach (those behind gaps narrower than a block are left to
+/// query-time densification).
 pub(super) fn bridge_components(
     cs: &ConfigSpace,
     nodes: &mut Vec<[f64; 2]>,
@@ -26,17 +31,25 @@ pub(super) fn bridge_components(
     stats: &mut BuildStats,
 ) {
     let n = nodes.len();
-    let cells: Vec<usize> = nodes
-        .iter()
-        .map(|&p| cs.cell_index(p).unwrap_or(0))
-        .collect();
-    // Per region: node count per component root.
+    // The flood runs on the coarse grid (factor² fewer cells). A block is entirely free, so a
+    // node reaches its block's centre in a straight line and 4-adjacent block centres see each
+    // other. Gaps narrower than a block are left to query-time densification.
+    let g = &cs.coarse;
+    let f = g.factor;
+    let block_of = |p: [f64; 2]| {
+        let (bx, by) = ((p[0] / f as f64) as usize, (p[1] / f as f64) as usize);
+        (bx < g.width && by < g.height && g.free[by * g.width + bx]).then_some(by * g.width + bx)
+    };
+    let blocks: Vec<Option<usize>> = nodes.iter().map(|&p| block_of(p)).collect();
+    // Per coarse region: node count per component root.
     let mut sizes: HashMap<(u32, u32), usize> = HashMap::new();
     for i in 0..n as u32 {
-        let region = cs.region[cells[i as usize]];
-        *sizes.entry((region, uf.find(i))).or_default() += 1;
+        if let Some(b) = blocks[i as usize] {
+            *sizes.entry((g.region[b], uf.find(i))).or_default() += 1;
+        }
     }
-    let mut largest: HashMap<u32, (usize, u32)> = HashMap::new(); // region -> (size, root)
+    // Coarse region -> (size, root) of the component that waits.
+    let mut largest: HashMap<u32, (usize, u32)> = HashMap::new();
     let mut roots_in: HashMap<u32, usize> = HashMap::new();
     for (&(region, root), &size) in &sizes {
         *roots_in.entry(region).or_default() += 1;
@@ -50,46 +63,63 @@ pub(super) fn bridge_components(
     if remaining == 0 {
         return;
     }
-    // The flood runs on the coarse grid (factor² fewer cells). A block is entirely free, so a
-    // node reaches its block's centre in a straight line and 4-adjacent block centres see each
-    // other. Gaps narrower than a block are left to query-time densification.
-    let g = &cs.coarse;
-    let f = g.factor;
-    let block_of = |p: [f64; 2]| {
-        let (bx, by) = ((p[0] / f as f64) as usize, (p[1] / f as f64) as usize);
-        (bx < g.width && by < g.height && g.free[by * g.width + bx]).then_some(by * g.width + bx)
-    };
+    // Per node, a node of the component its coarse region's flood waits for (u32::MAX when
+    // its region has nothing to join).
+    let waits_for: Vec<u32> = blocks
+        .iter()
+        .map(|b| {
+            b.map(|b| g.region[b])
+                .filter(|r| roots_in.get(r).copied().unwrap_or(0) >= 2)
+                .and_then(|r| largest.get(&r))
+                .map_or(u32::MAX, |&(_, root)| root)
+        })
+        .collect();
     const LABEL: usize = 0; // seed node + 1
     const PARENT: usize = 2; // parent block + 1
     let chains: Vec<(u32, u32, Vec<usize>)> = CellTables::with(g.width * g.height, |t| {
-        let mut queue = std::collections::VecDeque::new();
+        // Breadth-first, level by level: a plain vector read from the front.
+        let mut queue: Vec<u32> = Vec::new();
+        let mut meetings = Vec::new();
         for i in 0..n as u32 {
-            let region = cs.region[cells[i as usize]];
-            if roots_in.get(&region).copied().unwrap_or(0) < 2 {
-                continue;
-            }
-            let Some(b) = block_of(nodes[i as usize]) else {
+            let (Some(b), w) = (blocks[i as usize], waits_for[i as usize]) else {
                 continue;
             };
-            if t.get(LABEL, b) == 0 {
+            if w == u32::MAX {
+                continue;
+            }
+            let label = t.get(LABEL, b);
+            if label == 0 {
                 t.set(LABEL, b, i + 1);
                 t.set(PARENT, b, b as u32 + 1);
                 // The region's largest component waits for the others to reach it.
-                if largest.get(&region).is_none_or(|&(_, r)| r != uf.find(i)) {
-                    queue.push_back(b);
+                if uf.find(i) != uf.find(w) {
+                    queue.push(b as u32);
                 }
+            } else if uf.find(label - 1) != uf.find(i) {
+                // Two components in one free block: the block joins them directly.
+                uf.union(label - 1, i);
+                meetings.push((b, b, i));
+                remaining -= 1;
             }
         }
-        let mut meetings = Vec::new();
-        let mut budget = FLOOD_CELL_BUDGET;
-        'flood: while let Some(c) = queue.pop_front() {
-            budget = budget.saturating_sub(1);
-            if budget == 0 {
+        let gw = g.width;
+        let mut head = 0;
+        'flood: while head < queue.len() && remaining > 0 {
+            if head >= FLOOD_CELL_BUDGET {
                 // Gaps still open are left to local densification at query time.
                 break;
             }
+            let c = queue[head] as usize;
+            head += 1;
             let lc = t.get(LABEL, c);
-            for nc in neighbours4(c, g.width, g.height) {
+            let mut root = uf.find(lc - 1);
+            let waiting = waits_for[lc as usize - 1];
+            if root == uf.find(waiting) {
+                // Joined to the waiting component: its wave has done its work.
+                continue;
+            }
+            // Free blocks are never on the grid's border: all four neighbours exist.
+            for nc in [c - 1, c + 1, c - gw, c + gw] {
                 if !g.free[nc] {
                     continue;
                 }
@@ -97,14 +127,19 @@ pub(super) fn bridge_components(
                 if ln == 0 {
                     t.set(LABEL, nc, lc);
                     t.set(PARENT, nc, c as u32 + 1);
-                    queue.push_back(nc);
-                } else if ln != lc && uf.find(lc - 1) != uf.find(ln - 1) {
+                    queue.push(nc as u32);
+                } else if ln != lc && root != uf.find(ln - 1) {
                     // (Most labelled neighbours belong to the same wave: the cheap test first.)
                     uf.union(lc - 1, ln - 1);
-                    meetings.push((c, nc));
+                    meetings.push((c, nc, u32::MAX));
                     remaining -= 1;
                     if remaining == 0 {
                         break 'flood;
+                    }
+                    root = uf.find(lc - 1);
+                    // Joined to the waiting component: grow no further.
+                    if root == uf.find(waiting) {
+                        continue 'flood;
                     }
                 }
             }
@@ -119,7 +154,11 @@ pub(super) fn bridge_components(
         };
         meetings
             .into_iter()
-            .map(|(c1, c2)| {
+            .map(|(c1, c2, direct)| {
+                if direct != u32::MAX {
+                    // Both nodes in block c1: through its centre.
+                    return (t.get(LABEL, c1) - 1, direct, vec![c1]);
+                }
                 let mut cells = back(c1);
                 cells.reverse();
                 cells.extend(back(c2));

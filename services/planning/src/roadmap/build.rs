@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::bridge::bridge_components;
-use super::{BuildStats, PrmParams, Roadmap, components, kd_tree};
+use super::{BuildPhase, BuildStats, PrmParams, Roadmap, components, kd_tree};
 use crate::cspace::{ConfigSpace, jitter};
 use crate::error::BuildError;
 use crate::search::{Csr, Edge};
@@ -36,6 +36,17 @@ impl Roadmap {
         params: &PrmParams,
         stop: &grid::Stop,
     ) -> Result<Self, BuildError> {
+        Self::build_observed(cspace, params, stop, &mut |_| {})
+    }
+
+    /// [`Roadmap::build_until`], calling `phase_done` as each [`BuildPhase`] ends (the
+    /// benchmark times the phases with it; the roadmap is the same).
+    pub fn build_observed(
+        cspace: Arc<ConfigSpace>,
+        params: &PrmParams,
+        stop: &grid::Stop,
+        phase_done: &mut dyn FnMut(BuildPhase),
+    ) -> Result<Self, BuildError> {
         params.validate()?;
         if cspace.free_cells().is_empty() {
             return Err(BuildError::NoFreeSpace {
@@ -53,6 +64,7 @@ impl Roadmap {
             .map(|_| draw(cs, params, &mut rng))
             .collect();
         stats.samples_drawn = nodes.len();
+        phase_done(BuildPhase::Sampling);
         let dmax = params.max_edge_m / cs.resolution();
         let dmax2 = dmax * dmax;
         let k = params.neighbours;
@@ -121,6 +133,7 @@ impl Roadmap {
                 stats.samples_drawn += 1;
             }
         }
+        phase_done(BuildPhase::Neighbours);
         let mut uf = UnionFind::new(nodes.len());
         for (i, list) in adj.iter().enumerate() {
             for &(j, _) in list {
@@ -165,23 +178,26 @@ impl Roadmap {
                 }
             }
         }
+        phase_done(BuildPhase::Cross);
         let budget = params.samples.saturating_sub(random_count);
         repair(
             cs, params, &mut rng, budget, &mut nodes, &mut adj, &mut uf, &mut stats,
         );
+        phase_done(BuildPhase::Repair);
         if params.repair_share > 0.0 {
             bridge_components(cs, &mut nodes, &mut adj, &mut uf, &mut stats);
         }
+        phase_done(BuildPhase::Bridging);
         stats.isolated = adj.iter().filter(|a| a.is_empty()).count();
 
-        // Each edge's clearance is computed once here, so a query reads it for the roadmap part
-        // of its path and traces only the segments it adds (start and goal links).
+        // An edge's clearance is left unknown (NaN): a query traces it only for the edges its
+        // plan uses (a handful), where tracing every edge here cost more than the rest of the
+        // graph. The plan's clearance is the same either way.
         let mut edges: Vec<Edge> = Vec::with_capacity(adj.iter().map(Vec::len).sum::<usize>() / 2);
         for (i, list) in adj.iter().enumerate() {
             for &(j, len) in list {
                 if (i as u32) < j {
-                    let min = cs.segment_min_dist(nodes[i], nodes[j as usize]) as f32;
-                    edges.push((i as u32, j, len, min));
+                    edges.push((i as u32, j, len, f32::NAN));
                 }
             }
         }
@@ -194,6 +210,7 @@ impl Roadmap {
             .max()
             .map_or(0, |m| m as usize + 1);
         let tree = kd_tree(&nodes)?;
+        phase_done(BuildPhase::Graph);
         Ok(Self {
             cspace,
             params: params.clone(),

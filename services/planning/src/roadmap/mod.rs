@@ -153,6 +153,48 @@ pub struct BuildStats {
     pub bridge_nodes: usize,
 }
 
+/// The phases of [`Roadmap::build_observed`], in the order they end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BuildPhase {
+    /// The random samples drawn.
+    Sampling,
+    /// k-nearest edges with their segment checks, and the re-sampling rounds of isolated nodes.
+    Neighbours,
+    /// Extra edge tests between nearby components.
+    Cross,
+    /// Visibility repair (connectors and guards).
+    Repair,
+    /// Bridging of components that share a free region.
+    Bridging,
+    /// The graph: each edge's clearance, the adjacency, components and the k-d tree.
+    Graph,
+}
+
+impl BuildPhase {
+    /// Number of phases.
+    pub const COUNT: usize = 6;
+    /// Every phase, in order.
+    pub const ALL: [BuildPhase; Self::COUNT] = [
+        Self::Sampling,
+        Self::Neighbours,
+        Self::Cross,
+        Self::Repair,
+        Self::Bridging,
+        Self::Graph,
+    ];
+    /// A short name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Sampling => "sampling",
+            Self::Neighbours => "k-NN",
+            Self::Cross => "cross",
+            Self::Repair => "repair",
+            Self::Bridging => "bridging",
+            Self::Graph => "graph",
+        }
+    }
+}
+
 /// A query's answer: waypoints from start to goal through free space.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
