@@ -48,7 +48,8 @@ fn main() {
         let n = ((planning::optimal_samples(free) as f64) * scale).round() as usize;
         let mut times = Vec::new();
         let mut phases = [0.0f64; BuildPhase::COUNT];
-        let (mut nodes, mut edges, mut comps, mut checks, mut bridge) = (0, 0, 0, 0, 0);
+        let (mut nodes, mut edges, mut comps, mut checks, mut bridge, mut flood) =
+            (0, 0, 0, 0, 0, 0);
         for run in 0..runs {
             let params = PrmParams {
                 samples: n,
@@ -76,17 +77,19 @@ fn main() {
             comps += s.components;
             checks += s.edge_checks;
             bridge += s.bridge_nodes;
+            flood += s.flood_blocks;
         }
         times.sort_by(f64::total_cmp);
         let r = runs as f64;
         println!(
-            "{name:28} n={n:4} median {:7.3} ms | nodes {:6.1} edges {:7.1} comps {:5.2} checks {:7.1} bridge {:5.1} | {}",
+            "{name:28} n={n:4} median {:7.3} ms | nodes {:6.1} edges {:7.1} comps {:5.2} checks {:7.1} bridge {:5.1} flood {:7.0} | {}",
             times[runs / 2],
             nodes as f64 / r,
             edges as f64 / r,
             comps as f64 / r,
             checks as f64 / r,
             bridge as f64 / r,
+            flood as f64 / r,
             BuildPhase::ALL
                 .iter()
                 .map(|p| format!("{} {:.3}", p.name(), phases[*p as usize] / r))

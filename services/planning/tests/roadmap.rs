@@ -649,3 +649,49 @@ proptest! {
         }
     }
 }
+
+/// The build's work grows like n, not faster: on one large cluttered floor (60 m × 40 m at
+/// 0.05 m), doubling and quadrupling the samples must not raise the work per sample by more
+/// than a generous factor. Work is counted, never timed: segment checks, the node distances
+/// visibility repair computes (a scan of every node per candidate made this quadratic) and the
+/// blocks the bridging flood expands (it grows with the gaps it closes, not with n).
+#[test]
+fn build_work_per_sample_does_not_grow_with_n() {
+    let mut g = cluttered(42, 1200, 800, 2500);
+    g.resolution = 0.05;
+    let cs = Arc::new(
+        ConfigSpace::new(
+            &g,
+            Inflation {
+                robot_radius_m: 0.1,
+                safety_margin_m: 0.0,
+            },
+        )
+        .expect("cspace"),
+    );
+    let work = |n: usize| {
+        let mut per = Vec::new();
+        for seed in 1..=3 {
+            let params = PrmParams {
+                samples: n,
+                seed,
+                ..PrmParams::default()
+            };
+            let rm = Roadmap::build(Arc::clone(&cs), &params).expect("roadmap");
+            let s = rm.stats();
+            assert!(s.edges >= n, "n = {n}: only {} edges", s.edges);
+            per.push((s.edge_checks + s.repair_distances + s.flood_blocks) as f64 / n as f64);
+        }
+        per.iter().sum::<f64>() / per.len() as f64
+    };
+    let (w1, w2, w4) = (work(300), work(600), work(1200));
+    println!("work per sample: n=300 {w1:.1}, n=600 {w2:.1}, n=1200 {w4:.1}");
+    assert!(
+        w2 <= 1.5 * w1,
+        "n 300 -> 600: {w1:.1} -> {w2:.1} per sample"
+    );
+    assert!(
+        w4 <= 1.5 * w2,
+        "n 600 -> 1200: {w2:.1} -> {w4:.1} per sample"
+    );
+}

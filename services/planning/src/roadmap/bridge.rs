@@ -144,6 +144,7 @@ pub(super) fn bridge_components(
                 }
             }
         }
+        stats.flood_blocks += head;
         let back = |mut c: usize| {
             let mut out = vec![c];
             while t.get(PARENT, c) as usize - 1 != c {

@@ -12,6 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::bridge::bridge_components;
+use super::buckets::Buckets;
 use super::{BuildPhase, BuildStats, PrmParams, Roadmap, components, kd_tree};
 use crate::cspace::{ConfigSpace, jitter};
 use crate::error::BuildError;
@@ -252,23 +253,26 @@ fn repair(
     let mut trials = 0usize;
     let mut near: Vec<(f64, u32)> = Vec::new();
     let mut seen: Vec<(u32, u32, f64)> = Vec::new(); // (component root, node, length)
+    if budget == 0 {
+        return;
+    }
+    let mut buckets = Buckets::new(
+        cs.width,
+        cs.height,
+        cs.free_cells().len(),
+        nodes.len() + budget,
+    );
+    for (j, &q) in nodes.iter().enumerate() {
+        buckets.insert(j as u32, q);
+    }
     while added < budget {
         let exhausted = trials >= budget * REPAIR_TRIALS_PER_SAMPLE;
         trials += 1;
         let p = draw(cs, params, rng);
         stats.samples_drawn += 1;
-        // Brute-force neighbours: the node set grows one by one here, and n is small.
-        near.clear();
-        near.extend(nodes.iter().enumerate().filter_map(|(j, q)| {
-            let d2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
-            (d2 <= dmax2).then_some((d2, j as u32))
-        }));
-        let m = params.max_tests_per_node.min(near.len());
-        if m < near.len() {
-            near.select_nth_unstable_by(m, |a, b| a.0.total_cmp(&b.0));
-            near.truncate(m);
-        }
-        near.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        // The node set grows one by one here: buckets rather than a k-d tree.
+        stats.repair_distances +=
+            buckets.nearest(nodes, p, params.max_tests_per_node, dmax2, &mut near);
         seen.clear();
         let mut tests = 0;
         for &(d2, j) in &near {
@@ -291,6 +295,7 @@ fn repair(
         }
         let id = nodes.len() as u32;
         nodes.push(p);
+        buckets.insert(id, p);
         adj.push(Vec::new());
         uf.push();
         for &(_, j, len) in &seen {

@@ -18,6 +18,7 @@ use crate::map::Point2;
 use crate::search::{Csr, SearchAlgorithm};
 
 mod bridge;
+mod buckets;
 mod build;
 mod densify;
 mod query;
@@ -151,6 +152,11 @@ pub struct BuildStats {
     pub components: usize,
     /// Nodes added beyond n to bridge components that share a free region.
     pub bridge_nodes: usize,
+    /// Node distances computed by visibility repair's nearest-node queries: its share of the
+    /// build's work, which must grow like n (a scan of every node per candidate made it n²).
+    pub repair_distances: usize,
+    /// Coarse blocks the bridging flood expanded: it grows with the gaps it closes, not with n.
+    pub flood_blocks: usize,
 }
 
 /// The phases of [`Roadmap::build_observed`], in the order they end.
