@@ -286,6 +286,14 @@ pub enum BenchCommand {
         /// Where edges.csv and edges.md go.
         #[arg(long, default_value = "bench-out/edges")]
         out: PathBuf,
+        /// People per 100 m² of free region walking about in the rollouts (repeatable or
+        /// comma-separated: each density its own rows; default 0, the empty building).
+        #[arg(long, value_delimiter = ',')]
+        people: Vec<f64>,
+        /// Controllers to drive (repeatable or comma-separated: policy, shield_only,
+        /// hybrid_rpp, follower, rpp, mppi; default all).
+        #[arg(long = "controller", value_delimiter = ',')]
+        controllers: Vec<String>,
     },
     /// POST /v1/plan latency of a running service under C concurrent robot clients.
     PlanLoad {
@@ -790,8 +798,18 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             rollouts,
             seed,
             out,
+            people,
+            controllers,
         } => {
-            let md = crate::train::bench_edges(&maps, &policies, rollouts, seed, &out)?;
+            let md = crate::train::bench_edges(
+                &maps,
+                &policies,
+                rollouts,
+                seed,
+                &out,
+                &people,
+                &controllers,
+            )?;
             println!("{md}");
             println!(
                 "wrote {} and {}",

@@ -654,19 +654,94 @@ pub struct EdgeBenchRow {
     pub wall_s: f64,
 }
 
-/// `mentalsim bench edges`: every policy and the classical follower on every roadmap edge of
-/// every map under `maps` (both directions, `rollouts` each, same seeds for all), per map and
-/// pooled; writes `edges.csv` and `edges.md` into `out` and returns the markdown.
+/// `mentalsim bench edges`: every roadmap edge of every map under `maps`, both directions,
+/// `rollouts` times, driven by each controller named in `controllers` (all when empty:
+/// `policy`, `shield_only` and `hybrid_rpp` per policy, `follower`, `rpp`, `mppi`) at each
+/// people density of `people` (per 100 m² of free region); `edges.csv` and `edges.md` in `out`.
 pub fn bench_edges(
     maps: &Path,
     policies: &[PathBuf],
     rollouts: u32,
     seed: u64,
     out: &Path,
+    people: &[f64],
+    controllers: &[String],
 ) -> anyhow::Result<String> {
+    use rehearsal::ControllerChoice;
+
+    /// Which controller drives: one of the rehearsal's choices, or the policy without handover.
+    #[derive(Clone, Copy)]
+    enum Which {
+        Choice(ControllerChoice),
+        ShieldOnly,
+    }
+
+    fn drive_with(
+        world: &Arc<World>,
+        roadmap: &planning::Roadmap,
+        which: Which,
+        policy: Option<&Arc<Policy>>,
+        params: &rehearsal::EdgeRolloutParams,
+    ) -> anyhow::Result<(rehearsal::EdgeReport, f64)> {
+        let t = std::time::Instant::now();
+        let report = match (which, policy) {
+            // In the empty building, exactly what `eval` drives.
+            (Which::ShieldOnly, Some(p)) if params.people_density == 0.0 => {
+                return drive_roadmap(
+                    world,
+                    roadmap,
+                    EdgeDriver::ShieldOnly(p),
+                    params.seed,
+                    params.rollouts,
+                );
+            }
+            (Which::ShieldOnly, Some(p)) => rehearsal::drive_edges(
+                world,
+                roadmap,
+                || rehearsal::PolicyController::without_handover(Arc::clone(p)),
+                params,
+            ),
+            (Which::ShieldOnly, None) => anyhow::bail!("shield_only needs a policy"),
+            (Which::Choice(c), p) => {
+                if c.needs_policy() && p.is_none() {
+                    anyhow::bail!("{} needs a policy", c.as_str());
+                }
+                let seed = params.seed;
+                rehearsal::drive_edges(
+                    world,
+                    roadmap,
+                    || -> Box<dyn rehearsal::Controller + Send> {
+                        c.build(p, seed).unwrap_or_else(|| {
+                            Box::new(rehearsal::ClassicalFollower::default())
+                        })
+                    },
+                    params,
+                )
+            }
+        }
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+        Ok((report, t.elapsed().as_secs_f64()))
+    }
+
     if rollouts == 0 {
         anyhow::bail!("--rollouts must be at least 1");
     }
+    if let Some(d) = people
+        .iter()
+        .find(|d| !(d.is_finite() && (0.0..=50.0).contains(*d)))
+    {
+        anyhow::bail!("--people must lie in [0, 50] people per 100 m², got {d}");
+    }
+    const NAMES: [&str; 6] = ["policy", "shield_only", "hybrid_rpp", "follower", "rpp", "mppi"];
+    if let Some(c) = controllers.iter().find(|c| !NAMES.contains(&c.as_str())) {
+        anyhow::bail!("--controller {c}: one of {}", NAMES.join(", "));
+    }
+    let wanted = |n: &str| controllers.is_empty() || controllers.iter().any(|c| c == n);
+    let densities: Vec<f64> = if people.is_empty() {
+        vec![0.0]
+    } else {
+        people.to_vec()
+    };
     let yamls = bench::maps::find_yamls(maps)
         .with_context(|| format!("cannot list the maps under {}", maps.display()))?;
     if yamls.is_empty() {
@@ -684,57 +759,89 @@ pub fn bench_edges(
                 .with_context(|| format!("cannot load the policy in {}", dir.display()))
         })
         .collect::<anyhow::Result<_>>()?;
+    // (display name, which, policy)
+    let mut drivers: Vec<(String, Which, Option<&Arc<Policy>>)> = Vec::new();
+    for (n, p) in &loaded {
+        if wanted("policy") {
+            drivers.push((n.clone(), Which::Choice(ControllerChoice::Hybrid), Some(p)));
+        }
+        if wanted("shield_only") {
+            drivers.push((format!("{n} (shield only)"), Which::ShieldOnly, Some(p)));
+        }
+        if wanted("hybrid_rpp") {
+            drivers.push((
+                format!("{n} (RPP handover)"),
+                Which::Choice(ControllerChoice::HybridRpp),
+                Some(p),
+            ));
+        }
+    }
+    for (name, choice) in [
+        ("follower", ControllerChoice::Follower),
+        ("rpp", ControllerChoice::Rpp),
+        ("mppi", ControllerChoice::Mppi),
+    ] {
+        if wanted(name) {
+            drivers.push((name.to_owned(), Which::Choice(choice), None));
+        }
+    }
+    let label = |name: &str, d: f64| {
+        if d > 0.0 {
+            format!("{name} @ {d} people/100 m²")
+        } else {
+            name.to_owned()
+        }
+    };
     let mut rows = Vec::new();
     for yaml in &yamls {
         let map = learning::run::map_name(yaml);
         let world = load_world(yaml, 0, seed)?;
         let roadmap = eval_roadmap(&world, seed)?;
-        let mut controllers: Vec<(String, EdgeDriver<'_>)> = loaded
-            .iter()
-            .flat_map(|(n, p)| {
-                [
-                    (n.clone(), EdgeDriver::Policy(p)),
-                    (format!("{n} (shield only)"), EdgeDriver::ShieldOnly(p)),
-                ]
-            })
-            .collect();
-        controllers.push(("follower".into(), EdgeDriver::Follower));
         std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-        for (name, driver) in controllers {
-            let (report, wall_s) = drive_roadmap(&world, &roadmap, driver, seed, rollouts)?;
-            let slug = name
-                .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-                .filter(|w| !w.is_empty())
-                .collect::<Vec<_>>()
-                .join("-");
-            let png_path = out.join(format!("{map}-{slug}.png"));
-            std::fs::write(&png_path, edge_map_png(&world, &roadmap, &report)?)
-                .with_context(|| format!("cannot write {}", png_path.display()))?;
-            let row = EdgeBenchRow {
-                map: map.clone(),
-                controller: name,
-                edge_directions: report.edges.len(),
-                rollouts,
-                successes: report.edges.iter().map(|e| u64::from(e.successes)).sum(),
-                collisions: report.edges.iter().map(|e| u64::from(e.collisions)).sum(),
-                edge_success_rate: report.edge_success_rate(),
-                kept: report.kept().count(),
-                mean_edge_time_s: report.mean_edge_time_s(),
-                near_miss_rate: report.near_miss_rate(),
-                handover_share: report.handover_share(),
-                steps: report.steps,
-                wall_s,
-            };
-            eprintln!(
-                "{:<28} {:<16} edges {:>5} success {:>6.2}% time {:>5.2} s near misses {:>5.1}%",
-                row.map,
-                row.controller,
-                row.edge_directions,
-                row.edge_success_rate * 100.0,
-                row.mean_edge_time_s.unwrap_or(f64::NAN),
-                row.near_miss_rate * 100.0
-            );
-            rows.push(row);
+        for &density in &densities {
+            for (name, which, policy) in &drivers {
+                let params = rehearsal::EdgeRolloutParams {
+                    rollouts,
+                    seed,
+                    people_density: density,
+                    ..rehearsal::EdgeRolloutParams::default()
+                };
+                let (report, wall_s) = drive_with(&world, &roadmap, *which, *policy, &params)?;
+                let name = label(name, density);
+                let slug = name
+                    .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                    .filter(|w| !w.is_empty())
+                    .collect::<Vec<_>>()
+                    .join("-");
+                let png_path = out.join(format!("{map}-{slug}.png"));
+                std::fs::write(&png_path, edge_map_png(&world, &roadmap, &report)?)
+                    .with_context(|| format!("cannot write {}", png_path.display()))?;
+                let row = EdgeBenchRow {
+                    map: map.clone(),
+                    controller: name,
+                    edge_directions: report.edges.len(),
+                    rollouts,
+                    successes: report.edges.iter().map(|e| u64::from(e.successes)).sum(),
+                    collisions: report.edges.iter().map(|e| u64::from(e.collisions)).sum(),
+                    edge_success_rate: report.edge_success_rate(),
+                    kept: report.kept().count(),
+                    mean_edge_time_s: report.mean_edge_time_s(),
+                    near_miss_rate: report.near_miss_rate(),
+                    handover_share: report.handover_share(),
+                    steps: report.steps,
+                    wall_s,
+                };
+                eprintln!(
+                    "{:<28} {:<16} edges {:>5} success {:>6.2}% time {:>5.2} s near misses {:>5.1}%",
+                    row.map,
+                    row.controller,
+                    row.edge_directions,
+                    row.edge_success_rate * 100.0,
+                    row.mean_edge_time_s.unwrap_or(f64::NAN),
+                    row.near_miss_rate * 100.0
+                );
+                rows.push(row);
+            }
         }
     }
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
@@ -761,13 +868,13 @@ pub fn bench_edges(
     }
     std::fs::write(out.join("edges.csv"), csv)?;
     // Pooled over maps: rollouts weighted equally; times weighted by arrivals.
-    let mut names: Vec<String> = loaded
+    let names: Vec<String> = densities
         .iter()
-        .flat_map(|(n, _)| [n.clone(), format!("{n} (shield only)")])
+        .flat_map(|&d| drivers.iter().map(move |(n, _, _)| (n, d)))
+        .map(|(n, d)| label(n, d))
         .collect();
-    names.push("follower".into());
     let mut md = format!(
-        "# Every roadmap edge, both directions, {rollouts} rollouts each (seed {seed})\n\nA policy drives behind the collision shield with the classical follower taking over within {} m of what the laser sees, as plans drive it; `(shield only)` is the same policy without that handover; `handover` is the share of control steps the follower drove.\n\n| map | controller | edge directions | success | collided | kept (≥ 90%) | mean edge time (s) | near misses (< 10 cm) | handover |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "# Every roadmap edge, both directions, {rollouts} rollouts each (seed {seed})\n\nA policy drives behind the collision shield with the classical follower taking over within {} m of what the laser sees, as plans drive it; `(shield only)` is the same policy without that handover, `(RPP handover)` with Nav2's Regulated Pure Pursuit taking over instead of the follower; `rpp` and `mppi` are Nav2's Regulated Pure Pursuit and MPPI on the smoothed edge behind the same shield (Nav2's defaults scaled to the robot); `handover` is the share of control steps the follower drove. `@ d people/100 m²`: among people (each rollout its own draw; the executor's recoveries on).\n\n| map | controller | edge directions | success | collided | kept (≥ 90%) | mean edge time (s) | near misses (< 10 cm) | handover |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
         rehearsal::HANDOVER_MARGIN_M
     );
     for r in &rows {

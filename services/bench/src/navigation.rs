@@ -27,6 +27,10 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+mod report;
+pub use report::{Stats, to_csv};
+use report::{fallback_line, fmt_opt, to_markdown};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -36,8 +40,9 @@ use planning::{Point2, PrmParams, QueryOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rehearsal::{
-    AttemptOutcome, AttemptReport, ClassicalFollower, Controller, DriveLimits, PlanError,
-    PlanOptions, PlanRequest, PolicyController, RoadmapCache,
+    AttemptDetails, AttemptOutcome, AttemptReport, ClassicalFollower, Controller, DriveLimits,
+    MppiController, MppiCycles, PlanError, PlanOptions, PlanRequest, PolicyController,
+    RoadmapCache, RppController,
 };
 use sim::{Action, Pose2, World};
 
@@ -123,9 +128,14 @@ impl Default for NavigationBenchOptions {
 /// the shield driving straight at the goal (no handover: the follower's segment would cross
 /// walls). `classical_prm_shielded` is the classical follower behind the same shield: what a
 /// robot with a path follower and a collision monitor would do, the fair baseline among people.
+/// `classical_rpp_shielded` and `classical_mppi_shielded` are Nav2's Regulated Pure Pursuit
+/// and MPPI on the smoothed roadmap path behind the same shield (`rehearsal::nav2`), the
+/// strongest classical baselines; `hybrid_policy_roadmap_rpp` is `hybrid_policy_roadmap` with
+/// Regulated Pure Pursuit as the follower the policy hands over to.
 /// With people the ablations (`hybrid_prm_rl_no_handover`, `hybrid_unshielded*`) do not run.
-pub const METHODS: [&str; 11] = [
+pub const METHODS: [&str; 14] = [
     "hybrid_policy_roadmap",
+    "hybrid_policy_roadmap_rpp",
     "hybrid_policy_roadmap_resampled",
     "hybrid_prm_rl",
     "hybrid_prm_rl_resampled",
@@ -136,6 +146,8 @@ pub const METHODS: [&str; 11] = [
     "pure_rl",
     "classical_prm",
     "classical_prm_shielded",
+    "classical_rpp_shielded",
+    "classical_mppi_shielded",
 ];
 
 /// One run of one method (one CSV row).
@@ -161,6 +173,25 @@ pub struct NavigationRow {
     pub person_collision: bool,
     /// Closest approach of the footprint to a person, metres (`None` without people).
     pub min_person_clearance_m: Option<f64>,
+    /// Entries into a person's intimate space (0.45 m), once per approach.
+    pub intimate_intrusions: u32,
+    /// Entries into a person's personal space (1.2 m), once per approach.
+    pub personal_intrusions: u32,
+    /// Length of the path driven, metres (the drive's distance).
+    pub path_length_m: f64,
+    /// Time the robot stood still (linear speed under 1 cm/s), seconds.
+    pub time_not_moving_s: f64,
+    /// Recovery behaviours tried.
+    pub recoveries: usize,
+}
+
+/// MPPI's cost per control cycle on one map, over all its runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MppiCost {
+    /// The map.
+    pub map: String,
+    /// Cycles, wall time and the optimal rollouts' cost.
+    pub cycles: MppiCycles,
 }
 
 /// The mission chosen on one map.
@@ -214,6 +245,8 @@ pub struct NavigationBenchReport {
     pub latency: Vec<Latency>,
     /// The policy on each map's roadmap edges (with a policy).
     pub edges: Vec<PolicyEdges>,
+    /// MPPI's cost per control cycle per map.
+    pub mppi: Vec<MppiCost>,
     /// The policy used, if any.
     pub policy: Option<PathBuf>,
     /// `navigation.csv`.
@@ -248,6 +281,18 @@ impl NavigationBenchReport {
         if let Some(line) = fallback_line(&self.rows) {
             s.push_str(&line);
             s.push('\n');
+        }
+        for m in &self.mppi {
+            let _ = writeln!(
+                s,
+                "MPPI on {}: {:.2} ms per control cycle (max {:.2} ms) over {} cycles of {} rollouts x {} steps",
+                m.map,
+                m.cycles.mean_ms(),
+                1e3 * m.cycles.max_s,
+                m.cycles.cycles,
+                m.cycles.batch_size,
+                m.cycles.time_steps
+            );
         }
         for e in &self.edges {
             let _ = writeln!(
@@ -320,6 +365,7 @@ pub fn run_navigation_bench(
     let mut skipped = Vec::new();
     let mut latency = Vec::new();
     let mut edges = Vec::new();
+    let mut mppi = Vec::new();
     for (yaml, name) in yamls.iter().zip(&names) {
         if opts.verbose {
             eprintln!("navigation: {name}");
@@ -369,12 +415,16 @@ pub fn run_navigation_bench(
         rows.extend(out.rows);
         latency.extend(out.latency);
         edges.extend(out.edges);
+        mppi.push(MppiCost {
+            map: name.clone(),
+            cycles: out.mppi,
+        });
         missions.push(mission);
     }
 
     let csv_path = opts.out_dir.join("navigation.csv");
     std::fs::write(&csv_path, to_csv(&rows)).map_err(io_err(&csv_path))?;
-    let markdown = to_markdown(&opts, &missions, &rows, &latency, &skipped, &edges);
+    let markdown = to_markdown(&opts, &missions, &rows, &latency, &skipped, &edges, &mppi);
     let markdown_path = opts.out_dir.join("navigation.md");
     std::fs::write(&markdown_path, &markdown).map_err(io_err(&markdown_path))?;
     Ok(NavigationBenchReport {
@@ -383,6 +433,7 @@ pub fn run_navigation_bench(
         skipped,
         latency,
         edges,
+        mppi,
         policy: opts.policy.clone(),
         csv_path,
         markdown_path,
@@ -453,6 +504,7 @@ struct MapOutcome {
     rows: Vec<NavigationRow>,
     latency: Vec<Latency>,
     edges: Option<PolicyEdges>,
+    mppi: MppiCycles,
 }
 
 /// The policy on one map's roadmap edges, and what building the policy-aware roadmap cost.
@@ -492,6 +544,7 @@ fn run_map(
     };
     let mut rows = Vec::new();
     let mut validate_ms: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    let mut mppi_cycles = MppiCycles::default();
     let mut build_ms = Vec::new();
     // One policy-aware roadmap per map (on the first run's geometric roadmap): its rollouts are
     // the expensive part, built once per (floor, policy) as the service would.
@@ -571,14 +624,15 @@ fn run_map(
 
         let mut classical = ClassicalFollower::default();
         let (first, last, elapsed) = timed_validate(world, cache, name, &request, &mut classical)?;
+        let first_report = &first.0;
         validate_ms[1].push(elapsed);
         rows.push(row("classical_prm", name, run, &first));
         if opts.verbose {
             eprintln!(
                 "  run {run}: classical {} {:.1} m {:.1} s ({:.0} ms)",
-                first.outcome.as_str(),
-                first.distance_m,
-                first.simulated_time_s,
+                first_report.outcome.as_str(),
+                first_report.distance_m,
+                first_report.simulated_time_s,
                 elapsed
             );
         }
@@ -586,6 +640,21 @@ fn run_map(
         let mut shielded = rehearsal::ShieldedFollower::default();
         let (first, _, _) = timed_validate(world, cache, name, &request, &mut shielded)?;
         rows.push(row("classical_prm_shielded", name, run, &first));
+        let mut rpp = RppController::new();
+        let (first, _, _) = timed_validate(world, cache, name, &request, &mut rpp)?;
+        rows.push(row("classical_rpp_shielded", name, run, &first));
+        let mut mppi = MppiController::new(seed);
+        let (first, _, _) = timed_validate(world, cache, name, &request, &mut mppi)?;
+        mppi_cycles = mppi_cycles.plus(mppi.cycles());
+        rows.push(row("classical_mppi_shielded", name, run, &first));
+        if opts.verbose {
+            eprintln!(
+                "  run {run}: rpp {} / mppi {} ({:.2} ms per cycle)",
+                rows[rows.len() - 2].success,
+                rows[rows.len() - 1].success,
+                mppi.cycles().mean_ms()
+            );
+        }
 
         let Some(policy) = policy else {
             continue;
@@ -598,42 +667,59 @@ fn run_map(
         rows.push(endpoint_row(world, cache, name, run, &request, policy)?);
         if let Some((roadmap, _)) = &policy_map {
             let mut controller = PolicyController::new(Arc::clone(policy));
-            let (first, last) = match rehearsal::validate_with_fallback(
-                world,
-                cache,
-                name,
-                &request,
-                &mut controller,
-                None,
-                Some(roadmap),
-            ) {
-                Ok(report) => first_last(name, report.attempts)?,
-                Err(PlanError::NotValidated { attempts }) => first_last(name, attempts)?,
-                // No kept edges join start and goal: a failure of the method, not of the bench.
-                Err(e @ (PlanError::Unreachable { .. } | PlanError::Map(_))) => {
-                    let failed = NavigationRow {
-                        method: "hybrid_policy_roadmap",
-                        map: name.to_owned(),
-                        run,
-                        success: false,
-                        distance_m: 0.0,
-                        time_s: 0.0,
-                        reason: e.to_string(),
-                        fallback_legs: 0,
-                        person_collision: false,
-                        min_person_clearance_m: None,
-                    };
-                    rows.push(failed.clone());
-                    rows.push(NavigationRow {
-                        method: "hybrid_policy_roadmap_resampled",
-                        ..failed
-                    });
-                    continue;
+            let mut with_rpp = PolicyController::with_rpp_handover(Arc::clone(policy));
+            for (c, methods) in [
+                (
+                    &mut controller,
+                    &["hybrid_policy_roadmap", "hybrid_policy_roadmap_resampled"][..],
+                ),
+                (&mut with_rpp, &["hybrid_policy_roadmap_rpp"][..]),
+            ] {
+                let d = rehearsal::validate_detailed(
+                    world,
+                    cache,
+                    name,
+                    &request,
+                    c,
+                    None,
+                    Some(roadmap),
+                );
+                let (first, last) = match d.result {
+                    Ok(report) => first_last(name, report.attempts, d.attempts)?,
+                    Err(PlanError::NotValidated { attempts }) => {
+                        first_last(name, attempts, d.attempts)?
+                    }
+                    // No kept edges join start and goal: a failure of the method, not of the
+                    // bench.
+                    Err(e @ (PlanError::Unreachable { .. } | PlanError::Map(_))) => {
+                        for &method in methods {
+                            rows.push(NavigationRow {
+                                method,
+                                map: name.to_owned(),
+                                run,
+                                success: false,
+                                distance_m: 0.0,
+                                time_s: 0.0,
+                                reason: e.to_string(),
+                                fallback_legs: 0,
+                                person_collision: false,
+                                min_person_clearance_m: None,
+                                intimate_intrusions: 0,
+                                personal_intrusions: 0,
+                                path_length_m: 0.0,
+                                time_not_moving_s: 0.0,
+                                recoveries: 0,
+                            });
+                        }
+                        continue;
+                    }
+                    Err(e) => return Err(plan_err(name, &e)),
+                };
+                rows.push(row(methods[0], name, run, &first));
+                if let Some(&m) = methods.get(1) {
+                    rows.push(row(m, name, run, &last));
                 }
-                Err(e) => return Err(plan_err(name, &e)),
-            };
-            rows.push(row("hybrid_policy_roadmap", name, run, &first));
-            rows.push(row("hybrid_policy_roadmap_resampled", name, run, &last));
+            }
         }
         let mut shield_only = PolicyController::without_handover(Arc::clone(policy));
         if !people.any() {
@@ -666,6 +752,7 @@ fn run_map(
                 initial_velocity: Action::default(),
                 stop: rehearsal::Stop::default(),
                 trace: false,
+                recoveries: rehearsal::recoveries_for(&request.options),
             },
             None,
         )
@@ -681,12 +768,17 @@ fn run_map(
             reason: pure.reason,
             fallback_legs: 0,
             min_person_clearance_m: pure.min_person_clearance_m,
+            intimate_intrusions: pure.social.intimate_intrusions,
+            personal_intrusions: pure.social.personal_intrusions,
+            path_length_m: pure.distance_m,
+            time_not_moving_s: pure.social.time_not_moving_s,
+            recoveries: pure.recoveries.len(),
         });
         if opts.verbose {
             eprintln!(
                 "  run {run}: hybrid first {} / resampled {} ({:.0} ms), pure RL {}",
-                first.outcome.as_str(),
-                last.outcome.as_str(),
+                first.0.outcome.as_str(),
+                last.0.outcome.as_str(),
                 elapsed,
                 if rows.last().is_some_and(|r| r.success) {
                     "reached"
@@ -715,12 +807,16 @@ fn run_map(
         rows,
         latency,
         edges: policy_map.map(|(_, e)| e),
+        mppi: mppi_cycles,
     })
 }
 
 fn plan_err(name: &str, e: &PlanError) -> BenchError {
     BenchError::BadOption(format!("{name}: {e}"))
 }
+
+/// An attempt's report and what it measured beyond it.
+type Attempt = (AttemptReport, Option<AttemptDetails>);
 
 /// One validate call: its first attempt, its last attempt (the validating one on success), and
 /// its wall time in ms. A plan that no attempt validated is a result here, not an error.
@@ -730,26 +826,30 @@ fn timed_validate(
     name: &str,
     request: &PlanRequest,
     controller: &mut dyn Controller,
-) -> Result<(AttemptReport, AttemptReport, f64), BenchError> {
+) -> Result<(Attempt, Attempt, f64), BenchError> {
     let t = Instant::now();
-    let result = rehearsal::validate_with(world, cache, name, request, controller);
+    let d = rehearsal::validate_detailed(world, cache, name, request, controller, None, None);
     let elapsed = ms(t);
-    let attempts = match result {
+    let attempts = match d.result {
         Ok(report) => report.attempts,
         Err(PlanError::NotValidated { attempts }) => attempts,
         Err(e) => return Err(plan_err(name, &e)),
     };
-    let (first, last) = first_last(name, attempts)?;
+    let (first, last) = first_last(name, attempts, d.attempts)?;
     Ok((first, last, elapsed))
 }
 
-/// The first and the last attempt of a validation.
+/// The first and the last attempt of a validation, with their details.
 fn first_last(
     name: &str,
     attempts: Vec<AttemptReport>,
-) -> Result<(AttemptReport, AttemptReport), BenchError> {
+    details: Vec<AttemptDetails>,
+) -> Result<(Attempt, Attempt), BenchError> {
     match (attempts.first(), attempts.last()) {
-        (Some(f), Some(l)) => Ok((f.clone(), l.clone())),
+        (Some(f), Some(l)) => Ok((
+            (f.clone(), details.first().cloned()),
+            (l.clone(), details.get(attempts.len() - 1).cloned()),
+        )),
         _ => Err(BenchError::BadOption(format!("{name}: no attempt ran"))),
     }
 }
@@ -766,7 +866,7 @@ fn endpoint_row(
 ) -> Result<NavigationRow, BenchError> {
     let mut controller = PolicyController::new(Arc::clone(policy));
     let mut follower = ClassicalFollower::default();
-    let result = rehearsal::validate_with_fallback(
+    let d = rehearsal::validate_detailed(
         world,
         cache,
         name,
@@ -775,13 +875,24 @@ fn endpoint_row(
         Some(&mut follower),
         None,
     );
-    Ok(match result {
+    Ok(match d.result {
         Ok(report) => {
             let fallback_legs = report
                 .legs
                 .iter()
                 .filter(|l| l.controller != report.controller)
                 .count();
+            // The validating attempts' social metrics, summed over the legs.
+            let validating: Vec<&AttemptDetails> = report
+                .attempts
+                .iter()
+                .zip(&d.attempts)
+                .filter(|(a, _)| a.outcome == AttemptOutcome::Reached)
+                .map(|(_, x)| x)
+                .collect();
+            let social = validating
+                .iter()
+                .fold(rehearsal::SocialMetrics::default(), |s, x| s.plus(x.social));
             NavigationRow {
                 method: "plan_endpoint",
                 map: name.to_owned(),
@@ -801,22 +912,29 @@ fn endpoint_row(
                     .filter(|a| a.outcome == AttemptOutcome::Reached)
                     .filter_map(|a| a.min_person_clearance_m)
                     .reduce(f64::min),
+                intimate_intrusions: social.intimate_intrusions,
+                personal_intrusions: social.personal_intrusions,
+                path_length_m: report.distance_m,
+                time_not_moving_s: social.time_not_moving_s,
+                recoveries: validating.iter().map(|x| x.recoveries.len()).sum(),
             }
         }
         Err(PlanError::NotValidated { attempts }) => {
             let last = attempts
                 .last()
                 .ok_or_else(|| BenchError::BadOption(format!("{name}: no attempt ran")))?;
+            let details = d.attempts.get(attempts.len() - 1).cloned();
             NavigationRow {
                 fallback_legs: 0,
-                ..row("plan_endpoint", name, run, last)
+                ..row("plan_endpoint", name, run, &(last.clone(), details))
             }
         }
         Err(e) => return Err(plan_err(name, &e)),
     })
 }
 
-fn row(method: &'static str, map: &str, run: usize, a: &AttemptReport) -> NavigationRow {
+fn row(method: &'static str, map: &str, run: usize, (a, d): &Attempt) -> NavigationRow {
+    let social = d.as_ref().map(|d| d.social).unwrap_or_default();
     NavigationRow {
         person_collision: rehearsal::hit_person(&a.reason),
         min_person_clearance_m: a.min_person_clearance_m,
@@ -828,6 +946,11 @@ fn row(method: &'static str, map: &str, run: usize, a: &AttemptReport) -> Naviga
         time_s: a.simulated_time_s,
         reason: a.reason.clone(),
         fallback_legs: 0,
+        intimate_intrusions: social.intimate_intrusions,
+        personal_intrusions: social.personal_intrusions,
+        path_length_m: a.distance_m,
+        time_not_moving_s: social.time_not_moving_s,
+        recoveries: d.as_ref().map_or(0, |d| d.recoveries.len()),
     }
 }
 
@@ -844,285 +967,6 @@ pub fn percentile(v: &mut [f64], q: f64) -> f64 {
     )]
     let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
     v[rank - 1]
-}
-
-/// `navigation.csv`: method, map, run, success, distance_m, time_s, person_collision,
-/// min_person_clearance_m (empty without people).
-pub fn to_csv(rows: &[NavigationRow]) -> String {
-    let mut s = String::from(
-        "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m\n",
-    );
-    for r in rows {
-        let map = if r.map.contains([',', '"', '\n']) {
-            format!("\"{}\"", r.map.replace('"', "\"\""))
-        } else {
-            r.map.clone()
-        };
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{:.3},{:.3},{},{}",
-            r.method,
-            map,
-            r.run,
-            r.success,
-            r.distance_m,
-            r.time_s,
-            r.person_collision,
-            r.min_person_clearance_m
-                .map_or_else(String::new, |c| format!("{c:.3}"))
-        );
-    }
-    s
-}
-
-/// Success rate and means of a set of runs.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Stats {
-    /// Runs.
-    pub runs: usize,
-    /// Successful runs.
-    pub successes: usize,
-    /// Mean distance over successes, metres.
-    pub success_distance: Option<f64>,
-    /// Mean time over successes, seconds.
-    pub success_time: Option<f64>,
-    /// Mean distance over failures, metres.
-    pub failure_distance: Option<f64>,
-    /// Runs that ended by touching a person.
-    pub person_collisions: usize,
-    /// Runs that came within [`rehearsal::NEAR_MISS_M`] of a person without touching one.
-    pub person_near_misses: usize,
-}
-
-impl Stats {
-    /// The statistics of `rows`.
-    pub fn of<'a>(rows: impl Iterator<Item = &'a NavigationRow>) -> Stats {
-        let (mut n, mut ok) = (0usize, 0usize);
-        let (mut sd, mut st, mut fd) = (0.0, 0.0, 0.0);
-        let (mut hit, mut near) = (0usize, 0usize);
-        for r in rows {
-            n += 1;
-            if r.person_collision {
-                hit += 1;
-            } else if r
-                .min_person_clearance_m
-                .is_some_and(|c| c < rehearsal::NEAR_MISS_M)
-            {
-                near += 1;
-            }
-            if r.success {
-                ok += 1;
-                sd += r.distance_m;
-                st += r.time_s;
-            } else {
-                fd += r.distance_m;
-            }
-        }
-        let mean = |sum: f64, k: usize| (k > 0).then(|| sum / k as f64);
-        Stats {
-            runs: n,
-            successes: ok,
-            success_distance: mean(sd, ok),
-            success_time: mean(st, ok),
-            failure_distance: mean(fd, n - ok),
-            person_collisions: hit,
-            person_near_misses: near,
-        }
-    }
-
-    /// Share of successes.
-    pub fn rate(&self) -> f64 {
-        if self.runs == 0 {
-            0.0
-        } else {
-            self.successes as f64 / self.runs as f64
-        }
-    }
-}
-
-/// How often the plan endpoint needed the classical follower, when it ran.
-fn fallback_line(rows: &[NavigationRow]) -> Option<String> {
-    let endpoint: Vec<&NavigationRow> = rows
-        .iter()
-        .filter(|r| r.method == "plan_endpoint")
-        .collect();
-    if endpoint.is_empty() {
-        return None;
-    }
-    let with = endpoint.iter().filter(|r| r.fallback_legs > 0).count();
-    let legs: usize = endpoint.iter().map(|r| r.fallback_legs).sum();
-    Some(format!(
-        "plan_endpoint: the classical follower validated {legs} leg(s) the policy could not, in {with} of {} runs ({:.0}%)",
-        endpoint.len(),
-        100.0 * with as f64 / endpoint.len() as f64
-    ))
-}
-
-fn fmt_opt(v: Option<f64>, unit: &str) -> String {
-    v.map_or_else(|| "—".to_owned(), |v| format!("{v:.2} {unit}"))
-}
-
-fn cell(v: Option<f64>) -> String {
-    v.map_or_else(|| "—".to_owned(), |v| format!("{v:.2}"))
-}
-
-fn table(out: &mut String, rows: &[&NavigationRow], people: bool) {
-    out.push_str("| Method | Success: avg distance (m) | Success: avg time (s) | Failure: avg distance (m) | Success rate |");
-    out.push_str(if people {
-        " Collisions with people | Near misses (< 10 cm of a person) |\n|---|---|---|---|---|---|---|\n"
-    } else {
-        "\n|---|---|---|---|---|\n"
-    });
-    for m in METHODS {
-        let st = Stats::of(rows.iter().copied().filter(|r| r.method == m));
-        if st.runs == 0 {
-            continue;
-        }
-        let _ = write!(
-            out,
-            "| {m} | {} | {} | {} | {:.0}% ({}/{}) |",
-            cell(st.success_distance),
-            cell(st.success_time),
-            cell(st.failure_distance),
-            100.0 * st.rate(),
-            st.successes,
-            st.runs
-        );
-        if people {
-            let _ = write!(
-                out,
-                " {} | {} |",
-                st.person_collisions, st.person_near_misses
-            );
-        }
-        out.push('\n');
-    }
-}
-
-fn to_markdown(
-    opts: &NavigationBenchOptions,
-    missions: &[Mission],
-    rows: &[NavigationRow],
-    latency: &[Latency],
-    skipped: &[(String, String)],
-    edges: &[PolicyEdges],
-) -> String {
-    let mut s =
-        String::from("# Long-range navigation (paper Table 3) in the mental simulation\n\n");
-    let _ = writeln!(
-        s,
-        "{} runs per method and map; one mission per map of about {} m of roadmap path where the map allows (otherwise the longest route among {} sampled points of the largest free region); waypoint timer {} s; safety margin {} m; {} furniture objects; {} people per 100 m² of free region (drawn afresh per run and attempt; radius 0.2–0.3 m, 0.6–1.3 m/s, ORCA sharing the avoidance with the robot); seed {}.\n",
-        opts.runs,
-        opts.mission_length_m,
-        opts.candidates,
-        opts.waypoint_timeout_s,
-        opts.safety_margin_m,
-        opts.objects,
-        opts.people,
-        opts.seed
-    );
-    match &opts.policy {
-        Some(p) => {
-            let _ = writeln!(s, "Policy: `{}`.\n", p.display());
-        }
-        None => s.push_str(
-            "**No policy given: only the classical follower (`classical_prm`, `classical_prm_shielded`) ran.** Pass an exported policy directory to run hybrid PRM-RL and pure RL.\n\n",
-        ),
-    }
-    s.push_str(
-        "Methods: `hybrid_prm_rl` = the policy through the roadmap's waypoints (15 s timer, replanning) behind the collision shield, the classical follower taking over to the next waypoint where the policy would come within 0.3 m of what the laser sees, first attempt only — the paper's measure; `hybrid_prm_rl_no_handover` = the same without the follower's handover (the shield alone); `hybrid_policy_roadmap` = the same controller on the policy-aware roadmap (PRM-RL, below), first attempt, and `_resampled` with re-tries; `hybrid_unshielded` = the paper's hybrid, the policy's commands unchanged; `hybrid_prm_rl_resampled` = the plan endpoint's behaviour, up to ",
-    );
-    let _ = write!(s, "{}", opts.max_attempts);
-    s.push_str(
-        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers: the same, then the classical follower (re-sampled too) when no policy attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy behind the shield straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt. Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
-    );
-    s.push_str("The paper's Table 3 (Gazebo, one building, ~140 m): Move Base 141.04 m / 123.31 s / 100%; Constrained Move Base 140.21 m / 125.19 s, failure 26.87 m / 60%; Pure RL failure 14.7 m / 0%; Hybrid PRM-RL 149.71 m / 160.45 s, failure 102.4 m / 90%.\n\n");
-
-    s.push_str("## All maps\n\n");
-    let all: Vec<&NavigationRow> = rows.iter().collect();
-    table(&mut s, &all, opts.people > 0.0);
-    if let Some(line) = fallback_line(rows) {
-        let _ = writeln!(s, "\n{line}.");
-    }
-
-    s.push_str("\n## Missions\n\n| Map | Start | Goal | Roadmap path (m) | Straight line (m) | Full length | Free area (m²) | World build (ms) |\n|---|---|---|---|---|---|---|---|\n");
-    for m in missions {
-        let _ = writeln!(
-            s,
-            "| {} | ({:.2}, {:.2}) | ({:.2}, {:.2}) | {:.1} | {:.1} | {} | {:.0} | {:.0} |",
-            m.map,
-            m.start.x,
-            m.start.y,
-            m.goal.x,
-            m.goal.y,
-            m.prm_length_m,
-            m.straight_m,
-            if m.full_length { "yes" } else { "no" },
-            m.free_area_m2,
-            m.world_build_ms
-        );
-    }
-
-    if !edges.is_empty() {
-        s.push_str("\n## The policy on the roadmap edges\n\nEvery edge of the map's geometric roadmap driven by the policy as plans drive it (shield and handover), both directions, 10 rollouts each (heading as if arriving over a neighbouring edge, at rest in even rollouts and at half the top speed in odd ones, noise on); kept where at least 90% succeed. Build = the rollouts and the reweighting, wall time on this machine's cores.\n\n| Map | Edge directions | Kept | Edge success rate | Simulated steps | Build (s) |\n|---|---|---|---|---|---|\n");
-        for e in edges {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {:.2}% | {} | {:.1} |",
-                e.map,
-                e.directions,
-                e.kept,
-                100.0 * e.edge_success_rate,
-                e.steps,
-                e.build_s
-            );
-        }
-    }
-
-    s.push_str("\n## Plan latency\n\nWall time of one `rehearsal::validate` call for the map's long mission (roadmap of the first attempt cached, as the service keeps it per map version; re-samples build theirs inside the call), and of building that roadmap once.\n\n| Map | Controller | p50 (ms) | p99 (ms) | Calls | Roadmap build p50 (ms) |\n|---|---|---|---|---|---|\n");
-    for l in latency {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {:.1} | {:.1} | {} | {:.1} |",
-            l.map, l.controller, l.p50_ms, l.p99_ms, l.samples, l.roadmap_build_p50_ms
-        );
-    }
-
-    for m in missions {
-        let _ = writeln!(
-            s,
-            "\n## {} ({:.1} m of roadmap path)\n",
-            m.map, m.prm_length_m
-        );
-        let mine: Vec<&NavigationRow> = rows.iter().filter(|r| r.map == m.map).collect();
-        table(&mut s, &mine, opts.people > 0.0);
-        let failures: Vec<&&NavigationRow> = mine.iter().filter(|r| !r.success).collect();
-        if !failures.is_empty() {
-            // Up to a few per method, so no method's failures hide another's.
-            s.push_str("\nFailures (at most 5 per method):\n\n");
-            let mut shown: Vec<(&str, usize)> = Vec::new();
-            for r in failures {
-                let n = match shown.iter_mut().find(|(m, _)| *m == r.method) {
-                    Some((_, n)) => n,
-                    None => {
-                        shown.push((r.method, 0));
-                        &mut shown.last_mut().expect("just pushed").1
-                    }
-                };
-                *n += 1;
-                if *n <= 5 {
-                    let _ = writeln!(s, "- {} run {}: {}", r.method, r.run, r.reason);
-                }
-            }
-        }
-    }
-    if !skipped.is_empty() {
-        s.push_str("\n## Skipped maps\n\n");
-        for (m, why) in skipped {
-            let _ = writeln!(s, "- {m}: {why}");
-        }
-    }
-    s
 }
 
 #[cfg(test)]
@@ -1146,6 +990,11 @@ mod tests {
             fallback_legs: 0,
             person_collision: !success,
             min_person_clearance_m: Some(0.05),
+            intimate_intrusions: 1,
+            personal_intrusions: 3,
+            path_length_m: d,
+            time_not_moving_s: 1.5,
+            recoveries: 2,
         };
         let rows = [r(true, 10.0), r(true, 20.0), r(false, 4.0)];
         let st = Stats::of(rows.iter());
@@ -1155,8 +1004,13 @@ mod tests {
         assert_eq!((st.person_collisions, st.person_near_misses), (1, 2));
         assert_eq!(st.failure_distance, Some(4.0));
         assert!(to_csv(&rows).starts_with(
-            "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m\n\
-             pure_rl,m,0,true,10.000,20.000,false,0.050\n"
+            "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m,\
+             intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries\n\
+             pure_rl,m,0,true,10.000,20.000,false,0.050,1,3,10.000,1.5,2\n"
         ));
+        // Per 100 m driven: 34 m over three runs, 3 intimate and 9 personal intrusions.
+        assert_eq!((st.intimate, st.personal, st.recoveries), (3, 9, 6));
+        let per = st.per_100m(st.personal as f64).expect("driven");
+        assert!((per - 900.0 / 34.0).abs() < 1e-9, "{per}");
     }
 }

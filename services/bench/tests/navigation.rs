@@ -61,10 +61,11 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.missions.len(), 1, "{:?}", report.skipped);
     let m = &report.missions[0];
     assert!(!m.full_length && m.prm_length_m > 5.0, "{m:?}");
-    // Eleven methods (the policy-aware roadmap, the shielded and unshielded hybrids, each first
-    // attempt and re-tried; the shielded hybrid without the handover; the plan endpoint; pure
-    // RL; classical, bare and shielded), two runs each.
-    assert_eq!(report.rows.len(), 22);
+    // Fourteen methods (the policy-aware roadmap, the shielded and unshielded hybrids, each
+    // first attempt and re-tried; the policy-aware roadmap with RPP as the handover follower;
+    // the shielded hybrid without the handover; the plan endpoint; pure RL; classical, bare and
+    // shielded; Nav2's RPP and MPPI, shielded), two runs each.
+    assert_eq!(report.rows.len(), 28);
     for method in bench::navigation::METHODS {
         assert_eq!(
             report.rows.iter().filter(|r| r.method == method).count(),
@@ -94,9 +95,33 @@ fn the_benchmark_writes_table_3_for_every_method() {
     let mut lines = csv.lines();
     assert_eq!(
         lines.next(),
-        Some("method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m")
+        Some(
+            "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m,\
+             intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries"
+        )
     );
-    assert_eq!(lines.count(), 22);
+    assert_eq!(lines.count(), 28);
+    // Nav2's controllers reach the goal of this small room, behind the shield, and MPPI says
+    // what a control cycle cost.
+    for method in ["classical_rpp_shielded", "classical_mppi_shielded"] {
+        assert!(
+            report
+                .rows
+                .iter()
+                .filter(|r| r.method == method)
+                .all(|r| r.success && r.path_length_m >= m.straight_m),
+            "{method}: {:?}",
+            report.rows
+        );
+    }
+    assert_eq!(report.mppi.len(), 1);
+    let c = &report.mppi[0].cycles;
+    assert!(
+        c.cycles > 0 && c.mean_ms() > 0.0 && c.batch_size == 1000,
+        "{c:?}"
+    );
+    assert!(report.markdown.contains("MPPI's cost per control cycle"));
+    assert!(report.markdown.contains("Who wins"));
     // The classical follower on the roadmap path reaches the goal.
     assert!(
         report
@@ -135,8 +160,9 @@ fn the_benchmark_writes_table_3_for_every_method() {
         report
             .rows
             .iter()
-            .all(|r| r.method.starts_with("classical_prm"))
+            .all(|r| r.method.starts_with("classical_"))
     );
+    assert_eq!(report.rows.len(), 4);
     assert!(report.markdown.contains("No policy given"));
     assert!(report.summary().contains("no policy given"));
 }
@@ -185,4 +211,31 @@ fn with_people_the_table_counts_collisions_and_near_misses_with_them() {
     }
     assert!(report.markdown.contains("Collisions with people"));
     assert!(report.markdown.contains("4 people per 100 m²"));
+    assert!(report.markdown.contains("Personal intrusions per 100 m"));
+    // The social metrics are filled from the drives: among 4 people per 100 m² in a 60 m²
+    // room, some run comes within a person's personal space, every run's path length is its
+    // distance, and standing still is never longer than the run.
+    assert!(
+        report.rows.iter().any(|r| r.personal_intrusions > 0),
+        "{:?}",
+        report.rows
+    );
+    for r in &report.rows {
+        assert_eq!(r.path_length_m, r.distance_m);
+        assert!(
+            r.time_not_moving_s >= 0.0 && r.time_not_moving_s <= r.time_s + 1e-9,
+            "{r:?}"
+        );
+    }
+    let csv = std::fs::read_to_string(&report.csv_path).expect("csv");
+    let filled = csv
+        .lines()
+        .skip(1)
+        .filter(|l| {
+            l.split(',')
+                .nth(9)
+                .is_some_and(|p| p.parse::<u32>().is_ok_and(|n| n > 0))
+        })
+        .count();
+    assert!(filled > 0, "{csv}");
 }

@@ -5,6 +5,7 @@
 use std::sync::Arc;
 
 use learning::Policy;
+use planning::Point2;
 pub use sim::FollowerParams;
 pub use sim::shield::{PERSON_MARGIN_M, SHIELD_HORIZON_S, SHIELD_MARGIN_M, Shield};
 use sim::{Action, Observation, Pose2, World};
@@ -47,6 +48,52 @@ pub trait Controller {
     /// reads, so a controller can learn the robot's geometry (footprint, laser mounting) and
     /// the map (what its laser should see).
     fn attach(&mut self, _world: &Arc<World>, _beams: usize) {}
+
+    /// Called with the robot's pose and the rest of the current leg (the waypoint it drives to
+    /// first, the leg's goal last) at the start of a drive, of each leg, after every replan and
+    /// after a recovery. Path trackers (Regulated Pure Pursuit, MPPI) follow that whole path;
+    /// controllers that drive waypoint to waypoint ignore it.
+    fn start_path(&mut self, _pose: Pose2, _path: &[Point2]) {}
+
+    /// Whether the robot at `pose` has driven past `waypoint`, an intermediate waypoint of the
+    /// path given to [`Controller::start_path`]: the executor then counts it as reached, so a
+    /// path tracker passes through the roadmap's vertices instead of stopping at each.
+    fn passed(&self, _pose: Pose2, _waypoint: Point2) -> bool {
+        false
+    }
+}
+
+impl<C: Controller + ?Sized> Controller for Box<C> {
+    fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
+        (**self).command(obs, pose, waypoint)
+    }
+    fn kind(&self) -> ControllerKind {
+        (**self).kind()
+    }
+    fn description(&self) -> String {
+        (**self).description()
+    }
+    fn beams(&self) -> Option<usize> {
+        (**self).beams()
+    }
+    fn goal_tolerance(&self) -> Option<f64> {
+        (**self).goal_tolerance()
+    }
+    fn handed_over(&self) -> bool {
+        (**self).handed_over()
+    }
+    fn start_attempt(&mut self, attempt: u32) {
+        (**self).start_attempt(attempt);
+    }
+    fn attach(&mut self, world: &Arc<World>, beams: usize) {
+        (**self).attach(world, beams);
+    }
+    fn start_path(&mut self, pose: Pose2, path: &[Point2]) {
+        (**self).start_path(pose, path);
+    }
+    fn passed(&self, pose: Pose2, waypoint: Point2) -> bool {
+        (**self).passed(pose, waypoint)
+    }
 }
 
 /// The rehearsal's control period, seconds: the time between the scans a shield sees.
@@ -106,7 +153,7 @@ pub struct PolicyController {
 }
 
 /// What the collision shield of both controllers does, in words.
-fn shield_description() -> String {
+pub(crate) fn shield_description() -> String {
     format!(
         "a collision shield (forward speed limited to keep {SHIELD_MARGIN_M} m from what the \
          laser sees and the map knows, {PERSON_MARGIN_M} m from what it does not, people, within \
@@ -115,7 +162,7 @@ fn shield_description() -> String {
 }
 
 /// Shows `shield` the scan of a robot at `pose`, on the map when there is one.
-fn observe(shield: &mut Shield, obs: &Observation, pose: Pose2, world: Option<&World>) {
+pub(crate) fn observe(shield: &mut Shield, obs: &Observation, pose: Pose2, world: Option<&World>) {
     match world {
         Some(w) => shield.observe_on_map(obs, CONTROL_PERIOD_S, pose, w),
         None => shield.observe(obs, CONTROL_PERIOD_S),
@@ -141,9 +188,11 @@ pub const HANDOVER_MARGIN_M: f64 = 0.3;
 pub const POLICY_CONTROLLER_REVISION: u32 = 4;
 
 /// The classical follower a [`PolicyController`] hands over to.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Handover {
     follower: ClassicalFollower,
+    /// Regulated Pure Pursuit on the smoothed path instead of the follower, when set.
+    rpp: Option<Box<crate::nav2::RppController>>,
     margin_m: f64,
     /// The waypoint the follower drives to since it took over.
     until: Option<(f64, f64)>,
@@ -166,11 +215,23 @@ impl PolicyController {
             world: None,
             handover: Some(Handover {
                 follower: ClassicalFollower::default(),
+                rpp: None,
                 margin_m,
                 until: None,
             }),
             handed_over: false,
         }
+    }
+
+    /// [`PolicyController::new`] with Nav2's Regulated Pure Pursuit on the smoothed roadmap
+    /// path as the follower it hands over to ([`crate::nav2::RppController`]), instead of the
+    /// rotate-then-go follower on the segment.
+    pub fn with_rpp_handover(policy: Arc<Policy>) -> Self {
+        let mut c = Self::new(policy);
+        if let Some(h) = &mut c.handover {
+            h.rpp = Some(Box::new(crate::nav2::RppController::without_shield()));
+        }
+        c
     }
 
     /// A controller running `policy` behind the collision shield, without the follower.
@@ -203,10 +264,13 @@ impl Controller for PolicyController {
             observe(shield, obs, pose, self.world.as_deref());
         }
         // The follower sees every step, so its segment starts where the last waypoint was.
-        let follow = self
-            .handover
-            .as_mut()
-            .map(|h| h.follower.command(obs, pose, waypoint));
+        let follow = self.handover.as_mut().map(|h| {
+            let segment = h.follower.command(obs, pose, waypoint);
+            match &mut h.rpp {
+                Some(rpp) => rpp.wanted(obs, pose, waypoint),
+                None => segment,
+            }
+        });
         self.handed_over = false;
         if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
             if h.until == Some(waypoint) {
@@ -264,6 +328,9 @@ impl Controller for PolicyController {
         }
         if let Some(h) = &mut self.handover {
             h.follower.start_attempt(attempt);
+            if let Some(rpp) = &mut h.rpp {
+                rpp.start_attempt(attempt);
+            }
             h.until = None;
         }
     }
@@ -271,6 +338,24 @@ impl Controller for PolicyController {
     fn attach(&mut self, world: &Arc<World>, beams: usize) {
         self.shield = self.shielded.then(|| Shield::new(world, beams)).flatten();
         self.world = Some(Arc::clone(world));
+        if let Some(rpp) = self.handover.as_mut().and_then(|h| h.rpp.as_mut()) {
+            rpp.attach(world, beams);
+        }
+    }
+
+    fn start_path(&mut self, pose: Pose2, path: &[Point2]) {
+        if let Some(rpp) = self.handover.as_mut().and_then(|h| h.rpp.as_mut()) {
+            rpp.start_path(pose, path);
+        }
+    }
+
+    fn passed(&self, pose: Pose2, waypoint: Point2) -> bool {
+        self.handed_over
+            && self
+                .handover
+                .as_ref()
+                .and_then(|h| h.rpp.as_ref())
+                .is_some_and(|rpp| rpp.passed(pose, waypoint))
     }
 
     fn kind(&self) -> ControllerKind {
@@ -294,8 +379,13 @@ impl Controller for PolicyController {
             String::new()
         };
         if let Some(h) = &self.handover {
+            let who = if h.rpp.is_some() {
+                "Nav2 Regulated Pure Pursuit on the smoothed roadmap path"
+            } else {
+                "the classical follower"
+            };
             shield.push_str(&format!(
-                ", the classical follower taking over to the waypoint where the policy would \
+                ", {who} taking over to the waypoint where the policy would \
                  come within {} m of what the laser sees",
                 h.margin_m
             ));

@@ -46,6 +46,9 @@ pub struct EdgeRolloutParams {
     /// Linear speed of the odd rollouts at the start, as a share of the top speed (0: every
     /// rollout from rest; default 0.5).
     pub arrival_speed_share: f64,
+    /// People walking about, per 100 m² of free region (default 0: none). Among people the
+    /// rollouts run with the executor's recoveries ([`crate::recoveries_for`]).
+    pub people_density: f64,
 }
 
 impl Default for EdgeRolloutParams {
@@ -57,6 +60,7 @@ impl Default for EdgeRolloutParams {
             noise: true,
             seed: 0,
             arrival_speed_share: 0.5,
+            people_density: 0.0,
         }
     }
 }
@@ -76,6 +80,15 @@ impl EdgeRolloutParams {
             return Err(invalid(
                 "arrival_speed_share",
                 format!("must lie in [0, 1], got {}", self.arrival_speed_share),
+            ));
+        }
+        if !(self.people_density.is_finite() && (0.0..=50.0).contains(&self.people_density)) {
+            return Err(invalid(
+                "people_density",
+                format!(
+                    "must lie in [0, 50] people per 100 m², got {}",
+                    self.people_density
+                ),
             ));
         }
         if !(self.keep_threshold.is_finite() && (0.0..=1.0).contains(&self.keep_threshold)) {
@@ -277,6 +290,14 @@ where
     }
     let mut env = env_config(beams, params.noise);
     env.record_trajectory = false;
+    env.people = sim::PeopleConfig {
+        density: params.people_density,
+        ..sim::PeopleConfig::default()
+    };
+    let recoveries = crate::recoveries_for(&crate::PlanOptions {
+        people: env.people.clone(),
+        ..crate::PlanOptions::default()
+    });
     if let Some(t) = probe.goal_tolerance() {
         env.goal_tolerance = t;
     }
@@ -335,6 +356,7 @@ where
                             },
                             stop: grid::Stop::never(),
                             trace: false,
+                            recoveries: recoveries.clone(),
                         },
                         None,
                     )?;

@@ -12,17 +12,21 @@
 //!
 //! No IO, no async: the caller runs this on a blocking thread.
 
-use std::collections::VecDeque;
 use std::sync::Arc;
 
 use grid::seed::mix;
 use learning::Policy;
-use planning::{ConfigSpace, Point2, PrmParams, QueryError, QueryOptions, Roadmap};
-use sim::{Action, EnvConfig, NavEnv, NoiseConfig, Outcome, Pose2, World};
+use planning::{Point2, PrmParams, QueryError, QueryOptions, Roadmap};
+use sim::{Action, EnvConfig, NoiseConfig, Pose2, World};
 
 use crate::cache::{RoadmapCache, SpaceEntry};
+pub use crate::checks::check_request;
+use crate::checks::{blocked_error, check_goals, segment_clear, start_entry};
 use crate::controller::{ClassicalFollower, Controller, PolicyController, ShieldedFollower};
-use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
+pub use crate::drive::{DriveLimits, DriveRun, PERSON_COLLISION, Replanner, drive, hit_person};
+use crate::error::{Endpoint, PlanError, invalid};
+use crate::recovery::{RecoveryEvent, RecoveryParams};
+use crate::social::SocialMetrics;
 use crate::types::{
     AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, DrawsReport, LaserTrace,
     LegReport, PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
@@ -39,7 +43,7 @@ pub const MAX_PEOPLE_DRAWS: u32 = 20;
 pub const MAX_WAYPOINT_TIMEOUT_S: f64 = 600.0;
 /// Farthest the start may be from free configuration space and still be driven out of it
 /// straight (a robot parked closer to a wall than the safety margin), metres.
-const START_ESCAPE_M: f64 = 1.0;
+pub(crate) const START_ESCAPE_M: f64 = 1.0;
 
 /// Validates the plan of `request` in `world`: with `policy` (hybrid PRM-RL) when given, with
 /// the [`ClassicalFollower`] otherwise. A leg the policy validates in no attempt is validated
@@ -159,6 +163,71 @@ pub fn validate_with_fallback(
     fallback: Option<&mut dyn Controller>,
     policy_roadmap: Option<&Arc<Roadmap>>,
 ) -> Result<PlanReport, PlanError> {
+    let mut details = Vec::new();
+    validate_inner(
+        world,
+        roadmaps,
+        map_version,
+        request,
+        (controller, fallback),
+        policy_roadmap,
+        &mut details,
+    )
+}
+
+/// What an attempt measured beyond its [`AttemptReport`]: the social metrics and the
+/// recoveries tried ([`validate_detailed`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct AttemptDetails {
+    /// Intrusions into people's space and time standing still.
+    pub social: SocialMetrics,
+    /// The recovery behaviours tried, in order.
+    pub recoveries: Vec<RecoveryEvent>,
+}
+
+/// A validation with what each attempt measured beyond its report.
+#[derive(Debug)]
+pub struct Detailed {
+    /// What [`validate_with_fallback`] returns.
+    pub result: Result<PlanReport, PlanError>,
+    /// One entry per attempt driven, in the order of the attempts (of the report, or of
+    /// [`PlanError::NotValidated`]).
+    pub attempts: Vec<AttemptDetails>,
+}
+
+/// [`validate_with_fallback`], also returning each attempt's [`AttemptDetails`] (the
+/// benchmarks' social metrics and recoveries).
+pub fn validate_detailed(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+    controller: &mut dyn Controller,
+    fallback: Option<&mut dyn Controller>,
+    policy_roadmap: Option<&Arc<Roadmap>>,
+) -> Detailed {
+    let mut attempts = Vec::new();
+    let result = validate_inner(
+        world,
+        roadmaps,
+        map_version,
+        request,
+        (controller, fallback),
+        policy_roadmap,
+        &mut attempts,
+    );
+    Detailed { result, attempts }
+}
+
+fn validate_inner(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+    (controller, fallback): (&mut dyn Controller, Option<&mut dyn Controller>),
+    policy_roadmap: Option<&Arc<Roadmap>>,
+    details: &mut Vec<AttemptDetails>,
+) -> Result<PlanReport, PlanError> {
     let opts = &request.options;
     check_request(request)?;
     let policy_roadmap = policy_roadmap.filter(|_| opts.roadmap != RoadmapChoice::Geometric);
@@ -255,9 +324,10 @@ pub fn validate_with_fallback(
                 };
                 driver.controller.start_attempt(attempt);
                 let max_segment_m = driver.max_segment_m;
-                let replanner: &mut Replanner<'_> = &mut |p: Point2, g: Point2| {
-                    replan(&roadmap, opts, world, (p, g), max_segment_m, query)
-                };
+                let replanner: &mut Replanner<'_> =
+                    &mut |p: Point2, g: Point2, blocked: Option<Point2>| {
+                        replan(&roadmap, opts, world, (p, g), blocked, max_segment_m, query)
+                    };
                 let run = drive(
                     world,
                     &driver.env,
@@ -271,6 +341,7 @@ pub fn validate_with_fallback(
                         initial_velocity: Action::default(),
                         stop: request.stop.clone(),
                         trace: opts.trace,
+                        recoveries: recoveries_for(opts),
                     },
                     Some(replanner),
                 )?;
@@ -280,6 +351,10 @@ pub fn validate_with_fallback(
                 } else {
                     leg
                 };
+                details.push(AttemptDetails {
+                    social: run.social,
+                    recoveries: run.recoveries.clone(),
+                });
                 attempts.push(AttemptReport {
                     attempt,
                     leg,
@@ -427,6 +502,7 @@ fn drive_draws(
                     initial_velocity: Action::default(),
                     stop: request.stop.clone(),
                     trace: false,
+                    recoveries: recoveries_for(opts),
                 },
                 None,
             )?;
@@ -548,10 +624,17 @@ fn controller_beams(world: &World, controller: &dyn Controller) -> Result<usize,
 }
 
 /// The simulation settings of a validation: the environment's defaults (control period, limits
-/// 0.8 m/s and 0.5 rad/s, goal tolerance, collision clearance), the trajectory recorded, no step
-/// limit (the executor's timers bound the run).
+/// 0.8 m/s and 0.5 rad/s, goal tolerance, collision clearance) except that the robot may
+/// reverse (at up to MPPI's reverse speed, which backing up as a recovery stays well within; the
+/// policy and the follower never command it), the trajectory recorded, no step limit (the
+/// executor's timers bound the run).
 pub fn env_config(beams: usize, noise: bool) -> EnvConfig {
+    let limits = sim::CommandLimits::default();
     EnvConfig {
+        limits: sim::CommandLimits {
+            linear_min: sim::MppiParams::default().vx_min,
+            ..limits
+        },
         beams,
         noise: if noise {
             NoiseConfig::default()
@@ -562,194 +645,6 @@ pub fn env_config(beams: usize, noise: bool) -> EnvConfig {
         record_trajectory: true,
         ..EnvConfig::default()
     }
-}
-
-/// Checks a request's values before any work: finite poses, 1 to [`MAX_GOALS`] goals, options
-/// within their bounds. `Err` is [`PlanError::InvalidInput`] naming the field.
-pub fn check_request(request: &PlanRequest) -> Result<(), PlanError> {
-    let s = request.start;
-    for (field, v) in [("start.x", s.x), ("start.y", s.y), ("start.yaw", s.yaw)] {
-        if !v.is_finite() {
-            return Err(invalid(field, format!("must be a finite number, got {v}")));
-        }
-    }
-    if request.goals.is_empty() {
-        return Err(invalid("goals", "must hold at least one goal"));
-    }
-    if request.goals.len() > MAX_GOALS {
-        return Err(invalid(
-            "goals",
-            format!(
-                "holds {} goals; at most {MAX_GOALS} are taken",
-                request.goals.len()
-            ),
-        ));
-    }
-    for (i, g) in request.goals.iter().enumerate() {
-        if !(g.x.is_finite() && g.y.is_finite()) {
-            let field = if g.x.is_finite() { "y" } else { "x" };
-            return Err(invalid(
-                format!("goals[{i}].{field}"),
-                format!("must be a finite number, got ({}, {})", g.x, g.y),
-            ));
-        }
-    }
-    check_options(&request.options)
-}
-
-fn check_options(o: &PlanOptions) -> Result<(), PlanError> {
-    if let Some((field, message)) = o.people.problem() {
-        return Err(invalid(format!("options.{field}"), message));
-    }
-    if o.people_draws > MAX_PEOPLE_DRAWS {
-        return Err(invalid(
-            "options.people_draws",
-            format!(
-                "must lie in [0, {MAX_PEOPLE_DRAWS}], got {}",
-                o.people_draws
-            ),
-        ));
-    }
-    if o.max_attempts == 0 || o.max_attempts > MAX_ATTEMPTS {
-        return Err(invalid(
-            "options.max_attempts",
-            format!("must lie in [1, {MAX_ATTEMPTS}], got {}", o.max_attempts),
-        ));
-    }
-    if !(o.waypoint_timeout_s.is_finite()
-        && o.waypoint_timeout_s > 0.0
-        && o.waypoint_timeout_s <= MAX_WAYPOINT_TIMEOUT_S)
-    {
-        return Err(invalid(
-            "options.waypoint_timeout_s",
-            format!(
-                "must lie in (0, {MAX_WAYPOINT_TIMEOUT_S}] simulated seconds, got {}",
-                o.waypoint_timeout_s
-            ),
-        ));
-    }
-    if !(o.safety_margin_m.is_finite() && (0.0..=5.0).contains(&o.safety_margin_m)) {
-        return Err(invalid(
-            "options.safety_margin_m",
-            format!("must lie in [0, 5] metres, got {}", o.safety_margin_m),
-        ));
-    }
-    if let Some(n) = o.samples
-        && !(1..=planning::MAX_SAMPLES).contains(&n)
-    {
-        return Err(invalid(
-            "options.samples",
-            format!("must lie in [1, {}], got {n}", planning::MAX_SAMPLES),
-        ));
-    }
-    if o.max_replans > 1000 {
-        return Err(invalid(
-            "options.max_replans",
-            format!("must be at most 1000, got {}", o.max_replans),
-        ));
-    }
-    Ok(())
-}
-
-/// Where the roadmap path starts: `None` when the start is free configuration space, or the
-/// nearest free point when the robot fits at the start but stands closer to an obstacle than the
-/// safety margin and can drive there straight.
-fn start_entry(
-    world: &World,
-    cs: &ConfigSpace,
-    start: Pose2,
-    collision_clearance: f64,
-) -> Result<Option<Point2>, PlanError> {
-    let p = Point2::new(start.x, start.y);
-    match cs.validate_endpoint(planning::Endpoint::Start, p) {
-        Ok(()) => Ok(None),
-        Err(e @ QueryError::InObstacle { .. }) => {
-            let escape = cs.nearest_free(p).filter(|&q| {
-                q.distance(p) <= START_ESCAPE_M
-                    && segment_clear(world, p, q, collision_clearance + 0.02)
-            });
-            match escape {
-                Some(q) => Ok(Some(q)),
-                None => Err(blocked_error(Endpoint::Start, e)),
-            }
-        }
-        Err(e) => Err(blocked_error(Endpoint::Start, e)),
-    }
-}
-
-/// Every goal must be free and in the same free region as the point before it.
-fn check_goals(cs: &ConfigSpace, from: Point2, goals: &[Point2]) -> Result<(), PlanError> {
-    for (i, &g) in goals.iter().enumerate() {
-        cs.validate_endpoint(planning::Endpoint::Goal, g)
-            .map_err(|e| blocked_error(Endpoint::Goal(i), e))?;
-    }
-    let mut prev = (from, Endpoint::Start);
-    for (i, &g) in goals.iter().enumerate() {
-        if cs.region_of(prev.0) != cs.region_of(g) {
-            return Err(PlanError::Unreachable {
-                goal_index: i,
-                goal: g,
-                from: prev.1,
-            });
-        }
-        prev = (g, Endpoint::Goal(i));
-    }
-    Ok(())
-}
-
-/// A planner endpoint error as the request's own error, naming the point.
-fn blocked_error(which: Endpoint, e: QueryError) -> PlanError {
-    match e {
-        QueryError::NonFinite { x, y, .. } => invalid(
-            which.to_string(),
-            format!("must be a finite point, got ({x}, {y})"),
-        ),
-        QueryError::OutsideMap {
-            point,
-            nearest_free,
-            ..
-        } => PlanError::Blocked {
-            endpoint: which,
-            point,
-            reason: BlockedReason::OutsideMap,
-            clearance_m: None,
-            required_m: 0.0,
-            nearest_free,
-        },
-        QueryError::InObstacle {
-            point,
-            clearance_m,
-            required_m,
-            nearest_free,
-            ..
-        } => PlanError::Blocked {
-            endpoint: which,
-            point,
-            reason: BlockedReason::InObstacle,
-            clearance_m: Some(clearance_m),
-            required_m,
-            nearest_free,
-        },
-        other @ (QueryError::Unreachable { .. } | QueryError::NotConnected) => {
-            PlanError::Map(format!("{which}: {other}"))
-        }
-    }
-}
-
-/// Whether the robot's footprint keeps `min_clearance` along the straight segment `a`–`b`.
-fn segment_clear(world: &World, a: Point2, b: Point2, min_clearance: f64) -> bool {
-    let step = (world.resolution() / 2.0).max(1e-3);
-    let len = a.distance(b);
-    #[allow(
-        clippy::cast_possible_truncation,
-        clippy::cast_sign_loss,
-        reason = "a short segment: a small positive count"
-    )]
-    let n = ((len / step).ceil() as usize).max(1);
-    (0..=n).all(|k| {
-        let t = k as f64 / n as f64;
-        world.clearance(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)) >= min_clearance
-    })
 }
 
 /// Longest straight stretch between two waypoints: half of what the robot covers at top speed
@@ -847,15 +742,44 @@ fn plan_leg(
     })
 }
 
-/// A fresh roadmap path from where the robot stands to `goal`, or why there is none.
+/// Metres a re-route recovery adds to the roadmap edges passing the blocked spot: the search
+/// takes them only where no other route is within that detour.
+pub const REROUTE_PENALTY_M: f64 = 50.0;
+
+/// The recoveries of a validation's drives: Nav2's ([`RecoveryParams::default`]) among people,
+/// where robots stall beside people standing still; none in an empty building, where the
+/// controllers' stalls are the waypoint timer's and the replanner's to resolve.
+pub fn recoveries_for(opts: &PlanOptions) -> Option<RecoveryParams> {
+    opts.people.any().then(RecoveryParams::default)
+}
+
+/// A fresh roadmap path from where the robot stands to `goal`, or why there is none; with
+/// `blocked`, on the roadmap whose edges passing within the re-route radius of that spot cost
+/// [`REROUTE_PENALTY_M`] more.
 fn replan(
     roadmap: &Roadmap,
     opts: &PlanOptions,
     world: &World,
     (from, goal): (Point2, Point2),
+    blocked: Option<Point2>,
     max_segment_m: f64,
     query: QueryOptions,
 ) -> Result<Vec<Point2>, String> {
+    let avoiding;
+    let roadmap = match blocked {
+        None => roadmap,
+        Some(b) => {
+            let nodes: Vec<Point2> = roadmap.nodes().collect();
+            let radius = RecoveryParams::default().reroute_radius_m;
+            avoiding = roadmap
+                .reweighted(|u, v, w| {
+                    let near = point_segment_distance(b, nodes[u], nodes[v]) < radius;
+                    Some(if near { w + REROUTE_PENALTY_M } else { w })
+                })
+                .map_err(|e| format!("re-routing failed: {e}"))?;
+            &avoiding
+        }
+    };
     let cs = roadmap.cspace();
     // A robot pushed closer to a wall than the margin first drives back into free space.
     let entry = if cs.is_free(from) {
@@ -886,341 +810,16 @@ fn replan(
     Ok(subdivide(from, out, max_segment_m))
 }
 
-/// How the reason of a drive that ended touching a person begins.
-pub const PERSON_COLLISION: &str = "collision with a person";
-
-/// Whether a drive's (or attempt's) `reason` says it ended touching a person.
-pub fn hit_person(reason: &str) -> bool {
-    reason.starts_with(PERSON_COLLISION)
-}
-
-/// The person nearest to the robot, in words (for a drive that ended touching one, or stuck):
-/// how far and where relative to the robot's heading, how fast they walked and closed in, how
-/// fast the robot drove, and whether the laser could see them (empty without people).
-fn person_contact(env: &NavEnv, robot_linear: f32) -> String {
-    let pose = env.pose();
-    let gap = |q: &sim::Person| (q.position.0 - pose.x).hypot(q.position.1 - pose.y) - q.radius;
-    let Some(q) = env.people().iter().min_by(|a, b| gap(a).total_cmp(&gap(b))) else {
-        return String::new();
-    };
-    let (dx, dy) = (q.position.0 - pose.x, q.position.1 - pose.y);
-    let bearing = sim::kinematics::wrap_angle(dy.atan2(dx) - pose.yaw);
-    let v = f64::from(robot_linear);
-    let (rvx, rvy) = (v * pose.yaw.cos(), v * pose.yaw.sin());
-    let dist = dx.hypot(dy).max(1e-9);
-    let closing = -((q.velocity.0 - rvx) * dx + (q.velocity.1 - rvy) * dy) / dist;
-    let view = env.beam_angles().iter().fold(0.0f64, |m, a| m.max(a.abs()));
-    let gap = gap(q) - env.world().spec().robot.footprint_radius;
-    let side = match bearing.to_degrees() {
-        d if d.abs() <= 15.0 => "ahead".to_owned(),
-        d if d.abs() >= 165.0 => "behind".to_owned(),
-        d if d > 0.0 => format!("{d:.0}° left"),
-        d => format!("{:.0}° right", -d),
-    };
-    let seen = if bearing.abs() > view {
-        ", outside the laser's view"
+/// Distance from `p` to the segment `a`–`b`.
+fn point_segment_distance(p: Point2, a: Point2, b: Point2) -> f64 {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p.x - a.x) * dx + (p.y - a.y) * dy) / len2).clamp(0.0, 1.0)
     } else {
-        ""
+        0.0
     };
-    format!(
-        "; the nearest person was {gap:.2} m away {side}{seen}, walking {:.2} m/s and closing \
-         at {closing:.2} m/s, the robot driving {v:.2} m/s",
-        q.velocity.0.hypot(q.velocity.1)
-    )
-}
-
-/// Bounds of one simulated drive.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DriveLimits {
-    /// Simulated seconds per waypoint before replanning (or, without a replanner, failing).
-    pub waypoint_timeout_s: f64,
-    /// Replans allowed before the drive counts as stalled.
-    pub max_replans: u32,
-    /// Seed of the simulation's noise.
-    pub sim_seed: u64,
-    /// The robot's velocity at the start (zero: at rest), as a previous drive left it.
-    pub initial_velocity: Action,
-    /// Polled every few simulated steps: once requested, the drive ends with
-    /// [`PlanError::Stopped`].
-    pub stop: grid::Stop,
-    /// Record the laser ranges the controller saw at every step ([`DriveRun::ranges`]).
-    pub trace: bool,
-}
-
-/// Replans from the robot's position to a goal: the remaining waypoints of the leg, or why not.
-pub type Replanner<'a> = dyn FnMut(Point2, Point2) -> Result<Vec<Point2>, String> + 'a;
-
-/// One simulated drive through waypoint legs.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DriveRun {
-    /// How it ended.
-    pub outcome: AttemptOutcome,
-    /// Why, in words.
-    pub reason: String,
-    /// Simulated time, seconds.
-    pub time_s: f64,
-    /// Distance driven, metres.
-    pub distance_m: f64,
-    /// Smallest footprint clearance, metres.
-    pub min_clearance_m: f64,
-    /// Timer expiries that led to a replan.
-    pub replans: u32,
-    /// Waypoints reached, in order.
-    pub reached: Vec<Point2>,
-    /// Index into `reached` of each goal reached.
-    pub goal_indices: Vec<usize>,
-    /// Every pose of the drive.
-    pub trajectory: Vec<Pose2>,
-    /// The laser ranges the controller saw at every pose of `trajectory`, when
-    /// [`DriveLimits::trace`] asked for them (else empty).
-    pub ranges: Vec<Vec<f32>>,
-    /// Where the robot ended.
-    pub end_pose: Pose2,
-    /// Control steps driven.
-    pub steps: u64,
-    /// Of those, the steps a fallback inside the controller drove ([`Controller::handed_over`]).
-    pub handover_steps: u64,
-    /// Closest approach of the footprint to a person, metres (`None` without people).
-    pub min_person_clearance_m: Option<f64>,
-}
-
-impl DriveRun {
-    /// The share of control steps a fallback inside the controller drove (0 without steps).
-    pub fn handover_share(&self) -> f64 {
-        if self.steps == 0 {
-            0.0
-        } else {
-            #[allow(clippy::cast_precision_loss, reason = "step counts are far below 2^52")]
-            {
-                self.handover_steps as f64 / self.steps as f64
-            }
-        }
-    }
-}
-
-/// Drives the simulated robot from `start` through `legs` (each leg ends at its goal) with
-/// `controller`, one waypoint at a time under the waypoint timer. When the timer runs out the
-/// `replanner` (if any) replaces the rest of the current leg by a path from where the robot is;
-/// without one, or past `max_replans`, the drive is stalled.
-///
-/// Pure RL is this with one leg holding only the final goal and no replanner.
-pub fn drive(
-    world: &Arc<World>,
-    env_config: &EnvConfig,
-    start: Pose2,
-    legs: &[Vec<Point2>],
-    controller: &mut dyn Controller,
-    limits: DriveLimits,
-    mut replanner: Option<&mut Replanner<'_>>,
-) -> Result<DriveRun, PlanError> {
-    // (waypoint, goal index when it ends a leg)
-    let mut queue: VecDeque<(Point2, Option<usize>)> = legs
-        .iter()
-        .enumerate()
-        .flat_map(|(i, leg)| {
-            let last = leg.len().saturating_sub(1);
-            leg.iter()
-                .enumerate()
-                .map(move |(k, &p)| (p, (k == last).then_some(i)))
-        })
-        .collect();
-    let Some(mut current) = queue.pop_front() else {
-        return Err(invalid("goals", "must hold at least one goal"));
-    };
-    let mut env = NavEnv::new(Arc::clone(world), env_config.clone(), limits.sim_seed)
-        .map_err(|e| invalid("policy", e.to_string()))?;
-    let mut obs = env
-        .reset(start, (current.0.x, current.0.y))
-        .map_err(|e| env_error(Endpoint::Start, e))?;
-    if limits.initial_velocity != Action::default() {
-        obs = env.set_velocity(limits.initial_velocity);
-    }
-    let dt = env_config.control_period;
-    #[allow(
-        clippy::cast_possible_truncation,
-        clippy::cast_sign_loss,
-        reason = "the timeout is checked to lie in (0, 600] s"
-    )]
-    let timer_steps = ((limits.waypoint_timeout_s / dt).ceil() as u64).max(1);
-    let mut steps_on_waypoint = 0u64;
-    let (mut steps, mut handover_steps) = (0u64, 0u64);
-    let mut min_clearance = world.clearance(start.x, start.y);
-    let mut min_person = (!env.people().is_empty()).then_some(f64::INFINITY);
-    let mut replans = 0u32;
-    let mut reached = Vec::new();
-    let mut goal_indices = Vec::new();
-    let mut time_s;
-    let mut ranges = Vec::new();
-    if limits.trace {
-        ranges.push(obs.ranges.clone());
-    }
-    let (outcome, reason) = loop {
-        if steps_on_waypoint.is_multiple_of(64) && limits.stop.requested() {
-            return Err(PlanError::Stopped);
-        }
-        let action = controller.command(&obs, env.pose(), (current.0.x, current.0.y));
-        steps += 1;
-        if controller.handed_over() {
-            handover_steps += 1;
-        }
-        let step = env.step(action);
-        if limits.trace {
-            ranges.push(step.observation.ranges.clone());
-        }
-        time_s = step.info.time_s;
-        if step.info.min_clearance.is_finite() {
-            min_clearance = min_clearance.min(step.info.min_clearance);
-        }
-        if let Some(m) = &mut min_person {
-            *m = m.min(step.info.person_clearance);
-        }
-        steps_on_waypoint += 1;
-        match step.info.outcome {
-            Outcome::Collision => {
-                let p = step.info.pose;
-                let with = if step.info.person_clearance < env_config.collision_clearance {
-                    PERSON_COLLISION
-                } else {
-                    "collision"
-                };
-                let mut contact = if with == PERSON_COLLISION {
-                    person_contact(&env, step.observation.velocity[0])
-                } else {
-                    String::new()
-                };
-                if controller.handed_over() {
-                    contact.push_str(", the fallback driving");
-                }
-                break (
-                    AttemptOutcome::Collision,
-                    format!(
-                        "{with} at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2}){contact}",
-                        p.x,
-                        p.y,
-                        time_s,
-                        reached.len() + 1,
-                        current.0.x,
-                        current.0.y
-                    ),
-                );
-            }
-            Outcome::ReachedGoal => {
-                reached.push(current.0);
-                if current.1.is_some() {
-                    goal_indices.push(reached.len() - 1);
-                }
-                match queue.pop_front() {
-                    None => break (AttemptOutcome::Reached, "every goal reached".to_owned()),
-                    Some(next) => {
-                        current = next;
-                        obs = env
-                            .set_goal((current.0.x, current.0.y))
-                            .map_err(|e| env_error(Endpoint::Waypoint, e))?;
-                        steps_on_waypoint = 0;
-                    }
-                }
-            }
-            Outcome::TimeLimit | Outcome::Running => {
-                obs = step.observation;
-                if steps_on_waypoint < timer_steps {
-                    continue;
-                }
-                let p = env.pose();
-                let late = format!(
-                    "waypoint {} ({:.2}, {:.2}) not reached within {} s from ({:.2}, {:.2}){}",
-                    reached.len() + 1,
-                    current.0.x,
-                    current.0.y,
-                    limits.waypoint_timeout_s,
-                    p.x,
-                    p.y,
-                    person_contact(&env, obs.velocity[0])
-                );
-                let Some(replan) = replanner.as_mut() else {
-                    break (AttemptOutcome::Stalled, late);
-                };
-                if replans >= limits.max_replans {
-                    break (
-                        AttemptOutcome::Stalled,
-                        format!("{late}; {replans} replans already spent"),
-                    );
-                }
-                replans += 1;
-                // The goal of the current leg: the current waypoint or a later one.
-                let (goal, goal_index) = match current.1 {
-                    Some(i) => (current.0, i),
-                    None => match queue.iter().find_map(|&(q, gi)| gi.map(|i| (q, i))) {
-                        Some(found) => found,
-                        None => break (AttemptOutcome::Stalled, late),
-                    },
-                };
-                let fresh = match replan(Point2::new(p.x, p.y), goal) {
-                    Ok(w) => w,
-                    Err(why) => break (AttemptOutcome::Stalled, format!("{late}; {why}")),
-                };
-                // Drop the rest of the leg, then put the new path in front.
-                if current.1.is_none() {
-                    while let Some((_, gi)) = queue.pop_front() {
-                        if gi.is_some() {
-                            break;
-                        }
-                    }
-                }
-                let last = fresh.len().saturating_sub(1);
-                for (k, &w) in fresh.iter().enumerate().rev() {
-                    queue.push_front((w, (k == last).then_some(goal_index)));
-                }
-                let Some(next) = queue.pop_front() else {
-                    break (AttemptOutcome::Stalled, late);
-                };
-                current = next;
-                obs = env
-                    .set_goal((current.0.x, current.0.y))
-                    .map_err(|e| env_error(Endpoint::Waypoint, e))?;
-                steps_on_waypoint = 0;
-            }
-        }
-    };
-    let trajectory = env.trajectory().to_vec();
-    let distance_m = trajectory
-        .windows(2)
-        .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
-        .sum();
-    Ok(DriveRun {
-        outcome,
-        reason,
-        time_s,
-        distance_m,
-        min_clearance_m: min_clearance,
-        replans,
-        reached,
-        goal_indices,
-        end_pose: env.pose(),
-        trajectory,
-        ranges,
-        steps,
-        handover_steps,
-        min_person_clearance_m: min_person,
-    })
-}
-
-/// An environment refusal during a drive (the executor's checks make these unreachable in
-/// practice: starts and waypoints come from free configuration space).
-fn env_error(which: Endpoint, e: sim::EnvError) -> PlanError {
-    match e {
-        sim::EnvError::StartBlocked {
-            x, y, nearest_free, ..
-        }
-        | sim::EnvError::GoalBlocked { x, y, nearest_free } => PlanError::Blocked {
-            endpoint: which,
-            point: Point2::new(x, y),
-            reason: BlockedReason::InObstacle,
-            clearance_m: None,
-            required_m: 0.0,
-            nearest_free: nearest_free.map(|(x, y)| Point2::new(x, y)),
-        },
-        other => PlanError::Map(other.to_string()),
-    }
+    (a.x + t * dx - p.x).hypot(a.y + t * dy - p.y)
 }
 
 fn polyline_length(start: Pose2, points: &[Point2]) -> f64 {

@@ -9,7 +9,12 @@
 //! - [`error`]: [`PlanError`], one variant per cause, the point concerned an [`Endpoint`];
 //! - [`controller`]: the [`Controller`] trait, the policy behind its [`Shield`], and the
 //!   classical follower;
-//! - [`executor`]: roadmap query, waypoint timer, replanning, re-sampling on failure;
+//! - [`executor`]: roadmap query, replanning, re-sampling on failure; [`drive`](mod@drive):
+//!   one simulated drive (waypoint timer, recoveries, social metrics);
+//! - [`nav2`]: Nav2's Regulated Pure Pursuit and MPPI on the smoothed roadmap path, behind the
+//!   shield, and [`ControllerChoice`], every controller by name;
+//! - [`recovery`]: Nav2's recovery behaviours for a robot that stalls; [`social`]: intrusions
+//!   into people's space;
 //! - [`edges`]: every roadmap edge driven by a controller (PRM-RL): the per-edge success rate
 //!   and the costs of a policy-aware roadmap;
 //! - [`cache`]: roadmaps per (map version, robot inflation, parameters);
@@ -25,11 +30,16 @@
 )]
 
 pub mod cache;
+mod checks;
 pub mod controller;
+pub mod drive;
 pub mod edges;
 pub mod error;
 pub mod executor;
+pub mod nav2;
 pub mod planning_grid;
+pub mod recovery;
+pub mod social;
 pub mod types;
 
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
@@ -43,11 +53,14 @@ pub use edges::{
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
-    DriveLimits, DriveRun, MAX_PEOPLE_DRAWS, PERSON_COLLISION, Replanner, check_request,
-    config_space, drive, env_config, follower_for, hit_person, validate, validate_with,
-    validate_with_fallback,
+    AttemptDetails, Detailed, DriveLimits, DriveRun, MAX_PEOPLE_DRAWS, PERSON_COLLISION, Replanner,
+    check_request, config_space, drive, env_config, follower_for, hit_person, recoveries_for,
+    validate, validate_detailed, validate_with, validate_with_fallback,
 };
+pub use nav2::{ControllerChoice, MppiController, MppiCycles, RppController};
 pub use planning_grid::planning_grid;
+pub use recovery::{RecoveryEvent, RecoveryKind, RecoveryParams};
+pub use social::SocialMetrics;
 pub use types::{
     AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, DrawsReport, LaserTrace,
     LegReport, PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,

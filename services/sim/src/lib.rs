@@ -12,6 +12,8 @@
 //! - [`crowd`]: people walking about, avoiding each other and the robot (ORCA);
 //! - [`field`]: path distances to a goal (the shaped reward's navigation function);
 //! - [`render`]: top-down PNG and SVG pictures;
+//! - [`smoother`], [`track`], [`rpp`], [`mppi`]: Nav2's classical path smoothing and tracking
+//!   (Simple Smoother, Regulated Pure Pursuit, MPPI), the baselines a learnt policy must beat;
 //! - [`parse`]: the simulation parser, on-demand database (RDF) to [`WorldSpec`];
 //! - [`export`]: SDF 1.9 worlds and URDF robots for Gazebo and ROS.
 
@@ -33,10 +35,14 @@ pub mod floors;
 pub mod follower;
 pub mod kinematics;
 pub mod library;
+pub mod mppi;
 pub mod parse;
 pub mod render;
+pub mod rpp;
 pub mod shield;
+pub mod smoother;
 pub mod spec;
+pub mod track;
 pub mod world;
 
 pub use batch::{EnvBatch, env_seed};
@@ -50,10 +56,14 @@ pub use floors::{FloorParams, generate_floor};
 pub use follower::{FollowerParams, follow};
 pub use kinematics::{Action, CommandLimits, DiffDrive};
 pub use library::{LibraryModel, Model};
+pub use mppi::{Mppi, MppiParams, MppiWorld};
 pub use parse::{parse_floor, parse_on_demand, parse_robot};
+pub use rpp::{RppParams, RppStep, rpp_step};
+pub use smoother::{SmootherParams, smooth_path};
 pub use spec::{
     AttractorSpec, CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec, Occupancy,
     OccupancyGrid, PeoplePlaceSpec, PeopleSpec, Pose2, Pose3, RobotPartSpec, RobotSpec, RouteSpec,
     Severity, Shape, Size3, SpecProblem, SpecProblems, WallSpec, WheelSpec, WorldSpec,
 };
+pub use track::PathTrack;
 pub use world::{BuildOptions, FreeRegion, World};

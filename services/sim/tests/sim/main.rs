@@ -4,6 +4,7 @@
 mod common;
 mod env;
 mod export;
+mod nav2;
 mod parse;
 mod people;
 mod raycast;
