@@ -730,7 +730,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             concurrency,
             postgres_url,
         } => {
-            let options = worker::bench::BenchOptions {
+            let options = queue::bench::BenchOptions {
                 jobs,
                 concurrency,
                 postgres_url,
@@ -738,7 +738,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             let runtime = tokio::runtime::Builder::new_multi_thread()
                 .enable_all()
                 .build()?;
-            let reports = runtime.block_on(worker::bench::run(&options))?;
+            let reports = runtime.block_on(queue::bench::run(&options))?;
             println!(
                 "queue throughput (durable commits: SQLite synchronous=FULL, PostgreSQL fsync=on)"
             );

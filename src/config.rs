@@ -391,13 +391,13 @@ impl Config {
             });
         }
         if let Some(url) = &self.database_url
-            && worker::Backend::of_url(url).is_none()
+            && queue::Backend::of_url(url).is_none()
         {
             return Err(ConfigError::Invalid {
                 key: "database_url",
                 problem: format!(
                     "must be a sqlite:, postgres:// or postgresql:// URL, got {:?}",
-                    worker::database::redact_url(url)
+                    queue::database::redact_url(url)
                 ),
                 source_name: source("database_url"),
             });
@@ -513,19 +513,19 @@ impl Config {
     }
 
     /// The runners' settings (lease, heartbeat, concurrency, shutdown grace).
-    pub fn worker_config(&self) -> worker::WorkerConfig {
-        worker::WorkerConfig {
+    pub fn worker_config(&self) -> queue::WorkerConfig {
+        queue::WorkerConfig {
             concurrency: self.worker_concurrency.max(1),
             lease: Duration::from_secs_f64(self.job_lease_s),
             heartbeat: Duration::from_secs_f64(self.job_heartbeat_s),
             shutdown_grace: self.shutdown_grace(),
-            ..worker::WorkerConfig::default()
+            ..queue::WorkerConfig::default()
         }
     }
 
     /// The retry backoff.
-    pub fn job_backoff(&self) -> worker::Backoff {
-        worker::Backoff {
+    pub fn job_backoff(&self) -> queue::Backoff {
+        queue::Backoff {
             base: Duration::from_secs_f64(self.job_retry_base_s),
             cap: Duration::from_secs_f64(self.job_retry_cap_s),
         }

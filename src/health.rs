@@ -15,9 +15,9 @@ use axum::extract::State;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::{Json, Router, routing::get};
+use queue::JobDatabase;
 use serde::Serialize;
 use serde_json::json;
-use worker::JobDatabase;
 
 use crate::startup::Components;
 

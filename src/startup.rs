@@ -9,10 +9,10 @@ use std::sync::Arc;
 
 use axum::Router;
 use knowledge::{Knowledge, KnowledgeStore, StoreError};
+use queue::{JobDatabase, LazyQueue};
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use worker::jobs::{InProcessKnowledge, JobEnv, PolicyStore};
-use worker::{JobDatabase, LazyQueue};
+use worker::jobs::{InProcessKnowledge, JobDirs, JobEnv};
 
 use crate::config::Config;
 
@@ -68,28 +68,24 @@ impl Components {
             Knowledge::lazy(opener, crate::tokens::load(config), config.query_limits())
                 .with_disk(config.disk_watch()),
         );
-        let job_env = Arc::new(JobEnv {
-            knowledge: Arc::new(InProcessKnowledge::new(knowledge.clone())),
-            checkpoints_dir: config.checkpoints_dir(),
-            policies: PolicyStore::new(config.policies_dir()),
-            roadmaps: Arc::new(rehearsal::RoadmapCache::default()),
-            policy_roadmaps: worker::jobs::RoadmapStore::new(config.roadmaps_dir()),
-            validator: Some(Arc::new(worker::plan_api::ExecutorValidator::new(
-                PolicyStore::new(config.policies_dir()),
-            ))),
-            disk: Some(edge::disk::DiskWatch::new(
+        let queue = Arc::new(LazyQueue::new(
+            config.database_url(),
+            config.job_backoff(),
+            Some(config.data_dir.clone()),
+        ));
+        let job_env = Arc::new(JobEnv::new(
+            Arc::new(InProcessKnowledge::new(knowledge.clone())),
+            job_dirs(config),
+            Arc::clone(&queue),
+            Some(edge::disk::DiskWatch::new(
                 config.checkpoints_dir(),
                 config.min_free_bytes,
             )),
-        });
+        ));
         Self {
             data_dir: config.data_dir.clone(),
             knowledge,
-            queue: Arc::new(LazyQueue::new(
-                config.database_url(),
-                config.job_backoff(),
-                Some(config.data_dir.clone()),
-            )),
+            queue,
             job_env,
         }
     }
@@ -125,7 +121,7 @@ impl Components {
 
     /// The job database, opening and migrating it if it is not open yet.
     pub async fn jobs(&self) -> Result<&JobDatabase, String> {
-        self.queue.get().await.map(worker::Queue::database)
+        self.queue.get().await.map(queue::Queue::database)
     }
 
     async fn close(&self) {
@@ -260,21 +256,18 @@ impl Application {
 fn router(config: &Config, components: Arc<Components>, stopping: CancellationToken) -> Router {
     let knowledge = components.knowledge().clone();
     let guard = config.guard(knowledge.tokens.clone());
-    let jobs = Arc::new(worker::api::JobsApi {
+    let jobs = Arc::new(api::JobsApi {
         queue: components.queue().clone(),
         tokens: knowledge.tokens.clone(),
         env: components.job_env().clone(),
         shutdown: stopping,
         event_poll: std::time::Duration::from_millis(250),
         // Each stream polls the job database every 250 ms; the pool is the heartbeats' too.
-        streams: Arc::new(worker::api::StreamLimits::new(64, 8)),
+        streams: Arc::new(api::StreamLimits::new(64, 8)),
     });
     let app = Router::new()
         .merge(crate::health::router(components))
-        .merge(worker::plan_api::router(Arc::new(
-            worker::plan_api::PlanApi::new(jobs.clone()),
-        )))
-        .merge(worker::api::router(jobs))
+        .merge(api::router(jobs))
         .merge(knowledge::api::router(knowledge.clone()))
         .merge(knowledge::protocol::router(knowledge))
         .merge(
@@ -290,6 +283,15 @@ fn router(config: &Config, components: Arc<Components>, stopping: CancellationTo
         },
         Some(guard),
     )
+}
+
+/// Where the jobs keep their files, as configured.
+pub fn job_dirs(config: &Config) -> JobDirs {
+    JobDirs {
+        checkpoints: config.checkpoints_dir(),
+        policies: config.policies_dir(),
+        roadmaps: config.roadmaps_dir(),
+    }
 }
 
 /// Resolves on SIGINT (Ctrl-C) or SIGTERM.

@@ -11,11 +11,11 @@ use axum::extract::State;
 use axum::response::Response;
 use axum::routing::get;
 use axum::{Json, Router};
+use queue::{LazyQueue, Queue};
 use serde_json::json;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use worker::jobs::{HttpKnowledge, JobEnv, PolicyStore};
-use worker::{LazyQueue, Queue};
+use worker::jobs::{HttpKnowledge, JobEnv};
 
 use crate::config::Config;
 use crate::health::{self, Check, Detail, Readiness};
@@ -58,20 +58,15 @@ impl WorkerProcess {
         if let Err(reason) = queue.get().await {
             tracing::error!(%reason, "job database unavailable; /readyz will report it");
         }
-        let env = Arc::new(JobEnv {
-            knowledge: Arc::new(knowledge.clone()),
-            checkpoints_dir: config.checkpoints_dir(),
-            policies: PolicyStore::new(config.policies_dir()),
-            roadmaps: Arc::new(rehearsal::RoadmapCache::default()),
-            policy_roadmaps: worker::jobs::RoadmapStore::new(config.roadmaps_dir()),
-            validator: Some(Arc::new(worker::plan_api::ExecutorValidator::new(
-                PolicyStore::new(config.policies_dir()),
-            ))),
-            disk: Some(edge::disk::DiskWatch::new(
+        let env = Arc::new(JobEnv::new(
+            Arc::new(knowledge.clone()),
+            crate::startup::job_dirs(&config),
+            Arc::clone(&queue),
+            Some(edge::disk::DiskWatch::new(
                 config.checkpoints_dir(),
                 config.min_free_bytes,
             )),
-        });
+        ));
         let shared = Arc::new(Shared {
             queue,
             knowledge,

@@ -811,3 +811,65 @@ async fn plans_rehearse_among_people_and_say_how_close_they_came() {
         assert!(body.to_string().contains(field), "{bad} -> {body}");
     }
 }
+
+/// A `validate` job and `POST /v1/plan` are one use case (the planner): for the same request
+/// — the knowledge's people at an hour, a policy and its policy-aware roadmap — they answer
+/// the same plan, attempt for attempt.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_validate_job_answers_what_the_plan_endpoint_answers() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let dir = app.data_dir.join("policies").join("seeker");
+    std::fs::create_dir_all(&dir).unwrap();
+    learning::policy::write_goal_seeking_policy(&dir, 23, json!({})).unwrap();
+    let request = |roadmap: &str| {
+        json!({
+            "robot": "R-001", "place": "F0", "policy": "seeker",
+            "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+            "goal": {"x": goal.0, "y": goal.1},
+            "options": {"seed": 5, "trajectory_stride": 0, "roadmap": roadmap,
+                        "people": "auto", "people_hour": 12}
+        })
+    };
+    // The policy-aware roadmap first: both must find it.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(180);
+    loop {
+        let (status, body) = plan(&app, &request("policy")).await;
+        if status == 200 {
+            break;
+        }
+        assert_eq!(status, 409, "{body}");
+        assert!(std::time::Instant::now() < deadline, "never built: {body}");
+        tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    }
+    let (status, mut answered) = plan(&app, &request("auto")).await;
+    assert_eq!(status, 200, "{answered}");
+    assert_eq!(answered["roadmap"]["kind"], "policy", "{answered}");
+    assert_eq!(answered["people"]["source"], "knowledge", "{answered}");
+    assert!(
+        answered["people"]["people"].as_u64().unwrap() > 0,
+        "{answered}"
+    );
+
+    let r = app
+        .request(Method::POST, "/v1/jobs")
+        .json(&json!({"kind": "validate", "payload": request("auto")}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 201);
+    let id = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let done = finished_job(&app, &id).await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    let mut validated = done["result"].clone();
+    // Only the wall-clock time and the roadmap cache's state may differ.
+    for v in [&mut answered, &mut validated] {
+        v.as_object_mut().unwrap().remove("service_ms");
+        v["roadmap"].as_object_mut().unwrap().remove("cached");
+    }
+    assert_eq!(validated, answered);
+}

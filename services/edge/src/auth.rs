@@ -1,16 +1,22 @@
 //! Bearer tokens and roles, the same for every service: engineers read and write (the graph,
 //! jobs); robots read and use the robot endpoints (on-demand databases, object reports, plans).
 //!
-//! A handler authenticates with [`Tokens::authenticate`] (any valid token) or
-//! [`Tokens::require`] (a role, or an engineer's token), both reading the request's
-//! `Authorization: Bearer <token>` header; [`BearerAuth`] declares the scheme in the services'
-//! OpenAPI documents.
+//! A request is authenticated once: the guard (`crate::guard`) reads its
+//! `Authorization: Bearer <token>` header before the body and keeps the [`Principal`] in the
+//! request's extensions; a handler receives it through an extractor — [`Caller`] (any valid
+//! token), [`RobotCaller`] (a robot's or an engineer's) or [`EngineerCaller`] — which
+//! authenticates itself only on a router served without the guard. [`BearerAuth`] declares
+//! the scheme in the services' OpenAPI documents.
 
 use std::collections::HashMap;
 
+use std::sync::Arc;
+
 use crate::error::{ApiError, ErrorCode};
+use axum::extract::FromRequestParts;
 use axum::http::HeaderMap;
 use axum::http::header::AUTHORIZATION;
+use axum::http::request::Parts;
 
 /// What a token may do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -106,18 +112,88 @@ impl Tokens {
 
     /// Like [`Tokens::authenticate`], and 403 unless the token's role is `role` or engineer.
     pub fn require(&self, headers: &HeaderMap, role: Role) -> Result<Principal, ApiError> {
-        let principal = self.authenticate(headers)?;
-        if principal.role == role || principal.role == Role::Engineer {
-            Ok(principal)
+        self.authenticate(headers)?.require(role)
+    }
+}
+
+impl Principal {
+    /// Itself when its role is `role` or engineer; else 403 naming both roles.
+    pub fn require(self, role: Role) -> Result<Principal, ApiError> {
+        if self.role == role || self.role == Role::Engineer {
+            Ok(self)
         } else {
             Err(ApiError::new(
                 ErrorCode::Forbidden,
                 format!(
                     "token of {} has role {:?}; this operation needs {:?}",
-                    principal.name, principal.role, role
+                    self.name, self.role, role
                 ),
             ))
         }
+    }
+}
+
+/// A route state that knows the tokens, for the caller extractors on routers served without
+/// the guard.
+pub trait TokenSource {
+    /// The configured tokens.
+    fn tokens(&self) -> &Tokens;
+}
+
+impl<T: TokenSource> TokenSource for Arc<T> {
+    fn tokens(&self) -> &Tokens {
+        (**self).tokens()
+    }
+}
+
+/// The request's principal: the one the guard authenticated, else authenticated now (and kept
+/// for any later extractor).
+fn principal_of<S: TokenSource>(parts: &mut Parts, state: &S) -> Result<Principal, ApiError> {
+    if let Some(p) = parts.extensions.get::<Principal>() {
+        return Ok(p.clone());
+    }
+    let p = state.tokens().authenticate(&parts.headers)?;
+    parts.extensions.insert(p.clone());
+    Ok(p)
+}
+
+/// Any caller with a valid token (401 otherwise).
+#[derive(Debug, Clone)]
+pub struct Caller(pub Principal);
+
+/// A caller with a robot's or an engineer's token (401, or 403 for another role).
+#[derive(Debug, Clone)]
+pub struct RobotCaller(pub Principal);
+
+/// A caller with an engineer's token (401, or 403 for a robot's).
+#[derive(Debug, Clone)]
+pub struct EngineerCaller(pub Principal);
+
+impl<S: TokenSource + Send + Sync> FromRequestParts<S> for Caller {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
+        principal_of(parts, state).map(Caller)
+    }
+}
+
+impl<S: TokenSource + Send + Sync> FromRequestParts<S> for RobotCaller {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
+        principal_of(parts, state)?
+            .require(Role::Robot)
+            .map(RobotCaller)
+    }
+}
+
+impl<S: TokenSource + Send + Sync> FromRequestParts<S> for EngineerCaller {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, ApiError> {
+        principal_of(parts, state)?
+            .require(Role::Engineer)
+            .map(EngineerCaller)
     }
 }
 

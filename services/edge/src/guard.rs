@@ -3,9 +3,11 @@
 //! token is answered 401 before one byte of its body is read) and how large a body its route
 //! and role may send.
 //!
-//! Handlers still check roles ([`crate::Tokens::require`]); the guard only makes sure that an
-//! anonymous client costs no more than its headers, and that a robot's plan or an object report
-//! cannot bring the megabytes a map import may.
+//! The principal it authenticated goes into the request's extensions, where the caller
+//! extractors ([`crate::RobotCaller`], ...) find it: handlers check roles without
+//! authenticating again. The guard makes sure that an anonymous client costs no more than its
+//! headers, and that a robot's plan or an object report cannot bring the megabytes a map import
+//! may.
 
 use std::sync::Arc;
 
@@ -89,8 +91,14 @@ pub async fn guard(State(guard): State<Arc<Guard>>, request: Request, next: Next
     let Ok(_permit) = Arc::clone(&guard.in_flight).try_acquire_owned() else {
         return overloaded(&guard.config);
     };
+    let mut request = request;
     let role = match guard.config.tokens.authenticate(request.headers()) {
-        Ok(principal) => principal.role,
+        Ok(principal) => {
+            let role = principal.role;
+            // Handlers take it from here (the caller extractors): authenticated once.
+            request.extensions_mut().insert(principal);
+            role
+        }
         Err(e) => return e.into_response(),
     };
     let limit = guard.body_limit(request.method(), route.as_deref(), role);

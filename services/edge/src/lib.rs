@@ -24,5 +24,7 @@ pub mod metrics;
 pub mod middleware;
 pub mod serve;
 
-pub use auth::{BearerAuth, Principal, Role, Tokens};
+pub use auth::{
+    BearerAuth, Caller, EngineerCaller, Principal, RobotCaller, Role, TokenSource, Tokens,
+};
 pub use error::{ApiError, ErrorBody, ErrorCode, ErrorDetail};

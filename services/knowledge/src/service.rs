@@ -114,6 +114,12 @@ pub struct Knowledge {
     reopenable: bool,
 }
 
+impl edge::TokenSource for Knowledge {
+    fn tokens(&self) -> &Tokens {
+        &self.tokens
+    }
+}
+
 impl std::fmt::Debug for Knowledge {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Knowledge")

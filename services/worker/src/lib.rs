@@ -1,48 +1,24 @@
-//! Simulation worker service: durable job queue, job runners, plan endpoint, jobs API.
+//! The fleet's jobs: the job kinds the job engine (`queue`) runs for a robot fleet, and what
+//! they share.
 //!
-//! Only this crate knows the job database.
+//! - [`jobs`]: the kinds (`train`, `evaluate`, `validate`, `roadmap`), their payloads and
+//!   handlers, the knowledge sources worlds come from (in process or over HTTP), and
+//!   [`jobs::JobEnv`], which also holds the [`planner::Planner`] plans and `validate` jobs
+//!   share;
+//! - [`plan`]: a plan's request and answer in the wire types, translated to and from the
+//!   planner;
+//! - [`service`]: runners for every kind, and the retention purge.
 //!
-//! - [`JobDatabase`]: connection and migrations, SQLite (default) or PostgreSQL by URL.
-//! - [`Queue`]: enqueue, claim (leases with fencing tokens), heartbeats, progress events,
-//!   checkpoints, outcomes with capped exponential backoff, cancellation, retention.
-//! - [`Worker`]: claims jobs for the [`JobHandler`]s registered by kind and runs them with
-//!   heartbeats, cooperative cancellation and graceful shutdown.
-//! - [`jobs`]: the job kinds (`train`, `evaluate`, `validate`), their payloads and handlers,
-//!   the knowledge source they take worlds from, and the exported policies on disk.
-//! - [`api`]: the jobs and policies REST API (with server-sent events) and its OpenAPI document.
-//! - [`service`]: runners over a lazily opened queue ([`LazyQueue`]) and the retention purge.
-//! - `bench` (feature `bench`, off by default): the queue throughput benchmark behind
-//!   `mentalsim bench queue`.
+//! No HTTP routes live here: they are at the binary's edge (`api`), so `mentalsim worker`
+//! runs jobs without serving plans.
 
 // Casts that can lose a sign, wrap or truncate hide bugs: each one here says why it cannot.
-// (`planning` and `bench` do not yet; `cast_precision_loss` stays off everywhere: counts far
-// below 2^52 convert to f64 exactly.)
 #![warn(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
     clippy::cast_possible_wrap
 )]
 
-pub mod api;
-#[cfg(feature = "bench")]
-pub mod bench;
-pub mod clock;
-pub mod database;
 pub mod jobs;
-pub mod lazy;
-pub mod plan_api;
-pub mod queue;
-pub mod runner;
+pub mod plan;
 pub mod service;
-
-pub use clock::{Clock, ManualClock, SystemClock};
-pub use database::{Backend, DatabaseError, DatabaseStatus, JobDatabase, PoolSize};
-pub use lazy::LazyQueue;
-pub use queue::{
-    Backoff, Checkpoint, Claimed, FailOutcome, Job, JobEvent, JobState, Lease, NewJob, Queue,
-    QueueError, QueueStats, WriteAck,
-};
-pub use runner::{
-    FnHandler, JobContext, JobError, JobHandler, StopReason, Worker, WorkerConfig, WorkerReport,
-    handler_fn,
-};

@@ -1,42 +1,23 @@
-//! The worker side of a process: runners over a lazily opened queue, and the periodic purge
-//! of finished jobs (and of checkpoint files no job will resume from).
+//! The worker side of a process: runners for every job kind over a lazily opened queue, and
+//! the periodic purge of finished jobs (and of checkpoint files no job will resume from).
 
 use std::sync::Arc;
 use std::time::Duration;
 
+use queue::{LazyQueue, Queue, WorkerConfig, WorkerReport};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
 use crate::jobs::JobEnv;
-use crate::lazy::LazyQueue;
-use crate::runner::{Worker, WorkerConfig, WorkerReport};
 
-/// Waits until the queue opens (retrying every few seconds), then claims and runs jobs of
-/// every kind until `shutdown` fires (see [`Worker::run`]). Returns what the worker did.
+/// Claims and runs jobs of every kind until `shutdown` fires ([`queue::run_workers`]).
 pub async fn run_workers(
     queue: Arc<LazyQueue>,
     env: Arc<JobEnv>,
     config: WorkerConfig,
     shutdown: CancellationToken,
 ) -> WorkerReport {
-    let mut warned = false;
-    let queue = loop {
-        match queue.get().await {
-            Ok(q) => break q.clone(),
-            Err(reason) => {
-                if !warned {
-                    tracing::warn!(%reason, "job database unavailable; workers wait for it");
-                    warned = true;
-                }
-                tokio::select! {
-                    () = shutdown.cancelled() => return WorkerReport::default(),
-                    () = tokio::time::sleep(Duration::from_secs(2)) => {}
-                }
-            }
-        }
-    };
-    let worker = env.register(Worker::new(queue, config));
-    worker.run(shutdown).await
+    queue::run_workers(queue, |worker| env.register(worker), config, shutdown).await
 }
 
 /// Deletes finished jobs older than `retention`, and checkpoint directories of jobs that are
@@ -65,7 +46,7 @@ pub async fn purge_loop(
 }
 
 /// Removes `<checkpoints_dir>/<job id>` of jobs that finished or no longer exist.
-pub async fn sweep_checkpoints(queue: &crate::Queue, env: &JobEnv) {
+pub async fn sweep_checkpoints(queue: &Queue, env: &JobEnv) {
     let Ok(mut entries) = tokio::fs::read_dir(&env.checkpoints_dir).await else {
         return;
     };

@@ -6,9 +6,9 @@ use std::sync::Arc;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Multipart, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorBody, ErrorCode, Role};
+use edge::{ApiError, EngineerCaller, ErrorBody, ErrorCode};
 use serde::Serialize;
 use utoipa::ToSchema;
 
@@ -89,10 +89,9 @@ pub(super) struct MapUpload {
     ))]
 pub(super) async fn import_map(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: EngineerCaller,
     mut form: Multipart,
 ) -> Result<Response, ApiError> {
-    k.tokens.require(&headers, Role::Engineer)?;
     let (mut name, mut yaml, mut image): (Option<String>, Option<String>, Option<Bytes>) =
         (None, None, None);
     while let Some(field) = form

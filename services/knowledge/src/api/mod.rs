@@ -122,11 +122,7 @@ pub struct Me {
 #[utoipa::path(get, path = "/v1/me", responses(
     (status = 200, body = Me),
     (status = 401, response = edge::error::responses::Unauthorized)))]
-async fn me(
-    axum::extract::State(k): axum::extract::State<Arc<Knowledge>>,
-    headers: axum::http::HeaderMap,
-) -> Result<axum::Json<Me>, edge::ApiError> {
-    let principal = k.tokens.authenticate(&headers)?;
+async fn me(edge::Caller(principal): edge::Caller) -> Result<axum::Json<Me>, edge::ApiError> {
     Ok(axum::Json(Me {
         name: principal.name,
         role: match principal.role {

@@ -5,9 +5,9 @@ use std::sync::Arc;
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, StatusCode};
+use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorBody, ErrorCode, Role};
+use edge::{ApiError, ErrorBody, ErrorCode, RobotCaller, Role};
 use oxigraph::model::{NamedNode, Quad};
 use serde::{Deserialize, Serialize};
 use tosm::{Place, PlaceKind};
@@ -166,11 +166,10 @@ pub struct ReportedObject {
     ))]
 pub(super) async fn report_object(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    RobotCaller(principal): RobotCaller,
     Path(id): Path<String>,
     Json(report): Json<ObjectReport>,
 ) -> Result<Response, ApiError> {
-    let principal = k.tokens.require(&headers, Role::Robot)?;
     let is_robot = principal.role == Role::Robot;
     k.check_space(0)?;
     if is_robot && let Err(wait_s) = k.take_report(&principal.name) {

@@ -8,7 +8,7 @@ use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorBody, ErrorCode, Role};
+use edge::{ApiError, ErrorBody, ErrorCode, RobotCaller};
 use oxigraph::io::{RdfFormat, RdfSerializer};
 use serde::Deserialize;
 use utoipa::ToSchema;
@@ -144,10 +144,10 @@ impl From<OnDemandError> for ApiError {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn on_demand_database(
     State(k): State<Arc<Knowledge>>,
+    _caller: RobotCaller,
     headers: HeaderMap,
     Json(request): Json<OnDemandRequest>,
 ) -> Result<Response, ApiError> {
-    k.tokens.require(&headers, Role::Robot)?;
     let format = graph_format(headers.get(header::ACCEPT).and_then(|v| v.to_str().ok()))?;
     let mut goals = Vec::new();
     for (i, g) in request.goals.into_iter().enumerate() {
@@ -215,11 +215,11 @@ pub struct FloorRobotQuery {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn floor_on_demand_database(
     State(k): State<Arc<Knowledge>>,
+    _caller: RobotCaller,
     headers: HeaderMap,
     Path(id): Path<String>,
     axum::extract::Query(query): axum::extract::Query<FloorRobotQuery>,
 ) -> Result<Response, ApiError> {
-    k.tokens.require(&headers, Role::Robot)?;
     let format = graph_format(headers.get(header::ACCEPT).and_then(|v| v.to_str().ok()))?;
     let if_none_match = headers
         .get(header::IF_NONE_MATCH)

@@ -14,9 +14,8 @@ use std::sync::Arc;
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::http::HeaderMap;
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorBody, ErrorCode, Role};
+use edge::{ApiError, ErrorBody, ErrorCode, RobotCaller, Role};
 use oxigraph::model::{Graph, GraphNameRef, NamedNode, NamedNodeRef, Quad, Term, Triple};
 use oxsdatatypes::DateTime;
 use serde::{Deserialize, Serialize};
@@ -123,11 +122,10 @@ pub struct PeopleEstimates {
     ))]
 pub(super) async fn report_people_observations(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    RobotCaller(principal): RobotCaller,
     Path(id): Path<String>,
     Json(body): Json<PeopleObservations>,
 ) -> Result<Response, ApiError> {
-    let principal = k.tokens.require(&headers, Role::Robot)?;
     k.check_space(0)?;
     let n = body.observations.len();
     // Every request costs its counts (at least one), so that a robot cannot flood the service

@@ -5,9 +5,9 @@ use std::sync::Arc;
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, header};
+use axum::http::header;
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorBody, ErrorCode};
+use edge::{ApiError, Caller, ErrorBody, ErrorCode};
 use oxigraph::model::Graph;
 use serde::{Deserialize, Serialize};
 use tosm::{Place, PlaceKind};
@@ -98,9 +98,8 @@ pub(super) fn find_place(places: &[Place], id: &str) -> Result<usize, ApiError> 
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn list_places(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
 ) -> Result<Json<Vec<PlaceView>>, ApiError> {
-    k.tokens.authenticate(&headers)?;
     blocking(move || {
         let store = k.store()?;
         let places = on_demand::all_places(&store)?;
@@ -117,10 +116,9 @@ pub(super) async fn list_places(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn get_place(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Json<PlaceView>, ApiError> {
-    k.tokens.authenticate(&headers)?;
     blocking(move || {
         let store = k.store()?;
         let places = on_demand::all_places(&store)?;
@@ -138,10 +136,9 @@ pub(super) async fn get_place(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn place_map(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    k.tokens.authenticate(&headers)?;
     let png = blocking(move || {
         let store = k.store()?;
         let places = on_demand::all_places(&store)?;
@@ -211,11 +208,10 @@ impl WorldQuery {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn world_sdf(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
     axum::extract::Query(query): axum::extract::Query<WorldQuery>,
 ) -> Result<Response, ApiError> {
-    k.tokens.authenticate(&headers)?;
     let at = query.robot_pose()?;
     let sdf = blocking(move || {
         let spec = floor_spec(&k, &id, query.robot.as_deref())?;
@@ -293,10 +289,9 @@ pub struct ObjectPose {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn list_objects(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Json<Vec<ObjectView>>, ApiError> {
-    k.tokens.authenticate(&headers)?;
     blocking(move || {
         let spec = floor_spec(&k, &id, None)?;
         Ok(Json(
@@ -376,10 +371,9 @@ pub struct MapServerYaml {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn place_map_yaml(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    k.tokens.authenticate(&headers)?;
     let yaml = blocking(move || {
         let grid = floor_grid(&k, &id)?;
         Ok(tosm::RosMapMeta::for_grid_png("map.pgm", grid.resolution, grid.origin).to_yaml())
@@ -397,10 +391,9 @@ pub(super) async fn place_map_yaml(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn place_map_pgm(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    k.tokens.authenticate(&headers)?;
     let pgm = blocking(move || Ok(floor_grid(&k, &id)?.to_pgm())).await?;
     Ok(([(header::CONTENT_TYPE, "image/x-portable-graymap")], pgm).into_response())
 }

@@ -6,9 +6,9 @@ use std::sync::Arc;
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, header};
+use axum::http::header;
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorBody, ErrorCode};
+use edge::{ApiError, Caller, ErrorBody, ErrorCode};
 use oxigraph::model::Graph;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -46,10 +46,9 @@ fn robot_spec(k: &Knowledge, id: &str) -> Result<sim::RobotSpec, ApiError> {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn robot_urdf(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    k.tokens.authenticate(&headers)?;
     let urdf = blocking(move || Ok(sim::export::robot_urdf(&robot_spec(&k, &id)?))).await?;
     Ok(([(header::CONTENT_TYPE, "application/xml")], urdf).into_response())
 }
@@ -66,10 +65,9 @@ pub(super) async fn robot_urdf(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn robot_sdf(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    k.tokens.authenticate(&headers)?;
     let sdf = blocking(move || Ok(sim::export::robot_sdf(&robot_spec(&k, &id)?))).await?;
     Ok(([(header::CONTENT_TYPE, "application/xml")], sdf).into_response())
 }
@@ -98,11 +96,10 @@ pub struct BridgeQuery {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn bridge_yaml(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
     axum::extract::Query(query): axum::extract::Query<BridgeQuery>,
 ) -> Result<Response, ApiError> {
-    k.tokens.authenticate(&headers)?;
     if let Some(world) = &query.world {
         let valid = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
         if world.is_empty() || !world.chars().all(valid) {
@@ -193,9 +190,8 @@ impl From<&tosm::Robot> for RobotView {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn list_robots(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
 ) -> Result<Json<Vec<RobotView>>, ApiError> {
-    k.tokens.authenticate(&headers)?;
     blocking(move || {
         let robots = read_robots(&k.store()?)?;
         Ok(Json(robots.iter().map(RobotView::from).collect()))
@@ -211,10 +207,9 @@ pub(super) async fn list_robots(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(super) async fn get_robot(
     State(k): State<Arc<Knowledge>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Json<RobotView>, ApiError> {
-    k.tokens.authenticate(&headers)?;
     blocking(move || {
         let robots = read_robots(&k.store()?)?;
         Ok(Json(RobotView::from(find_robot(&robots, &id)?)))

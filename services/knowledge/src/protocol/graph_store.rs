@@ -10,7 +10,7 @@ use axum::extract::State;
 use axum::http::header::{ACCEPT, CONTENT_TYPE, LOCATION, VARY};
 use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorCode, Role};
+use edge::{ApiError, Caller, ErrorCode, Principal, Role};
 use oxigraph::io::{RdfFormat, RdfParser, RdfSerializer};
 use oxigraph::model::{GraphName, NamedNode, Quad, TripleRef};
 use oxigraph::sparql::CancellationToken;
@@ -49,10 +49,11 @@ pub(super) async fn indirect(
     State(knowledge): State<Arc<Knowledge>>,
     method: Method,
     uri: Uri,
+    Caller(caller): Caller,
     headers: HeaderMap,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    authorize(&knowledge, &method, &headers)?;
+    let role = authorize(&method, caller)?;
     let params = Params::of_uri(&uri)?;
     let target = match (params.at_most_one("graph")?, params.contains("default")) {
         (Some(_), true) => {
@@ -66,7 +67,10 @@ pub(super) async fn indirect(
         (None, true) => Target::Default,
         (None, false) => Target::Store,
     };
-    handle(knowledge, method, target, &uri, &headers, &params, body).await
+    handle(
+        knowledge, method, target, &uri, &headers, &params, body, role,
+    )
+    .await
 }
 
 /// `/store/…`: the request URL is the graph's IRI.
@@ -74,10 +78,11 @@ pub(super) async fn direct(
     State(knowledge): State<Arc<Knowledge>>,
     method: Method,
     uri: Uri,
+    Caller(caller): Caller,
     headers: HeaderMap,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    authorize(&knowledge, &method, &headers)?;
+    let role = authorize(&method, caller)?;
     let params = Params::of_uri(&uri)?;
     if params.contains("graph") || params.contains("default") {
         return Err(ApiError::bad_request(
@@ -96,25 +101,24 @@ pub(super) async fn direct(
         &headers,
         &params,
         body,
+        role,
     )
     .await
 }
 
-fn authorize(
-    knowledge: &Knowledge,
-    method: &Method,
-    headers: &HeaderMap,
-) -> Result<Role, ApiError> {
+/// The caller's role, when it may use `method`: reads take any token, writes an engineer's.
+fn authorize(method: &Method, caller: Principal) -> Result<Role, ApiError> {
     if method == Method::GET || method == Method::HEAD {
-        knowledge.tokens.authenticate(headers).map(|p| p.role)
+        Ok(caller.role)
     } else {
-        knowledge
-            .tokens
-            .require(headers, Role::Engineer)
-            .map(|p| p.role)
+        caller.require(Role::Engineer).map(|p| p.role)
     }
 }
 
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the request's parts, each read once; a struct would only rename them"
+)]
 async fn handle(
     knowledge: Arc<Knowledge>,
     method: Method,
@@ -123,6 +127,7 @@ async fn handle(
     headers: &HeaderMap,
     params: &Params,
     body: Bytes,
+    role: Role,
 ) -> Result<Response, ApiError> {
     let is_write = matches!(method, Method::PUT | Method::POST | Method::DELETE);
     if is_write
@@ -139,7 +144,15 @@ async fn handle(
     }
     match method {
         Method::GET | Method::HEAD => {
-            read(knowledge, method == Method::HEAD, target, params, headers).await
+            read(
+                knowledge,
+                method == Method::HEAD,
+                target,
+                params,
+                headers,
+                role,
+            )
+            .await
         }
         Method::PUT => replace(knowledge, target, uri, headers, body).await,
         Method::POST => merge(knowledge, target, uri, headers, body).await,
@@ -154,6 +167,7 @@ async fn read(
     target: Target,
     params: &Params,
     headers: &HeaderMap,
+    role: Role,
 ) -> Result<Response, ApiError> {
     let accept = headers.get(ACCEPT).and_then(|v| v.to_str().ok());
     let hints = params.format_hints();
@@ -166,7 +180,7 @@ async fn read(
         }
     };
     let limits = knowledge.limits;
-    let max_bytes = limits.result_bytes(knowledge.tokens.authenticate(headers)?.role);
+    let max_bytes = limits.result_bytes(role);
     let deadline = Deadline::start(knowledge.reads(), limits.deadline);
     let (token, exceeded) = (deadline.token(), deadline.exceeded());
     let body = deadline

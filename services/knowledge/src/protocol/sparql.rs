@@ -9,7 +9,7 @@ use axum::extract::State;
 use axum::http::header::{ACCEPT, CONTENT_TYPE, VARY};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
-use edge::{ApiError, ErrorCode, Role};
+use edge::{ApiError, Caller, ErrorCode, Principal, Role};
 use oxigraph::model::NamedNode;
 use spargebra::{GraphUpdateOperation, Query, SparqlParser};
 
@@ -26,9 +26,10 @@ const SPARQL_UPDATE: &str = "application/sparql-update";
 pub(super) async fn get(
     State(knowledge): State<Arc<Knowledge>>,
     uri: Uri,
+    Caller(caller): Caller,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let role = knowledge.tokens.authenticate(&headers)?.role;
+    let role = caller.role;
     let params = Params::of_uri(&uri)?;
     if params.contains("update") {
         return Ok(method_not_allowed(
@@ -47,10 +48,11 @@ pub(super) async fn get(
 pub(super) async fn post(
     State(knowledge): State<Arc<Knowledge>>,
     uri: Uri,
+    Caller(caller): Caller,
     headers: HeaderMap,
     body: Bytes,
 ) -> Result<Response, ApiError> {
-    let role = knowledge.tokens.authenticate(&headers)?.role;
+    let role = caller.role;
     let mut params = Params::of_uri(&uri)?;
     let endpoint = format!("{}{}", request_origin(&uri, &headers), uri.path());
     let Some((media_type, utf8)) = body_media_type(&headers) else {
@@ -73,7 +75,7 @@ pub(super) async fn post(
                     answer_query(knowledge, &endpoint, query, &params, &headers, role).await
                 }
                 (None, Some(update)) => {
-                    apply_update(knowledge, &endpoint, update, &params, &headers).await
+                    apply_update(knowledge, &endpoint, update, &params, caller).await
                 }
                 (Some(_), Some(_)) => Err(ApiError::bad_request(
                     "the form has both `query` and `update`; send one operation per request",
@@ -94,7 +96,7 @@ pub(super) async fn post(
             if media_type == SPARQL_QUERY {
                 answer_query(knowledge, &endpoint, text, &params, &headers, role).await
             } else {
-                apply_update(knowledge, &endpoint, text, &params, &headers).await
+                apply_update(knowledge, &endpoint, text, &params, caller).await
             }
         }
         other => Err(unsupported_body(&format!("Content-Type `{other}`"))),
@@ -220,9 +222,9 @@ async fn apply_update(
     endpoint: &str,
     text: &str,
     params: &Params,
-    headers: &HeaderMap,
+    caller: Principal,
 ) -> Result<Response, ApiError> {
-    knowledge.tokens.require(headers, Role::Engineer)?;
+    caller.require(Role::Engineer)?;
     knowledge.check_space(text.len() as u64)?;
     super::complexity::check_sparql(text).map_err(|m| ApiError::new(ErrorCode::InvalidQuery, m))?;
     let update = parser(endpoint)?.parse_update(text).map_err(|e| {

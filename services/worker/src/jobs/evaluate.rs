@@ -7,8 +7,9 @@ use learning::Policy;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
+use super::results::{EvaluateResult, measured, stored};
 use super::{JobEnv, PayloadError, PolicyStore};
-use crate::runner::{JobContext, JobError, JobHandler};
+use queue::{JobContext, JobError, JobHandler};
 
 /// Missions run when the payload does not say.
 pub const DEFAULT_EPISODES: usize = 100;
@@ -45,10 +46,9 @@ impl EvaluatePayload {
             Some(n) if n == 0 || n > MAX_EPISODES => Err(PayloadError::Invalid(format!(
                 "payload.episodes: must be in 1..={MAX_EPISODES}, got {n}"
             ))),
-            _ if !super::policies::valid_id(&self.policy) => Err(PayloadError::NotFound(format!(
-                "payload.policy: no policy has id {:?}",
-                self.policy
-            ))),
+            _ if !planner::policies::valid_id(&self.policy) => Err(PayloadError::NotFound(
+                format!("payload.policy: no policy has id {:?}", self.policy),
+            )),
             _ => Ok(()),
         }
     }
@@ -56,12 +56,12 @@ impl EvaluatePayload {
 
 /// The robot to evaluate with: the payload's, else the one the policy was trained for.
 pub fn policy_robot(policies: &PolicyStore, p: &EvaluatePayload) -> Result<String, PayloadError> {
-    let meta = policies.metadata(&p.policy).ok_or_else(|| {
+    let summary = policies.summary(&p.policy).ok_or_else(|| {
         PayloadError::NotFound(format!("payload.policy: no policy has id {:?}", p.policy))
     })?;
-    match (&p.robot, meta["training"]["summary"]["robot"].as_str()) {
+    match (&p.robot, summary.robot) {
         (Some(r), _) => Ok(r.clone()),
-        (None, Some(r)) => Ok(r.to_owned()),
+        (None, Some(r)) => Ok(r),
         (None, None) => Err(PayloadError::Invalid(
             "payload.robot: the policy does not say which robot it was trained for; name one"
                 .to_owned(),
@@ -95,7 +95,8 @@ impl JobHandler for EvaluateHandler {
             .env
             .knowledge
             .floor_database(&payload.place, &robot)
-            .await?;
+            .await
+            .map_err(super::source_error)?;
         if ctx.is_stopping() {
             return Err(ctx.stopped());
         }
@@ -115,21 +116,21 @@ impl JobHandler for EvaluateHandler {
         let _ = ctx
             .report_progress(&json!({"episodes": report.episodes, "fraction_done": 1.0}))
             .await;
-        Ok(json!({
-            "policy": payload.policy,
-            "robot": robot,
-            "place": payload.place,
-            "floor": floor,
-            "success_rate": report.success_rate,
-            "collision_rate": report.collision_rate,
-            "timeout_rate": report.timeout_rate,
-            "mean_time_to_goal_s": report.mean_time_to_goal_s,
-            "mean_return": report.mean_return,
-            "episodes": report.episodes,
-            "env_steps": report.env_steps,
-            "wall_s": report.wall_s,
-            "seed": seed,
-            "goals_in_view": in_view,
+        Ok(stored(&EvaluateResult {
+            policy: payload.policy,
+            robot,
+            place: payload.place,
+            floor,
+            success_rate: report.success_rate,
+            collision_rate: report.collision_rate,
+            timeout_rate: report.timeout_rate,
+            mean_time_to_goal_s: measured(report.mean_time_to_goal_s),
+            mean_return: report.mean_return,
+            episodes: report.episodes,
+            env_steps: report.env_steps,
+            wall_s: report.wall_s,
+            seed,
+            goals_in_view: in_view,
         }))
     }
 }

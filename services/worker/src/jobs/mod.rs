@@ -1,13 +1,15 @@
 //! The job kinds: `train` (TD3 in the mental simulation of a floor, exported as a policy),
-//! `evaluate` (an exported policy on a floor) and `validate` (a plan tried in the mental
-//! simulation; its executor plugs in through [`PlanValidator`]).
+//! `evaluate` (an exported policy on a floor), `validate` (a plan tried in the mental
+//! simulation, through the same [`planner::Planner`] as `POST /v1/plan`) and `roadmap` (a
+//! floor's policy-aware roadmap).
 //!
 //! Payloads are checked twice: when a job is created (so a client learns at once, with the
 //! field named, that it asked for something impossible) and when it runs (a payload from
 //! another process or an older version still fails cleanly, as a fatal error).
 
+pub mod builds;
 pub mod evaluate;
-pub mod policies;
+pub mod results;
 pub mod roadmap;
 pub mod source;
 pub mod train;
@@ -19,13 +21,15 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::runner::{JobError, Worker};
+pub use builds::QueueRoadmapBuilds;
 pub use evaluate::{EvaluateHandler, EvaluatePayload};
-pub use policies::{PolicyStore, PolicySummary};
-pub use roadmap::{RoadmapHandler, RoadmapKey, RoadmapPayload, RoadmapStore};
+pub use planner::{PolicyRoadmapKey, PolicyStore, RoadmapStore};
+use queue::{JobError, LazyQueue, Worker};
+pub use results::{EvaluateResult, JobResult, RoadmapResult, TrainResult};
+pub use roadmap::{RoadmapHandler, RoadmapPayload};
 pub use source::{FloorDatabase, HttpKnowledge, InProcessKnowledge, KnowledgeSource, SourceError};
 pub use train::{TrainHandler, TrainPayload};
-pub use validate::{PlanValidator, ValidateHandler, ValidatePayload};
+pub use validate::{ValidateHandler, ValidatePayload};
 
 /// The kinds of job this service runs. The queue stores a kind as its name (TEXT, so the
 /// runner stays generic over handlers); the API accepts and shows the same names.
@@ -94,7 +98,7 @@ fn kind_names() -> String {
     JobKind::ALL.map(JobKind::as_str).join(", ")
 }
 
-/// What the handlers share: where worlds come from and where files go.
+/// What the handlers share: where worlds come from, where files go, and the planner.
 #[derive(Clone)]
 pub struct JobEnv {
     /// The knowledge service (in process, or over HTTP).
@@ -107,11 +111,22 @@ pub struct JobEnv {
     pub roadmaps: Arc<rehearsal::RoadmapCache>,
     /// Stored policy-aware roadmaps.
     pub policy_roadmaps: RoadmapStore,
-    /// The plan validator behind `validate` jobs, when this build has one.
-    pub validator: Option<Arc<dyn PlanValidator>>,
+    /// The plan use case: `validate` jobs and `POST /v1/plan` call it alike.
+    pub planner: Arc<planner::Planner>,
     /// The free-space reserve of the disk checkpoints and policies go to: a training whose
     /// disk has less stops at once and goes back to the queue until there is room.
     pub disk: Option<edge::disk::DiskWatch>,
+}
+
+/// Where a [`JobEnv`] keeps its files.
+#[derive(Debug, Clone)]
+pub struct JobDirs {
+    /// Checkpoints of running trainings.
+    pub checkpoints: PathBuf,
+    /// Exported policies.
+    pub policies: PathBuf,
+    /// Stored policy-aware roadmaps.
+    pub roadmaps: PathBuf,
 }
 
 impl std::fmt::Debug for JobEnv {
@@ -119,12 +134,40 @@ impl std::fmt::Debug for JobEnv {
         f.debug_struct("JobEnv")
             .field("checkpoints_dir", &self.checkpoints_dir)
             .field("policies", &self.policies)
-            .field("validator", &self.validator.is_some())
             .finish_non_exhaustive()
     }
 }
 
 impl JobEnv {
+    /// The jobs' environment over `knowledge` and the files in `dirs`, with a planner whose
+    /// missing policy-aware roadmaps are built by `roadmap` jobs on `queue`.
+    pub fn new(
+        knowledge: Arc<dyn KnowledgeSource>,
+        dirs: JobDirs,
+        queue: Arc<LazyQueue>,
+        disk: Option<edge::disk::DiskWatch>,
+    ) -> Self {
+        let policies = PolicyStore::new(dirs.policies);
+        let roadmaps = Arc::new(rehearsal::RoadmapCache::default());
+        let policy_roadmaps = RoadmapStore::new(dirs.roadmaps);
+        let planner = Arc::new(planner::Planner::new(
+            Arc::clone(&knowledge),
+            policies.clone(),
+            Arc::clone(&roadmaps),
+            policy_roadmaps.clone(),
+            Arc::new(QueueRoadmapBuilds::new(queue)),
+        ));
+        Self {
+            knowledge,
+            checkpoints_dir: dirs.checkpoints,
+            policies,
+            roadmaps,
+            policy_roadmaps,
+            planner,
+            disk,
+        }
+    }
+
     /// Registers the handlers of every kind on `worker`.
     pub fn register(self: &Arc<Self>, worker: Worker) -> Worker {
         JobKind::ALL
@@ -154,15 +197,8 @@ impl JobEnv {
                 self.check_floor(&p.place, &robot).await?;
             }
             JobKind::Validate => {
-                let p: ValidatePayload = parse(payload)?;
-                let Some(validator) = &self.validator else {
-                    return Err(PayloadError::Unprocessable(
-                        "validate jobs are not available yet: this build has no plan validator"
-                            .to_owned(),
-                    ));
-                };
-                validator.check(payload)?;
-                self.check_floor(&p.place, &p.robot).await?;
+                let q = validate::check(self, payload)?;
+                self.check_floor(&q.place, &q.robot).await?;
             }
             JobKind::Roadmap => {
                 let p: RoadmapPayload = parse(payload)?;
@@ -219,12 +255,11 @@ impl From<PayloadError> for JobError {
     }
 }
 
-impl From<SourceError> for JobError {
-    fn from(e: SourceError) -> Self {
-        match e {
-            SourceError::Unavailable(m) => JobError::Retryable(m),
-            other => JobError::Fatal(other.to_string()),
-        }
+/// A knowledge source's refusal as a job's error: retried while the service is unavailable.
+pub fn source_error(e: SourceError) -> JobError {
+    match e {
+        SourceError::Unavailable(m) => JobError::Retryable(m),
+        other => JobError::Fatal(other.to_string()),
     }
 }
 

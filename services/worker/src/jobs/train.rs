@@ -17,9 +17,11 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use sim::{EnvConfig, World};
 
+use super::results::{TrainResult, measured, stored};
 use super::{JobEnv, PayloadError, to_json};
-use crate::queue::Checkpoint;
-use crate::runner::{JobContext, JobError, JobHandler, StopReason};
+use planner::{HeldOutEval, PolicySummary};
+use queue::Checkpoint;
+use queue::{JobContext, JobError, JobHandler, StopReason};
 
 /// Longest training a job may ask for, minutes (a week).
 pub const MAX_MINUTES: f64 = 10_080.0;
@@ -140,7 +142,7 @@ pub fn progress_json(p: &Progress, budget_s: f64) -> Value {
 
 enum Finished {
     Stopped,
-    Done(Value),
+    Done(Box<TrainResult>),
 }
 
 struct Run {
@@ -148,7 +150,7 @@ struct Run {
     options: TrainOptions,
     budget: Budget,
     policy_id: String,
-    summary: Value,
+    summary: PolicySummary,
     env: Arc<JobEnv>,
 }
 
@@ -161,7 +163,8 @@ impl JobHandler for TrainHandler {
             .env
             .knowledge
             .floor_database(&payload.place, &payload.robot)
-            .await?;
+            .await
+            .map_err(super::source_error)?;
         let floor_iri = db.floor.clone();
         let robot_iri = db.robot.clone();
         let world = tokio::task::spawn_blocking(move || db.world())
@@ -189,13 +192,15 @@ impl JobHandler for TrainHandler {
                 wall_s: Some(budget_s),
                 env_steps: None,
             },
-            summary: json!({
-                "policy_id": policy_id,
-                "robot": robot_iri,
-                "place": payload.place,
-                "floor": floor_iri,
-                "job_id": ctx.id().to_string(),
-            }),
+            summary: PolicySummary {
+                policy_id: Some(policy_id.clone()),
+                robot: Some(robot_iri),
+                place: Some(payload.place.clone()),
+                floor: Some(floor_iri),
+                job_id: Some(ctx.id().to_string()),
+                created_ms: 0,
+                eval: None,
+            },
             policy_id,
             env: self.env.clone(),
         };
@@ -223,7 +228,7 @@ impl JobHandler for TrainHandler {
                 let _ = std::fs::remove_dir_all(&out_dir);
                 // The new policy's roadmap of the floor it was trained on, in the background,
                 // so that the first plan with it finds it built.
-                let follow_up = crate::queue::NewJob::new(
+                let follow_up = queue::NewJob::new(
                     super::JobKind::Roadmap,
                     super::roadmap::payload(
                         &ctx.id().to_string(),
@@ -233,12 +238,12 @@ impl JobHandler for TrainHandler {
                     ),
                 );
                 match ctx.enqueue(follow_up).await {
-                    Ok(id) => result["roadmap_job"] = json!(id.to_string()),
+                    Ok(id) => result.roadmap_job = Some(id.to_string()),
                     Err(e) => {
                         tracing::warn!(job = %ctx.id(), error = %e, "enqueueing the policy's roadmap job failed");
                     }
                 }
-                Ok(result)
+                Ok(stored(&*result))
             }
             Ok(Finished::Stopped) => {
                 if ctx.stop_reason() == Some(StopReason::CancelRequested) {
@@ -293,7 +298,9 @@ fn train_blocking(
         }
         // A checkpoint that found the disk full waits for space instead of failing the job.
         learning::trainer::TrainError::Checkpoint { .. } => {
-            JobError::unless_out_of_space(format!("training: {e}"), JobError::Fatal)
+            let m = format!("training: {e}");
+            let full = edge::disk::is_out_of_space(&m);
+            JobError::unless_out_of_space(m, full, JobError::Fatal)
         }
         _ => JobError::Fatal(format!("training: {e}")),
     };
@@ -369,9 +376,11 @@ fn train_blocking(
         std::fs::remove_dir_all(&staged).map_err(|e| io("clearing the staging directory", e))?;
     }
     std::fs::create_dir_all(&staged).map_err(|e| io("creating the staging directory", e))?;
-    trainer.export(&staged, summary.clone()).map_err(|e| {
+    trainer.export(&staged, to_json(&summary)).map_err(|e| {
         let _ = std::fs::remove_dir_all(&staged);
-        JobError::unless_out_of_space(format!("exporting the policy: {e}"), JobError::Retryable)
+        let m = format!("exporting the policy: {e}");
+        let full = edge::disk::is_out_of_space(&m);
+        JobError::unless_out_of_space(m, full, JobError::Retryable)
     })?;
     let policy = Policy::load(&staged)
         .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
@@ -380,19 +389,19 @@ fn train_blocking(
     let report =
         learning::evaluate_held_out(&policy, &world, config.eval_episodes, held_out_seed, true)
             .map_err(|e| JobError::Fatal(format!("evaluating the exported policy: {e}")))?;
-    let created_ms = crate::clock::Clock::now_ms(&crate::clock::SystemClock);
-    summary["created_ms"] = json!(created_ms);
-    summary["eval"] = json!({
-        "success_rate": report.success_rate,
-        "collision_rate": report.collision_rate,
-        "timeout_rate": report.timeout_rate,
-        "mean_time_to_goal_s": report.mean_time_to_goal_s,
-        "episodes": report.episodes,
-        "seed": held_out_seed,
-        "goals": "in-view",
+    let created_ms = queue::Clock::now_ms(&queue::SystemClock);
+    summary.created_ms = created_ms;
+    summary.eval = Some(HeldOutEval {
+        success_rate: report.success_rate,
+        collision_rate: report.collision_rate,
+        timeout_rate: report.timeout_rate,
+        mean_time_to_goal_s: measured(report.mean_time_to_goal_s),
+        episodes: report.episodes,
+        seed: held_out_seed,
+        goals: "in-view".to_owned(),
     });
     trainer
-        .export(&staged, summary.clone())
+        .export(&staged, to_json(&summary))
         .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
     // The learning curves travel with the policy (`GET /v1/jobs/{id}/curves.csv`, `.png`).
     if let Err(e) =
@@ -405,22 +414,23 @@ fn train_blocking(
         .install(&policy_id, &staged)
         .map_err(|e| io("installing the policy", e))?;
     let counters = trainer.counters();
-    Ok(Finished::Done(json!({
-        "policy_id": policy_id,
-        "policy": format!("/v1/policies/{policy_id}"),
-        "success_rate": report.success_rate,
-        "collision_rate": report.collision_rate,
-        "timeout_rate": report.timeout_rate,
-        "mean_time_to_goal_s": report.mean_time_to_goal_s,
-        "eval_episodes": report.episodes,
-        "episodes": counters.episodes,
-        "env_steps": counters.env_steps,
-        "grad_steps": counters.grad_steps,
-        "wall_s": counters.wall_s,
-        "sessions": counters.sessions,
-        "robot": summary["robot"],
-        "place": summary["place"],
-        "floor": summary["floor"],
-        "last_training_eval": to_json(&trainer.evals().last()),
+    Ok(Finished::Done(Box::new(TrainResult {
+        policy: format!("/v1/policies/{policy_id}"),
+        policy_id,
+        success_rate: report.success_rate,
+        collision_rate: report.collision_rate,
+        timeout_rate: report.timeout_rate,
+        mean_time_to_goal_s: measured(report.mean_time_to_goal_s),
+        eval_episodes: report.episodes,
+        episodes: counters.episodes,
+        env_steps: counters.env_steps,
+        grad_steps: counters.grad_steps,
+        wall_s: counters.wall_s,
+        sessions: counters.sessions,
+        robot: summary.robot.clone().unwrap_or_default(),
+        place: summary.place.clone().unwrap_or_default(),
+        floor: summary.floor.clone().unwrap_or_default(),
+        last_training_eval: to_json(&trainer.evals().last()),
+        roadmap_job: None,
     })))
 }

@@ -1,54 +1,43 @@
-//! `validate`: a plan tried in the mental simulation before a robot moves. The handler does
-//! what every kind does — payload, world from the knowledge service, blocking thread,
-//! cancellation — and hands the world to a [`PlanValidator`], the plan executor's hook (the
-//! `rehearsal` crate's hybrid PRM–RL executor implements it through
-//! [`ExecutorValidator`](crate::plan_api::ExecutorValidator); see `JobEnv::validator`). Without
-//! one, creating a `validate` job is refused (422) and a stray one fails as fatal.
+//! `validate`: a plan tried in the mental simulation before a robot moves, as a job. The
+//! payload is the request of `POST /v1/plan` and the result its answer: both go through the
+//! same [`planner::Planner::plan`], so a job and a plan answer the same thing for the same input.
 
+use std::time::Instant;
+
+use planner::{PlanFailure, PlanQuery};
+use serde_json::Value;
+
+use super::{JobEnv, PayloadError};
+use crate::plan::{PlanApiRequest, PlanApiResponse};
+use queue::{JobContext, JobError, JobHandler};
 use std::sync::Arc;
 
-use serde::{Deserialize, Serialize};
-use serde_json::Value;
-use sim::World;
+/// What a `validate` job is asked: exactly the request of `POST /v1/plan`.
+pub type ValidatePayload = PlanApiRequest;
 
-use super::JobEnv;
-use crate::runner::{JobContext, JobError, JobHandler};
-
-/// What every `validate` payload carries; the rest is the validator's (it checks it).
-#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
-pub struct ValidatePayload {
-    /// The robot: IRI or identifier.
-    pub robot: String,
-    /// A floor, or a place on one (IRI or identifier).
-    pub place: String,
-    /// The plan and the validator's options (waypoints, policy, runs, seed, ...).
-    #[serde(flatten)]
-    #[schema(value_type = Object)]
-    pub rest: serde_json::Map<String, Value>,
+/// The planner's query of a payload, its refusals naming the payload's fields.
+pub fn query_of(payload: &Value) -> Result<PlanQuery, PayloadError> {
+    let request: PlanApiRequest = super::parse(payload)?;
+    request
+        .into_query()
+        .map_err(|m| PayloadError::Invalid(format!("payload: {m}")))
 }
 
-/// The plan executor's hook.
-pub trait PlanValidator: Send + Sync + 'static {
-    /// Checks a payload when the job is created: a value out of range is
-    /// [`PayloadError::Invalid`] naming the field (`payload.goals: ...`, 422), a policy that
-    /// does not exist [`PayloadError::NotFound`] (404).
-    fn check(&self, payload: &Value) -> Result<(), super::PayloadError>;
-
-    /// Validates the plan of `payload` in `world` and returns the job's result. Runs on a
-    /// blocking thread: poll `stopping` between runs and return [`JobError::Stopped`] (any
-    /// reason; the runner knows the real one) when it is true. `progress` records a progress
-    /// report (it is rate-limited by the caller's patience, not here: call it at most every
-    /// second or so).
-    fn validate(
-        &self,
-        world: Arc<World>,
-        payload: &Value,
-        stopping: &dyn Fn() -> bool,
-        progress: &dyn Fn(Value),
-    ) -> Result<Value, JobError>;
+/// Checks a payload when the job is created: its shape, the bounds of a plan request (named in
+/// the payload), and that a policy it names exists.
+pub fn check(env: &JobEnv, payload: &Value) -> Result<PlanQuery, PayloadError> {
+    let query = query_of(payload)?;
+    env.planner.check(&query).map_err(|e| match e {
+        PlanFailure::NotFound(m) => PayloadError::NotFound(format!("payload.policy: {m}")),
+        PlanFailure::Plan(rehearsal::PlanError::InvalidInput { field, message }) => {
+            PayloadError::Invalid(format!("payload.{field}: {message}"))
+        }
+        other => PayloadError::Invalid(format!("payload: {other}")),
+    })?;
+    Ok(query)
 }
 
-/// Runs `validate` jobs with the configured [`PlanValidator`].
+/// Runs `validate` jobs with the planner.
 #[derive(Clone)]
 pub struct ValidateHandler {
     env: Arc<JobEnv>,
@@ -61,7 +50,7 @@ impl std::fmt::Debug for ValidateHandler {
 }
 
 impl ValidateHandler {
-    /// A handler using `env` (and its validator, if any).
+    /// A handler using `env`'s planner.
     pub fn new(env: Arc<JobEnv>) -> Self {
         Self { env }
     }
@@ -69,40 +58,35 @@ impl ValidateHandler {
 
 impl JobHandler for ValidateHandler {
     async fn run(&self, ctx: JobContext) -> Result<Value, JobError> {
-        let Some(validator) = self.env.validator.clone() else {
-            return Err(JobError::Fatal(
-                "validate jobs are not available yet: this worker has no plan validator".to_owned(),
-            ));
-        };
-        let payload: ValidatePayload = ctx.payload_as()?;
-        validator
-            .check(ctx.payload())
+        let started = Instant::now();
+        let query = check(&self.env, ctx.payload())
             .map_err(|m| JobError::Fatal(format!("invalid validate payload: {m}")))?;
-        let db = self
-            .env
-            .knowledge
-            .floor_database(&payload.place, &payload.robot)
-            .await?;
-        let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Value>();
-        let blocking_ctx = ctx.clone();
-        let raw = ctx.payload().clone();
-        let task = tokio::task::spawn_blocking(move || {
-            let world = db.world().map_err(JobError::Fatal)?;
-            let stopping = || blocking_ctx.is_stopping();
-            let progress = |v: Value| {
-                let _ = tx.send(v);
-            };
-            validator.validate(world, &raw, &stopping, &progress)
-        });
-        while let Some(p) = rx.recv().await {
-            if let Err(e) = ctx.report_progress(&p).await {
-                tracing::warn!(job = %ctx.id(), error = %e, "recording validation progress failed");
+        let start = crate::plan::Pose::from(query.request.start);
+        let _ = ctx
+            .report_progress(&serde_json::json!({"stage": "simulating"}))
+            .await;
+        // The job's cancellation and the worker's shutdown stop the rehearsal at its next check.
+        let stop = rehearsal::Stop::new();
+        let watch = {
+            let (ctx, stop) = (ctx.clone(), stop.clone());
+            tokio::spawn(async move {
+                while !ctx.is_stopping() {
+                    tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+                }
+                stop.request();
+            })
+        };
+        let outcome = self.env.planner.plan(query, stop).await;
+        watch.abort();
+        let outcome = match outcome {
+            Ok(o) => o,
+            Err(PlanFailure::Plan(rehearsal::PlanError::Stopped)) if ctx.is_stopping() => {
+                return Err(ctx.stopped());
             }
-        }
-        let result = task.await.map_err(JobError::retryable)?;
-        match result {
-            Err(JobError::Stopped(_)) => Err(ctx.stopped()),
-            other => other,
-        }
+            Err(PlanFailure::Unavailable(m)) => return Err(JobError::Retryable(m)),
+            Err(e) => return Err(JobError::Fatal(e.to_string())),
+        };
+        let answer = PlanApiResponse::of(outcome, &start, started.elapsed().as_secs_f64() * 1e3);
+        serde_json::to_value(&answer).map_err(|e| JobError::Fatal(format!("the answer: {e}")))
     }
 }

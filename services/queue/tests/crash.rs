@@ -12,12 +12,12 @@ mod common;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
+use queue::{
+    Checkpoint, JobContext, JobDatabase, JobState, NewJob, Queue, Worker, WorkerConfig, handler_fn,
+};
 use serde_json::json;
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
-use worker::{
-    Checkpoint, JobContext, JobDatabase, JobState, NewJob, Queue, Worker, WorkerConfig, handler_fn,
-};
 
 const TARGET: i64 = 80;
 
@@ -146,7 +146,7 @@ fn spawn_child(url: &str, job: Uuid) -> Child {
 
 async fn wait_for<F>(queue: &Queue, id: Uuid, what: &str, child: &mut Child, mut check: F)
 where
-    F: FnMut(&worker::Job) -> bool,
+    F: FnMut(&queue::Job) -> bool,
 {
     let deadline = tokio::time::Instant::now() + Duration::from_secs(90);
     loop {
@@ -162,7 +162,7 @@ where
     }
 }
 
-fn checkpoint_i(job: &worker::Job) -> i64 {
+fn checkpoint_i(job: &queue::Job) -> i64 {
     job.checkpoint
         .as_ref()
         .map_or(0, |c| c.data["i"].as_i64().unwrap())
@@ -177,7 +177,7 @@ async fn enqueue(url: &str) -> (Queue, Uuid) {
     (queue, id)
 }
 
-async fn finish_in_a_new_process(queue: &Queue, url: &str, id: Uuid) -> worker::Job {
+async fn finish_in_a_new_process(queue: &Queue, url: &str, id: Uuid) -> queue::Job {
     let mut second = spawn_child(url, id);
     wait_for(queue, id, "the job finished", &mut second, |j| {
         j.state.is_finished()

@@ -4,12 +4,41 @@
 
 use std::sync::Arc;
 
+use api::plan::PlanErrorResponse;
 use rehearsal::{ClassicalFollower, Controller, PlanError, RoadmapCache};
 use sim::{Action, Observation, Pose2, World};
-use worker::plan_api::{
-    AttemptOutcome, ControllerKind, PlanErrorResponse, PlanOptions, PlanRequest, Point, Pose,
-    rehearse,
+use worker::plan::{
+    AttemptOutcome, ControllerKind, PlanApiRequest, PlanOptions, PlanReport, Point, Pose,
 };
+
+/// What to plan, in the wire types: from a pose through goals.
+#[derive(Clone)]
+struct PlanRequest {
+    start: Pose,
+    goals: Vec<Point>,
+    options: PlanOptions,
+}
+
+/// The executor on a request in the wire types, its report in them.
+fn rehearse(
+    world: &Arc<World>,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+    policy: Option<Arc<learning::Policy>>,
+) -> Result<PlanReport, PlanError> {
+    rehearsal::validate(world, roadmaps, map_version, &core(request), policy).map(PlanReport::from)
+}
+
+/// The request in the executor's types.
+fn core(request: &PlanRequest) -> rehearsal::PlanRequest {
+    rehearsal::PlanRequest {
+        start: request.start.into(),
+        goals: request.goals.iter().map(|&g| g.into()).collect(),
+        options: request.options.clone().into(),
+        stop: rehearsal::Stop::default(),
+    }
+}
 
 fn room() -> Arc<World> {
     fixtures::worlds::walled_room()
@@ -123,14 +152,15 @@ fn each_bad_input_has_its_own_error() {
 
     // Request JSON with a typo is refused by serde, not silently defaulted.
     assert!(
-        serde_json::from_str::<PlanRequest>(
-            r#"{"start": {"x": 1, "y": 1}, "goals": [{"x": 2, "y": 2}], "options": {"max_attempt": 2}}"#
+        serde_json::from_str::<PlanApiRequest>(
+            r#"{"robot": "r", "place": "p", "start": {"x": 1, "y": 1}, "goals": [{"x": 2, "y": 2}], "options": {"max_attempt": 2}}"#
         )
         .is_err()
     );
-    let ok: PlanRequest =
-        serde_json::from_str(r#"{"start": {"x": 1, "y": 1}, "goals": [{"x": 2, "y": 2}]}"#)
-            .expect("defaults");
+    let ok: PlanApiRequest = serde_json::from_str(
+        r#"{"robot": "r", "place": "p", "start": {"x": 1, "y": 1}, "goals": [{"x": 2, "y": 2}]}"#,
+    )
+    .expect("defaults");
     assert_eq!(ok.options, PlanOptions::default());
     assert_eq!(
         rehearsal::PlanOptions::from(ok.options),
@@ -159,7 +189,7 @@ fn no_attempt_validating_is_its_own_error_with_every_reason() {
     let cache = RoadmapCache::default();
     let mut req = request(&[(7.0, 2.0)]);
     req.options.max_attempts = 3;
-    let req = rehearsal::PlanRequest::from(req);
+    let req = core(&req);
     let e = rehearsal::validate_with(&world, &cache, "room-v1", &req, &mut Reckless)
         .expect_err("fails");
     assert_eq!(e.reason(), "not_validated");

@@ -427,30 +427,6 @@ pub enum PlanApiRequestDoc {
     },
 }
 
-/// What to plan: from the robot's pose through one goal or a sequence of goals.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct PlanRequest {
-    /// The robot's current pose.
-    pub start: Pose,
-    /// Goals, visited in order; at least one.
-    pub goals: Vec<Point>,
-    /// Validation settings.
-    #[serde(default)]
-    pub options: PlanOptions,
-}
-
-impl From<PlanRequest> for rehearsal::PlanRequest {
-    fn from(r: PlanRequest) -> Self {
-        Self {
-            start: r.start.into(),
-            goals: r.goals.into_iter().map(Into::into).collect(),
-            options: r.options.into(),
-            stop: rehearsal::Stop::default(),
-        }
-    }
-}
-
 /// Which controller drove the simulated robot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]

@@ -9,34 +9,33 @@ use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Duration;
 
-use axum::body::Body;
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use edge::{ApiError, BearerAuth, ErrorBody, ErrorCode, ErrorDetail, Role, Tokens};
+use edge::{
+    ApiError, BearerAuth, Caller, EngineerCaller, ErrorBody, ErrorCode, ErrorDetail, Role,
+    TokenSource, Tokens,
+};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use tokio_util::sync::CancellationToken;
 use utoipa::{OpenApi, ToSchema};
 use uuid::Uuid;
 
-use crate::jobs::policies::{METADATA, WEIGHTS, summary};
-use crate::jobs::{
-    EvaluatePayload, JobEnv, JobKind, PayloadError, PolicySummary, TrainPayload, ValidatePayload,
-};
-use crate::lazy::LazyQueue;
-use crate::queue::{Job, JobEvent, JobState, NewJob, QueueError};
+use crate::policies::{PolicyView, get_policy, list_policies, policy_metadata, policy_weights};
+use queue::{Job, JobEvent, JobState, LazyQueue, NewJob, QueueError};
+use worker::jobs::{EvaluatePayload, JobEnv, JobKind, PayloadError, TrainPayload};
 
 /// The OpenAPI document of the jobs and policies API, generated from the handlers below.
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
-    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, list_policies, get_policy, policy_weights, policy_metadata, crate::plan_api::plan, crate::plan_api::roadmap_view::get_roadmap, crate::plan_api::roadmap_view::route_graph),
+    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph),
     components(
-        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, ValidatePayload, crate::jobs::RoadmapPayload, PolicySummary, ErrorBody, ErrorDetail, ErrorCode, crate::plan_api::types::PlanApiRequestDoc, crate::plan_api::PlanApiResponse, crate::plan_api::roadmap_view::RoadmapView, crate::plan_api::roadmap_view::EdgeView),
+        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, worker::jobs::RoadmapPayload, worker::jobs::JobResult, worker::jobs::TrainResult, worker::jobs::EvaluateResult, worker::jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, worker::plan::types::PlanApiRequestDoc, worker::plan::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
@@ -133,6 +132,12 @@ impl Drop for StreamPermit {
     }
 }
 
+impl TokenSource for JobsApi {
+    fn tokens(&self) -> &Tokens {
+        &self.tokens
+    }
+}
+
 impl std::fmt::Debug for JobsApi {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("JobsApi")
@@ -141,7 +146,7 @@ impl std::fmt::Debug for JobsApi {
     }
 }
 
-/// The routes.
+/// The routes: jobs, policies, and plans and roadmaps ([`crate::plan`]).
 pub fn router(state: Arc<JobsApi>) -> Router {
     Router::new()
         .route("/v1/jobs", post(create_job).get(list_jobs))
@@ -154,7 +159,8 @@ pub fn router(state: Arc<JobsApi>) -> Router {
         .route("/v1/policies/{id}", get(get_policy))
         .route("/v1/policies/{id}/policy.safetensors", get(policy_weights))
         .route("/v1/policies/{id}/policy.json", get(policy_metadata))
-        .with_state(state)
+        .with_state(Arc::clone(&state))
+        .merge(crate::plan::router(state))
 }
 
 impl JobsApi {
@@ -169,7 +175,7 @@ impl JobsApi {
             .ok_or_else(|| ApiError::not_found(format!("no job has id {id}")))
     }
 
-    async fn queue(&self) -> Result<&crate::Queue, ApiError> {
+    async fn queue(&self) -> Result<&queue::Queue, ApiError> {
         self.queue.get().await.map_err(|reason| {
             ApiError::new(
                 ErrorCode::NotReady,
@@ -187,8 +193,9 @@ fn queue_error(e: QueueError) -> ApiError {
     }
 }
 
-impl From<PayloadError> for ApiError {
-    fn from(e: PayloadError) -> Self {
+/// A job refused at creation, as the API answers it.
+fn payload_error(e: PayloadError) -> ApiError {
+    {
         match e {
             PayloadError::UnknownKind(m) => ApiError::bad_request(m),
             PayloadError::Invalid(m) | PayloadError::Unprocessable(m) => {
@@ -267,7 +274,7 @@ enum NewJobDoc {
     #[serde(deny_unknown_fields)]
     Validate {
         /// The plan, as `POST /v1/plan` takes it.
-        payload: crate::plan_api::types::PlanApiRequestDoc,
+        payload: worker::plan::types::PlanApiRequestDoc,
         /// Higher runs first [default: 0].
         #[schema(minimum = -2147483648, maximum = 2147483647)]
         priority: Option<i32>,
@@ -279,7 +286,7 @@ enum NewJobDoc {
     #[serde(deny_unknown_fields)]
     Roadmap {
         /// The job's parameters.
-        payload: crate::jobs::RoadmapPayload,
+        payload: worker::jobs::RoadmapPayload,
         /// Higher runs first [default: 0].
         #[schema(minimum = -2147483648, maximum = 2147483647)]
         priority: Option<i32>,
@@ -317,8 +324,9 @@ pub struct JobView {
     /// The latest checkpoint's reference.
     #[schema(value_type = Option<Object>)]
     checkpoint: Option<Value>,
-    /// The result, once succeeded.
-    #[schema(value_type = Option<Object>)]
+    /// The result, once succeeded: its form follows `kind` (`TrainResult`, `EvaluateResult`,
+    /// the `POST /v1/plan` answer for `validate`, `RoadmapResult`).
+    #[schema(value_type = Option<worker::jobs::JobResult>)]
     result: Option<Value>,
     /// The latest error.
     error: Option<String>,
@@ -358,7 +366,7 @@ impl JobView {
 
 impl From<&Job> for JobView {
     fn from(j: &Job) -> Self {
-        let t = crate::jobs::rfc3339;
+        let t = worker::jobs::rfc3339;
         Self {
             id: j.id.to_string(),
             kind: j.kind.clone(),
@@ -398,12 +406,18 @@ impl From<&Job> for JobView {
     (status = 507, response = edge::error::responses::StorageFull)))]
 async fn create_job(
     State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
+    EngineerCaller(principal): EngineerCaller,
     Json(request): Json<NewJobRequest>,
 ) -> Result<Response, ApiError> {
-    let principal = api.tokens.require(&headers, Role::Engineer)?;
-    let kind: JobKind = request.kind.parse().map_err(PayloadError::from)?;
-    let payload = api.env.check_new(kind, &request.payload).await?;
+    let kind: JobKind = request
+        .kind
+        .parse()
+        .map_err(|e| payload_error(PayloadError::from(e)))?;
+    let payload = api
+        .env
+        .check_new(kind, &request.payload)
+        .await
+        .map_err(payload_error)?;
     let mut job = NewJob::new(kind, payload);
     if let Some(p) = request.priority {
         job = job.priority(p);
@@ -458,10 +472,10 @@ pub struct ListQuery {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn list_jobs(
     State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
+    Caller(caller): Caller,
     Query(query): Query<ListQuery>,
 ) -> Result<Json<Vec<JobView>>, ApiError> {
-    let role = api.tokens.authenticate(&headers)?.role;
+    let role = caller.role;
     let state = match query.state.as_deref() {
         None | Some("") => None,
         Some(s) => Some(s.parse::<JobState>().map_err(|_| {
@@ -496,10 +510,10 @@ async fn list_jobs(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn get_job(
     State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
+    Caller(caller): Caller,
     Path(id): Path<String>,
 ) -> Result<Json<JobView>, ApiError> {
-    let role = api.tokens.authenticate(&headers)?.role;
+    let role = caller.role;
     Ok(Json(JobView::seen_by(&api.job(&id).await?, role)))
 }
 
@@ -514,10 +528,9 @@ async fn get_job(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn cancel_job(
     State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
+    EngineerCaller(principal): EngineerCaller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let principal = api.tokens.require(&headers, Role::Engineer)?;
     let id = job_id(&id)?;
     let queue = api.queue().await?;
     let before = queue
@@ -571,11 +584,11 @@ pub struct EventsQuery {
     (status = 503, description = "64 event streams are open in all (`overloaded`, with `Retry-After`), or the service cannot serve now (`not_ready`, `timeout`).", body = ErrorBody)))]
 async fn job_events(
     State(api): State<Arc<JobsApi>>,
+    Caller(principal): Caller,
     headers: HeaderMap,
     Path(id): Path<String>,
     Query(query): Query<EventsQuery>,
 ) -> Result<Response, ApiError> {
-    let principal = api.tokens.authenticate(&headers)?;
     let id = job_id(&id)?;
     let last_event_id = match headers.get("last-event-id") {
         Some(v) => Some(
@@ -620,7 +633,7 @@ fn sse_event(e: &JobEvent, role: Role) -> Event {
     let data = serde_json::json!({
         "kind": e.kind,
         "data": if e.kind == "checkpoint" { checkpoint_for(e.data.clone(), role) } else { e.data.clone() },
-        "created": crate::jobs::rfc3339(e.created_ms),
+        "created": worker::jobs::rfc3339(e.created_ms),
     });
     Event::default()
         .id(e.id.to_string())
@@ -689,113 +702,6 @@ fn event_stream(
     })
 }
 
-fn policy_path(api: &JobsApi, id: &str) -> Result<std::path::PathBuf, ApiError> {
-    api.env
-        .policies
-        .path(id)
-        .filter(|p| p.join(WEIGHTS).is_file())
-        .ok_or_else(|| ApiError::not_found(format!("no policy has id {id:?}")))
-}
-
-/// Exported policies, newest first: id, robot, place, creation time and evaluation summary.
-#[utoipa::path(get, path = "/v1/policies", responses(
-    (status = 200, body = [PolicySummary]),
-    (status = 401, response = edge::error::responses::Unauthorized),
-    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
-async fn list_policies(
-    State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
-) -> Result<Json<Vec<PolicySummary>>, ApiError> {
-    api.tokens.authenticate(&headers)?;
-    let store = api.env.policies.clone();
-    let list = tokio::task::spawn_blocking(move || store.list())
-        .await
-        .map_err(ApiError::internal)?;
-    Ok(Json(list))
-}
-
-/// One policy: its summary and its full metadata (`policy.json`: scaling, network, training).
-#[utoipa::path(get, path = "/v1/policies/{id}", params(("id" = String, Path, pattern = "^[A-Za-z0-9_-]{1,128}$", description = "The policy's id: 1-128 letters, digits, `-` and `_` (anything else is 404).")), responses(
-    (status = 200, body = Object),
-    (status = 401, response = edge::error::responses::Unauthorized),
-    (status = 404, description = "No policy has this id.", body = ErrorBody),
-    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
-async fn get_policy(
-    State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
-    Path(id): Path<String>,
-) -> Result<Json<Value>, ApiError> {
-    api.tokens.authenticate(&headers)?;
-    policy_path(&api, &id)?;
-    let meta = api
-        .env
-        .policies
-        .metadata(&id)
-        .ok_or_else(|| ApiError::not_found(format!("no policy has id {id:?}")))?;
-    let (_, s) = summary(&id, &meta);
-    let mut view = serde_json::to_value(&s).map_err(ApiError::internal)?;
-    view["metadata"] = meta;
-    view["files"] = serde_json::json!({
-        "policy.safetensors": format!("/v1/policies/{id}/policy.safetensors"),
-        "policy.json": format!("/v1/policies/{id}/policy.json"),
-    });
-    Ok(Json(view))
-}
-
-async fn download(
-    api: &JobsApi,
-    id: &str,
-    file: &str,
-    media: &'static str,
-) -> Result<Response, ApiError> {
-    let path = policy_path(api, id)?.join(file);
-    let bytes = tokio::fs::read(&path)
-        .await
-        .map_err(|_| ApiError::not_found(format!("policy {id:?} has no {file}")))?;
-    let disposition = format!("attachment; filename=\"{file}\"");
-    Ok((
-        [
-            (header::CONTENT_TYPE, HeaderValue::from_static(media)),
-            (
-                header::CONTENT_DISPOSITION,
-                HeaderValue::from_str(&disposition).map_err(ApiError::internal)?,
-            ),
-        ],
-        Body::from(bytes),
-    )
-        .into_response())
-}
-
-/// The policy's weights (safetensors).
-#[utoipa::path(get, path = "/v1/policies/{id}/policy.safetensors", params(("id" = String, Path, pattern = "^[A-Za-z0-9_-]{1,128}$", description = "The policy's id: 1-128 letters, digits, `-` and `_` (anything else is 404).")), responses(
-    (status = 200, content_type = "application/octet-stream", body = Vec<u8>),
-    (status = 401, response = edge::error::responses::Unauthorized),
-    (status = 404, description = "No policy has this id.", body = ErrorBody),
-    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
-async fn policy_weights(
-    State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
-    api.tokens.authenticate(&headers)?;
-    download(&api, &id, WEIGHTS, "application/octet-stream").await
-}
-
-/// The policy's metadata file (`learning::Policy::from_bytes` takes it with the weights).
-#[utoipa::path(get, path = "/v1/policies/{id}/policy.json", params(("id" = String, Path, pattern = "^[A-Za-z0-9_-]{1,128}$", description = "The policy's id: 1-128 letters, digits, `-` and `_` (anything else is 404).")), responses(
-    (status = 200, content_type = "application/json", body = Object),
-    (status = 401, response = edge::error::responses::Unauthorized),
-    (status = 404, description = "No policy has this id.", body = ErrorBody),
-    (status = 503, response = edge::error::responses::ServiceUnavailable)))]
-async fn policy_metadata(
-    State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
-    api.tokens.authenticate(&headers)?;
-    download(&api, &id, METADATA, "application/json").await
-}
-
 /// Where a training job's curves come from.
 enum CurvesSource {
     /// Written beside the exported policy.
@@ -824,7 +730,7 @@ async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
         return Ok(CurvesSource::Files(dir));
     }
     let checkpoint_dir =
-        crate::jobs::train::checkpoint_dir(job.checkpoint.as_ref(), id, &api.env.checkpoints_dir);
+        worker::jobs::train::checkpoint_dir(job.checkpoint.as_ref(), id, &api.env.checkpoints_dir);
     let episodes = tokio::task::spawn_blocking(move || {
         learning::trainer::Trainer::checkpointed_episodes(&checkpoint_dir)
     })
@@ -849,10 +755,9 @@ async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn job_curves_csv(
     State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    api.tokens.authenticate(&headers)?;
     let csv = match curves_of(&api, &id).await? {
         CurvesSource::Files(dir) => tokio::fs::read_to_string(dir.join(learning::curves::CSV_FILE))
             .await
@@ -871,10 +776,9 @@ async fn job_curves_csv(
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn job_curves_png(
     State(api): State<Arc<JobsApi>>,
-    headers: HeaderMap,
+    _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    api.tokens.authenticate(&headers)?;
     let source = curves_of(&api, &id).await?;
     let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
         match source {
@@ -886,7 +790,7 @@ async fn job_curves_png(
                 let path = tmp.path().join(learning::curves::PNG_FILE);
                 learning::curves::plot_curves(
                     &path,
-                    &crate::jobs::train::curves_title(&id),
+                    &worker::jobs::train::curves_title(&id),
                     &[("reward".into(), learning::curves::smooth(&episodes))],
                 )
                 .map_err(|e| e.to_string())?;

@@ -8,14 +8,12 @@ use std::sync::Arc;
 
 use axum::Json;
 use axum::extract::State;
-use axum::http::HeaderMap;
-use edge::{ApiError, ErrorCode, Role};
+use edge::{ApiError, ErrorCode, RobotCaller};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
-use super::PlanApi;
-use crate::jobs::RoadmapKey;
-use crate::jobs::roadmap::{StoredEdge, geometric_roadmap, nodes_fingerprint};
+use crate::jobs::JobsApi;
+use planner::roadmaps::{StoredEdge, geometric_roadmap, nodes_fingerprint};
 
 /// Which roadmap.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -85,11 +83,10 @@ pub struct EdgeView {
     (status = 422, description = "The place is on no floor, the knowledge does not make a world, or the margin is out of range.", body = edge::ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub async fn get_roadmap(
-    State(api): State<Arc<PlanApi>>,
-    headers: HeaderMap,
+    State(api): State<Arc<JobsApi>>,
+    _caller: RobotCaller,
     axum::extract::Query(query): axum::extract::Query<RoadmapQuery>,
 ) -> Result<Json<RoadmapView>, ApiError> {
-    api.jobs.tokens.require(&headers, Role::Robot)?;
     roadmap_view(api, query, false).await.map(Json)
 }
 
@@ -119,13 +116,12 @@ pub struct RouteGraphQuery {
     (status = 422, description = "The place is on no floor, or the knowledge does not make a world.", body = edge::ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub async fn route_graph(
-    State(api): State<Arc<PlanApi>>,
-    headers: HeaderMap,
+    State(api): State<Arc<JobsApi>>,
+    _caller: RobotCaller,
     axum::extract::Path(place): axum::extract::Path<String>,
     axum::extract::Query(query): axum::extract::Query<RouteGraphQuery>,
 ) -> Result<axum::response::Response, ApiError> {
     use axum::response::IntoResponse;
-    api.jobs.tokens.require(&headers, Role::Robot)?;
     let view = roadmap_view(
         api,
         RoadmapQuery {
@@ -196,7 +192,7 @@ pub fn geojson(view: &RoadmapView) -> serde_json::Value {
 /// The roadmap `query` names, as `GET /v1/roadmaps` answers it; without a policy named, with
 /// `newest_policy` the robot's newest one's measurements.
 async fn roadmap_view(
-    api: Arc<PlanApi>,
+    api: Arc<JobsApi>,
     mut query: RoadmapQuery,
     newest_policy: bool,
 ) -> Result<RoadmapView, ApiError> {
@@ -210,32 +206,32 @@ async fn roadmap_view(
         )
         .with_details(serde_json::json!({"field": "safety_margin_m"})));
     }
-    let db = api.floor_database(&query.place, &query.robot).await?;
+    let planner = Arc::clone(&api.env.planner);
+    let db = planner
+        .floor(&query.place, &query.robot)
+        .await
+        .map_err(super::plan_failure)?;
     if newest_policy && query.policy.is_none() {
-        query.policy = super::newest_policy(&api.jobs.env.policies, &db.robot);
+        query.policy = planner.policies().newest_for(&db.robot);
     }
     let key = match &query.policy {
         None => None,
-        Some(id) => {
-            let loaded = api.policy(id).await?;
-            Some(RoadmapKey::for_plans(
-                &db.version,
-                id,
-                loaded.weights,
-                margin,
-            ))
-        }
+        Some(id) => Some(
+            planner
+                .roadmap_key(&db, id, margin)
+                .await
+                .map_err(super::plan_failure)?,
+        ),
     };
-    let api2 = Arc::clone(&api);
     tokio::task::spawn_blocking(move || -> Result<RoadmapView, ApiError> {
         let world = db
             .world()
             .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
-        let roadmap = geometric_roadmap(&world, api2.roadmaps(), &db.version, margin)
+        let roadmap = geometric_roadmap(&world, planner.roadmaps(), &db.version, margin)
             .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
         let stored = key
             .as_ref()
-            .and_then(|k| api2.jobs.env.policy_roadmaps.get(k))
+            .and_then(|k| planner.policy_roadmaps().get(k))
             .filter(|s| {
                 s.nodes == roadmap.nodes().count()
                     && s.nodes_fingerprint == nodes_fingerprint(&roadmap)

@@ -76,11 +76,15 @@ impl JobError {
         Self::Fatal(e.to_string())
     }
 
-    /// `OutOfSpace` when `message` (the text of an error writing the job's own files) says
-    /// the disk is full, else `otherwise(message)`. Only a handler's own file errors are
-    /// classified so: a message quoting a user's input must never defer a job forever.
-    pub fn unless_out_of_space(message: String, otherwise: fn(String) -> Self) -> Self {
-        if edge::disk::is_out_of_space(&message) {
+    /// `OutOfSpace` when `out_of_space` (the caller's reading of an error writing the job's
+    /// own files), else `otherwise(message)`. Only a handler's own file errors are classified
+    /// so: a message quoting a user's input must never defer a job forever.
+    pub fn unless_out_of_space(
+        message: String,
+        out_of_space: bool,
+        otherwise: fn(String) -> Self,
+    ) -> Self {
+        if out_of_space {
             Self::OutOfSpace(message)
         } else {
             otherwise(message)

@@ -1,5 +1,5 @@
-//! The queue throughput benchmark (`worker::bench`, feature `bench`), checked rather than timed:
-//! the figures come from `mentalsim bench queue`, which runs the same `worker::bench::run`
+//! The queue throughput benchmark (`queue::bench`, feature `bench`), checked rather than timed:
+//! the figures come from `mentalsim bench queue`, which runs the same `queue::bench::run`
 //! with thousands of jobs. Here a few hundred jobs go through it on SQLite and PostgreSQL, and
 //! the test asserts what the figures rest on: every job enqueued was claimed and completed
 //! exactly once, by one attempt, and the reported rates are positive and finite.
@@ -9,8 +9,8 @@
 mod common;
 
 use common::Fixture;
-use worker::bench::{BenchOptions, ThroughputReport, queue_throughput, run};
-use worker::{JobState, Queue};
+use queue::bench::{BenchOptions, ThroughputReport, queue_throughput, run};
+use queue::{JobState, Queue};
 
 const JOBS: usize = 240;
 const CONCURRENCY: usize = 4;

@@ -11,13 +11,13 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use common::{Fixture, START_MS};
-use serde_json::{Value, json};
-use tokio_util::sync::CancellationToken;
-use uuid::Uuid;
-use worker::{
+use queue::{
     Backoff, Checkpoint, FailOutcome, JobContext, JobError, JobState, NewJob, Queue, QueueError,
     StopReason, Worker, WorkerConfig, handler_fn,
 };
+use serde_json::{Value, json};
+use tokio_util::sync::CancellationToken;
+use uuid::Uuid;
 
 const LEASE: Duration = Duration::from_secs(30);
 
@@ -765,7 +765,7 @@ async fn runner_records_outcomes(f: Fixture) {
 
 /// Counts steps until `target`, checkpointing every 5 steps; stops on the token after saving
 /// a checkpoint. Resumes from the last checkpoint.
-fn counting_handler(step: Duration, seen: Seen) -> impl worker::JobHandler {
+fn counting_handler(step: Duration, seen: Seen) -> impl queue::JobHandler {
     handler_fn(move |ctx: JobContext| {
         let seen = seen.clone();
         async move {

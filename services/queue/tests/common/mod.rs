@@ -11,7 +11,7 @@
 use std::sync::{Arc, OnceLock};
 
 use fixtures::{Durability, TempPostgres, TempPostgresError};
-use worker::{JobDatabase, ManualClock, Queue};
+use queue::{JobDatabase, ManualClock, Queue};
 
 pub const START_MS: i64 = 1_700_000_000_000;
 

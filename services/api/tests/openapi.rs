@@ -1,5 +1,5 @@
 //! The committed OpenAPI document (`openapi/worker.json`) must match the code. Refresh it with
-//! `UPDATE_OPENAPI=1 cargo test --release -p worker --test openapi` (after a workspace build).
+//! `UPDATE_OPENAPI=1 cargo test --release -p api --test openapi` (after a workspace build).
 
 use utoipa::OpenApi;
 
@@ -10,7 +10,7 @@ fn committed_openapi_document_matches_the_code() {
             .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
     )
     .join("../../openapi/worker.json");
-    let generated = worker::api::WorkerApi::openapi()
+    let generated = api::WorkerApi::openapi()
         .to_pretty_json()
         .expect("the document serialises");
     if std::env::var_os("UPDATE_OPENAPI").is_some() {
@@ -21,6 +21,6 @@ fn committed_openapi_document_matches_the_code() {
     assert!(
         committed.trim_end() == generated.trim_end(),
         "openapi/worker.json is out of date with the code: run \
-         `UPDATE_OPENAPI=1 cargo test --release -p worker --test openapi` and commit the result"
+         `UPDATE_OPENAPI=1 cargo test --release -p api --test openapi` and commit the result"
     );
 }

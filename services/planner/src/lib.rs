@@ -1,0 +1,614 @@
+//! The plan use case, with no HTTP in it: [`Planner::plan`] decides everything a plan decides —
+//! the floor's mental simulation (through a [`KnowledgeSource`]), which policy drives (the one
+//! named, else the robot's newest), which roadmap (the policy-aware one of this floor state and
+//! policy when it is stored, else the geometric one, with a background build asked for), which
+//! people walk about (the knowledge's expected people at an hour, or a density), the follower
+//! as fallback per leg, and the note that says why — and calls the `rehearsal` executor.
+//!
+//! `POST /v1/plan`, the `validate` job kind and the CLI call it alike: they translate their
+//! input into a [`PlanQuery`] and the [`PlanOutcome`] back, and decide nothing.
+//!
+//! - [`floor`]: the on-demand database of a floor and the world made from it;
+//! - [`policies`]: exported policies on disk and their summaries;
+//! - [`roadmaps`]: stored policy-aware roadmaps.
+
+pub mod floor;
+pub mod policies;
+pub mod roadmaps;
+
+use std::collections::HashMap;
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::SystemTime;
+
+use rehearsal::{PlanError, PlanRequest, RoadmapCache, RoadmapChoice};
+use sim::World;
+
+pub use floor::{FloorDatabase, KnowledgeSource, SourceError, SourceFuture};
+pub use policies::{HeldOutEval, PolicyEntry, PolicyStore, PolicySummary};
+pub use roadmaps::{PolicyRoadmapKey, RoadmapStore, StoredRoadmap};
+
+/// Who walks about in a plan's rehearsal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PlanPeople {
+    /// As many as the floor's knowledge expects (none where it says nothing), at the hour of
+    /// day `hour` (0-23) where it has figures by hour, else its all-day figures.
+    Expected {
+        /// Hour of day, 0-23.
+        hour: Option<u8>,
+    },
+    /// As the request's `options.people` says (nobody, or a density).
+    AsGiven,
+}
+
+/// What to plan.
+#[derive(Debug, Clone)]
+pub struct PlanQuery {
+    /// The robot (IRI or identifier).
+    pub robot: String,
+    /// Its floor, or a place on it (IRI or identifier).
+    pub place: String,
+    /// The start, the goals and the validation options (its `stop` is replaced by the one
+    /// [`Planner::plan`] is given).
+    pub request: PlanRequest,
+    /// Who walks about.
+    pub people: PlanPeople,
+    /// The policy to drive with; `None`: the robot's newest.
+    pub policy: Option<String>,
+}
+
+/// Where a plan's people came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PeopleSource {
+    /// The floor's knowledge (its expected people).
+    Knowledge,
+    /// A density the request gave.
+    Density,
+}
+
+impl PeopleSource {
+    /// `knowledge` or `density`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PeopleSource::Knowledge => "knowledge",
+            PeopleSource::Density => "density",
+        }
+    }
+}
+
+/// How a plan fared among people: over every attempt (each its own draw), and its validating
+/// runs' closest approach.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PeopleSummary {
+    /// Where the people came from.
+    pub source: PeopleSource,
+    /// People drawn in each attempt.
+    pub people: usize,
+    /// Closest approach to a person in the attempts that reached, metres.
+    pub min_person_clearance_m: Option<f64>,
+    /// Attempts run.
+    pub attempts: usize,
+    /// Attempts that reached their leg's goal.
+    pub attempts_reached: usize,
+    /// Attempts that ended touching a person.
+    pub attempts_hit_person: usize,
+    /// Attempts closer than [`rehearsal::NEAR_MISS_M`] to a person without touching one.
+    pub attempts_near_miss: usize,
+    /// The validated plan driven again among fresh draws (`options.people_draws`).
+    pub draws: Option<rehearsal::DrawsReport>,
+}
+
+/// A validated plan and how it was validated.
+#[derive(Debug, Clone)]
+pub struct PlanOutcome {
+    /// The robot's IRI.
+    pub robot: String,
+    /// The floor's IRI.
+    pub floor: String,
+    /// The policy that drove the simulated robot, if any.
+    pub policy: Option<String>,
+    /// Why the classical follower was used, when it was.
+    pub note: Option<String>,
+    /// The executor's report.
+    pub report: rehearsal::PlanReport,
+    /// How the plan fared among people, when there were any.
+    pub people: Option<PeopleSummary>,
+    /// The mental simulation it was validated in.
+    pub world: Arc<World>,
+}
+
+/// Why no plan was answered. Callers map each to their own error (the HTTP edge to a status).
+#[derive(Debug, thiserror::Error)]
+pub enum PlanFailure {
+    /// A malformed query (a value out of range); the message names the field.
+    #[error("{0}")]
+    BadRequest(String),
+    /// The robot, place or policy does not exist.
+    #[error("{0}")]
+    NotFound(String),
+    /// They exist but make no plan (a place on no floor, a map or policy that cannot be used).
+    #[error("{0}")]
+    Unprocessable(String),
+    /// The knowledge service or the job database cannot answer now.
+    #[error("{0}")]
+    Unavailable(String),
+    /// `roadmap: policy` and the policy-aware roadmap is not built yet, or cannot be read.
+    #[error("{0}")]
+    RoadmapNotReady(String),
+    /// `roadmap: policy` and no edge the policy drives joins a leg.
+    #[error(
+        "on the policy-aware roadmap: {0} (no edge the policy drives joins them; `options.roadmap`: `auto` falls back to the geometric roadmap)"
+    )]
+    PolicyRoadmapUnreachable(PlanError),
+    /// The executor refused the plan (blocked or unreachable goals, every attempt failed, ...).
+    #[error("{0}")]
+    Plan(PlanError),
+    /// Something broke on our side.
+    #[error("{0}")]
+    Internal(String),
+}
+
+impl From<SourceError> for PlanFailure {
+    fn from(e: SourceError) -> Self {
+        match e {
+            SourceError::NotFound(m) => PlanFailure::NotFound(m),
+            SourceError::Unprocessable(m) => PlanFailure::Unprocessable(m),
+            SourceError::Unavailable(m) => PlanFailure::Unavailable(m),
+        }
+    }
+}
+
+/// A boxed future for [`RoadmapBuilds`].
+pub type BuildFuture<'a> = Pin<Box<dyn Future<Output = Result<String, String>> + Send + 'a>>;
+
+/// Starts the background build of a policy-aware roadmap (the job engine's `roadmap` job).
+pub trait RoadmapBuilds: Send + Sync {
+    /// Makes sure a build of `key` (for `robot` on `floor`, with `margin`) is under way, once
+    /// per key however many plans ask; answers what is building it (a job id).
+    fn ensure<'a>(
+        &'a self,
+        key: &'a PolicyRoadmapKey,
+        floor: &'a str,
+        robot: &'a str,
+        margin: f64,
+    ) -> BuildFuture<'a>;
+}
+
+/// Policies kept loaded at most.
+const LOADED_POLICIES: usize = 16;
+/// Policy-aware roadmaps kept applied in memory at most.
+const POLICY_ROADMAPS: usize = 16;
+
+/// A loaded policy and the FNV-1a fingerprint of its weights file (part of a stored roadmap's
+/// key).
+#[derive(Clone)]
+struct LoadedPolicy {
+    policy: Arc<learning::Policy>,
+    weights: u64,
+}
+
+/// Applied policy-aware roadmaps, keyed with whether the unkept directions are in.
+type Applied = Mutex<HashMap<(PolicyRoadmapKey, bool), Arc<planning::Roadmap>>>;
+
+/// The plan use case over its stores and caches. Cheap to share (`Arc`).
+pub struct Planner {
+    knowledge: Arc<dyn KnowledgeSource>,
+    policies: PolicyStore,
+    roadmaps: Arc<RoadmapCache>,
+    policy_roadmaps: RoadmapStore,
+    builds: Arc<dyn RoadmapBuilds>,
+    /// Loaded policies by id, with the modification time of the weights they were read from.
+    loaded: Mutex<HashMap<String, (SystemTime, LoadedPolicy)>>,
+    applied: Arc<Applied>,
+}
+
+impl std::fmt::Debug for Planner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Planner")
+            .field("policies", &self.policies)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Planner {
+    /// A planner taking worlds from `knowledge`, policies from `policies`, geometric roadmaps
+    /// from `roadmaps` (shared with roadmap builds in this process), stored policy-aware
+    /// roadmaps from `policy_roadmaps`, and asking `builds` for the missing ones.
+    pub fn new(
+        knowledge: Arc<dyn KnowledgeSource>,
+        policies: PolicyStore,
+        roadmaps: Arc<RoadmapCache>,
+        policy_roadmaps: RoadmapStore,
+        builds: Arc<dyn RoadmapBuilds>,
+    ) -> Self {
+        Self {
+            knowledge,
+            policies,
+            roadmaps,
+            policy_roadmaps,
+            builds,
+            loaded: Mutex::new(HashMap::new()),
+            applied: Arc::default(),
+        }
+    }
+
+    /// The policies it drives with.
+    pub fn policies(&self) -> &PolicyStore {
+        &self.policies
+    }
+
+    /// Geometric roadmaps by floor state.
+    pub fn roadmaps(&self) -> &Arc<RoadmapCache> {
+        &self.roadmaps
+    }
+
+    /// Stored policy-aware roadmaps.
+    pub fn policy_roadmaps(&self) -> &RoadmapStore {
+        &self.policy_roadmaps
+    }
+
+    /// The on-demand database of the floor `place` is on, for `robot`.
+    pub async fn floor(&self, place: &str, robot: &str) -> Result<Arc<FloorDatabase>, PlanFailure> {
+        Ok(self.knowledge.floor_database(place, robot).await?)
+    }
+
+    /// The key plans look a policy-aware roadmap up by: `policy` (loaded to fingerprint its
+    /// weights) on `floor` with `margin`.
+    pub async fn roadmap_key(
+        &self,
+        floor: &FloorDatabase,
+        policy: &str,
+        margin: f64,
+    ) -> Result<PolicyRoadmapKey, PlanFailure> {
+        let loaded = self.policy(policy).await?;
+        Ok(PolicyRoadmapKey::for_plans(
+            &floor.version,
+            policy,
+            loaded.weights,
+            margin,
+        ))
+    }
+
+    /// Checks a query as far as it can be without the floor: the bounds of the request
+    /// (goals, attempts, samples, timer, people), the hour, and that a named policy exists.
+    pub fn check(&self, query: &PlanQuery) -> Result<(), PlanFailure> {
+        if let PlanPeople::Expected { hour: Some(h) } = query.people
+            && h > 23
+        {
+            return Err(PlanFailure::BadRequest(format!(
+                "`options.people_hour` is an hour of day in [0, 23], got {h}"
+            )));
+        }
+        rehearsal::check_request(&query.request).map_err(PlanFailure::Plan)?;
+        if let Some(id) = &query.policy
+            && !self.policies.exists(id)
+        {
+            return Err(PlanFailure::NotFound(format!("no policy `{id}`")));
+        }
+        Ok(())
+    }
+
+    /// Validates the plan of `query` in the mental simulation of its floor and answers it.
+    /// `stop` ends the rehearsal early (the caller hung up, the job was cancelled): then the
+    /// failure is [`PlanError::Stopped`].
+    pub async fn plan(
+        &self,
+        query: PlanQuery,
+        stop: rehearsal::Stop,
+    ) -> Result<PlanOutcome, PlanFailure> {
+        self.check(&query)?;
+        let PlanQuery {
+            robot,
+            place,
+            mut request,
+            people,
+            policy,
+        } = query;
+        request.stop = stop;
+        let db = self.knowledge.floor_database(&place, &robot).await?;
+
+        // The policy: the one named, else the robot's newest.
+        let policy_id = policy.or_else(|| self.policies.newest_for(&db.robot));
+        let loaded = match &policy_id {
+            Some(id) => Some(self.policy(id).await?),
+            None => None,
+        };
+
+        // The policy-aware roadmap of this floor state and policy, stored by a background
+        // build. When there is none yet, one is asked for (a floor that changed is a new state,
+        // so it gets its own), and the plan goes on the geometric roadmap (`auto`) or is
+        // refused (`policy`).
+        let choice = request.options.roadmap;
+        let margin = request.options.safety_margin_m;
+        let key = match (&policy_id, &loaded, choice) {
+            (Some(id), Some(l), RoadmapChoice::Auto | RoadmapChoice::Policy) => Some(
+                PolicyRoadmapKey::for_plans(&db.version, id, l.weights, margin),
+            ),
+            _ => None,
+        };
+        let stored = key.as_ref().is_some_and(|key| {
+            let applied = self.applied.lock().unwrap_or_else(PoisonError::into_inner);
+            applied.keys().any(|(k, _)| k == key) || self.policy_roadmaps.contains(key)
+        });
+        if let Some(key) = key.as_ref().filter(|_| !stored) {
+            let build = self.builds.ensure(key, &db.floor, &db.robot, margin).await;
+            if choice == RoadmapChoice::Policy {
+                let why = match build {
+                    Ok(id) => format!("the `roadmap` job {id} is building it"),
+                    Err(e) => format!("no job could be enqueued to build it ({e})"),
+                };
+                return Err(PlanFailure::RoadmapNotReady(format!(
+                    "no policy-aware roadmap of this floor state and policy yet: {why} (every edge driven by the policy); retry when it has finished, or ask for `options.roadmap`: `auto`"
+                )));
+            }
+            if let Err(e) = build {
+                tracing::warn!(error = %e, "asking for a policy-aware roadmap build failed");
+            }
+        }
+
+        let rehearsal = Rehearsal {
+            db: Arc::clone(&db),
+            roadmaps: Arc::clone(&self.roadmaps),
+            policy_roadmaps: self.policy_roadmaps.clone(),
+            applied: Arc::clone(&self.applied),
+            policy: loaded.map(|l| l.policy),
+            key: key.filter(|_| stored),
+            people,
+        };
+        let (report, world, people) = tokio::task::spawn_blocking(move || rehearsal.run(request))
+            .await
+            .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
+        let note = note(policy_id.is_some(), &report);
+        Ok(PlanOutcome {
+            robot: db.robot.clone(),
+            floor: db.floor.clone(),
+            policy: policy_id,
+            note,
+            report,
+            people,
+            world,
+        })
+    }
+
+    /// The policy `id`, loaded again only when its weights file changed.
+    async fn policy(&self, id: &str) -> Result<LoadedPolicy, PlanFailure> {
+        let not_found = || PlanFailure::NotFound(format!("no policy `{id}`"));
+        if !self.policies.exists(id) {
+            return Err(not_found());
+        }
+        let dir = self.policies.path(id).ok_or_else(not_found)?;
+        let modified = std::fs::metadata(dir.join(policies::WEIGHTS))
+            .and_then(|m| m.modified())
+            .ok();
+        let cached = self
+            .loaded
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(id)
+            .filter(|(at, _)| Some(*at) == modified)
+            .map(|(_, p)| p.clone());
+        if let Some(p) = cached {
+            return Ok(p);
+        }
+        let loaded = tokio::task::spawn_blocking(move || {
+            let weights = std::fs::read(dir.join(policies::WEIGHTS))
+                .map(|b| grid::hash::fnv1a(&b))
+                .map_err(|e| e.to_string())?;
+            learning::Policy::load(&dir)
+                .map(|p| LoadedPolicy {
+                    policy: Arc::new(p),
+                    weights,
+                })
+                .map_err(|e| e.to_string())
+        })
+        .await
+        .map_err(|e| PlanFailure::Internal(format!("policy loader failed: {e}")))?
+        .map_err(|e| PlanFailure::Unprocessable(format!("policy `{id}` cannot be loaded: {e}")))?;
+        let mut policies = self.loaded.lock().unwrap_or_else(PoisonError::into_inner);
+        if policies.len() >= LOADED_POLICIES {
+            policies.clear();
+        }
+        if let Some(at) = modified {
+            policies.insert(id.to_owned(), (at, loaded.clone()));
+        }
+        Ok(loaded)
+    }
+}
+
+/// What the blocking part of a plan needs.
+struct Rehearsal {
+    db: Arc<FloorDatabase>,
+    roadmaps: Arc<RoadmapCache>,
+    policy_roadmaps: RoadmapStore,
+    applied: Arc<Applied>,
+    policy: Option<Arc<learning::Policy>>,
+    /// The stored policy-aware roadmap to plan on, when there is one.
+    key: Option<PolicyRoadmapKey>,
+    people: PlanPeople,
+}
+
+type Rehearsed = (rehearsal::PlanReport, Arc<World>, Option<PeopleSummary>);
+
+impl Rehearsal {
+    /// The world, the people, the roadmap, and the executor. Blocks.
+    fn run(self, mut request: PlanRequest) -> Result<Rehearsed, PlanFailure> {
+        let _running = Rehearsing::start();
+        let world = self.db.world().map_err(PlanFailure::Unprocessable)?;
+        let source = match self.people {
+            PlanPeople::Expected { hour } => {
+                request.options.people = knowledge_people(&world, hour);
+                PeopleSource::Knowledge
+            }
+            PlanPeople::AsGiven => PeopleSource::Density,
+        };
+        let crowd = request.options.people.clone();
+        let version = self.db.version.as_str();
+        let report = match &self.policy {
+            None => rehearsal::validate(&world, &self.roadmaps, version, &request, None)
+                .map_err(PlanFailure::Plan)?,
+            Some(policy) => {
+                let choice = request.options.roadmap;
+                let policy_roadmap = self.policy_roadmap(&world, choice)?;
+                if choice == RoadmapChoice::Policy && policy_roadmap.is_none() {
+                    return Err(PlanFailure::RoadmapNotReady(
+                        "the stored policy-aware roadmap of this floor state and policy cannot be read; ask for `options.roadmap`: `auto`".to_owned(),
+                    ));
+                }
+                let mut primary = rehearsal::PolicyController::new(Arc::clone(policy));
+                let mut follower = rehearsal::follower_for(&request.options);
+                rehearsal::validate_with_fallback(
+                    &world,
+                    &self.roadmaps,
+                    version,
+                    &request,
+                    &mut primary,
+                    Some(&mut *follower),
+                    policy_roadmap.as_ref(),
+                )
+                .map_err(|e| match e {
+                    PlanError::Unreachable { .. } if choice == RoadmapChoice::Policy => {
+                        PlanFailure::PolicyRoadmapUnreachable(e)
+                    }
+                    other => PlanFailure::Plan(other),
+                })?
+            }
+        };
+        let people = crowd.any().then(|| {
+            people_summary(
+                source,
+                crowd.count_for(world.free_region_area_m2()),
+                &report,
+            )
+        });
+        Ok((report, world, people))
+    }
+
+    /// The stored policy-aware roadmap applied to the floor's geometric roadmap: `auto` plans
+    /// on every measured direction (the unkept ones only where the kept ones join no route),
+    /// `policy` on the kept ones alone.
+    fn policy_roadmap(
+        &self,
+        world: &Arc<World>,
+        choice: RoadmapChoice,
+    ) -> Result<Option<Arc<planning::Roadmap>>, PlanFailure> {
+        let Some(key) = &self.key else {
+            return Ok(None);
+        };
+        let key = (key.clone(), choice == RoadmapChoice::Auto);
+        let cached = self
+            .applied
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(&key)
+            .cloned();
+        if cached.is_some() {
+            return Ok(cached);
+        }
+        let loaded = roadmaps::load_policy_roadmap(
+            &self.policy_roadmaps,
+            &key.0,
+            world,
+            &self.roadmaps,
+            key.1,
+        )
+        .map_err(|m| PlanFailure::Internal(format!("the stored policy-aware roadmap: {m}")))?;
+        if let Some(r) = &loaded {
+            let mut applied = self.applied.lock().unwrap_or_else(PoisonError::into_inner);
+            if applied.len() >= POLICY_ROADMAPS {
+                applied.clear();
+            }
+            applied.insert(key, Arc::clone(r));
+        }
+        Ok(loaded)
+    }
+}
+
+/// Why the classical follower validated a plan or some of its legs, when it did.
+fn note(had_policy: bool, report: &rehearsal::PlanReport) -> Option<String> {
+    let fallback_legs = report
+        .legs
+        .iter()
+        .filter(|l| l.controller != report.controller)
+        .count();
+    if !had_policy {
+        Some("no trained policy for this robot yet: validated with the classical path follower (rotate towards the next waypoint, then drive with proportional heading correction)".to_owned())
+    } else if fallback_legs > 0 {
+        Some(format!(
+            "{} of {} legs validated with the classical path follower: no attempt with the policy validated them (see `legs`)",
+            fallback_legs,
+            report.legs.len()
+        ))
+    } else {
+        None
+    }
+}
+
+/// The people the floor's knowledge expects (its places' expected numbers, summed, at `hour`
+/// where a place has one for it; none where it says nothing), walking its routes and
+/// attractors.
+pub fn knowledge_people(world: &World, hour: Option<u8>) -> sim::PeopleConfig {
+    let expected = world.spec().people.expected_at(hour);
+    if !(expected.is_finite() && expected >= 0.5) {
+        return sim::PeopleConfig::default();
+    }
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a rounded positive count, capped"
+    )]
+    let count = (expected.round() as usize).min(sim::crowd::MAX_PEOPLE);
+    sim::PeopleConfig {
+        count: Some(count),
+        ..sim::PeopleConfig::default()
+    }
+}
+
+/// How a plan fared among `people` people, over its attempts.
+fn people_summary(
+    source: PeopleSource,
+    people: usize,
+    report: &rehearsal::PlanReport,
+) -> PeopleSummary {
+    let attempts = &report.attempts;
+    let reached = |a: &&rehearsal::AttemptReport| a.outcome == rehearsal::AttemptOutcome::Reached;
+    let hit = |a: &&rehearsal::AttemptReport| rehearsal::hit_person(&a.reason);
+    PeopleSummary {
+        source,
+        people,
+        min_person_clearance_m: attempts
+            .iter()
+            .filter(reached)
+            .filter_map(|a| a.min_person_clearance_m)
+            .reduce(f64::min),
+        attempts: attempts.len(),
+        attempts_reached: attempts.iter().filter(reached).count(),
+        attempts_hit_person: attempts.iter().filter(hit).count(),
+        attempts_near_miss: attempts
+            .iter()
+            .filter(|a| !hit(a))
+            .filter(|a| {
+                a.min_person_clearance_m
+                    .is_some_and(|c| c < rehearsal::NEAR_MISS_M)
+            })
+            .count(),
+        draws: report.people_draws.clone(),
+    }
+}
+
+/// Counts a rehearsal in the `plan_rehearsals_running` gauge while it lives: what `/metrics`
+/// shows of plans still computing (a stopped request's rehearsal leaves within milliseconds).
+struct Rehearsing;
+
+impl Rehearsing {
+    fn start() -> Self {
+        metrics::gauge!("plan_rehearsals_running").increment(1.0);
+        Self
+    }
+}
+
+impl Drop for Rehearsing {
+    fn drop(&mut self) {
+        metrics::gauge!("plan_rehearsals_running").decrement(1.0);
+    }
+}
