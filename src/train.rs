@@ -711,9 +711,8 @@ pub fn bench_edges(
                     world,
                     roadmap,
                     || -> Box<dyn rehearsal::Controller + Send> {
-                        c.build(p, seed).unwrap_or_else(|| {
-                            Box::new(rehearsal::ClassicalFollower::default())
-                        })
+                        c.build(p, seed)
+                            .unwrap_or_else(|| Box::new(rehearsal::ClassicalFollower::default()))
                     },
                     params,
                 )
@@ -732,7 +731,14 @@ pub fn bench_edges(
     {
         anyhow::bail!("--people must lie in [0, 50] people per 100 m², got {d}");
     }
-    const NAMES: [&str; 6] = ["policy", "shield_only", "hybrid_rpp", "follower", "rpp", "mppi"];
+    const NAMES: [&str; 6] = [
+        "policy",
+        "shield_only",
+        "hybrid_rpp",
+        "follower",
+        "rpp",
+        "mppi",
+    ];
     if let Some(c) = controllers.iter().find(|c| !NAMES.contains(&c.as_str())) {
         anyhow::bail!("--controller {c}: one of {}", NAMES.join(", "));
     }
