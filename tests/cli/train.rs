@@ -204,7 +204,14 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
         .collect();
     assert_eq!(
         controllers,
-        ["run", "run (shield only)", "follower"],
+        [
+            "run",
+            "run (shield only)",
+            "run (RPP handover)",
+            "follower",
+            "rpp",
+            "mppi"
+        ],
         "{csv}"
     );
     let md = std::fs::read_to_string(bench.join("edges.md")).unwrap();
