@@ -9,15 +9,7 @@ use serde_json::{Value, json};
 use crate::helpers::spawn_app;
 
 fn shared_ros_maps() -> Option<Vec<PathBuf>> {
-    let root = PathBuf::from(
-        std::env::var("CARGO_MANIFEST_DIR")
-            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
-    )
-    .join("../shared/maps/ros");
-    if !root.is_dir() {
-        fixtures::missing(format!("the shared ROS maps at {}", root.display()));
-        return None;
-    }
+    let root = fixtures::shared_fixture("maps/ros", "the shared ROS maps")?;
     let mut yamls = Vec::new();
     for dir in std::fs::read_dir(&root).unwrap() {
         let dir = dir.unwrap().path();

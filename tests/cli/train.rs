@@ -5,20 +5,8 @@ use std::path::PathBuf;
 use super::mentalsim;
 
 fn shared_map(folder: &str, yaml: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(
-        std::env::var("CARGO_MANIFEST_DIR")
-            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
-    )
-    .join("../shared/maps/ros")
-    .join(folder)
-    .join(yaml);
-    if p.is_file() {
-        Some(p)
-    } else {
-        // Fails under CI (or MENTALSIM_REQUIRE_ALL=1); by hand, says why the test returns.
-        fixtures::missing(format!("the shared map {}", p.display()));
-        None
-    }
+    // Fails under CI (or MENTALSIM_REQUIRE_ALL=1); by hand, says why the test returns.
+    fixtures::shared_fixture(format!("maps/ros/{folder}/{yaml}"), "the shared map")
 }
 
 fn json(path: &std::path::Path) -> serde_json::Value {

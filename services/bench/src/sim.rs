@@ -910,19 +910,13 @@ fn render_episode(
 mod tests {
     use super::*;
 
-    fn shared(rel: &str) -> PathBuf {
-        crate::bench_dir()
-            .join("../../../shared/maps/ros")
-            .join(rel)
-    }
-
     #[test]
     fn a_small_run_reports_every_key() {
-        let yaml = shared("aws_small_house/map.yaml");
-        if !yaml.exists() {
-            fixtures::missing(format!("the shared map {}", yaml.display()));
+        let Some(yaml) =
+            fixtures::shared_fixture("maps/ros/aws_small_house/map.yaml", "the shared map")
+        else {
             return;
-        }
+        };
         let report = run_sim_bench(SimBenchOptions {
             objects: 20,
             steps_one_core: 2_000,

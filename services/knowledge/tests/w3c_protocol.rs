@@ -480,16 +480,15 @@ async fn run(case: &Case) -> Result<(), String> {
 }
 
 /// Runs every case of `manifest`; returns (passed, failures).
-async fn run_suite(label: &str, manifest: &Path) -> Option<(usize, Vec<String>)> {
-    if !manifest.exists() {
-        fixtures::missing(format!(
-            "the {label} suite's manifest {} (the W3C tests live in shared/ beside the \
-             repository; set MENTALSIM_SHARED to point elsewhere)",
-            manifest.display()
-        ));
-        return None;
-    }
-    let cases = Manifest::load(manifest).cases();
+async fn run_suite(label: &str, manifest: &str) -> Option<(usize, Vec<String>)> {
+    let manifest = fixtures::shared_fixture(
+        manifest,
+        format_args!(
+            "the {label} suite's manifest (the W3C tests live in shared/ beside the \
+             repository; set MENTALSIM_SHARED to point elsewhere)"
+        ),
+    )?;
+    let cases = Manifest::load(&manifest).cases();
     let mut passed = 0;
     let mut failures = Vec::new();
     for case in &cases {
@@ -515,8 +514,8 @@ async fn run_suite(label: &str, manifest: &Path) -> Option<(usize, Vec<String>)>
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn w3c_sparql_protocol_suite_passes() {
-    let manifest = support::shared_dir().join("w3c-tests/protocol/manifest.ttl");
-    let Some((passed, failures)) = run_suite("SPARQL 1.1 Protocol", &manifest).await else {
+    let manifest = "w3c-tests/protocol/manifest.ttl";
+    let Some((passed, failures)) = run_suite("SPARQL 1.1 Protocol", manifest).await else {
         return;
     };
     assert!(
@@ -529,8 +528,8 @@ async fn w3c_sparql_protocol_suite_passes() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn w3c_graph_store_protocol_suite_passes() {
-    let manifest = support::shared_dir().join("w3c-tests/graph-store-protocol/manifest.ttl");
-    let Some((passed, failures)) = run_suite("Graph Store Protocol", &manifest).await else {
+    let manifest = "w3c-tests/graph-store-protocol/manifest.ttl";
+    let Some((passed, failures)) = run_suite("Graph Store Protocol", manifest).await else {
         return;
     };
     assert!(

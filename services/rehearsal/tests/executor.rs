@@ -422,15 +422,13 @@ fn a_policy_drives_the_hybrid_planner() {
 /// A real shared map: three goals far apart in the largest free region.
 #[test]
 fn a_real_map_validates_a_multi_goal_plan() {
-    let yaml = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/maps/ros/aws_small_house/map.yaml");
-    let Ok(text) = std::fs::read_to_string(&yaml) else {
-        fixtures::missing(format!(
-            "the shared map {} (the shared maps live beside the project)",
-            yaml.display()
-        ));
+    let Some(yaml) = fixtures::shared_fixture(
+        "maps/ros/aws_small_house/map.yaml",
+        "the shared map (the shared maps live beside the project)",
+    ) else {
         return;
     };
+    let text = std::fs::read_to_string(&yaml).expect("yaml");
     let meta = tosm::RosMapMeta::parse_yaml(&text).expect("yaml");
     let image = std::fs::read(yaml.with_file_name(&meta.image)).expect("image");
     let grid = OccupancyGrid::from_ros_map_server(&meta, &image).expect("grid");

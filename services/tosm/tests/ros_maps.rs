@@ -28,19 +28,11 @@ const MAPS: &[(&str, &str, (usize, usize), f64)] = &[
     ("cob_ipa_production_plant", "map.yaml", (1985, 1536), 3053.0),
 ];
 
-const ROOT: &str = "../../../shared/maps/ros";
-
 #[test]
 fn every_shared_ros_map_parses_with_the_readme_free_area() {
-    let root = std::path::PathBuf::from(
-        std::env::var("CARGO_MANIFEST_DIR")
-            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
-    )
-    .join(ROOT);
-    if !root.is_dir() {
-        fixtures::missing(format!("the shared map collection at {}", root.display()));
+    let Some(root) = fixtures::shared_fixture("maps/ros", "the shared map collection") else {
         return;
-    }
+    };
     let listed: std::collections::BTreeSet<String> =
         MAPS.iter().map(|(dir, ..)| (*dir).to_owned()).collect();
     for entry in std::fs::read_dir(&root).expect("read map dir") {

@@ -417,13 +417,7 @@ mod tests {
     use super::*;
 
     fn shared_maps() -> Option<PathBuf> {
-        let p = crate::bench_dir().join("../../../shared/maps/ros");
-        if p.is_dir() {
-            Some(p)
-        } else {
-            fixtures::missing(format!("the shared maps at {}", p.display()));
-            None
-        }
+        fixtures::shared_fixture("maps/ros", "the shared maps")
     }
 
     /// The floor: at n*, a path for ≥ 99% of random pairs in the largest region of

@@ -107,10 +107,3 @@ pub fn repository_root() -> PathBuf {
     .canonicalize()
     .unwrap()
 }
-
-/// `shared/` beside the repository, where the W3C suites live; `MENTALSIM_SHARED` overrides.
-pub fn shared_dir() -> PathBuf {
-    std::env::var_os("MENTALSIM_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| repository_root().join("../shared"))
-}

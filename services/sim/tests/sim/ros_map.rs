@@ -1,25 +1,16 @@
-//! A world built from a real ROS map in ../shared/maps (skipped, saying so, when absent; a
-//! failure under CI: `fixtures::missing`).
+//! A world built from a real ROS map in the shared maps (`fixtures::shared_fixture`: skipped,
+//! saying so, when absent; a failure under CI).
 
-use std::path::PathBuf;
 use std::sync::Arc;
 
 use sim::{Action, EnvConfig, FloorMap, NavEnv, OccupancyGrid, RobotSpec, World, WorldSpec};
 
 fn shared_map(folder: &str, yaml: &str) -> Option<(String, OccupancyGrid)> {
-    let dir = PathBuf::from(
-        std::env::var("CARGO_MANIFEST_DIR")
-            .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
-    )
-    .join("../../../shared/maps/ros")
-    .join(folder);
-    let yaml_path = dir.join(yaml);
-    let Ok(text) = std::fs::read_to_string(&yaml_path) else {
-        fixtures::missing(format!("the shared map {}", yaml_path.display()));
-        return None;
-    };
+    let yaml_path =
+        fixtures::shared_fixture(format!("maps/ros/{folder}/{yaml}"), "the shared map")?;
+    let text = std::fs::read_to_string(&yaml_path).expect("yaml reads");
     let meta = tosm::RosMapMeta::parse_yaml(&text).expect("yaml parses");
-    let image_path = dir.join(&meta.image);
+    let image_path = yaml_path.with_file_name(&meta.image);
     let Ok(image) = std::fs::read(&image_path) else {
         fixtures::missing(format!("the shared map image {}", image_path.display()));
         return None;
