@@ -499,32 +499,19 @@ fn import_map(
     token: Option<String>,
 ) -> anyhow::Result<()> {
     use anyhow::Context;
-    let yaml_text =
-        std::fs::read_to_string(yaml).with_context(|| format!("cannot read {}", yaml.display()))?;
-    let meta =
-        tosm::RosMapMeta::parse_yaml(&yaml_text).with_context(|| format!("{}", yaml.display()))?;
-    let image_path = yaml
-        .parent()
-        .unwrap_or(std::path::Path::new("."))
-        .join(&meta.image);
-    let image = std::fs::read(&image_path).with_context(|| {
-        format!(
-            "cannot read the map image {} named by {}",
-            image_path.display(),
-            yaml.display()
-        )
-    })?;
+    let files = knowledge::maps::RosMapFiles::read(yaml)
+        .with_context(|| format!("cannot read the map {}", yaml.display()))?;
     let name = match name {
         Some(n) => n,
-        None => default_map_name(yaml),
+        None => knowledge::maps::name_for_path(yaml),
     };
     let token = token_or_default(token)?;
     let form = reqwest::blocking::multipart::Form::new()
         .text("name", name.clone())
-        .text("yaml", yaml_text)
+        .text("yaml", files.yaml)
         .part(
             "image",
-            reqwest::blocking::multipart::Part::bytes(image).file_name(meta.image.clone()),
+            reqwest::blocking::multipart::Part::bytes(files.image).file_name(files.meta.image),
         );
     let response = reqwest::blocking::Client::new()
         .post(format!("{}/v1/maps", url.trim_end_matches('/')))
@@ -596,25 +583,6 @@ fn export(
         None => print!("{body}"),
     }
     Ok(())
-}
-
-/// A floor name from the map's folder or file name, lower-cased to the allowed characters.
-fn default_map_name(yaml: &std::path::Path) -> String {
-    let stem = yaml
-        .parent()
-        .and_then(|p| p.file_name())
-        .or_else(|| yaml.file_stem())
-        .map(|s| s.to_string_lossy().to_lowercase())
-        .unwrap_or_else(|| "map".to_owned());
-    stem.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '-'
-            }
-        })
-        .collect()
 }
 
 /// The project's Python (the virtual environment `scripts/env.sh` activates).

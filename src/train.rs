@@ -33,7 +33,7 @@ pub fn load_world(map: &Path, objects: usize, seed: u64) -> anyhow::Result<Arc<W
             map.display()
         );
     }
-    Ok(bench::sim::world_from_map(
+    Ok(knowledge::maps::world_from_map(
         map,
         bundled_robot_ttl().as_bytes(),
         ROBOT_IRI,
@@ -183,7 +183,7 @@ pub fn train(args: &TrainArgs, stop: &AtomicBool) -> anyhow::Result<TrainSummary
         if !dir.is_dir() {
             anyhow::bail!("--maps {} is not a directory", dir.display());
         }
-        let found = bench::maps::find_yamls(dir)?;
+        let found = knowledge::maps::find_yamls(dir)?;
         if found.is_empty() {
             anyhow::bail!("--maps {}: no map_server YAML under it", dir.display());
         }

@@ -61,6 +61,17 @@ pub enum BenchError {
     },
 }
 
+impl From<knowledge::maps::LoadError> for BenchError {
+    fn from(e: knowledge::maps::LoadError) -> Self {
+        use knowledge::maps::LoadError;
+        match e {
+            LoadError::Io { path, source } => BenchError::Io { path, source },
+            LoadError::Map { path, source } => BenchError::Map { path, source },
+            LoadError::World { path, message } => BenchError::Format { path, message },
+        }
+    }
+}
+
 /// Maps an IO error on `path` to [`BenchError::Io`].
 pub(crate) fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> BenchError + '_ {
     move |source| BenchError::Io {

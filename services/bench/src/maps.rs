@@ -7,31 +7,12 @@ use grid::hash::fnv1a;
 use grid::seed::mix;
 use planning::PlanningGrid;
 
-use crate::error::{BenchError, io_err};
+use crate::error::BenchError;
 
-/// All `.yaml`/`.yml` files under `dir`, sorted, that look like map_server metadata.
+/// All `.yaml`/`.yml` files under `dir`, sorted, that look like map_server metadata
+/// ([`knowledge::maps::find_yamls`]).
 pub fn find_yamls(dir: &Path) -> Result<Vec<PathBuf>, BenchError> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).map_err(io_err(&d))? {
-            let path = entry.map_err(io_err(&d))?.path();
-            if path.is_dir() {
-                stack.push(path);
-            } else if matches!(
-                path.extension().and_then(|e| e.to_str()),
-                Some("yaml" | "yml")
-            ) {
-                // Other YAML (launch parameters, etc.) is not a map: it must name an image.
-                let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
-                if text.lines().any(|l| l.trim_start().starts_with("image:")) {
-                    out.push(path);
-                }
-            }
-        }
-    }
-    out.sort();
-    Ok(out)
+    Ok(knowledge::maps::find_yamls(dir)?)
 }
 
 /// A short unique name per map: its folder, or folder/stem when a folder holds several maps.
@@ -58,21 +39,10 @@ pub(crate) fn map_names(root: &Path, yamls: &[PathBuf]) -> Vec<String> {
         .collect()
 }
 
-/// Reads a map_server map and keeps what the planner needs: unknown counts as blocked.
+/// Reads a map_server map ([`knowledge::maps::read_ros_map`]) and keeps what the planner
+/// needs: unknown counts as blocked.
 pub fn load_ros_map(yaml: &Path) -> Result<PlanningGrid, BenchError> {
-    let text = std::fs::read_to_string(yaml).map_err(io_err(yaml))?;
-    let meta = tosm::RosMapMeta::parse_yaml(&text).map_err(|source| BenchError::Map {
-        path: yaml.to_path_buf(),
-        source,
-    })?;
-    let image_path = yaml.parent().unwrap_or(Path::new(".")).join(&meta.image);
-    let image = std::fs::read(&image_path).map_err(io_err(&image_path))?;
-    let grid = tosm::OccupancyGrid::from_ros_map_server(&meta, &image).map_err(|source| {
-        BenchError::Map {
-            path: yaml.to_path_buf(),
-            source,
-        }
-    })?;
+    let grid = knowledge::maps::read_ros_map(yaml)?;
     Ok(planning_grid_from_occupancy(&grid))
 }
 

@@ -12,13 +12,8 @@ use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
-use sim::{
-    Action, Colour, EnvBatch, EnvConfig, NavEnv, ObjectSpec, Observation, Occupancy, OccupancyGrid,
-    Outcome, Pose3, Shape, Size3, World,
-};
+use sim::{Action, EnvBatch, EnvConfig, NavEnv, ObjectSpec, Observation, Outcome, Shape, World};
 
 use crate::error::BenchError;
 
@@ -263,221 +258,13 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> BenchError + '_ {
     }
 }
 
-/// The map's files, read.
-struct MapFiles {
-    yaml: String,
-    image: Vec<u8>,
-}
+/// Furniture for a grid: [`sim::floors::furnish`].
+pub use sim::floors::furnish;
 
-fn read_map(yaml_path: &Path) -> Result<MapFiles, BenchError> {
-    let yaml = std::fs::read_to_string(yaml_path).map_err(io_err(yaml_path))?;
-    let meta = tosm::RosMapMeta::parse_yaml(&yaml).map_err(|source| BenchError::Map {
-        path: yaml_path.to_path_buf(),
-        source,
-    })?;
-    let image_path = yaml_path
-        .parent()
-        .unwrap_or_else(|| Path::new("."))
-        .join(&meta.image);
-    let image = std::fs::read(&image_path).map_err(io_err(&image_path))?;
-    Ok(MapFiles { yaml, image })
-}
-
-/// The occupancy grid of the map's bytes.
-fn decode(yaml_path: &Path, files: &MapFiles) -> Result<OccupancyGrid, BenchError> {
-    let map_err = |source| BenchError::Map {
-        path: yaml_path.to_path_buf(),
-        source,
-    };
-    let meta = tosm::RosMapMeta::parse_yaml(&files.yaml).map_err(map_err)?;
-    OccupancyGrid::from_ros_map_server(&meta, &files.image).map_err(map_err)
-}
-
-/// Furniture for `grid`: a deterministic mix of library models and placeholders, each placed
-/// where its whole footprint and a margin are free.
-pub fn furnish(grid: &OccupancyGrid, count: usize, seed: u64) -> Vec<ObjectSpec> {
-    // (class, shape, size, colour)
-    let kinds: [(&str, Shape, Size3, Colour); 6] = [
-        (
-            "Table",
-            Shape::Box,
-            Size3::new(1.2, 0.8, 0.75),
-            Colour::rgb(150, 100, 50),
-        ),
-        (
-            "Chair",
-            Shape::Box,
-            Size3::new(0.5, 0.5, 0.9),
-            Colour::rgb(90, 60, 30),
-        ),
-        (
-            "Shelf",
-            Shape::Box,
-            Size3::new(0.4, 1.5, 1.8),
-            Colour::rgb(120, 120, 130),
-        ),
-        (
-            "Cabinet",
-            Shape::Box,
-            Size3::new(0.6, 0.5, 1.0),
-            Colour::rgb(200, 200, 190),
-        ),
-        (
-            "VendingMachine",
-            Shape::Box,
-            Size3::new(0.8, 0.7, 1.8),
-            Colour::rgb(220, 20, 20),
-        ),
-        (
-            "Bin",
-            Shape::Cylinder,
-            Size3::new(0.4, 0.4, 0.6),
-            Colour::rgb(40, 90, 200),
-        ),
-    ];
-    let free: Vec<usize> = grid
-        .cells
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| **c == Occupancy::Free)
-        .map(|(i, _)| i)
-        .collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x00b1_ec75);
-    let mut out = Vec::with_capacity(count);
-    let mut tries = 0usize;
-    while out.len() < count && !free.is_empty() && tries < count * 200 {
-        tries += 1;
-        let (class, shape, size, colour) = kinds[out.len() % kinds.len()];
-        let cell = free[rng.random_range(0..free.len())];
-        let (col, row) = (cell % grid.width, cell / grid.width);
-        let (x, y) = grid.cell_center(col, row);
-        let reach = size.x.hypot(size.y) / 2.0 + 0.1;
-        if !disc_free(grid, x, y, reach) {
-            continue;
-        }
-        let yaw = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
-        out.push(ObjectSpec {
-            id: format!("http://mentalsim.example/bench#object{}", out.len()),
-            class: Some(format!("https://mentalsim.example/tosm#{class}")),
-            shape,
-            size,
-            pose: Pose3::new(x, y, size.z / 2.0, yaw),
-            colour,
-            open: false,
-        });
-    }
-    out
-}
-
-/// The on-demand database of a map, its furniture and a robot: the map becomes a floor with a
-/// metric map, each object a TOSM object inside it, and the robot's Turtle is read as it is.
-pub fn on_demand_database(
-    yaml_path: &Path,
-    grid: OccupancyGrid,
-    objects: &[ObjectSpec],
-    robot_ttl: &[u8],
-    robot_iri: &str,
-) -> Result<oxrdf::Graph, BenchError> {
-    let bad = |message: String| BenchError::Format {
-        path: yaml_path.to_path_buf(),
-        message,
-    };
-    let stem = yaml_path
-        .parent()
-        .and_then(|p| p.file_name())
-        .map_or_else(|| "map".to_owned(), |n| n.to_string_lossy().into_owned());
-    let floor_iri = format!("https://mentalsim.dev/data/bench/{stem}/floor");
-    let floor = tosm::Place {
-        iri: floor_iri.clone(),
-        kind: tosm::PlaceKind::Floor,
-        symbol: tosm::Symbol::named(&stem),
-        boundary: vec![],
-        parent: None,
-        connected: vec![],
-        complexity: None,
-        level: Some(0),
-        map: Some(tosm::MetricMap::from_grid(
-            &tosm::MetricMap::iri_for_floor(&floor_iri),
-            grid,
-        )),
-    };
-    let mut graph = oxrdf::Graph::new();
-    let triples = tosm::place_to_triples(&floor).map_err(|p| bad(format!("floor: {p}")))?;
-    for t in &triples {
-        graph.insert(t);
-    }
-    for o in objects {
-        let class_local = o
-            .class
-            .as_deref()
-            .and_then(|c| c.rsplit('#').next())
-            .unwrap_or("Object");
-        let (class, class_iri) = match class_local {
-            "Table" => (tosm::ObjectClass::Table, None),
-            "Chair" => (tosm::ObjectClass::Chair, None),
-            "Shelf" => (tosm::ObjectClass::Shelf, None),
-            "Cabinet" => (tosm::ObjectClass::Cabinet, None),
-            "VendingMachine" => (tosm::ObjectClass::VendingMachine, None),
-            "Bin" => (tosm::ObjectClass::Bin, None),
-            "Door" => (tosm::ObjectClass::Door, None),
-            _ => (
-                tosm::ObjectClass::Other,
-                Some(format!("{}Object", tosm::vocab::NS)),
-            ),
-        };
-        let [r, g, b] = o.colour.to_unit();
-        let object = tosm::Object {
-            iri: o.id.clone(),
-            class_iri: class_iri.unwrap_or_else(|| format!("{}{class_local}", tosm::vocab::NS)),
-            class,
-            symbol: tosm::Symbol::named(class_local),
-            pose: Pose3::new(o.pose.x, o.pose.y, o.pose.z, o.pose.yaw),
-            shape: match o.shape {
-                Shape::Box => tosm::Shape::Box {
-                    length: o.size.x,
-                    width: o.size.y,
-                    height: o.size.z,
-                },
-                Shape::Cylinder => tosm::Shape::Cylinder {
-                    diameter: o.size.x.max(o.size.y),
-                    height: o.size.z,
-                },
-                Shape::Sphere => tosm::Shape::Sphere {
-                    diameter: o.size.x.max(o.size.y).max(o.size.z),
-                },
-            },
-            colour: Some(tosm::Colour::rgb(r, g, b)),
-            colour_name: None,
-            physical: tosm::Physical::default(),
-            inside_of: floor_iri.clone(),
-            relations: vec![],
-            is_open: None,
-            reported_by: None,
-            reported_at: None,
-        };
-        let triples = tosm::object_to_triples(&object).map_err(|p| bad(format!("object: {p}")))?;
-        for t in &triples {
-            graph.insert(t);
-        }
-    }
-    for t in oxttl::TurtleParser::new().for_slice(robot_ttl) {
-        let t = t.map_err(|e| bad(format!("robot Turtle: {e}")))?;
-        graph.insert(&t);
-    }
-    if !graph
-        .iter()
-        .any(|t| t.subject.to_string() == format!("<{robot_iri}>"))
-    {
-        return Err(bad(format!(
-            "the robot file does not describe <{robot_iri}>"
-        )));
-    }
-    Ok(graph)
-}
-
-/// The mental simulation of a ROS map_server map, built the way the service builds one: the map
-/// becomes a floor with its metric map, `objects` furniture items are placed from `seed`, the
-/// robot comes from its TOSM Turtle, and the simulation parser reads that on-demand database.
+/// The mental simulation of a ROS map_server map, built the way the service builds one
+/// ([`knowledge::maps::world_from_map`]): the map becomes the floor an import writes,
+/// `objects` furniture items are placed from `seed`, the robot comes from its TOSM Turtle, and
+/// the simulation parser reads that on-demand database.
 pub fn world_from_map(
     yaml_path: &Path,
     robot_ttl: &[u8],
@@ -485,43 +272,9 @@ pub fn world_from_map(
     objects: usize,
     seed: u64,
 ) -> Result<Arc<World>, BenchError> {
-    let files = read_map(yaml_path)?;
-    let grid = decode(yaml_path, &files)?;
-    let furniture = if objects > 0 {
-        furnish(&grid, objects, seed)
-    } else {
-        Vec::new()
-    };
-    let graph = on_demand_database(yaml_path, grid, &furniture, robot_ttl, robot_iri)?;
-    let spec = sim::parse_on_demand(&graph, robot_iri).map_err(|problems| BenchError::Format {
-        path: yaml_path.to_path_buf(),
-        message: format!("the simulation parser refused the on-demand database: {problems}"),
-    })?;
-    World::build(spec).map_err(|problems| BenchError::Format {
-        path: yaml_path.to_path_buf(),
-        message: format!("the world could not be built: {problems}"),
-    })
-}
-
-/// Whether every cell within `r` of `(x, y)` is free.
-fn disc_free(grid: &OccupancyGrid, x: f64, y: f64, r: f64) -> bool {
-    let res = grid.resolution;
-    let n = (r / res).ceil() as i64;
-    let Some((c0, r0)) = grid.cell_of(x, y) else {
-        return false;
-    };
-    for dr in -n..=n {
-        for dc in -n..=n {
-            if ((dr * dr + dc * dc) as f64) * res * res > r * r {
-                continue;
-            }
-            let (c, rr) = (c0 as i64 + dc, r0 as i64 + dr);
-            if c < 0 || rr < 0 || !grid.is_free(c as usize, rr as usize) {
-                return false;
-            }
-        }
-    }
-    true
+    Ok(knowledge::maps::world_from_map(
+        yaml_path, robot_ttl, robot_iri, objects, seed,
+    )?)
 }
 
 /// CPU time this thread has run, seconds, from the scheduler's own account
@@ -551,11 +304,11 @@ pub fn run_sim_bench(opts: SimBenchOptions) -> Result<SimBenchReport, BenchError
     }
     let yaml_path = opts.map_yaml.as_path();
     let t = Instant::now();
-    let files = read_map(yaml_path)?;
+    let files = knowledge::maps::RosMapFiles::read(yaml_path)?;
     let map_read_s = t.elapsed().as_secs_f64();
 
     // The furniture is the benchmark's input, like the map: chosen before any timing starts.
-    let grid0 = decode(yaml_path, &files)?;
+    let grid0 = files.grid()?;
     let objects = furnish(&grid0, opts.objects, opts.seed);
     let free_area_m2 = grid0.free_area_m2();
     let map_cells = grid0.cells.len();
@@ -565,8 +318,14 @@ pub fn run_sim_bench(opts: SimBenchOptions) -> Result<SimBenchReport, BenchError
     // its metric map, the furniture as objects inside it, and the bundled robot.
     let robot_ttl = std::fs::read(&opts.robot_ttl).map_err(io_err(&opts.robot_ttl))?;
     let t = Instant::now();
-    let grid = decode(yaml_path, &files)?;
-    let graph = on_demand_database(yaml_path, grid, &objects, &robot_ttl, &opts.robot_iri)?;
+    let grid = files.grid()?;
+    let graph = knowledge::maps::on_demand_database(
+        yaml_path,
+        grid,
+        &objects,
+        &robot_ttl,
+        &opts.robot_iri,
+    )?;
     let database_s = t.elapsed().as_secs_f64();
 
     let t = Instant::now();

@@ -9,10 +9,15 @@
 //! (pillars, boxes) goes into rooms and halls one piece at a time, and a piece that would cut a
 //! part of the floor off for the robot (its disc of `robot_radius_m` no longer gets through) is
 //! not placed.
+//!
+//! [`furnish`] furnishes any floor, generated or a real map, with a deterministic mix of
+//! library models and placeholders where each fits (the benchmarks' furniture).
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use tosm::{Occupancy, OccupancyGrid, Pose2};
+use tosm::{Occupancy, OccupancyGrid, Pose2, Pose3};
+
+use crate::spec::{Colour, ObjectSpec, Shape, Size3};
 
 /// Ranges the generator draws from (metres unless named otherwise).
 #[derive(Clone, Debug, PartialEq)]
@@ -419,6 +424,110 @@ pub fn generate_floor(params: &FloorParams, seed: u64) -> OccupancyGrid {
         origin: Pose2::new(0.0, 0.0, 0.0),
         cells: cells_out,
     }
+}
+
+/// Furniture for `grid`: a deterministic mix of library models and placeholders, each placed
+/// where its whole footprint and a margin are free.
+pub fn furnish(grid: &OccupancyGrid, count: usize, seed: u64) -> Vec<ObjectSpec> {
+    // (class, shape, size, colour)
+    let kinds: [(&str, Shape, Size3, Colour); 6] = [
+        (
+            "Table",
+            Shape::Box,
+            Size3::new(1.2, 0.8, 0.75),
+            Colour::rgb(150, 100, 50),
+        ),
+        (
+            "Chair",
+            Shape::Box,
+            Size3::new(0.5, 0.5, 0.9),
+            Colour::rgb(90, 60, 30),
+        ),
+        (
+            "Shelf",
+            Shape::Box,
+            Size3::new(0.4, 1.5, 1.8),
+            Colour::rgb(120, 120, 130),
+        ),
+        (
+            "Cabinet",
+            Shape::Box,
+            Size3::new(0.6, 0.5, 1.0),
+            Colour::rgb(200, 200, 190),
+        ),
+        (
+            "VendingMachine",
+            Shape::Box,
+            Size3::new(0.8, 0.7, 1.8),
+            Colour::rgb(220, 20, 20),
+        ),
+        (
+            "Bin",
+            Shape::Cylinder,
+            Size3::new(0.4, 0.4, 0.6),
+            Colour::rgb(40, 90, 200),
+        ),
+    ];
+    let free: Vec<usize> = grid
+        .cells
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| **c == Occupancy::Free)
+        .map(|(i, _)| i)
+        .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x00b1_ec75);
+    let mut out = Vec::with_capacity(count);
+    let mut tries = 0usize;
+    while out.len() < count && !free.is_empty() && tries < count * 200 {
+        tries += 1;
+        let (class, shape, size, colour) = kinds[out.len() % kinds.len()];
+        let cell = free[rng.random_range(0..free.len())];
+        let (col, row) = (cell % grid.width, cell / grid.width);
+        let (x, y) = grid.cell_center(col, row);
+        let reach = size.x.hypot(size.y) / 2.0 + 0.1;
+        if !disc_free(grid, x, y, reach) {
+            continue;
+        }
+        let yaw = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+        out.push(ObjectSpec {
+            id: format!("http://mentalsim.example/bench#object{}", out.len()),
+            class: Some(format!("https://mentalsim.example/tosm#{class}")),
+            shape,
+            size,
+            pose: Pose3::new(x, y, size.z / 2.0, yaw),
+            colour,
+            open: false,
+        });
+    }
+    out
+}
+
+/// Whether every cell within `r` of `(x, y)` is free.
+fn disc_free(grid: &OccupancyGrid, x: f64, y: f64, r: f64) -> bool {
+    let res = grid.resolution;
+    #[allow(
+        clippy::cast_possible_truncation,
+        reason = "a furniture item's reach in cells: small and positive"
+    )]
+    let n = (r / res).ceil() as isize;
+    let Some((c0, r0)) = grid.cell_of(x, y) else {
+        return false;
+    };
+    for dr in -n..=n {
+        for dc in -n..=n {
+            if ((dr * dr + dc * dc) as f64) * res * res > r * r {
+                continue;
+            }
+            // A cell left of or below the grid is not free.
+            let (Some(c), Some(rr)) = (c0.checked_add_signed(dc), r0.checked_add_signed(dr)) else {
+                return false;
+            };
+            if !grid.is_free(c, rr) {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 #[cfg(test)]

@@ -1,15 +1,34 @@
 //! Map import: a ROS map_server map (YAML + PGM/PNG) becomes a TOSM floor with its metric map,
-//! in a named graph of its own.
+//! in a named graph of its own. The one owner of map ingestion:
+//!
+//! - [`files`]: a map read from its files ([`RosMapFiles`], [`read_ros_map`], [`find_yamls`]);
+//!   `tosm` parses the bytes and does no IO.
+//! - here: ROS map → TOSM floor ([`floor_for`], [`floor_triples`]), and the import into the
+//!   store ([`import`]).
+//! - [`world`]: the mental simulation of a map file (the floor's on-demand database, furniture
+//!   and a robot, through the simulation parser), for the CLI's `train` and `eval` and for the
+//!   benchmarks, so that they simulate exactly the floor the service would import.
 
-use oxigraph::model::{NamedNode, Quad};
+pub mod files;
+pub mod world;
+
+use oxigraph::model::{NamedNode, Quad, Triple};
 use tosm::{MetricMap, OccupancyGrid, Place, PlaceKind, RosMapError, RosMapMeta, Symbol};
 
 use crate::graphs::MAPS_GRAPH_NS;
 use crate::service::Knowledge;
 use crate::store::StoreError;
 
+pub use files::{LoadError, RosMapFiles, find_yamls, name_for_path, read_ros_map};
+pub use world::{on_demand_database, world_from_map};
+
 /// Where imported floors are named (their graphs under [`MAPS_GRAPH_NS`]).
 pub const FLOOR_NS: &str = "https://mentalsim.dev/data/maps/";
+
+/// The IRI of the floor imported as `name`.
+pub fn floor_iri(name: &str) -> String {
+    format!("{FLOOR_NS}{name}")
+}
 
 /// Why an import was refused or failed.
 #[derive(Debug, thiserror::Error)]
@@ -83,7 +102,7 @@ pub fn parse(name: &str, yaml: &str, image: &[u8]) -> Result<OccupancyGrid, Impo
 /// The floor place for a grid: its boundary is the map's rectangle, its complexity the share
 /// of the rectangle that is not free.
 pub fn floor_for(name: &str, grid: OccupancyGrid) -> Place {
-    let floor_iri = format!("{FLOOR_NS}{name}");
+    let floor_iri = floor_iri(name);
     let (w, h) = (
         grid.width as f64 * grid.resolution,
         grid.height as f64 * grid.resolution,
@@ -113,6 +132,16 @@ pub fn floor_for(name: &str, grid: OccupancyGrid) -> Place {
     }
 }
 
+/// ROS map → TOSM: the triples of the floor `name` of `grid` ([`floor_for`]), as an import
+/// writes them into the floor's graph.
+pub fn floor_triples(name: &str, grid: OccupancyGrid) -> Result<Vec<Triple>, ImportError> {
+    let floor = floor_for(name, grid);
+    tosm::place_to_triples(&floor).map_err(|p| ImportError::Model {
+        name: name.to_owned(),
+        message: p.to_string(),
+    })
+}
+
 /// Imports a map as floor `name`, replacing a previous import of the same name. Blocking.
 pub fn import(
     knowledge: &Knowledge,
@@ -125,11 +154,7 @@ pub fn import(
     let size = (grid.width, grid.height);
     let resolution = grid.resolution;
     let free_area_m2 = grid.free_area_m2();
-    let floor = floor_for(name, grid);
-    let triples = tosm::place_to_triples(&floor).map_err(|p| ImportError::Model {
-        name: name.to_owned(),
-        message: p.to_string(),
-    })?;
+    let triples = floor_triples(name, grid)?;
     let graph_iri = format!("{MAPS_GRAPH_NS}{name}");
     let graph = NamedNode::new_unchecked(graph_iri.clone());
     let store = knowledge.try_store()?;
@@ -140,7 +165,7 @@ pub fn import(
     store.replace_graph(&graph.clone().into(), &quads)?;
     knowledge.after_write()?;
     Ok(ImportedFloor {
-        floor_iri: floor.iri,
+        floor_iri: floor_iri(name),
         graph_iri,
         size,
         resolution,
@@ -201,7 +226,7 @@ mod tests {
                 None,
                 Some(oxigraph::model::NamedNodeRef::new_unchecked(&imported.graph_iri).into()),
             )
-            .map(|q| oxigraph::model::Triple::from(q.unwrap()))
+            .map(|q| Triple::from(q.unwrap()))
             .collect();
         let places = tosm::read_places(&graph).unwrap();
         assert_eq!(places.len(), 1);
