@@ -1,0 +1,179 @@
+//! The store as the on-demand database reads it: asserted triples only, from a snapshot.
+
+use std::collections::{BTreeSet, HashSet};
+
+use oxigraph::model::vocab::rdf;
+use oxigraph::model::{GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
+use tosm::vocab;
+
+use crate::graphs::INFERRED_GRAPH;
+use crate::store::{KnowledgeStore, StoreError};
+
+/// Reads asserted triples out of the store (every graph but the inferred one): the embedded
+/// store itself, or the in-memory snapshot of a remote one.
+pub(super) struct Reader {
+    pub(super) store: oxigraph::store::Store,
+    location: String,
+    pub(super) owner: KnowledgeStore,
+    pub(super) key: crate::store::CacheKey,
+}
+
+impl Reader {
+    pub(super) fn new(store: &KnowledgeStore) -> Result<Self, StoreError> {
+        let snapshot = store.snapshot()?;
+        Ok(Self {
+            store: snapshot,
+            location: store.location().to_owned(),
+            owner: store.clone(),
+            key: store.cache_key(),
+        })
+    }
+
+    pub(super) fn err(&self, source: oxigraph::store::StorageError) -> StoreError {
+        StoreError::Storage {
+            location: self.location.clone(),
+            source,
+        }
+    }
+
+    /// Asserted triples about `subject`.
+    pub(super) fn about(&self, subject: NamedNodeRef<'_>) -> Result<Vec<Triple>, StoreError> {
+        let mut out = Vec::new();
+        for quad in self
+            .store
+            .quads_for_pattern(Some(subject.into()), None, None, None)
+        {
+            let quad = quad.map_err(|e| self.err(e))?;
+            if quad.graph_name.as_ref() != GraphNameRef::NamedNode(INFERRED_GRAPH) {
+                out.push(Triple::from(quad));
+            }
+        }
+        Ok(out)
+    }
+
+    /// Whether `node` has type `class`, asserted or entailed.
+    pub(super) fn is_a(
+        &self,
+        node: NamedNodeRef<'_>,
+        class: NamedNodeRef<'_>,
+    ) -> Result<bool, StoreError> {
+        let mut it = self.store.quads_for_pattern(
+            Some(node.into()),
+            Some(rdf::TYPE),
+            Some(class.into()),
+            None,
+        );
+        match it.next() {
+            Some(Ok(_)) => Ok(true),
+            Some(Err(e)) => Err(self.err(e)),
+            None => Ok(false),
+        }
+    }
+
+    /// Every individual of `class` (asserted or entailed), sorted.
+    pub(super) fn instances(
+        &self,
+        class: NamedNodeRef<'_>,
+    ) -> Result<BTreeSet<NamedNode>, StoreError> {
+        let mut out = BTreeSet::new();
+        for quad in self
+            .store
+            .quads_for_pattern(None, Some(rdf::TYPE), Some(class.into()), None)
+        {
+            let quad = quad.map_err(|e| self.err(e))?;
+            if let oxigraph::model::NamedOrBlankNode::NamedNode(n) = quad.subject {
+                out.insert(n);
+            }
+        }
+        Ok(out)
+    }
+
+    /// `subject`'s triples and, recursively, those of the individuals it owns: descriptors
+    /// (poses, shapes, boundary points, maps) and, when `parts` is set, robot parts.
+    pub(super) fn closure(
+        &self,
+        subject: NamedNodeRef<'_>,
+        parts: bool,
+        out: &mut HashSet<Triple>,
+        seen: &mut BTreeSet<NamedNode>,
+    ) -> Result<(), StoreError> {
+        if !seen.insert(subject.into_owned()) {
+            return Ok(());
+        }
+        for triple in self.about(subject)? {
+            if let Term::NamedNode(object) = &triple.object
+                && triple.predicate.as_ref() != rdf::TYPE
+                && (self.is_a(object.as_ref(), vocab::DESCRIPTOR)?
+                    || (parts && self.is_a(object.as_ref(), vocab::ROBOT_PART)?))
+            {
+                self.closure(object.as_ref(), parts, out, seen)?;
+            }
+            out.insert(triple);
+        }
+        Ok(())
+    }
+
+    /// Whether `place` states an expected number of people or has a people estimate
+    /// (asserted, in any graph but the inferred one).
+    pub(super) fn knows_people_in(&self, place: &str) -> Result<bool, StoreError> {
+        let node = NamedNodeRef::new_unchecked(place);
+        for p in [
+            vocab::EXPECTED_PEOPLE,
+            vocab::HAS_HOURLY_PEOPLE_COUNT,
+            vocab::HAS_PEOPLE_ESTIMATE,
+        ] {
+            for quad in self
+                .store
+                .quads_for_pattern(Some(node.into()), Some(p), None, None)
+            {
+                let quad = quad.map_err(|e| self.err(e))?;
+                if quad.graph_name.as_ref() != GraphNameRef::NamedNode(INFERRED_GRAPH) {
+                    return Ok(true);
+                }
+            }
+        }
+        Ok(false)
+    }
+
+    /// The asserted IRI value of `subject`'s `property`, if any (the first, in store order).
+    pub(super) fn asserted_object(
+        &self,
+        subject: NamedNodeRef<'_>,
+        property: NamedNodeRef<'_>,
+    ) -> Result<Option<String>, StoreError> {
+        for quad in self
+            .store
+            .quads_for_pattern(Some(subject.into()), Some(property), None, None)
+        {
+            let quad = quad.map_err(|e| self.err(e))?;
+            if quad.graph_name.as_ref() != GraphNameRef::NamedNode(INFERRED_GRAPH)
+                && let Term::NamedNode(n) = quad.object
+            {
+                return Ok(Some(n.into_string()));
+            }
+        }
+        Ok(None)
+    }
+
+    /// The individual named `name`: an IRI, or the subject of `tosm:identifier "name"`.
+    pub(super) fn resolve(&self, name: &str) -> Result<Option<NamedNode>, StoreError> {
+        if name.contains("://") || name.starts_with("urn:") {
+            return Ok(NamedNode::new(name).ok());
+        }
+        let literal = oxigraph::model::Literal::new_simple_literal(name);
+        let mut it = self.store.quads_for_pattern(
+            None,
+            Some(vocab::IDENTIFIER),
+            Some(TermRef::Literal(literal.as_ref())),
+            None,
+        );
+        match it.next() {
+            Some(Ok(q)) => Ok(match q.subject {
+                oxigraph::model::NamedOrBlankNode::NamedNode(n) => Some(n),
+                _ => None,
+            }),
+            Some(Err(e)) => Err(self.err(e)),
+            None => Ok(None),
+        }
+    }
+}
