@@ -493,6 +493,28 @@ async fn a_policy_exported_again_replaces_the_loaded_one() {
     app.stop().await;
 }
 
+/// Installs `seeker`, a goal-seeking policy for the sample robot's 23 beams.
+fn install_seeker(app: &TestApp) {
+    let dir = app.data_dir.join("policies").join("seeker");
+    std::fs::create_dir_all(&dir).unwrap();
+    learning::policy::write_goal_seeking_policy(&dir, 23, json!({})).unwrap();
+}
+
+/// Asks `request` (with `options.roadmap: policy`) until its policy-aware roadmap is built
+/// (409 meanwhile; three minutes at most) and returns the first plan answered on it.
+async fn wait_for_policy_roadmap(app: &TestApp, request: &Value) -> Value {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(180);
+    loop {
+        let (status, body) = plan(app, request).await;
+        if status == 200 {
+            return body;
+        }
+        assert_eq!(status, 409, "{body}");
+        assert!(std::time::Instant::now() < deadline, "never built: {body}");
+        tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    }
+}
+
 /// A policy-aware roadmap (PRM-RL) is built by a durable `roadmap` job, enqueued the first time
 /// a plan with a policy asks for a floor state that has none: `policy` answers 409 naming the
 /// job until it is stored, `auto` plans on the geometric roadmap meanwhile, and both plan on it
@@ -504,9 +526,7 @@ async fn the_policy_aware_roadmap_is_built_by_a_job_and_then_used() {
     let app = spawn_app().await;
     let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
     let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
-    let dir = app.data_dir.join("policies").join("seeker");
-    std::fs::create_dir_all(&dir).unwrap();
-    learning::policy::write_goal_seeking_policy(&dir, 23, json!({})).unwrap();
+    install_seeker(&app);
     let request = |roadmap: &str| {
         json!({
             "robot": "R-001", "place": "F0", "policy": "seeker",
@@ -540,19 +560,7 @@ async fn the_policy_aware_roadmap_is_built_by_a_job_and_then_used() {
     // and does not enqueue a second job.
     let (status, body) = plan(&app, &request("auto")).await;
     assert_eq!(status, 200, "{body}");
-    let wait_for_policy_roadmap = || async {
-        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(180);
-        loop {
-            let (status, body) = plan(&app, &request("policy")).await;
-            if status == 200 {
-                break body;
-            }
-            assert_eq!(status, 409, "{body}");
-            assert!(std::time::Instant::now() < deadline, "never built: {body}");
-            tokio::time::sleep(std::time::Duration::from_millis(300)).await;
-        }
-    };
-    let body = wait_for_policy_roadmap().await;
+    let body = wait_for_policy_roadmap(&app, &request("policy")).await;
     assert_eq!(body["roadmap"]["kind"], "policy", "{body}");
     assert_eq!(body["legs"][0]["roadmap"], "policy", "{body}");
     assert_eq!(body["legs"][0]["controller"], "policy", "{body}");
@@ -583,7 +591,7 @@ async fn the_policy_aware_roadmap_is_built_by_a_job_and_then_used() {
     .await;
     let (status, body) = plan(&app, &request("policy")).await;
     assert_eq!(status, 409, "the old state's roadmap was served: {body}");
-    let body = wait_for_policy_roadmap().await;
+    let body = wait_for_policy_roadmap(&app, &request("policy")).await;
     assert_eq!(body["roadmap"]["kind"], "policy", "{body}");
     assert_eq!(roadmap_jobs().await.len(), 2);
     assert_eq!(std::fs::read_dir(&stored).unwrap().count(), 2);
@@ -820,9 +828,7 @@ async fn a_validate_job_answers_what_the_plan_endpoint_answers() {
     let app = spawn_app().await;
     let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
     let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
-    let dir = app.data_dir.join("policies").join("seeker");
-    std::fs::create_dir_all(&dir).unwrap();
-    learning::policy::write_goal_seeking_policy(&dir, 23, json!({})).unwrap();
+    install_seeker(&app);
     let request = |roadmap: &str| {
         json!({
             "robot": "R-001", "place": "F0", "policy": "seeker",
@@ -833,16 +839,7 @@ async fn a_validate_job_answers_what_the_plan_endpoint_answers() {
         })
     };
     // The policy-aware roadmap first: both must find it.
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(180);
-    loop {
-        let (status, body) = plan(&app, &request("policy")).await;
-        if status == 200 {
-            break;
-        }
-        assert_eq!(status, 409, "{body}");
-        assert!(std::time::Instant::now() < deadline, "never built: {body}");
-        tokio::time::sleep(std::time::Duration::from_millis(300)).await;
-    }
+    wait_for_policy_roadmap(&app, &request("policy")).await;
     let (status, mut answered) = plan(&app, &request("auto")).await;
     assert_eq!(status, 200, "{answered}");
     assert_eq!(answered["roadmap"]["kind"], "policy", "{answered}");

@@ -273,14 +273,7 @@ impl Planner {
     /// Checks a query as far as it can be without the floor: the bounds of the request
     /// (goals, attempts, samples, timer, people), the hour, and that a named policy exists.
     pub fn check(&self, query: &PlanQuery) -> Result<(), PlanFailure> {
-        if let PlanPeople::Expected { hour: Some(h) } = query.people
-            && h > 23
-        {
-            return Err(PlanFailure::BadRequest(format!(
-                "`options.people_hour` is an hour of day in [0, 23], got {h}"
-            )));
-        }
-        rehearsal::check_request(&query.request).map_err(PlanFailure::Plan)?;
+        check_bounds(query)?;
         if let Some(id) = &query.policy
             && !self.policies.exists(id)
         {
@@ -297,7 +290,8 @@ impl Planner {
         query: PlanQuery,
         stop: rehearsal::Stop,
     ) -> Result<PlanOutcome, PlanFailure> {
-        self.check(&query)?;
+        // Whether a named policy exists is the loader's to say (404), below.
+        check_bounds(&query)?;
         let PlanQuery {
             robot,
             place,
@@ -414,6 +408,19 @@ impl Planner {
         }
         Ok(loaded)
     }
+}
+
+/// The bounds of a query that need no store: the hour, and the request's goals, attempts,
+/// samples, timer and people.
+fn check_bounds(query: &PlanQuery) -> Result<(), PlanFailure> {
+    if let PlanPeople::Expected { hour: Some(h) } = query.people
+        && h > 23
+    {
+        return Err(PlanFailure::BadRequest(format!(
+            "`options.people_hour` is an hour of day in [0, 23], got {h}"
+        )));
+    }
+    rehearsal::check_request(&query.request).map_err(PlanFailure::Plan)
 }
 
 /// What the blocking part of a plan needs.

@@ -35,15 +35,13 @@ impl PolicyRoadmapKey {
     /// The key the plan endpoint looks up: `policy` (whose weights hash to `weights`) on
     /// `floor_state` with `margin` and the default rollout parameters.
     pub fn for_plans(floor_state: &str, policy: &str, weights: u64, margin: f64) -> Self {
-        let params = EdgeRolloutParams::default();
-        Self {
-            floor_state: floor_state.to_owned(),
-            policy: policy.to_owned(),
+        Self::with_params(
+            floor_state,
+            policy,
             weights,
-            margin_bits: margin.to_bits(),
-            rollouts: params.rollouts,
-            keep_bits: params.keep_threshold.to_bits(),
-        }
+            margin,
+            &EdgeRolloutParams::default(),
+        )
     }
 
     /// The key of `policy_dir`'s weights on `floor_state` with these parameters; `None` when
@@ -56,14 +54,31 @@ impl PolicyRoadmapKey {
         params: &EdgeRolloutParams,
     ) -> Option<PolicyRoadmapKey> {
         let bytes = std::fs::read(policy_dir.join(learning::policy::WEIGHTS_FILE)).ok()?;
-        Some(PolicyRoadmapKey {
+        let weights = grid::hash::fnv1a(&bytes);
+        Some(Self::with_params(
+            floor_state,
+            policy,
+            weights,
+            margin,
+            params,
+        ))
+    }
+
+    fn with_params(
+        floor_state: &str,
+        policy: &str,
+        weights: u64,
+        margin: f64,
+        params: &EdgeRolloutParams,
+    ) -> Self {
+        Self {
             floor_state: floor_state.to_owned(),
             policy: policy.to_owned(),
-            weights: grid::hash::fnv1a(&bytes),
+            weights,
             margin_bits: margin.to_bits(),
             rollouts: params.rollouts,
             keep_bits: params.keep_threshold.to_bits(),
-        })
+        }
     }
 
     fn file_name(&self) -> String {

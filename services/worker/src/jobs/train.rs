@@ -276,6 +276,13 @@ pub fn checkpoint_dir(
     recorded.unwrap_or_else(|| checkpoints_dir.join(job.to_string()))
 }
 
+/// `OutOfSpace` when the message of an error writing this job's own files says the disk is
+/// full (the edge's reading of such messages), else `otherwise(message)`.
+fn unless_full(message: String, otherwise: fn(String) -> JobError) -> JobError {
+    let full = edge::disk::is_out_of_space(&message);
+    JobError::unless_out_of_space(message, full, otherwise)
+}
+
 fn train_blocking(
     run: Run,
     ctx: &JobContext,
@@ -298,9 +305,7 @@ fn train_blocking(
         }
         // A checkpoint that found the disk full waits for space instead of failing the job.
         learning::trainer::TrainError::Checkpoint { .. } => {
-            let m = format!("training: {e}");
-            let full = edge::disk::is_out_of_space(&m);
-            JobError::unless_out_of_space(m, full, JobError::Fatal)
+            unless_full(format!("training: {e}"), JobError::Fatal)
         }
         _ => JobError::Fatal(format!("training: {e}")),
     };
@@ -378,9 +383,7 @@ fn train_blocking(
     std::fs::create_dir_all(&staged).map_err(|e| io("creating the staging directory", e))?;
     trainer.export(&staged, to_json(&summary)).map_err(|e| {
         let _ = std::fs::remove_dir_all(&staged);
-        let m = format!("exporting the policy: {e}");
-        let full = edge::disk::is_out_of_space(&m);
-        JobError::unless_out_of_space(m, full, JobError::Retryable)
+        unless_full(format!("exporting the policy: {e}"), JobError::Retryable)
     })?;
     let policy = Policy::load(&staged)
         .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;

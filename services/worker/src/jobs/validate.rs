@@ -65,14 +65,13 @@ impl JobHandler for ValidateHandler {
         let _ = ctx
             .report_progress(&serde_json::json!({"stage": "simulating"}))
             .await;
-        // The job's cancellation and the worker's shutdown stop the rehearsal at its next check.
+        // The job's cancellation, the worker's shutdown and a lost lease stop the rehearsal at
+        // its next check.
         let stop = rehearsal::Stop::new();
         let watch = {
-            let (ctx, stop) = (ctx.clone(), stop.clone());
+            let (token, stop) = (ctx.cancellation().clone(), stop.clone());
             tokio::spawn(async move {
-                while !ctx.is_stopping() {
-                    tokio::time::sleep(std::time::Duration::from_millis(50)).await;
-                }
+                token.cancelled().await;
                 stop.request();
             })
         };

@@ -1,0 +1,10 @@
+//! Gives this crate's test binaries an rpath to libtorch when a workspace build unifies
+//! `learning`'s `train` feature into them (the planner itself never trains), so they run
+//! without LD_LIBRARY_PATH.
+
+fn main() {
+    println!("cargo:rerun-if-env-changed=DEP_MENTALSIM_LEARNING_LIBTORCH_LIB");
+    if let Ok(dir) = std::env::var("DEP_MENTALSIM_LEARNING_LIBTORCH_LIB") {
+        println!("cargo:rustc-link-arg=-Wl,-rpath,{dir}");
+    }
+}
