@@ -462,7 +462,7 @@ async fn a_policy_exported_again_replaces_the_loaded_one() {
         "robot": "R-001", "place": "F0", "policy": "steer",
         "start": {"x": start.0, "y": start.1, "yaw": 0.0},
         "goal": {"x": goal.0, "y": goal.1},
-        "options": {"seed": 3, "trajectory_stride": 0}
+        "options": {"seed": 3, "trajectory_stride": 0, "controller": "hybrid"}
     });
     for steps in [111, 222] {
         learning::policy::write_goal_seeking_policy(
@@ -532,7 +532,7 @@ async fn the_policy_aware_roadmap_is_built_by_a_job_and_then_used() {
             "robot": "R-001", "place": "F0", "policy": "seeker",
             "start": {"x": start.0, "y": start.1, "yaw": 0.0},
             "goal": {"x": goal.0, "y": goal.1},
-            "options": {"seed": 3, "trajectory_stride": 0, "roadmap": roadmap}
+            "options": {"seed": 3, "trajectory_stride": 0, "roadmap": roadmap, "controller": "hybrid"}
         })
     };
     let roadmap_jobs = || async {
@@ -576,6 +576,40 @@ async fn the_policy_aware_roadmap_is_built_by_a_job_and_then_used() {
         "{result}"
     );
     assert!(result["edge_directions"].as_u64().unwrap() >= 2, "{result}");
+    // The job drove the controller trial too: `auto` now validates with what it measured
+    // best on this floor state, and says so with the trial's figures.
+    let picked = &result["controller"];
+    assert!(
+        picked["why"]
+            .as_str()
+            .unwrap()
+            .starts_with("auto: measured on this floor state"),
+        "{result}"
+    );
+    let mut auto = request("auto");
+    auto["options"]["controller"] = json!("auto");
+    let (status, body) = plan(&app, &auto).await;
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["controller_choice"], *picked, "{body}");
+    let kind = if picked["controller"].as_str().unwrap().starts_with("hybrid") {
+        "policy"
+    } else {
+        "classical"
+    };
+    assert_eq!(body["controller"], kind, "{body}");
+    // Asked for by name, a classical controller drives whatever was measured.
+    let mut mppi = request("auto");
+    mppi["options"]["controller"] = json!("mppi");
+    let (status, body) = plan(&app, &mppi).await;
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["controller_choice"]["controller"], "mppi", "{body}");
+    assert_eq!(body["controller"], "classical", "{body}");
+    // A controller that does not exist is a client error naming it.
+    let mut bad = request("auto");
+    bad["options"]["controller"] = json!("teleport");
+    let (status, body) = plan(&app, &bad).await;
+    assert!(status == 400 || status == 422, "{status} {body}");
+    assert!(body.to_string().contains("teleport"), "{body}");
     // Persisted: a file in the store beside the policies.
     let stored = app.data_dir.join("policy-roadmaps");
     assert_eq!(std::fs::read_dir(&stored).unwrap().count(), 1);
@@ -835,7 +869,7 @@ async fn a_validate_job_answers_what_the_plan_endpoint_answers() {
             "start": {"x": start.0, "y": start.1, "yaw": 0.0},
             "goal": {"x": goal.0, "y": goal.1},
             "options": {"seed": 5, "trajectory_stride": 0, "roadmap": roadmap,
-                        "people": "auto", "people_hour": 12}
+                        "people": "auto", "people_hour": 12, "controller": "hybrid"}
         })
     };
     // The policy-aware roadmap first: both must find it.

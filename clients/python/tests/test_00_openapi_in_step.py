@@ -99,6 +99,7 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         people=1.5,
         people_hour=12,
         people_draws=2,
+        controller="mppi",
     )
     config = {"td3": {"hidden": [16, 16]}}
     return {

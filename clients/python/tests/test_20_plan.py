@@ -48,8 +48,11 @@ def mission(robot: Client, kitchen: str) -> tuple[Point, Point]:
 def test_a_plan_is_a_ros_path_from_the_start_to_the_goal(robot: Client, kitchen: str, mission: tuple[Point, Point], tmp_path: Path) -> None:
     start, goal = mission
     plan = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal)
-    # No policy is trained yet: the classical follower validated it, and the note says so.
+    # No policy is trained yet: a classical controller (`auto`: Regulated Pure Pursuit)
+    # validated it, and the answer says why.
     assert plan.controller == "classical" and plan.policy is None
+    assert plan.controller_choice.controller == "rpp"
+    assert "no trained policy" in plan.controller_choice.why
     assert plan.note and "follower" in plan.note
     assert [leg.controller for leg in plan.legs] == ["classical"]
     assert plan.attempts and plan.attempts[-1].outcome == "reached"

@@ -119,8 +119,9 @@ impl Default for NavigationBenchOptions {
 /// attempt); `hybrid_unshielded` is the paper's
 /// hybrid, the policy's commands sent to the wheels unchanged; `*_resampled` is the same with
 /// the roadmap re-sampled after a failed attempt; `plan_endpoint` is exactly what `POST /v1/plan`
-/// answers: `hybrid_prm_rl_resampled`, then the classical follower (also re-sampled) for a leg
-/// the policy validated in no attempt. `hybrid_policy_roadmap*` are the shielded policy on the
+/// answers with `options.controller: auto`: the controller the map's controller trial picks
+/// (`planner::controllers`; a hybrid on the policy-aware roadmap), re-sampled, then the
+/// classical follower (also re-sampled) for a leg the pick validated in no attempt. `hybrid_policy_roadmap*` are the shielded policy on the
 /// policy-aware roadmap as `options.roadmap: auto` plans on it (PRM-RL: the map's geometric
 /// roadmap with every edge direction driven 10 times by the policy, weighted by length and
 /// risk; directions under 90% success only where the kept ones join no route, at 100 m more),
@@ -524,6 +525,10 @@ pub struct PolicyEdges {
     pub steps: u64,
     /// Wall time of the rollouts and the reweighting, seconds.
     pub build_s: f64,
+    /// What `options.controller: auto` picks on this map from the controller trial, and why.
+    pub auto: planner::ControllerPick,
+    /// Wall time of the controller trial, seconds.
+    pub trial_s: f64,
 }
 
 fn run_map(
@@ -570,6 +575,31 @@ fn run_map(
             // ones only where the kept ones join no route.
             let roadmap = rehearsal::reweight_with_unkept(&geometric, &report)
                 .map_err(|e| plan_err(name, &e))?;
+            let build_s = t.elapsed().as_secs_f64();
+            // The controller trial the `roadmap` job drives after the edges, here among the
+            // bench's people: what `plan_endpoint` (`options.controller: auto`) validates with.
+            let t = Instant::now();
+            let missions = planner::controllers::trial_missions(
+                &geometric,
+                planner::controllers::DEFAULT_TRIAL_MISSIONS as usize,
+                opts.seed,
+            );
+            let trial = planner::controllers::run_trial(
+                &planner::controllers::TrialFloor {
+                    world,
+                    roadmaps: cache,
+                    version: name,
+                    policy: Some(p),
+                    policy_roadmap: Some(&roadmap),
+                },
+                &missions,
+                &people,
+                opts.seed,
+            )
+            .map_err(|e| plan_err(name, &e))?;
+            let auto = trial.pick(|_| true).unwrap_or_else(|| {
+                planner::controllers::unmeasured("the map's trial drove no controller")
+            });
             let edges = PolicyEdges {
                 map: name.to_owned(),
                 directions: report.edges.len(),
@@ -577,7 +607,9 @@ fn run_map(
                 edge_success_rate: report.edge_success_rate(),
                 rollouts: rollout.rollouts,
                 steps: report.steps,
-                build_s: t.elapsed().as_secs_f64(),
+                build_s,
+                auto,
+                trial_s: t.elapsed().as_secs_f64(),
             };
             if opts.verbose {
                 eprintln!(
@@ -587,6 +619,7 @@ fn run_map(
                     100.0 * edges.edge_success_rate,
                     edges.build_s
                 );
+                eprintln!("  {} ({:.1} s)", edges.auto.why, edges.trial_s);
             }
             Some((roadmap, edges))
         }
@@ -664,7 +697,17 @@ fn run_map(
         validate_ms[0].push(elapsed);
         rows.push(row("hybrid_prm_rl", name, run, &first));
         rows.push(row("hybrid_prm_rl_resampled", name, run, &last));
-        rows.push(endpoint_row(world, cache, name, run, &request, policy)?);
+        if let Some((roadmap, edges)) = &policy_map {
+            rows.push(endpoint_row(
+                world,
+                cache,
+                name,
+                run,
+                &request,
+                policy,
+                (edges.auto.choice, roadmap),
+            )?);
+        }
         if let Some((roadmap, _)) = &policy_map {
             let mut controller = PolicyController::new(Arc::clone(policy));
             let mut with_rpp = PolicyController::with_rpp_handover(Arc::clone(policy));
@@ -863,17 +906,24 @@ fn endpoint_row(
     run: usize,
     request: &PlanRequest,
     policy: &Arc<Policy>,
+    (auto, policy_roadmap): (rehearsal::ControllerChoice, &Arc<planning::Roadmap>),
 ) -> Result<NavigationRow, BenchError> {
-    let mut controller = PolicyController::new(Arc::clone(policy));
-    let mut follower = ClassicalFollower::default();
+    // As the planner validates with `auto`'s pick: the policy-aware roadmap for a hybrid, the
+    // classical follower (shielded among people) for a leg the pick validates in no attempt.
+    let mut controller = auto
+        .build(Some(policy), request.options.seed)
+        .ok_or_else(|| {
+            BenchError::BadOption(format!("{name}: {} needs a policy", auto.as_str()))
+        })?;
+    let mut follower = rehearsal::follower_for(&request.options);
     let d = rehearsal::validate_detailed(
         world,
         cache,
         name,
         request,
-        &mut controller,
-        Some(&mut follower),
-        None,
+        &mut *controller,
+        Some(&mut *follower),
+        auto.needs_policy().then_some(policy_roadmap),
     );
     Ok(match d.result {
         Ok(report) => {
@@ -901,7 +951,8 @@ fn endpoint_row(
                 distance_m: report.distance_m,
                 time_s: report.simulated_time_s,
                 reason: format!(
-                    "validated; {fallback_legs} of {} legs by the classical follower",
+                    "validated with {}; {fallback_legs} of {} legs by the classical follower",
+                    auto.as_str(),
                     report.legs.len()
                 ),
                 fallback_legs,

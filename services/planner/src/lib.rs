@@ -8,10 +8,13 @@
 //! `POST /v1/plan`, the `validate` job kind and the CLI call it alike: they translate their
 //! input into a [`PlanQuery`] and the [`PlanOutcome`] back, and decide nothing.
 //!
+//! - [`controllers`]: which controller validates a plan (`auto`: the one measured best on the
+//!   floor state, never one measurably worse than another available);
 //! - [`floor`]: the on-demand database of a floor and the world made from it;
 //! - [`policies`]: exported policies on disk and their summaries;
 //! - [`roadmaps`]: stored policy-aware roadmaps.
 
+pub mod controllers;
 pub mod floor;
 pub mod policies;
 pub mod roadmaps;
@@ -22,12 +25,13 @@ use std::pin::Pin;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::SystemTime;
 
-use rehearsal::{PlanError, PlanRequest, RoadmapCache, RoadmapChoice};
+use rehearsal::{ControllerChoice, PlanError, PlanRequest, RoadmapCache, RoadmapChoice};
 use sim::World;
 
+pub use controllers::{ControllerPick, ControllerTrial};
 pub use floor::{FloorDatabase, KnowledgeSource, SourceError, SourceFuture};
 pub use policies::{HeldOutEval, PolicyEntry, PolicyStore, PolicySummary};
-pub use roadmaps::{PolicyRoadmapKey, RoadmapStore, StoredRoadmap};
+pub use roadmaps::{AppliedRoadmap, PolicyRoadmapKey, RoadmapStore, StoredRoadmap};
 
 /// Who walks about in a plan's rehearsal.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -56,6 +60,9 @@ pub struct PlanQuery {
     pub people: PlanPeople,
     /// The policy to drive with; `None`: the robot's newest.
     pub policy: Option<String>,
+    /// The controller to validate with; `None`: `auto`, the one measured best on the floor
+    /// state ([`controllers`]).
+    pub controller: Option<ControllerChoice>,
 }
 
 /// Where a plan's people came from.
@@ -106,9 +113,12 @@ pub struct PlanOutcome {
     pub robot: String,
     /// The floor's IRI.
     pub floor: String,
-    /// The policy that drove the simulated robot, if any.
+    /// The robot's policy (the one named, else its newest), if it has one; it drove the
+    /// simulated robot when `controller` is a hybrid.
     pub policy: Option<String>,
-    /// Why the classical follower was used, when it was.
+    /// The controller that validated the plan (but for legs its fallback validated), and why.
+    pub controller: ControllerPick,
+    /// Why a classical controller validated the plan or some of its legs, when one did.
     pub note: Option<String>,
     /// The executor's report.
     pub report: rehearsal::PlanReport,
@@ -189,7 +199,7 @@ struct LoadedPolicy {
 }
 
 /// Applied policy-aware roadmaps, keyed with whether the unkept directions are in.
-type Applied = Mutex<HashMap<(PolicyRoadmapKey, bool), Arc<planning::Roadmap>>>;
+type Applied = Mutex<HashMap<(PolicyRoadmapKey, bool), AppliedRoadmap>>;
 
 /// The plan use case over its stores and caches. Cheap to share (`Arc`).
 pub struct Planner {
@@ -298,6 +308,7 @@ impl Planner {
             mut request,
             people,
             policy,
+            controller,
         } = query;
         request.stop = stop;
         let db = self.knowledge.floor_database(&place, &robot).await?;
@@ -315,17 +326,25 @@ impl Planner {
         // refused (`policy`).
         let choice = request.options.roadmap;
         let margin = request.options.safety_margin_m;
-        let key = match (&policy_id, &loaded, choice) {
-            (Some(id), Some(l), RoadmapChoice::Auto | RoadmapChoice::Policy) => Some(
-                PolicyRoadmapKey::for_plans(&db.version, id, l.weights, margin),
-            ),
+        // Looked up whatever the roadmap choice: its controller trial is what `auto` picks from.
+        let key = match (&policy_id, &loaded) {
+            (Some(id), Some(l)) => Some(PolicyRoadmapKey::for_plans(
+                &db.version,
+                id,
+                l.weights,
+                margin,
+            )),
             _ => None,
         };
         let stored = key.as_ref().is_some_and(|key| {
             let applied = self.applied.lock().unwrap_or_else(PoisonError::into_inner);
             applied.keys().any(|(k, _)| k == key) || self.policy_roadmaps.contains(key)
         });
-        if let Some(key) = key.as_ref().filter(|_| !stored) {
+        // `geometric` asks for no build (its trial is read when one is stored).
+        if let Some(key) = key
+            .as_ref()
+            .filter(|_| !stored && choice != RoadmapChoice::Geometric)
+        {
             let build = self.builds.ensure(key, &db.floor, &db.robot, margin).await;
             if choice == RoadmapChoice::Policy {
                 let why = match build {
@@ -349,15 +368,18 @@ impl Planner {
             policy: loaded.map(|l| l.policy),
             key: key.filter(|_| stored),
             people,
+            controller,
         };
-        let (report, world, people) = tokio::task::spawn_blocking(move || rehearsal.run(request))
-            .await
-            .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
-        let note = note(policy_id.is_some(), &report);
+        let (report, world, people, pick) =
+            tokio::task::spawn_blocking(move || rehearsal.run(request))
+                .await
+                .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
+        let note = note(policy_id.is_some(), &pick, &report);
         Ok(PlanOutcome {
             robot: db.robot.clone(),
             floor: db.floor.clone(),
             policy: policy_id,
+            controller: pick,
             note,
             report,
             people,
@@ -433,9 +455,16 @@ struct Rehearsal {
     /// The stored policy-aware roadmap to plan on, when there is one.
     key: Option<PolicyRoadmapKey>,
     people: PlanPeople,
+    /// The controller asked for; `None`: `auto`.
+    controller: Option<ControllerChoice>,
 }
 
-type Rehearsed = (rehearsal::PlanReport, Arc<World>, Option<PeopleSummary>);
+type Rehearsed = (
+    rehearsal::PlanReport,
+    Arc<World>,
+    Option<PeopleSummary>,
+    ControllerPick,
+);
 
 impl Rehearsal {
     /// The world, the people, the roadmap, and the executor. Blocks.
@@ -451,36 +480,50 @@ impl Rehearsal {
         };
         let crowd = request.options.people.clone();
         let version = self.db.version.as_str();
-        let report = match &self.policy {
-            None => rehearsal::validate(&world, &self.roadmaps, version, &request, None)
-                .map_err(PlanFailure::Plan)?,
-            Some(policy) => {
-                let choice = request.options.roadmap;
-                let policy_roadmap = self.policy_roadmap(&world, choice)?;
-                if choice == RoadmapChoice::Policy && policy_roadmap.is_none() {
-                    return Err(PlanFailure::RoadmapNotReady(
-                        "the stored policy-aware roadmap of this floor state and policy cannot be read; ask for `options.roadmap`: `auto`".to_owned(),
-                    ));
-                }
-                let mut primary = rehearsal::PolicyController::new(Arc::clone(policy));
-                let mut follower = rehearsal::follower_for(&request.options);
-                rehearsal::validate_with_fallback(
-                    &world,
-                    &self.roadmaps,
-                    version,
-                    &request,
-                    &mut primary,
-                    Some(&mut *follower),
-                    policy_roadmap.as_ref(),
-                )
-                .map_err(|e| match e {
-                    PlanError::Unreachable { .. } if choice == RoadmapChoice::Policy => {
-                        PlanFailure::PolicyRoadmapUnreachable(e)
-                    }
-                    other => PlanFailure::Plan(other),
-                })?
+        let choice = request.options.roadmap;
+        let applied = self.policy_roadmap(&world, choice)?;
+        let pick = self.pick(applied.as_ref().and_then(|a| a.trial.as_deref()))?;
+        let mut primary = pick
+            .choice
+            .build(self.policy.as_ref(), request.options.seed)
+            .ok_or_else(|| PlanFailure::Internal("the picked controller needs a policy".into()))?;
+        // The policy-aware roadmap is the policy's: the classical controllers plan on the
+        // geometric one.
+        let policy_roadmap = applied
+            .filter(|_| pick.choice.needs_policy() && choice != RoadmapChoice::Geometric)
+            .map(|a| a.roadmap);
+        if choice == RoadmapChoice::Policy && pick.choice.needs_policy() && policy_roadmap.is_none()
+        {
+            return Err(PlanFailure::RoadmapNotReady(
+                "the stored policy-aware roadmap of this floor state and policy cannot be read; ask for `options.roadmap`: `auto`".to_owned(),
+            ));
+        }
+        // Robots carry the classical follower too: a leg no attempt validates with the picked
+        // controller is tried with it (behind the shield among people).
+        let mut follower = (!matches!(
+            pick.choice,
+            ControllerChoice::Follower | ControllerChoice::ShieldedFollower
+        ))
+        .then(|| rehearsal::follower_for(&request.options));
+        let report = rehearsal::validate_with_fallback(
+            &world,
+            &self.roadmaps,
+            version,
+            &request,
+            &mut *primary,
+            follower
+                .as_deref_mut()
+                .map(|f| f as &mut dyn rehearsal::Controller),
+            policy_roadmap.as_ref(),
+        )
+        .map_err(|e| match e {
+            PlanError::Unreachable { .. }
+                if choice == RoadmapChoice::Policy && pick.choice.needs_policy() =>
+            {
+                PlanFailure::PolicyRoadmapUnreachable(e)
             }
-        };
+            other => PlanFailure::Plan(other),
+        })?;
         let people = crowd.any().then(|| {
             people_summary(
                 source,
@@ -488,7 +531,40 @@ impl Rehearsal {
                 &report,
             )
         });
-        Ok((report, world, people))
+        Ok((report, world, people, pick))
+    }
+
+    /// The controller: the one asked for, else `auto`'s pick from the floor state's trial.
+    fn pick(&self, trial: Option<&ControllerTrial>) -> Result<ControllerPick, PlanFailure> {
+        let has_policy = self.policy.is_some();
+        if let Some(choice) = self.controller {
+            if choice.needs_policy() && !has_policy {
+                return Err(PlanFailure::Unprocessable(format!(
+                    "`options.controller`: `{}` drives a trained policy, and this robot has none yet; ask for `auto`, `rpp`, `mppi` or `follower`",
+                    choice.as_str()
+                )));
+            }
+            return Ok(ControllerPick {
+                choice,
+                why: "asked for in `options.controller`".to_owned(),
+            });
+        }
+        if !has_policy {
+            return Ok(controllers::unmeasured(
+                "no trained policy for this robot yet",
+            ));
+        }
+        Ok(match trial {
+            Some(t) => t.pick(|_| true).unwrap_or_else(|| {
+                controllers::unmeasured("the floor state's trial drove no controller")
+            }),
+            None if self.key.is_some() => controllers::unmeasured(
+                "the policy-aware roadmap of this floor state was stored without a trial of the controllers",
+            ),
+            None => controllers::unmeasured(
+                "the policy has not been measured against the classical controllers on this floor state yet (the `roadmap` job builds its roadmap and drives the trial)",
+            ),
+        })
     }
 
     /// The stored policy-aware roadmap applied to the floor's geometric roadmap: `auto` plans
@@ -498,11 +574,11 @@ impl Rehearsal {
         &self,
         world: &Arc<World>,
         choice: RoadmapChoice,
-    ) -> Result<Option<Arc<planning::Roadmap>>, PlanFailure> {
+    ) -> Result<Option<AppliedRoadmap>, PlanFailure> {
         let Some(key) = &self.key else {
             return Ok(None);
         };
-        let key = (key.clone(), choice == RoadmapChoice::Auto);
+        let key = (key.clone(), choice != RoadmapChoice::Policy);
         let cached = self
             .applied
             .lock()
@@ -525,26 +601,34 @@ impl Rehearsal {
             if applied.len() >= POLICY_ROADMAPS {
                 applied.clear();
             }
-            applied.insert(key, Arc::clone(r));
+            applied.insert(key, r.clone());
         }
         Ok(loaded)
     }
 }
 
-/// Why the classical follower validated a plan or some of its legs, when it did.
-fn note(had_policy: bool, report: &rehearsal::PlanReport) -> Option<String> {
+/// Why a classical controller validated a plan or some of its legs, when one did.
+fn note(had_policy: bool, pick: &ControllerPick, report: &rehearsal::PlanReport) -> Option<String> {
     let fallback_legs = report
         .legs
         .iter()
         .filter(|l| l.controller != report.controller)
         .count();
+    let name = pick.choice.as_str();
     if !had_policy {
-        Some("no trained policy for this robot yet: validated with the classical path follower (rotate towards the next waypoint, then drive with proportional heading correction)".to_owned())
+        Some(format!(
+            "no trained policy for this robot yet: validated with the classical path follower `{name}`"
+        ))
     } else if fallback_legs > 0 {
         Some(format!(
-            "{} of {} legs validated with the classical path follower: no attempt with the policy validated them (see `legs`)",
+            "{} of {} legs validated with the classical path follower: no attempt with `{name}` validated them (see `legs`)",
             fallback_legs,
             report.legs.len()
+        ))
+    } else if !pick.choice.needs_policy() {
+        Some(format!(
+            "validated with the classical controller `{name}` rather than the policy: {}",
+            pick.why
         ))
     } else {
         None

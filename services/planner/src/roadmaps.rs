@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::controllers::ControllerTrial;
 use rehearsal::{EdgeReport, EdgeRolloutParams, EdgeStat};
 use serde::{Deserialize, Serialize};
 use sim::World;
@@ -191,6 +192,11 @@ pub struct StoredRoadmap {
     pub wall_s: f64,
     /// Every edge direction.
     pub edges: Vec<StoredEdge>,
+    /// The controllers driven over the same missions of this floor state, from which
+    /// `options.controller: auto` picks ([`crate::controllers`]); `None` in a roadmap stored
+    /// before trials were measured, or built without one.
+    #[serde(default)]
+    pub trial: Option<ControllerTrial>,
 }
 
 impl StoredRoadmap {
@@ -276,6 +282,16 @@ pub fn geometric_roadmap(
         .map_err(|e| e.to_string())
 }
 
+/// A stored policy-aware roadmap applied to its floor's geometric roadmap, with the trial of
+/// controllers stored beside it.
+#[derive(Debug, Clone)]
+pub struct AppliedRoadmap {
+    /// The policy-aware roadmap.
+    pub roadmap: Arc<planning::Roadmap>,
+    /// The controllers measured on the floor state, when they were.
+    pub trial: Option<Arc<ControllerTrial>>,
+}
+
 /// The stored roadmap of `key` applied to the geometric roadmap of `world`: `Ok(None)` when
 /// none is stored, an error when the stored one does not fit (another geometric roadmap).
 /// `with_unkept`: the complete policy-aware roadmap ([`rehearsal::reweight_with_unkept`], what
@@ -286,7 +302,7 @@ pub fn load_policy_roadmap(
     world: &Arc<World>,
     roadmaps: &rehearsal::RoadmapCache,
     with_unkept: bool,
-) -> Result<Option<Arc<planning::Roadmap>>, String> {
+) -> Result<Option<AppliedRoadmap>, String> {
     let Some(stored) = store.get(key) else {
         return Ok(None);
     };
@@ -309,6 +325,11 @@ pub fn load_policy_roadmap(
     } else {
         rehearsal::reweight(&geometric, &report)
     }
-    .map(Some)
+    .map(|roadmap| {
+        Some(AppliedRoadmap {
+            roadmap,
+            trial: stored.trial.map(Arc::new),
+        })
+    })
     .map_err(|e| e.to_string())
 }

@@ -15,7 +15,10 @@ use planner::{
     PolicyRoadmapKey, PolicyStore, RoadmapBuilds, RoadmapStore, SourceError, SourceFuture,
 };
 use planning::Point2;
-use rehearsal::{ControllerKind, PlanOptions, PlanRequest, RoadmapChoice, RoadmapKind};
+use rehearsal::{
+    ControllerChoice, ControllerKind, EdgeRolloutParams, PlanOptions, PlanRequest, RoadmapChoice,
+    RoadmapKind,
+};
 use sim::Pose2;
 
 const ROBOT: &str = "https://mentalsim.dev/data/robots/differential-robot";
@@ -145,6 +148,7 @@ fn query(start: Pose2, goal: Point2, options: PlanOptions) -> PlanQuery {
         },
         people: PlanPeople::AsGiven,
         policy: None,
+        controller: None,
     }
 }
 
@@ -166,8 +170,19 @@ async fn without_a_policy_the_follower_validates_and_the_note_says_why() {
         .await
         .unwrap();
     assert_eq!(outcome.report.controller, ControllerKind::Classical);
+    assert_eq!(outcome.controller.choice, ControllerChoice::Rpp);
+    assert!(outcome.controller.why.contains("no trained policy"));
     assert!(outcome.policy.is_none());
     assert!(outcome.note.unwrap().contains("no trained policy"));
+
+    // The hybrid needs a policy: asked for without one, the plan is refused, naming why.
+    let mut q = query(start, goal, options(1));
+    q.controller = Some(ControllerChoice::Hybrid);
+    let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
+    assert!(
+        matches!(e, PlanFailure::Unprocessable(ref m) if m.contains("`hybrid` drives a trained policy")),
+        "{e}"
+    );
     assert_eq!(outcome.floor, FLOOR0);
     assert!(outcome.people.is_none());
     assert!(
@@ -186,27 +201,42 @@ async fn the_robots_newest_policy_drives_and_its_roadmap_is_asked_for_once_missi
         let summary = serde_json::json!({"summary": {"robot": ROBOT, "created_ms": created}});
         learning::policy::write_goal_seeking_policy(&dir, 23, summary).unwrap();
     }
+    // `auto` before the policy was measured on this floor state: Regulated Pure Pursuit.
     let outcome = f
         .planner
         .plan(query(start, goal, options(2)), rehearsal::Stop::new())
         .await
         .unwrap();
     assert_eq!(outcome.policy.as_deref(), Some("newer"));
+    assert_eq!(outcome.report.controller, ControllerKind::Classical);
+    assert_eq!(outcome.controller.choice, ControllerChoice::Rpp);
+    assert!(
+        outcome.controller.why.contains("not been measured"),
+        "{}",
+        outcome.controller.why
+    );
+    // Asked for, the hybrid drives the newest policy.
+    let mut q = query(start, goal, options(2));
+    q.controller = Some(ControllerChoice::Hybrid);
+    let outcome = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap();
     assert_eq!(outcome.report.controller, ControllerKind::Policy);
     assert_eq!(outcome.report.roadmap.kind, RoadmapKind::Geometric);
+    // Each plan asks for the missing roadmap (the build service enqueues it once per key).
     let builds = f.builds.0.lock().unwrap().clone();
-    assert_eq!(builds.len(), 1, "{builds:?}");
-    assert_eq!(builds[0].policy, "newer");
-    assert_eq!(builds[0].floor_state, f.db.version);
+    assert_eq!(builds.len(), 2, "{builds:?}");
+    assert!(
+        builds
+            .iter()
+            .all(|k| k.policy == "newer" && k.floor_state == f.db.version),
+        "{builds:?}"
+    );
 
     // Only the policy-aware roadmap: refused while it is being built.
     let mut o = options(2);
     o.roadmap = RoadmapChoice::Policy;
-    let e = f
-        .planner
-        .plan(query(start, goal, o), rehearsal::Stop::new())
-        .await
-        .unwrap_err();
+    let mut q = query(start, goal, o);
+    q.controller = Some(ControllerChoice::Hybrid);
+    let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
     assert!(
         matches!(e, PlanFailure::RoadmapNotReady(ref m) if m.contains("job-1")),
         "{e}"
@@ -253,5 +283,121 @@ async fn what_does_not_exist_is_named() {
     assert!(
         matches!(e, PlanFailure::NotFound(ref m) if m.contains("F9")),
         "{e}"
+    );
+}
+
+/// `auto` with a stored trial: the controller the trial measured best, with its figures as the
+/// reason; the trial itself driven for real over the sample floor (every candidate, the same
+/// missions).
+#[tokio::test]
+async fn auto_validates_with_the_controller_the_floors_trial_measured_best() {
+    let f = fixture();
+    let (start, goal) = mission(&f.db);
+    let dir = f.policies.path().join("seeker");
+    std::fs::create_dir_all(&dir).unwrap();
+    let summary = serde_json::json!({"summary": {"robot": ROBOT, "created_ms": 1}});
+    learning::policy::write_goal_seeking_policy(&dir, 23, summary).unwrap();
+    let policy = Arc::new(learning::Policy::load(&dir).unwrap());
+
+    // What the `roadmap` job stores: the edges driven by the policy, then the trial.
+    let world = f.db.world().unwrap();
+    let margin = PlanOptions::default().safety_margin_m;
+    let params = EdgeRolloutParams {
+        rollouts: 1,
+        ..EdgeRolloutParams::default()
+    };
+    let geometric =
+        planner::roadmaps::geometric_roadmap(&world, f.planner.roadmaps(), &f.db.version, margin)
+            .unwrap();
+    let report = rehearsal::drive_edges(
+        &world,
+        &geometric,
+        || rehearsal::PolicyController::new(Arc::clone(&policy)),
+        &params,
+    )
+    .unwrap();
+    let policy_roadmap = rehearsal::reweight_with_unkept(&geometric, &report).unwrap();
+    let missions = planner::controllers::trial_missions(&geometric, 6, 7);
+    assert_eq!(missions.len(), 6);
+    let trial = planner::controllers::run_trial(
+        &planner::controllers::TrialFloor {
+            world: &world,
+            roadmaps: f.planner.roadmaps(),
+            version: &f.db.version,
+            policy: Some(&policy),
+            policy_roadmap: Some(&policy_roadmap),
+        },
+        &missions,
+        &sim::PeopleConfig::default(),
+        7,
+    )
+    .unwrap();
+    let names: Vec<&str> = trial
+        .candidates
+        .iter()
+        .map(|c| c.controller.as_str())
+        .collect();
+    assert_eq!(names, ["rpp", "mppi", "hybrid", "hybrid_rpp"]);
+    assert_eq!(trial.missions, 6);
+    for c in &trial.candidates {
+        // A challenger stops once it can no longer win; RPP, the first, drives every mission.
+        assert!(!c.runs.is_empty() && c.runs.len() <= 6, "{}", c.controller);
+        assert!(c.wall_ms_per_mission > 0.0);
+    }
+    assert_eq!(trial.figures(ControllerChoice::Rpp).unwrap().runs.len(), 6);
+    let rpp = trial.figures(ControllerChoice::Rpp).unwrap();
+    assert!(
+        rpp.reached() > 0,
+        "RPP reaches goals in the empty sample floor"
+    );
+    let key = PolicyRoadmapKey::new(
+        &f.db.version,
+        "seeker",
+        &dir,
+        margin,
+        &EdgeRolloutParams::default(),
+    )
+    .unwrap();
+    let expected = trial.pick(|_| true).unwrap();
+    f.planner
+        .policy_roadmaps()
+        .put(&planner::StoredRoadmap {
+            key,
+            nodes: geometric.nodes().count(),
+            nodes_fingerprint: planner::roadmaps::nodes_fingerprint(&geometric),
+            seed: params.seed,
+            wall_s: 0.0,
+            edges: report
+                .edges
+                .iter()
+                .map(planner::roadmaps::StoredEdge::from)
+                .collect(),
+            trial: Some(trial),
+        })
+        .unwrap();
+
+    let mut o = options(5);
+    o.people = sim::PeopleConfig::default();
+    let outcome = f
+        .planner
+        .plan(query(start, goal, o), rehearsal::Stop::new())
+        .await
+        .unwrap();
+    assert_eq!(outcome.controller, expected);
+    assert!(
+        outcome
+            .controller
+            .why
+            .starts_with("auto: measured on this floor state over")
+    );
+    let kind = if expected.choice.needs_policy() {
+        ControllerKind::Policy
+    } else {
+        ControllerKind::Classical
+    };
+    assert_eq!(outcome.report.controller, kind);
+    assert!(
+        f.builds.0.lock().unwrap().is_empty(),
+        "stored: no build asked"
     );
 }

@@ -236,6 +236,8 @@ class RosPath:
 
 
 RoadmapChoice: TypeAlias = Literal["auto", "policy", "geometric"]
+#: A controller by name, or ``auto`` (schema ``ControllerOption``).
+ControllerOption: TypeAlias = Literal["auto", "hybrid", "hybrid_rpp", "rpp", "mppi", "follower", "shielded_follower"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -273,6 +275,10 @@ class PlanOptions:
     #: Drive the validated plan again among this many fresh draws of the people, 0-20
     #: (default 0): how robust it is across crowds (``PeopleReport.draws``).
     people_draws: int | None = None
+    #: The controller that drives the rehearsal: ``"auto"`` (default: the one measured best on
+    #: the floor state), ``"hybrid"``, ``"hybrid_rpp"``, ``"rpp"``, ``"mppi"``, ``"follower"``
+    #: or ``"shielded_follower"``; ``PlanResult.controller_choice`` says which drove and why.
+    controller: ControllerOption | None = None
 
     def to_json(self) -> JsonObject:
         out: JsonObject = {}
@@ -442,6 +448,20 @@ class PeopleReport:
 
 
 @dataclass(frozen=True, slots=True)
+class ControllerChoice:
+    """The controller that validated a plan and why (schema ``ControllerChoiceReport``)."""
+
+    #: Its name (never ``auto``).
+    controller: str
+    #: Asked for, or ``auto``'s figures and verdict on the floor state.
+    why: str
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> ControllerChoice:
+        return cls(_str(d, "controller"), _str(d, "why"))
+
+
+@dataclass(frozen=True, slots=True)
 class PlanResult:
     """A plan validated in the mental simulation (schema ``PlanApiResponse``)."""
 
@@ -449,9 +469,11 @@ class PlanResult:
     robot: str
     #: The floor's IRI.
     floor: str
-    #: The policy that drove, if any.
+    #: The robot's policy, if it has one (it drove when ``controller_choice`` is a hybrid).
     policy: str | None
-    #: Why the classical follower was used, when it was.
+    #: The controller that validated the plan and why it was the one.
+    controller_choice: ControllerChoice
+    #: Why a classical controller was used, when one was.
     note: str | None
     service_ms: float
     #: The start and the waypoints as a ROS 2 ``nav_msgs/Path`` in the ``map`` frame.
@@ -484,6 +506,7 @@ class PlanResult:
             robot=_str(d, "robot"),
             floor=_str(d, "floor"),
             policy=_opt_str(d, "policy"),
+            controller_choice=ControllerChoice.from_json(_obj(d.get("controller_choice"), "controller_choice")),
             note=_opt_str(d, "note"),
             service_ms=_float(d, "service_ms"),
             path=RosPath.from_json(_obj(d.get("path"), "path")),

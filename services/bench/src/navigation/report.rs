@@ -147,7 +147,7 @@ pub(super) fn fallback_line(rows: &[NavigationRow]) -> Option<String> {
     let with = endpoint.iter().filter(|r| r.fallback_legs > 0).count();
     let legs: usize = endpoint.iter().map(|r| r.fallback_legs).sum();
     Some(format!(
-        "plan_endpoint: the classical follower validated {legs} leg(s) the policy could not, in {with} of {} runs ({:.0}%)",
+        "plan_endpoint: the classical follower validated {legs} leg(s) the picked controller could not, in {with} of {} runs ({:.0}%)",
         endpoint.len(),
         100.0 * with as f64 / endpoint.len() as f64
     ))
@@ -239,7 +239,7 @@ pub(super) fn to_markdown(
     );
     let _ = write!(s, "{}", opts.max_attempts);
     s.push_str(
-        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers: the same, then the classical follower (re-sampled too) when no policy attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy behind the shield straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt; `classical_prm_shielded` = the same behind the shield; `classical_rpp_shielded` = Nav2's Regulated Pure Pursuit and `classical_mppi_shielded` = Nav2's MPPI, each on the roadmap path smoothed as Nav2's Simple Smoother does, passing through the vertices, behind the same shield, first attempt (Nav2's documented defaults scaled to the robot, never tuned on these maps); `hybrid_policy_roadmap_rpp` = `hybrid_policy_roadmap` with Regulated Pure Pursuit as the follower the policy hands over to. Among people every method tries Nav2's recovery behaviours (wait, back up, spin, re-route around the blocked edge) when it moves less than 0.5 m in 10 s; in the empty building the waypoint timer and replanning alone, as before. Social metrics (Francis et al. 2023, HuNavSim): entries into a person's intimate (0.45 m) and personal (1.2 m) space, counted once per approach, and the time the robot stands still, each per 100 m driven over all runs (failed ones too). Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
+        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers with `options.controller: auto`: the controller the map's trial picks (below; a hybrid on the policy-aware roadmap), re-sampled likewise, then the classical follower (re-sampled too) when no attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy behind the shield straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt; `classical_prm_shielded` = the same behind the shield; `classical_rpp_shielded` = Nav2's Regulated Pure Pursuit and `classical_mppi_shielded` = Nav2's MPPI, each on the roadmap path smoothed as Nav2's Simple Smoother does, passing through the vertices, behind the same shield, first attempt (Nav2's documented defaults scaled to the robot, never tuned on these maps); `hybrid_policy_roadmap_rpp` = `hybrid_policy_roadmap` with Regulated Pure Pursuit as the follower the policy hands over to. Among people every method tries Nav2's recovery behaviours (wait, back up, spin, re-route around the blocked edge) when it moves less than 0.5 m in 10 s; in the empty building the waypoint timer and replanning alone, as before. Social metrics (Francis et al. 2023, HuNavSim): entries into a person's intimate (0.45 m) and personal (1.2 m) space, counted once per approach, and the time the robot stands still, each per 100 m driven over all runs (failed ones too). Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
     );
     s.push_str("The paper's Table 3 (Gazebo, one building, ~140 m): Move Base 141.04 m / 123.31 s / 100%; Constrained Move Base 140.21 m / 125.19 s, failure 26.87 m / 60%; Pure RL failure 14.7 m / 0%; Hybrid PRM-RL 149.71 m / 160.45 s, failure 102.4 m / 90%.\n\n");
 
@@ -298,6 +298,17 @@ pub(super) fn to_markdown(
                 100.0 * e.edge_success_rate,
                 e.steps,
                 e.build_s
+            );
+        }
+        s.push_str("\n## What `options.controller: auto` picks\n\nThe controller trial the `roadmap` job drives after the edges (`planner::controllers`): 16 missions between the geometric roadmap's nodes, each driven once by every candidate with the same seeds, among this run's people; a candidate replaces the classical pick only when it wins more missions and a one-sided sign test gives p < 0.05. `plan_endpoint` validates with this pick.\n\n| Map | Pick | Why | Trial (s) |\n|---|---|---|---|\n");
+        for e in edges {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.1} |",
+                e.map,
+                e.auto.choice.as_str(),
+                e.auto.why.replace('|', "/"),
+                e.trial_s
             );
         }
     }

@@ -114,6 +114,10 @@ pub struct RoadmapResult {
     pub safety_margin_m: f64,
     /// Build time, seconds.
     pub wall_s: f64,
+    /// What `options.controller: auto` validates with on this floor state from now on, from
+    /// the controller trial the job drove (absent with `trial_missions: 0`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller: Option<crate::plan::ControllerChoiceReport>,
     /// The stored file's name.
     pub file: Option<String>,
 }

@@ -51,6 +51,11 @@ pub struct RoadmapPayload {
     /// Success rate an edge direction needs to be kept [default: 0.9].
     #[serde(default)]
     pub keep_threshold: Option<f64>,
+    /// Missions of the controller trial driven after the edges (every candidate of
+    /// `options.controller: auto` over the same missions; 0: none, then `auto` validates with
+    /// Regulated Pure Pursuit) [default: 16, at most 200].
+    #[serde(default)]
+    pub trial_missions: Option<u32>,
 }
 
 impl RoadmapPayload {
@@ -74,6 +79,14 @@ impl RoadmapPayload {
         {
             return Err(PayloadError::Invalid(format!(
                 "payload.rollouts: must be in 1..={MAX_ROLLOUTS}, got {k}"
+            )));
+        }
+        if let Some(m) = self.trial_missions
+            && m > planner::controllers::MAX_TRIAL_MISSIONS
+        {
+            return Err(PayloadError::Invalid(format!(
+                "payload.trial_missions: must be in 0..={}, got {m}",
+                planner::controllers::MAX_TRIAL_MISSIONS
             )));
         }
         if let Some(t) = self.keep_threshold
@@ -160,6 +173,10 @@ impl JobHandler for RoadmapHandler {
             .ok_or_else(|| JobError::Fatal("the policy's weights cannot be read".into()))?;
         let roadmaps = Arc::clone(&self.env.roadmaps);
         let version = db.version.clone();
+        let trial_missions = payload
+            .trial_missions
+            .unwrap_or(planner::controllers::DEFAULT_TRIAL_MISSIONS)
+            as usize;
         let built = tokio::task::spawn_blocking(move || -> Result<StoredRoadmap, JobError> {
             let policy = Arc::new(
                 learning::Policy::load(&dir)
@@ -176,6 +193,28 @@ impl JobHandler for RoadmapHandler {
                 &params,
             )
             .map_err(|e| JobError::Fatal(e.to_string()))?;
+            // The controllers `auto` picks from, over the same missions, the hybrid on the
+            // roadmap just measured (as a plan with `roadmap: auto` would be).
+            let missions =
+                planner::controllers::trial_missions(&geometric, trial_missions, params.seed);
+            let trial = if missions.is_empty() {
+                None
+            } else {
+                let policy_roadmap = rehearsal::reweight_with_unkept(&geometric, &report)
+                    .map_err(|e| JobError::Fatal(e.to_string()))?;
+                let floor = planner::controllers::TrialFloor {
+                    world: &world,
+                    roadmaps: &roadmaps,
+                    version: &version,
+                    policy: Some(&policy),
+                    policy_roadmap: Some(&policy_roadmap),
+                };
+                let people = planner::knowledge_people(&world, None);
+                Some(
+                    planner::controllers::run_trial(&floor, &missions, &people, params.seed)
+                        .map_err(|e| JobError::Fatal(format!("the controller trial: {e}")))?,
+                )
+            };
             Ok(StoredRoadmap {
                 nodes: geometric.nodes().count(),
                 nodes_fingerprint: nodes_fingerprint(&geometric),
@@ -183,6 +222,7 @@ impl JobHandler for RoadmapHandler {
                 wall_s: started.elapsed().as_secs_f64(),
                 edges: report.edges.iter().map(StoredEdge::from).collect(),
                 key,
+                trial,
             })
         })
         .await
@@ -225,6 +265,11 @@ impl JobHandler for RoadmapHandler {
             keep_threshold: f64::from_bits(built.key.keep_bits),
             safety_margin_m: margin,
             wall_s: built.wall_s,
+            controller: built
+                .trial
+                .as_ref()
+                .and_then(|t| t.pick(|_| true))
+                .map(Into::into),
             file: path.file_name().map(|f| f.to_string_lossy().into_owned()),
         }))
     }

@@ -13,9 +13,9 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 pub use self::types::{
-    AttemptOutcome, AttemptReport, ControllerKind, LegReport, PeopleChoice, PeopleDraws,
-    PeopleMode, PeopleReport, PlanOptions, PlanReport, Point, Pose, RoadmapChoice, RoadmapInfo,
-    RoadmapKind, RosPath,
+    AttemptOutcome, AttemptReport, ControllerChoiceReport, ControllerKind, ControllerOption,
+    LegReport, PeopleChoice, PeopleDraws, PeopleMode, PeopleReport, PlanOptions, PlanReport, Point,
+    Pose, RoadmapChoice, RoadmapInfo, RoadmapKind, RosPath,
 };
 
 /// What a robot asks.
@@ -58,6 +58,7 @@ impl PlanApiRequest {
     /// knowledge's people at `people_hour`).
     pub fn into_query(self) -> Result<PlanQuery, String> {
         let goals = self.goals()?;
+        let controller = self.options.controller.choice();
         let people = match self.options.people {
             PeopleChoice::Named(PeopleMode::Auto) => PlanPeople::Expected {
                 hour: self.options.people_hour,
@@ -76,6 +77,7 @@ impl PlanApiRequest {
             request,
             people,
             policy: self.policy,
+            controller,
         })
     }
 }
@@ -87,10 +89,14 @@ pub struct PlanApiResponse {
     pub robot: String,
     /// The floor's IRI.
     pub floor: String,
-    /// The policy that drove the simulated robot, if any.
+    /// The robot's policy (the one named, else its newest), if it has one: it drove the
+    /// simulated robot when `controller_choice` is a hybrid.
     pub policy: Option<String>,
-    /// Why the classical follower was used, when it was: no policy yet, or legs no attempt
-    /// with the policy validated.
+    /// The controller that validated the plan and why it was the one (`options.controller`).
+    pub controller_choice: ControllerChoiceReport,
+    /// Why a classical controller validated the plan or some of its legs, when one did: no
+    /// policy yet, `auto` measured a classical one better, or legs no attempt with the picked
+    /// controller validated.
     pub note: Option<String>,
     /// Wall-clock time of the whole request in this service, milliseconds.
     pub service_ms: f64,
@@ -110,6 +116,7 @@ impl PlanApiResponse {
             robot,
             floor,
             policy,
+            controller,
             note,
             report,
             people,
@@ -122,6 +129,7 @@ impl PlanApiResponse {
             robot,
             floor,
             policy,
+            controller_choice: controller.into(),
             note,
             service_ms,
             path,

@@ -127,6 +127,83 @@ pub struct PlanOptions {
     /// robust it is across crowds (`people.draws`); 0-20, default 0. Ignored without people.
     #[schema(minimum = 0, maximum = 20)]
     pub people_draws: u32,
+    /// The controller that drives the rehearsal: `auto` (default: the one measured best on
+    /// this floor state, never one measurably worse than another available; Regulated Pure
+    /// Pursuit until the robot's policy has been measured there), `hybrid` (the policy, the
+    /// classical follower taking over near obstacles), `hybrid_rpp` (the policy, Regulated
+    /// Pure Pursuit taking over), `rpp` (Nav2's Regulated Pure Pursuit), `mppi` (Nav2's MPPI),
+    /// `follower` (the thesis's rotate-then-go follower) or `shielded_follower`. The answer's
+    /// `controller_choice` says which drove and why.
+    pub controller: ControllerOption,
+}
+
+/// A controller by name, or `auto`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ControllerOption {
+    /// The one measured best on the floor state.
+    #[default]
+    Auto,
+    /// The policy behind the shield, the classical follower taking over near obstacles.
+    Hybrid,
+    /// The policy behind the shield, Regulated Pure Pursuit taking over near obstacles.
+    HybridRpp,
+    /// Nav2's Regulated Pure Pursuit on the smoothed roadmap path, behind the shield.
+    Rpp,
+    /// Nav2's MPPI on the smoothed roadmap path, behind the shield.
+    Mppi,
+    /// The thesis's rotate-then-go follower (behind the shield among people).
+    Follower,
+    /// The rotate-then-go follower behind the shield.
+    ShieldedFollower,
+}
+
+impl ControllerOption {
+    /// The controller asked for; `None` for `auto`.
+    pub fn choice(self) -> Option<rehearsal::ControllerChoice> {
+        use rehearsal::ControllerChoice as C;
+        Some(match self {
+            ControllerOption::Auto => return None,
+            ControllerOption::Hybrid => C::Hybrid,
+            ControllerOption::HybridRpp => C::HybridRpp,
+            ControllerOption::Rpp => C::Rpp,
+            ControllerOption::Mppi => C::Mppi,
+            ControllerOption::Follower => C::Follower,
+            ControllerOption::ShieldedFollower => C::ShieldedFollower,
+        })
+    }
+}
+
+impl From<rehearsal::ControllerChoice> for ControllerOption {
+    fn from(c: rehearsal::ControllerChoice) -> Self {
+        use rehearsal::ControllerChoice as C;
+        match c {
+            C::Hybrid => ControllerOption::Hybrid,
+            C::HybridRpp => ControllerOption::HybridRpp,
+            C::Rpp => ControllerOption::Rpp,
+            C::Mppi => ControllerOption::Mppi,
+            C::Follower => ControllerOption::Follower,
+            C::ShieldedFollower => ControllerOption::ShieldedFollower,
+        }
+    }
+}
+
+/// The controller that validated a plan, and why it was the one.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ControllerChoiceReport {
+    /// The controller (never `auto`; legs its fallback validated say so in `legs`).
+    pub controller: ControllerOption,
+    /// Why: asked for, or `auto`'s figures and verdict on this floor state.
+    pub why: String,
+}
+
+impl From<planner::ControllerPick> for ControllerChoiceReport {
+    fn from(p: planner::ControllerPick) -> Self {
+        Self {
+            controller: p.choice.into(),
+            why: p.why,
+        }
+    }
 }
 
 /// Who walks about in a rehearsal: `"auto"`, `"none"` or people per 100 m² of free region.
@@ -329,6 +406,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             trace,
             people_hour: None,
             people_draws,
+            controller: ControllerOption::Auto,
             // Nobody by the executor's default is the API's `auto` (the knowledge's people).
             people: if people.any() {
                 PeopleChoice::Density(people.density)
@@ -356,6 +434,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             people,
             people_hour: _,
             people_draws,
+            controller: _,
         } = o;
         Self {
             max_attempts,
