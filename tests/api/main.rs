@@ -7,6 +7,7 @@
 
 mod bounds;
 mod console;
+mod fleet;
 mod health;
 mod helpers;
 mod jobs;

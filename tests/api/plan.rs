@@ -7,7 +7,7 @@ use serde_json::{Value, json};
 
 use crate::helpers::{TestApp, spawn_app};
 
-async fn plan(app: &TestApp, body: &Value) -> (u16, Value) {
+pub(crate) async fn plan(app: &TestApp, body: &Value) -> (u16, Value) {
     let r = app
         .request(Method::POST, "/v1/plan")
         .json(body)
@@ -19,7 +19,7 @@ async fn plan(app: &TestApp, body: &Value) -> (u16, Value) {
 }
 
 /// The centroid of a place's boundary, from the browsing API.
-async fn centroid(app: &TestApp, place: &str) -> (f64, f64) {
+pub(crate) async fn centroid(app: &TestApp, place: &str) -> (f64, f64) {
     let r = app
         .request(Method::GET, &format!("/v1/places/{place}"))
         .send()
@@ -35,7 +35,7 @@ async fn centroid(app: &TestApp, place: &str) -> (f64, f64) {
 }
 
 /// A point the robot may stand on near `(x, y)`: the service's own nearest-free hint.
-async fn free_near(app: &TestApp, (x, y): (f64, f64)) -> (f64, f64) {
+pub(crate) async fn free_near(app: &TestApp, (x, y): (f64, f64)) -> (f64, f64) {
     let (status, body) = plan(
         app,
         &json!({"robot": "R-001", "place": "F0", "start": {"x": x, "y": y}, "goal": {"x": x, "y": y}}),
@@ -897,10 +897,19 @@ async fn a_validate_job_answers_what_the_plan_endpoint_answers() {
     let done = finished_job(&app, &id).await;
     assert_eq!(done["state"], "succeeded", "{done}");
     let mut validated = done["result"].clone();
-    // Only the wall-clock time and the roadmap cache's state may differ.
+    // A job checks the plan against the fleet but never commits it (a rehearsal, not an
+    // order): the plan endpoint's answer is committed.
+    assert_eq!(answered["schedule"]["committed"], true, "{answered}");
+    assert_eq!(validated["schedule"]["committed"], false, "{validated}");
+    // Only the wall-clock time, the roadmap cache's state and the schedule (its id and times:
+    // the path's stamps) may differ.
     for v in [&mut answered, &mut validated] {
         v.as_object_mut().unwrap().remove("service_ms");
+        v.as_object_mut().unwrap().remove("schedule");
         v["roadmap"].as_object_mut().unwrap().remove("cached");
+        for pose in v["path"]["poses"].as_array_mut().unwrap() {
+            pose["header"].as_object_mut().unwrap().remove("stamp");
+        }
     }
     assert_eq!(validated, answered);
 }

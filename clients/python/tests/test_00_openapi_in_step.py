@@ -100,6 +100,11 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         people_hour=12,
         people_draws=2,
         controller="mppi",
+        commit=False,
+        start_time_ms=1_800_000_000_000,
+        tolerance_s=3.0,
+        max_wait_s=60.0,
+        hold_s=10.0,
     )
     config = {"td3": {"hidden": [16, 16]}}
     return {
@@ -133,6 +138,9 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         "plan_recording": lambda c: c.plan_recording("R-001", "F0", (0.5, -2.0, 1.57), (-12.0, -1.0), options=options),
         "roadmap": lambda c: c.roadmap("F0", "R-001", policy="p-1", safety_margin_m=0.2),
         "route_graph": lambda c: c.route_graph("F0", "R-001", policy="p-1"),
+        "traffic": lambda c: c.traffic("F0", "R-001"),
+        "cancel_plan": lambda c: c.cancel_plan("plan-1"),
+        "report_progress": lambda c: c.report_progress("plan-1", 1.0, 2.0, time_ms=5),
         "submit_job": lambda c: c.submit_job("train", {"robot": "R-001", "place": "F0", "minutes": 1}, priority=3, max_attempts=2),
         "submit_training": lambda c: c.submit_training("R-001", "F0", 0.5, config=config, seed=3, priority=1, max_attempts=1),
         "submit_evaluation": lambda c: c.submit_evaluation("p-1", "F0", episodes=4, seed=2, robot="R-001", goals_in_view=False, priority=1, max_attempts=1),

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from conftest import CLIENT_DIR, TOKENS, Service, read_pgm
 
-from mentalsim_client import Client, PlanOptions, Point, Roadmap
+from mentalsim_client import Client, MentalsimError, PlanOptions, Point, Roadmap
 
 
 def far_apart(roadmap: Roadmap) -> tuple[Point, Point]:
@@ -182,3 +182,24 @@ def test_a_plan_among_people_says_how_close_they_came(robot: Client, kitchen: st
     # The empty building: nothing about people.
     empty = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal, options=PlanOptions(people="none", seed=3))
     assert empty.people is None and all(a.min_person_clearance_m is None for a in empty.attempts)
+
+
+def test_a_plan_takes_its_place_in_the_floors_traffic(robot: Client, engineer: Client, kitchen: str, mission: tuple[Point, Point]) -> None:
+    start, goal = mission
+    plan = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal, options=PlanOptions(seed=5, people="none", tolerance_s=1.5))
+    s = plan.schedule
+    assert s is not None and s.committed and s.tolerance_s == 1.5
+    assert len(s.waypoint_times_ms) == len(plan.waypoints)
+    assert s.waypoint_times_ms == sorted(s.waypoint_times_ms) and s.waypoint_times_ms[0] >= s.start_time_ms
+    # The ROS path carries the schedule's times.
+    assert all(p.stamp_ms is not None for p in plan.path.poses)
+    committed = robot.traffic(kitchen, "R-001")
+    assert [p.plan_id for p in committed.plans if p.robot.endswith("differential-robot")] == [s.plan_id]
+    # Still at its start 5 s after setting off: the rest of its schedule shifts.
+    late = engineer.report_progress(s.plan_id, start.x, start.y, time_ms=s.start_time_ms + 5000)
+    assert late.plan_id == s.plan_id and late.delay_s > 0
+    assert engineer.cancel_plan(s.plan_id).plan_id == s.plan_id
+    assert all(p.plan_id != s.plan_id for p in robot.traffic(kitchen, "R-001").plans)
+    with pytest.raises(MentalsimError) as gone:
+        engineer.cancel_plan(s.plan_id)
+    assert gone.value.status == 404

@@ -33,9 +33,9 @@ use worker::jobs::{EvaluatePayload, JobEnv, JobKind, PayloadError, TrainPayload}
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
-    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph),
+    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph, crate::traffic::floor_traffic, crate::traffic::cancel_plan, crate::traffic::report_progress),
     components(
-        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, worker::jobs::RoadmapPayload, worker::jobs::JobResult, worker::jobs::TrainResult, worker::jobs::EvaluateResult, worker::jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, worker::plan::types::PlanApiRequestDoc, worker::plan::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView),
+        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, worker::jobs::RoadmapPayload, worker::jobs::JobResult, worker::jobs::TrainResult, worker::jobs::EvaluateResult, worker::jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, worker::plan::types::PlanApiRequestDoc, worker::plan::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, traffic::Itinerary, traffic::TimedPose),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
@@ -160,7 +160,8 @@ pub fn router(state: Arc<JobsApi>) -> Router {
         .route("/v1/policies/{id}/policy.safetensors", get(policy_weights))
         .route("/v1/policies/{id}/policy.json", get(policy_metadata))
         .with_state(Arc::clone(&state))
-        .merge(crate::plan::router(state))
+        .merge(crate::plan::router(Arc::clone(&state)))
+        .merge(crate::traffic::router(state))
 }
 
 impl JobsApi {

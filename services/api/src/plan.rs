@@ -57,7 +57,7 @@ fn wants_recording(headers: &HeaderMap) -> Result<bool, ApiError> {
 }
 
 /// A planner's refusal as the API answers it.
-fn plan_failure(e: PlanFailure) -> ApiError {
+pub(crate) fn plan_failure(e: PlanFailure) -> ApiError {
     match e {
         PlanFailure::BadRequest(m) => ApiError::new(ErrorCode::BadRequest, m),
         PlanFailure::NotFound(m) => ApiError::new(ErrorCode::NotFound, m),
@@ -67,6 +67,11 @@ fn plan_failure(e: PlanFailure) -> ApiError {
         PlanFailure::PolicyRoadmapUnreachable(ref p) => {
             ApiError::new(ErrorCode::Conflict, e.to_string()).with_details(p.details())
         }
+        PlanFailure::FleetConflict(f) => ApiError::new(ErrorCode::Conflict, f.message)
+            .with_details(serde_json::json!({
+                "robots": f.robots,
+                "earliest_start_ms": f.earliest_start_unix_ms,
+            })),
         PlanFailure::Plan(p) => p.to_api_error(),
         PlanFailure::Internal(m) => ApiError::internal(m),
     }
@@ -83,7 +88,7 @@ fn plan_failure(e: PlanFailure) -> ApiError {
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, response = edge::error::responses::Forbidden),
         (status = 404, description = "Unknown robot, place or policy", body = edge::ErrorBody),
-        (status = 409, description = "No attempt could validate the plan (the attempts are in the details), or `options.roadmap` is `policy` and the policy-aware roadmap is not built yet or joins no leg", body = edge::ErrorBody),
+        (status = 409, description = "No attempt could validate the plan (the attempts are in the details); `options.roadmap` is `policy` and the policy-aware roadmap is not built yet or joins no leg; or the plan conflicts with other robots' committed plans and no wait within `options.max_wait_s` resolves it (details: `robots` in the way, `earliest_start_ms` that fits)", body = edge::ErrorBody),
         (status = 406, description = "The request's `Accept` takes neither JSON nor MCAP (the answer's forms).", body = edge::ErrorBody),
         (status = 413, response = edge::error::responses::PayloadTooLarge),
         (status = 415, response = edge::error::responses::UnsupportedMediaType),

@@ -10,11 +10,13 @@
 //!
 //! - [`controllers`]: which controller validates a plan (`auto`: the one measured best on the
 //!   floor state, never one measurably worse than another available);
+//! - [`fleet`]: the plan among the other robots' committed plans (waits, the commit);
 //! - [`floor`]: the on-demand database of a floor and the world made from it;
 //! - [`policies`]: exported policies on disk and their summaries;
 //! - [`roadmaps`]: stored policy-aware roadmaps.
 
 pub mod controllers;
+pub mod fleet;
 pub mod floor;
 pub mod policies;
 pub mod roadmaps;
@@ -29,6 +31,7 @@ use rehearsal::{ControllerChoice, PlanError, PlanRequest, RoadmapCache, RoadmapC
 use sim::World;
 
 pub use controllers::{ControllerPick, ControllerTrial};
+pub use fleet::{FleetOptions, FleetOutcome, FleetSchedule, NoFit};
 pub use floor::{FloorDatabase, KnowledgeSource, SourceError, SourceFuture};
 pub use policies::{HeldOutEval, PolicyEntry, PolicyStore, PolicySummary};
 pub use roadmaps::{AppliedRoadmap, PolicyRoadmapKey, RoadmapStore, StoredRoadmap};
@@ -63,6 +66,8 @@ pub struct PlanQuery {
     /// The controller to validate with; `None`: `auto`, the one measured best on the floor
     /// state ([`controllers`]).
     pub controller: Option<ControllerChoice>,
+    /// How the plan takes part in the floor's traffic schedule.
+    pub fleet: FleetOptions,
 }
 
 /// Where a plan's people came from.
@@ -120,6 +125,9 @@ pub struct PlanOutcome {
     pub controller: ControllerPick,
     /// Why a classical controller validated the plan or some of its legs, when one did.
     pub note: Option<String>,
+    /// The plan in the floor's traffic schedule (its times, waits and commit); `None` where
+    /// the planner has no schedule.
+    pub fleet: Option<FleetOutcome>,
     /// The executor's report.
     pub report: rehearsal::PlanReport,
     /// How the plan fared among people, when there were any.
@@ -146,6 +154,10 @@ pub enum PlanFailure {
     /// `roadmap: policy` and the policy-aware roadmap is not built yet, or cannot be read.
     #[error("{0}")]
     RoadmapNotReady(String),
+    /// The plan conflicts with other robots' committed plans and no wait within the budget
+    /// resolves it.
+    #[error("{}", .0.message)]
+    FleetConflict(NoFit),
     /// `roadmap: policy` and no edge the policy drives joins a leg.
     #[error(
         "on the policy-aware roadmap: {0} (no edge the policy drives joins them; `options.roadmap`: `auto` falls back to the geometric roadmap)"
@@ -208,6 +220,8 @@ pub struct Planner {
     roadmaps: Arc<RoadmapCache>,
     policy_roadmaps: RoadmapStore,
     builds: Arc<dyn RoadmapBuilds>,
+    /// The fleet's traffic schedule, when plans take part in one.
+    fleet: Option<Arc<dyn FleetSchedule>>,
     /// Loaded policies by id, with the modification time of the weights they were read from.
     loaded: Mutex<HashMap<String, (SystemTime, LoadedPolicy)>>,
     applied: Arc<Applied>,
@@ -238,9 +252,17 @@ impl Planner {
             roadmaps,
             policy_roadmaps,
             builds,
+            fleet: None,
             loaded: Mutex::new(HashMap::new()),
             applied: Arc::default(),
         }
+    }
+
+    /// The planner with plans checked against, and committed to, `fleet`.
+    #[must_use]
+    pub fn with_fleet(mut self, fleet: Arc<dyn FleetSchedule>) -> Self {
+        self.fleet = Some(fleet);
+        self
     }
 
     /// The policies it drives with.
@@ -309,6 +331,7 @@ impl Planner {
             people,
             policy,
             controller,
+            fleet,
         } = query;
         request.stop = stop;
         let db = self.knowledge.floor_database(&place, &robot).await?;
@@ -375,7 +398,15 @@ impl Planner {
                 .await
                 .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
         let note = note(policy_id.is_some(), &pick, &report);
+        let fleet = match &self.fleet {
+            Some(schedule) => Some(
+                self.among_the_fleet(schedule.as_ref(), &db, &world, &report, &fleet)
+                    .await?,
+            ),
+            None => None,
+        };
         Ok(PlanOutcome {
+            fleet,
             robot: db.robot.clone(),
             floor: db.floor.clone(),
             policy: policy_id,
@@ -385,6 +416,92 @@ impl Planner {
             people,
             world,
         })
+    }
+
+    /// The validated plan among the other robots' committed plans on its floor: fitted with
+    /// waits ([`fleet::fit`]) and committed against the version it was checked against (a
+    /// commit that lost the race is checked again, a few times).
+    async fn among_the_fleet(
+        &self,
+        schedule: &dyn FleetSchedule,
+        db: &FloorDatabase,
+        world: &World,
+        report: &rehearsal::PlanReport,
+        options: &FleetOptions,
+    ) -> Result<FleetOutcome, PlanFailure> {
+        let now = schedule.now_ms();
+        let start = options.start_unix_ms.unwrap_or(now);
+        let template = traffic::Itinerary {
+            plan_id: fleet::plan_id(&db.robot, now),
+            robot: db.robot.clone(),
+            floor: db.floor.clone(),
+            start_unix_ms: start,
+            trajectory: Vec::new(),
+            radius_m: world.spec().robot.footprint_radius,
+            tolerance_s: options.tolerance_s,
+            expires_unix_ms: start + (options.hold_s * 1000.0).round() as i64,
+            delay_s: 0.0,
+        };
+        for _ in 0..5 {
+            let (version, committed) = schedule
+                .snapshot(&db.floor)
+                .await
+                .map_err(PlanFailure::Unavailable)?;
+            let others: Vec<traffic::Itinerary> = committed
+                .into_iter()
+                .filter(|i| i.robot != db.robot)
+                .collect();
+            let (itinerary, at_steps, waits) = fleet::fit(
+                &template,
+                &report.steps,
+                report.control_period_s,
+                &report.waypoints,
+                &others,
+                options.max_wait_s,
+            )
+            .map_err(PlanFailure::FleetConflict)?;
+            let time_at = |k: usize| {
+                let waited: f64 = waits
+                    .iter()
+                    .filter(|(i, _, _)| *i < k)
+                    .map(|(_, s, _)| s)
+                    .sum();
+                start + ((k as f64 * report.control_period_s + waited) * 1000.0).round() as i64
+            };
+            let waits: Vec<fleet::Wait> = waits
+                .iter()
+                .map(|(k, s, robots)| fleet::Wait {
+                    waypoint: at_steps.iter().position(|a| a == k).filter(|_| *k > 0),
+                    wait_s: *s,
+                    not_before_unix_ms: time_at(*k) + (s * 1000.0).round() as i64,
+                    for_robots: robots.clone(),
+                })
+                .collect();
+            let waypoint_times_unix_ms = at_steps.iter().map(|&k| time_at(k)).collect();
+            let version = if options.commit {
+                match schedule
+                    .commit(itinerary.clone(), version)
+                    .await
+                    .map_err(PlanFailure::Unavailable)?
+                {
+                    fleet::Committed::Yes(v) => Some(v),
+                    fleet::Committed::VersionChanged => continue,
+                }
+            } else {
+                None
+            };
+            return Ok(FleetOutcome {
+                itinerary,
+                waypoint_times_unix_ms,
+                waits,
+                others: others.len(),
+                version,
+            });
+        }
+        Err(PlanFailure::Unavailable(
+            "the floor's traffic schedule kept changing while this plan was committed; retry"
+                .to_owned(),
+        ))
     }
 
     /// The policy `id`, loaded again only when its weights file changed.
@@ -442,6 +559,7 @@ fn check_bounds(query: &PlanQuery) -> Result<(), PlanFailure> {
             "`options.people_hour` is an hour of day in [0, 23], got {h}"
         )));
     }
+    query.fleet.check().map_err(PlanFailure::BadRequest)?;
     rehearsal::check_request(&query.request).map_err(PlanFailure::Plan)
 }
 

@@ -149,6 +149,7 @@ fn query(start: Pose2, goal: Point2, options: PlanOptions) -> PlanQuery {
         people: PlanPeople::AsGiven,
         policy: None,
         controller: None,
+        fleet: planner::FleetOptions::default(),
     }
 }
 

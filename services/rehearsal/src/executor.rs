@@ -422,6 +422,7 @@ fn validate_inner(
         attempts,
         roadmap,
     );
+    report.control_period_s = drivers[0].env.control_period;
     report.people_draws = draws;
     if opts.trace {
         let laser = &world.spec().robot.laser;
@@ -604,6 +605,8 @@ fn assemble(
         attempts,
         laser: None,
         people_draws: None,
+        steps: trajectory,
+        control_period_s: EnvConfig::default().control_period,
     }
 }
 

@@ -234,6 +234,12 @@ pub struct PlanReport {
     /// The validated plan driven again among fresh draws of people, when
     /// [`PlanOptions::people_draws`] asked for it.
     pub people_draws: Option<DrawsReport>,
+    /// The validating runs' poses at every control step, leg after leg, from the start at
+    /// 0 s: pose `k` is where the simulated robot was at `k · control_period_s` (what a
+    /// traffic schedule commits), whatever `trajectory_stride` thins `trajectory` to.
+    pub steps: Vec<Pose2>,
+    /// The control period of `steps`, seconds.
+    pub control_period_s: f64,
 }
 
 /// The validated plan driven again among fresh draws of people.

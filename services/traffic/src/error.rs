@@ -65,6 +65,7 @@ pub enum TrafficError {
         known: i64,
     },
     /// The database failed.
+    #[cfg(feature = "store")]
     #[error("traffic schedule in {url}: {source}")]
     Database {
         /// The database URL (password removed).

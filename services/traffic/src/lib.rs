@@ -19,15 +19,20 @@
     clippy::cast_possible_wrap
 )]
 
+#[cfg(feature = "store")]
 mod change;
 mod conflict;
 mod error;
 mod itinerary;
+#[cfg(feature = "store")]
 mod progress;
+#[cfg(feature = "store")]
 mod schedule;
 
+#[cfg(feature = "store")]
 pub use change::{Change, Removal};
 pub use conflict::{Conflict, conflicts, first_conflict};
 pub use error::TrafficError;
 pub use itinerary::{Itinerary, MAX_HORIZON_S, MAX_NAME_BYTES, MAX_POSES, TimedPose};
+#[cfg(feature = "store")]
 pub use schedule::Schedule;

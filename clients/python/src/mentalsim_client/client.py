@@ -23,6 +23,8 @@ from ._operations import OPERATIONS, Operation
 from .errors import MentalsimError
 from .models import (
     Colour,
+    FloorTraffic,
+    Itinerary,
     ImportedMap,
     Job,
     JobEvent,
@@ -549,6 +551,26 @@ class Client:
     def route_graph(self, place: str, robot: str, *, policy: str | None = None) -> JsonObject:
         """That roadmap as Nav2 Route Server's GeoJSON graph (a ``FeatureCollection``)."""
         return self._object("route_graph", path={"id": place}, query={"robot": robot, "policy": policy})
+
+    # ---- the fleet's traffic schedule ----
+
+    def traffic(self, place: str, robot: str | None = None) -> FloorTraffic:
+        """Every plan committed on the floor ``place`` is on, now (``place`` a floor's IRI, or a
+        place with ``robot`` to find its floor)."""
+        return FloorTraffic.from_json(self._object("floor_traffic", path={"id": place}, query={"robot": robot}))
+
+    def cancel_plan(self, plan_id: str) -> Itinerary:
+        """Cancels a committed plan (its robot's token, or an engineer's): the robot's place in
+        the schedule is freed at once. Answers the plan as it was committed."""
+        return Itinerary.from_json(self._object("cancel_plan", path={"id": plan_id}))
+
+    def report_progress(self, plan_id: str, x: float, y: float, *, time_ms: int | None = None) -> Itinerary:
+        """Reports where the plan's robot is (at ``time_ms``, default now): the rest of its
+        schedule shifts by its observed delay (``Itinerary.delay_s``)."""
+        body: JsonObject = {"x": x, "y": y}
+        if time_ms is not None:
+            body["time_ms"] = time_ms
+        return Itinerary.from_json(self._object("report_progress", path={"id": plan_id}, json_body=body))
 
     # ---- jobs ----
 

@@ -171,6 +171,10 @@ class RosPoseStamped:
     qy: float
     qz: float
     qw: float
+    #: When the plan has the robot at this pose (a pose it waits at: when it may go on), ms
+    #: since the Unix epoch, from the header's ``builtin_interfaces/Time`` stamp; ``None``
+    #: without a schedule.
+    stamp_ms: int | None = None
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> RosPoseStamped:
@@ -178,6 +182,10 @@ class RosPoseStamped:
         pose = _obj(d.get("pose"), "pose")
         position = _obj(pose.get("position"), "position")
         q = _obj(pose.get("orientation"), "orientation")
+        stamp = header.get("stamp")
+        stamp_ms = None
+        if isinstance(stamp, dict):
+            stamp_ms = _int(stamp, "sec") * 1000 + _int(stamp, "nanosec") // 1_000_000
         return cls(
             _str(header, "frame_id"),
             _float(position, "x"),
@@ -187,6 +195,7 @@ class RosPoseStamped:
             _float(q, "y"),
             _float(q, "z"),
             _float(q, "w"),
+            stamp_ms,
         )
 
     @property
@@ -199,8 +208,11 @@ class RosPoseStamped:
 
     def to_ros(self) -> JsonObject:
         """The message as ROS JSON (rosbridge, ``ros2 topic pub``)."""
+        header: JsonObject = {"frame_id": self.frame_id}
+        if self.stamp_ms is not None:
+            header["stamp"] = {"sec": self.stamp_ms // 1000, "nanosec": (self.stamp_ms % 1000) * 1_000_000}
         return {
-            "header": {"frame_id": self.frame_id},
+            "header": header,
             "pose": {
                 "position": {"x": self.x, "y": self.y, "z": self.z},
                 "orientation": {"x": self.qx, "y": self.qy, "z": self.qz, "w": self.qw},
@@ -279,6 +291,16 @@ class PlanOptions:
     #: the floor state), ``"hybrid"``, ``"hybrid_rpp"``, ``"rpp"``, ``"mppi"``, ``"follower"``
     #: or ``"shielded_follower"``; ``PlanResult.controller_choice`` says which drove and why.
     controller: ControllerOption | None = None
+    #: Commit the plan to the floor's traffic schedule (default true); false only checks it.
+    commit: bool | None = None
+    #: When the robot sets off, ms since the Unix epoch (default: now).
+    start_time_ms: int | None = None
+    #: How early or late the robot may be on its schedule, seconds, 0-3600 (default 2).
+    tolerance_s: float | None = None
+    #: Most waiting for other robots the plan may take, seconds, 0-3600 (default 120).
+    max_wait_s: float | None = None
+    #: How long the robot is held at its last goal after arriving, seconds (default 30).
+    hold_s: float | None = None
 
     def to_json(self) -> JsonObject:
         out: JsonObject = {}
@@ -462,6 +484,110 @@ class ControllerChoice:
 
 
 @dataclass(frozen=True, slots=True)
+class PlanWait:
+    """A wait in a plan so that other robots can pass (schema ``PlanWait``)."""
+
+    #: The waypoint waited at (index into ``PlanResult.waypoints``); ``None``: at the start.
+    waypoint: int | None
+    wait_s: float
+    #: When the robot may go on, ms since the Unix epoch.
+    not_before_ms: int
+    #: The robots it lets pass (IRIs).
+    for_robots: list[str]
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> PlanWait:
+        w = d.get("waypoint")
+        return cls(
+            None if w is None else int(w),
+            _float(d, "wait_s"),
+            _int(d, "not_before_ms"),
+            [str(r) for r in _list(d.get("for_robots"), "for_robots")],
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PlanSchedule:
+    """A plan in the floor's traffic schedule (schema ``PlanSchedule``)."""
+
+    #: ``Client.cancel_plan`` and ``Client.report_progress`` take it.
+    plan_id: str
+    committed: bool
+    version: int | None
+    #: When the robot sets off (after any wait at the start), ms since the Unix epoch.
+    start_time_ms: int
+    #: When the robot reaches each waypoint, ms since the Unix epoch.
+    waypoint_times_ms: list[int]
+    waits: list[PlanWait]
+    others_checked: int
+    tolerance_s: float
+    expires_ms: int
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> PlanSchedule:
+        v = d.get("version")
+        return cls(
+            _str(d, "plan_id"),
+            _bool(d, "committed"),
+            None if v is None else int(v),
+            _int(d, "start_time_ms"),
+            [int(t) for t in _list(d.get("waypoint_times_ms"), "waypoint_times_ms")],
+            [PlanWait.from_json(_obj(w, "waits[]")) for w in _list(d.get("waits"), "waits")],
+            _int(d, "others_checked"),
+            _float(d, "tolerance_s"),
+            _int(d, "expires_ms"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Itinerary:
+    """A robot's committed plan as the schedule holds it (schema ``Itinerary``)."""
+
+    plan_id: str
+    robot: str
+    floor: str
+    start_unix_ms: int
+    #: ``{"t_s", "x", "y", "yaw"}`` per pose, ``t_s`` after the start.
+    trajectory: list[JsonObject]
+    radius_m: float
+    tolerance_s: float
+    expires_unix_ms: int
+    #: How late the robot is (its progress reports), seconds.
+    delay_s: float
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> Itinerary:
+        return cls(
+            _str(d, "plan_id"),
+            _str(d, "robot"),
+            _str(d, "floor"),
+            _int(d, "start_unix_ms"),
+            [_obj(p, "trajectory[]") for p in _list(d.get("trajectory"), "trajectory")],
+            _float(d, "radius_m"),
+            _float(d, "tolerance_s"),
+            _int(d, "expires_unix_ms"),
+            _float(d, "delay_s"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class FloorTraffic:
+    """Every plan committed on a floor now (schema ``FloorTraffic``)."""
+
+    floor: str
+    version: int
+    plans: list[Itinerary]
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> FloorTraffic:
+        return cls(
+            _str(d, "floor"),
+            _int(d, "version"),
+            [Itinerary.from_json(_obj(p, "plans[]")) for p in _list(d.get("plans"), "plans")],
+        )
+
+
+@dataclass(frozen=True, slots=True)
 class PlanResult:
     """A plan validated in the mental simulation (schema ``PlanApiResponse``)."""
 
@@ -499,6 +625,8 @@ class PlanResult:
     raw: JsonObject = field(repr=False, compare=False)
     #: Who walked about in the rehearsal; ``None`` when nobody did.
     people: PeopleReport | None = None
+    #: The plan in the floor's traffic schedule; ``None`` where the service keeps none.
+    schedule: PlanSchedule | None = None
 
     @classmethod
     def from_json(cls, d: JsonObject) -> PlanResult:
@@ -527,6 +655,7 @@ class PlanResult:
             laser=_opt_obj(d, "laser"),
             raw=d,
             people=None if d.get("people") is None else PeopleReport.from_json(_obj(d["people"], "people")),
+            schedule=None if d.get("schedule") is None else PlanSchedule.from_json(_obj(d["schedule"], "schedule")),
         )
 
 

@@ -9,6 +9,7 @@
 
 pub mod builds;
 pub mod evaluate;
+pub mod fleet;
 pub mod results;
 pub mod roadmap;
 pub mod source;
@@ -23,6 +24,7 @@ use serde_json::Value;
 
 pub use builds::QueueRoadmapBuilds;
 pub use evaluate::{EvaluateHandler, EvaluatePayload};
+pub use fleet::QueueFleet;
 pub use planner::{PolicyRoadmapKey, PolicyStore, RoadmapStore};
 use queue::{JobError, LazyQueue, Worker};
 pub use results::{EvaluateResult, JobResult, RoadmapResult, TrainResult};
@@ -113,6 +115,8 @@ pub struct JobEnv {
     pub policy_roadmaps: RoadmapStore,
     /// The plan use case: `validate` jobs and `POST /v1/plan` call it alike.
     pub planner: Arc<planner::Planner>,
+    /// The fleet's traffic schedule the planner commits plans to.
+    pub fleet: Arc<QueueFleet>,
     /// The free-space reserve of the disk checkpoints and policies go to: a training whose
     /// disk has less stops at once and goes back to the queue until there is room.
     pub disk: Option<edge::disk::DiskWatch>,
@@ -150,13 +154,17 @@ impl JobEnv {
         let policies = PolicyStore::new(dirs.policies);
         let roadmaps = Arc::new(rehearsal::RoadmapCache::default());
         let policy_roadmaps = RoadmapStore::new(dirs.roadmaps);
-        let planner = Arc::new(planner::Planner::new(
-            Arc::clone(&knowledge),
-            policies.clone(),
-            Arc::clone(&roadmaps),
-            policy_roadmaps.clone(),
-            Arc::new(QueueRoadmapBuilds::new(queue)),
-        ));
+        let fleet = Arc::new(QueueFleet::new(Arc::clone(&queue)));
+        let planner = Arc::new(
+            planner::Planner::new(
+                Arc::clone(&knowledge),
+                policies.clone(),
+                Arc::clone(&roadmaps),
+                policy_roadmaps.clone(),
+                Arc::new(QueueRoadmapBuilds::new(queue)),
+            )
+            .with_fleet(Arc::clone(&fleet) as Arc<dyn planner::FleetSchedule>),
+        );
         Self {
             knowledge,
             checkpoints_dir: dirs.checkpoints,
@@ -164,6 +172,7 @@ impl JobEnv {
             roadmaps,
             policy_roadmaps,
             planner,
+            fleet,
             disk,
         }
     }

@@ -1,6 +1,7 @@
 //! `validate`: a plan tried in the mental simulation before a robot moves, as a job. The
 //! payload is the request of `POST /v1/plan` and the result its answer: both go through the
-//! same [`planner::Planner::plan`], so a job and a plan answer the same thing for the same input.
+//! same [`planner::Planner::plan`], so a job and a plan answer the same thing for the same input
+//! (but for the commit to the fleet's schedule, which a job never makes).
 
 use std::time::Instant;
 
@@ -15,12 +16,16 @@ use std::sync::Arc;
 /// What a `validate` job is asked: exactly the request of `POST /v1/plan`.
 pub type ValidatePayload = PlanApiRequest;
 
-/// The planner's query of a payload, its refusals naming the payload's fields.
+/// The planner's query of a payload, its refusals naming the payload's fields. A job checks
+/// the plan against the fleet's committed plans but never commits it: it is an engineer's
+/// rehearsal, not a robot's order.
 pub fn query_of(payload: &Value) -> Result<PlanQuery, PayloadError> {
     let request: PlanApiRequest = super::parse(payload)?;
-    request
+    let mut query = request
         .into_query()
-        .map_err(|m| PayloadError::Invalid(format!("payload: {m}")))
+        .map_err(|m| PayloadError::Invalid(format!("payload: {m}")))?;
+    query.fleet.commit = false;
+    Ok(query)
 }
 
 /// Checks a payload when the job is created: its shape, the bounds of a plan request (named in

@@ -14,8 +14,8 @@ use utoipa::ToSchema;
 
 pub use self::types::{
     AttemptOutcome, AttemptReport, ControllerChoiceReport, ControllerKind, ControllerOption,
-    LegReport, PeopleChoice, PeopleDraws, PeopleMode, PeopleReport, PlanOptions, PlanReport, Point,
-    Pose, RoadmapChoice, RoadmapInfo, RoadmapKind, RosPath,
+    LegReport, PeopleChoice, PeopleDraws, PeopleMode, PeopleReport, PlanOptions, PlanReport,
+    PlanSchedule, PlanWait, Point, Pose, RoadmapChoice, RoadmapInfo, RoadmapKind, RosPath, RosTime,
 };
 
 /// What a robot asks.
@@ -59,6 +59,7 @@ impl PlanApiRequest {
     pub fn into_query(self) -> Result<PlanQuery, String> {
         let goals = self.goals()?;
         let controller = self.options.controller.choice();
+        let fleet = self.options.fleet();
         let people = match self.options.people {
             PeopleChoice::Named(PeopleMode::Auto) => PlanPeople::Expected {
                 hour: self.options.people_hour,
@@ -78,6 +79,7 @@ impl PlanApiRequest {
             people,
             policy: self.policy,
             controller,
+            fleet,
         })
     }
 }
@@ -98,6 +100,10 @@ pub struct PlanApiResponse {
     /// policy yet, `auto` measured a classical one better, or legs no attempt with the picked
     /// controller validated.
     pub note: Option<String>,
+    /// The plan in the floor's traffic schedule: its id, when the robot reaches each waypoint,
+    /// where it waits for other robots; absent where the service keeps no schedule.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub schedule: Option<PlanSchedule>,
     /// Wall-clock time of the whole request in this service, milliseconds.
     pub service_ms: f64,
     /// The start and the waypoints as a ROS 2 `nav_msgs/Path` in the floor's map frame: what
@@ -121,16 +127,22 @@ impl PlanApiResponse {
             report,
             people,
             world,
+            fleet,
         } = outcome;
         let mut report = PlanReport::from(report);
         report.people = people.map(PeopleReport::from);
-        let path = RosPath::through(start, &report.waypoints, world.spec().map_frame());
+        let schedule = fleet.map(PlanSchedule::from);
+        let mut path = RosPath::through(start, &report.waypoints, world.spec().map_frame());
+        if let Some(s) = &schedule {
+            path = path.stamped(&s.path_times());
+        }
         Self {
             robot,
             floor,
             policy,
             controller_choice: controller.into(),
             note,
+            schedule,
             service_ms,
             path,
             report,

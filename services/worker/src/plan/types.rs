@@ -135,6 +135,24 @@ pub struct PlanOptions {
     /// `follower` (the thesis's rotate-then-go follower) or `shielded_follower`. The answer's
     /// `controller_choice` says which drove and why.
     pub controller: ControllerOption,
+    /// Commit the plan to the floor's traffic schedule, replacing the robot's previous plan
+    /// (default true); false only checks it against the other robots' committed plans.
+    pub commit: bool,
+    /// When the robot sets off, ms since the Unix epoch [default: now].
+    pub start_time_ms: Option<i64>,
+    /// How early or late the robot may be on its schedule, seconds, in [0, 3600] (default 2):
+    /// other plans keep clear of it over that window.
+    #[schema(minimum = 0, maximum = 3600)]
+    pub tolerance_s: f64,
+    /// Most waiting, in total, the plan may take to let other robots pass, seconds, in
+    /// [0, 3600] (default 120); beyond it the answer is a 409 naming the robots in the way
+    /// and the earliest start that fits.
+    #[schema(minimum = 0, maximum = 3600)]
+    pub max_wait_s: f64,
+    /// How long the robot is held at its last goal after arriving, seconds, in [0, 3600]
+    /// (default 30).
+    #[schema(minimum = 0, maximum = 3600)]
+    pub hold_s: f64,
 }
 
 /// A controller by name, or `auto`.
@@ -259,6 +277,19 @@ impl TryFrom<serde_json::Value> for PeopleChoice {
     }
 }
 
+impl PlanOptions {
+    /// How the plan takes part in the floor's traffic schedule.
+    pub fn fleet(&self) -> planner::FleetOptions {
+        planner::FleetOptions {
+            commit: self.commit,
+            start_unix_ms: self.start_time_ms,
+            tolerance_s: self.tolerance_s,
+            max_wait_s: self.max_wait_s,
+            hold_s: self.hold_s,
+        }
+    }
+}
+
 impl PeopleChoice {
     /// The simulation's people for an explicit choice; `auto` and `none` give nobody (the plan
     /// handler resolves `auto` from the floor's knowledge).
@@ -377,6 +408,7 @@ impl Default for PlanOptions {
 
 impl From<rehearsal::PlanOptions> for PlanOptions {
     fn from(o: rehearsal::PlanOptions) -> Self {
+        let fleet = planner::FleetOptions::default();
         let rehearsal::PlanOptions {
             max_attempts,
             waypoint_timeout_s,
@@ -407,6 +439,11 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             people_hour: None,
             people_draws,
             controller: ControllerOption::Auto,
+            commit: fleet.commit,
+            start_time_ms: fleet.start_unix_ms,
+            tolerance_s: fleet.tolerance_s,
+            max_wait_s: fleet.max_wait_s,
+            hold_s: fleet.hold_s,
             // Nobody by the executor's default is the API's `auto` (the knowledge's people).
             people: if people.any() {
                 PeopleChoice::Density(people.density)
@@ -435,6 +472,11 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             people_hour: _,
             people_draws,
             controller: _,
+            commit: _,
+            start_time_ms: _,
+            tolerance_s: _,
+            max_wait_s: _,
+            hold_s: _,
         } = o;
         Self {
             max_attempts,
@@ -745,6 +787,8 @@ impl From<rehearsal::PlanReport> for PlanReport {
             roadmap,
             laser,
             people_draws: _,
+            steps: _,
+            control_period_s: _,
         } = r;
         Self {
             waypoints: waypoints.into_iter().map(Into::into).collect(),
@@ -888,11 +932,35 @@ pub struct RosPath {
     pub poses: Vec<RosPoseStamped>,
 }
 
-/// `std_msgs/Header` without a stamp (the robot stamps what it publishes).
+/// `std_msgs/Header`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct RosHeader {
     /// The floor map's frame (its `tosm:frameId`; `map` unless the graph states another).
     pub frame_id: String,
+    /// `builtin_interfaces/Time`: on a path's poses, when the plan has the robot there (a pose
+    /// it waits at: when it may go on), from the floor's traffic schedule; absent on the
+    /// path's own header, and where the plan has no schedule.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stamp: Option<RosTime>,
+}
+
+/// `builtin_interfaces/Time`: seconds and nanoseconds since the Unix epoch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct RosTime {
+    /// Seconds.
+    pub sec: i64,
+    /// Nanoseconds, 0-999 999 999.
+    pub nanosec: u32,
+}
+
+impl RosTime {
+    /// The time `unix_ms` milliseconds after the epoch.
+    pub fn from_unix_ms(unix_ms: i64) -> Self {
+        Self {
+            sec: unix_ms.div_euclid(1000),
+            nanosec: u32::try_from(unix_ms.rem_euclid(1000) * 1_000_000).unwrap_or(0),
+        }
+    }
 }
 
 /// `geometry_msgs/PoseStamped`.
@@ -960,6 +1028,7 @@ impl RosPath {
         let mut heading = start.yaw;
         let header = RosHeader {
             frame_id: frame_id.to_owned(),
+            stamp: None,
         };
         let poses = points
             .iter()
@@ -980,6 +1049,97 @@ impl RosPath {
             })
             .collect();
         Self { header, poses }
+    }
+
+    /// Stamps each pose with `times[i]` (ms since the Unix epoch; the start is pose 0).
+    pub fn stamped(mut self, times: &[i64]) -> Self {
+        for (pose, &t) in self.poses.iter_mut().zip(times) {
+            pose.header.stamp = Some(RosTime::from_unix_ms(t));
+        }
+        self
+    }
+}
+
+/// The plan in the floor's traffic schedule.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PlanSchedule {
+    /// The plan's id: `DELETE /v1/plans/{id}` cancels it, `POST /v1/plans/{id}/progress`
+    /// reports the robot's progress on it.
+    pub plan_id: String,
+    /// Whether it was committed (`options.commit`).
+    pub committed: bool,
+    /// The floor schedule's version after the commit.
+    pub version: Option<i64>,
+    /// When the robot sets off (after any wait at the start), ms since the Unix epoch.
+    pub start_time_ms: i64,
+    /// When the robot reaches each waypoint, ms since the Unix epoch (index as `waypoints`).
+    pub waypoint_times_ms: Vec<i64>,
+    /// Where and how long the robot waits for other robots to pass, in order.
+    pub waits: Vec<PlanWait>,
+    /// Other robots' committed plans on the floor it was checked against.
+    pub others_checked: usize,
+    /// How early or late the robot may be, seconds.
+    pub tolerance_s: f64,
+    /// When the schedule lets the robot's place go (its last goal held until then), ms since
+    /// the Unix epoch.
+    pub expires_ms: i64,
+}
+
+/// A wait in a plan, so that other robots can pass.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PlanWait {
+    /// The waypoint waited at (index into `waypoints`); absent: at the start (a later start).
+    pub waypoint: Option<usize>,
+    /// Seconds waited.
+    pub wait_s: f64,
+    /// When the robot may go on, ms since the Unix epoch.
+    pub not_before_ms: i64,
+    /// The robots it lets pass (IRIs).
+    pub for_robots: Vec<String>,
+}
+
+impl From<planner::FleetOutcome> for PlanSchedule {
+    fn from(f: planner::FleetOutcome) -> Self {
+        let start_wait = f
+            .waits
+            .iter()
+            .find(|w| w.waypoint.is_none())
+            .map(|w| w.not_before_unix_ms);
+        Self {
+            plan_id: f.itinerary.plan_id.clone(),
+            committed: f.version.is_some(),
+            version: f.version,
+            start_time_ms: start_wait.unwrap_or(f.itinerary.start_unix_ms),
+            waypoint_times_ms: f.waypoint_times_unix_ms,
+            waits: f
+                .waits
+                .into_iter()
+                .map(|w| PlanWait {
+                    waypoint: w.waypoint,
+                    wait_s: w.wait_s,
+                    not_before_ms: w.not_before_unix_ms,
+                    for_robots: w.for_robots,
+                })
+                .collect(),
+            others_checked: f.others,
+            tolerance_s: f.itinerary.tolerance_s,
+            expires_ms: f.itinerary.expires_unix_ms,
+        }
+    }
+}
+
+impl PlanSchedule {
+    /// The time each pose of the plan's path is stamped with: the start, then each waypoint's
+    /// arrival, or the end of its wait where the robot waits there.
+    pub fn path_times(&self) -> Vec<i64> {
+        std::iter::once(self.start_time_ms)
+            .chain(self.waypoint_times_ms.iter().enumerate().map(|(i, &t)| {
+                self.waits
+                    .iter()
+                    .find(|w| w.waypoint == Some(i))
+                    .map_or(t, |w| w.not_before_ms)
+            }))
+            .collect()
     }
 }
 

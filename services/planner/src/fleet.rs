@@ -1,0 +1,562 @@
+//! A plan among the fleet: the timed trajectory the rehearsal validated, checked against every
+//! other robot's committed itinerary on the floor ([`traffic`]: footprints, each robot
+//! anywhere within its time tolerance of its schedule), conflicts resolved by waiting, and the
+//! result committed to the floor's schedule against the version it was checked against.
+//!
+//! How a conflict is resolved ([`fit`]): the robot waits at the last waypoint it reaches
+//! before the conflict (the start first of all, which is a later start), one second more at a
+//! time, until the conflict is gone or moves later. A conflict that happens while the robot
+//! stands waiting at a waypoint (the waypoint is in the other robot's way) moves the wait to
+//! the waypoint before it, down to the start (a conflict at the goal, where the robot is held
+//! after arriving, moves the wait before the goal). So two robots sent down one corridor from its
+//! two ends never meet in it: the second one waits before the corridor, or where the first
+//! one's path leaves room. Where the waits would exceed `max_wait_s`, the plan is refused,
+//! naming the robots in the way and the earliest later start that fits with no wait.
+//!
+//! What is guaranteed: the committed itineraries keep the robots apart by the margin as long as
+//! each stays within its tolerance of its schedule (progress reports shift a late robot's
+//! schedule). The waits are not driven in the simulation: a robot standing still at a waypoint
+//! it reached is assumed to be able to go on as rehearsed.
+
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use planning::Point2;
+use sim::Pose2;
+use traffic::{Conflict, Itinerary, TimedPose};
+
+/// A boxed future of a [`FleetSchedule`] call.
+pub type FleetFuture<'a, T> = Pin<Box<dyn Future<Output = Result<T, String>> + Send + 'a>>;
+
+/// How a commit went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Committed {
+    /// Committed; the floor's new version.
+    Yes(i64),
+    /// Another plan was committed on the floor since the snapshot: check again.
+    VersionChanged,
+}
+
+/// The fleet's schedule as the planner sees it (the `traffic` store in the job database).
+pub trait FleetSchedule: Send + Sync {
+    /// The floor's version and every unexpired itinerary on it.
+    fn snapshot<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, (i64, Vec<Itinerary>)>;
+    /// Commits `itinerary` (replacing its robot's previous one) if the floor is still at
+    /// `expected_version`.
+    fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed>;
+    /// Now, milliseconds since the Unix epoch (the schedule's clock).
+    fn now_ms(&self) -> i64;
+}
+
+/// How a plan takes part in the fleet's schedule.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FleetOptions {
+    /// Commit the plan to the floor's schedule (default true); false only checks it.
+    pub commit: bool,
+    /// When the robot sets off, ms since the Unix epoch; `None`: now.
+    pub start_unix_ms: Option<i64>,
+    /// How early or late the robot may be on its schedule, seconds (default 2).
+    pub tolerance_s: f64,
+    /// Most waiting, in total, the plan may take to let other robots pass, seconds
+    /// (default 120): beyond it the plan is refused with the earliest start that fits.
+    pub max_wait_s: f64,
+    /// How long the robot is held at its last goal after arriving, seconds (default 30).
+    pub hold_s: f64,
+}
+
+impl Default for FleetOptions {
+    fn default() -> Self {
+        Self {
+            commit: true,
+            start_unix_ms: None,
+            tolerance_s: 2.0,
+            max_wait_s: 120.0,
+            hold_s: 30.0,
+        }
+    }
+}
+
+/// Largest tolerance, wait and hold, seconds.
+pub const MAX_FLEET_S: f64 = 3600.0;
+/// Gap kept between two robots' footprints beyond their radii, metres.
+pub const ROBOT_MARGIN_M: f64 = 0.1;
+/// Steps of waiting tried, seconds.
+const WAIT_STEP_S: f64 = 1.0;
+
+impl FleetOptions {
+    /// The options, or which one is out of range.
+    pub fn check(&self) -> Result<(), String> {
+        for (name, v) in [
+            ("tolerance_s", self.tolerance_s),
+            ("max_wait_s", self.max_wait_s),
+            ("hold_s", self.hold_s),
+        ] {
+            if !(v.is_finite() && (0.0..=MAX_FLEET_S).contains(&v)) {
+                return Err(format!(
+                    "`options.{name}` must lie in [0, {MAX_FLEET_S}] seconds, got {v}"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A wait the plan carries so that another robot can pass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Wait {
+    /// The waypoint (an index of the plan's waypoints) waited at; `None`: the start (a later
+    /// start).
+    pub waypoint: Option<usize>,
+    /// Seconds waited.
+    pub wait_s: f64,
+    /// When the robot may go on, ms since the Unix epoch.
+    pub not_before_unix_ms: i64,
+    /// The robots it lets pass.
+    pub for_robots: Vec<String>,
+}
+
+/// A plan as it takes part in the floor's schedule.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FleetOutcome {
+    /// The itinerary checked (and committed, unless `options.commit` was false).
+    pub itinerary: Itinerary,
+    /// When the robot reaches each waypoint, ms since the Unix epoch (waits included).
+    pub waypoint_times_unix_ms: Vec<i64>,
+    /// The waits that let other robots pass, in order.
+    pub waits: Vec<Wait>,
+    /// Other robots' itineraries it was checked against.
+    pub others: usize,
+    /// The floor's version after the commit; `None` when not committed.
+    pub version: Option<i64>,
+}
+
+/// Why no schedule fits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NoFit {
+    /// The robots in the way.
+    pub robots: Vec<String>,
+    /// The earliest start that fits with no wait, ms since the Unix epoch, if one was found
+    /// before every other robot's itinerary expires.
+    pub earliest_start_unix_ms: Option<i64>,
+    /// In words.
+    pub message: String,
+}
+
+/// A plan id: unique in practice (time, a process counter and the robot, mixed).
+pub fn plan_id(robot: &str, now_ms: i64) -> String {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let h = grid::seed::mix(
+        grid::seed::mix(now_ms as u64, u64::from(nanos) ^ (n << 32)),
+        grid::hash::fnv1a(robot.as_bytes()),
+    );
+    format!("plan-{h:016x}")
+}
+
+/// The step of `steps` at which each waypoint is reached: the first local minimum of the
+/// distance to it within 1 m after the previous waypoint's step, else the closest step.
+pub fn waypoint_steps(steps: &[Pose2], waypoints: &[Point2]) -> Vec<usize> {
+    let mut out = Vec::with_capacity(waypoints.len());
+    let mut from = 0;
+    for w in waypoints {
+        let d = |k: usize| (steps[k].x - w.x).hypot(steps[k].y - w.y);
+        let mut best = from.min(steps.len().saturating_sub(1));
+        for k in from..steps.len() {
+            if d(k) < d(best) {
+                best = k;
+            }
+            // Past a close approach and moving away: that was the pass.
+            if d(best) < 1.0 && d(k) > d(best) + 0.5 {
+                break;
+            }
+        }
+        out.push(best);
+        from = best;
+    }
+    out
+}
+
+/// A candidate schedule: the rehearsed steps with waits inserted at some of them.
+struct Draft<'a> {
+    steps: &'a [Pose2],
+    dt: f64,
+    /// (step index, seconds), by step.
+    waits: Vec<(usize, f64)>,
+}
+
+impl Draft<'_> {
+    fn itinerary(&self, template: &Itinerary) -> Itinerary {
+        let mut trajectory = Vec::with_capacity(self.steps.len() + self.waits.len());
+        let mut shift = 0.0;
+        for (k, p) in self.steps.iter().enumerate() {
+            let t = k as f64 * self.dt + shift;
+            trajectory.push(TimedPose {
+                t_s: t,
+                x: p.x,
+                y: p.y,
+                yaw: p.yaw,
+            });
+            let waited: f64 = self
+                .waits
+                .iter()
+                .filter(|(i, _)| *i == k)
+                .map(|(_, s)| s)
+                .sum();
+            if waited > 0.0 {
+                shift += waited;
+                trajectory.push(TimedPose {
+                    t_s: t + waited,
+                    x: p.x,
+                    y: p.y,
+                    yaw: p.yaw,
+                });
+            }
+        }
+        let duration_s = trajectory.last().map_or(0.0, |p| p.t_s);
+        Itinerary {
+            trajectory,
+            expires_unix_ms: template.start_unix_ms
+                + ((duration_s + template.tolerance_s) * 1000.0).ceil() as i64
+                + (template.expires_unix_ms - template.start_unix_ms),
+            ..template.clone()
+        }
+    }
+
+    /// Schedule time of step `k`, seconds (after the waits at earlier steps).
+    fn time_of(&self, k: usize) -> f64 {
+        k as f64 * self.dt
+            + self
+                .waits
+                .iter()
+                .filter(|(i, _)| *i < k)
+                .map(|(_, s)| s)
+                .sum::<f64>()
+    }
+
+    fn total_wait(&self) -> f64 {
+        self.waits.iter().map(|(_, s)| s).sum()
+    }
+
+    fn add_wait(&mut self, at: usize, s: f64) {
+        match self.waits.iter_mut().find(|(i, _)| *i == at) {
+            Some(w) => w.1 += s,
+            None => {
+                self.waits.push((at, s));
+                self.waits.sort_by_key(|w| w.0);
+            }
+        }
+    }
+}
+
+/// The earliest conflict of `itinerary` with `others`, if any.
+fn first(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
+    traffic::conflicts(itinerary, others, ROBOT_MARGIN_M)
+        .into_iter()
+        .next()
+}
+
+/// A fitted plan: its itinerary, the step each waypoint is reached at, and each wait (the step
+/// it is at, seconds, the robots it lets pass).
+pub type Fitted = (Itinerary, Vec<usize>, Vec<(usize, f64, Vec<String>)>);
+
+/// Fits a rehearsed plan (`steps` every `dt` seconds from the start, reaching `waypoints`)
+/// among `others`, as the module docs describe. `template` carries the robot, floor, plan id,
+/// radius, tolerance and start; its `expires_unix_ms - start_unix_ms` is the hold after the
+/// last goal.
+pub fn fit(
+    template: &Itinerary,
+    steps: &[Pose2],
+    dt: f64,
+    waypoints: &[Point2],
+    others: &[Itinerary],
+    max_wait_s: f64,
+) -> Result<Fitted, NoFit> {
+    let at_waypoint = waypoint_steps(steps, waypoints);
+    // Where the robot may wait: the start, then each waypoint's step.
+    let stops: Vec<usize> = std::iter::once(0)
+        .chain(at_waypoint.iter().copied())
+        .collect();
+    let mut draft = Draft {
+        steps,
+        dt,
+        waits: Vec::new(),
+    };
+    let mut ceiling = stops.len();
+    let mut blockers: Vec<(usize, Vec<String>)> = Vec::new();
+    let mut in_the_way: Vec<String> = Vec::new();
+    loop {
+        let itinerary = draft.itinerary(template);
+        let Some(c) = first(&itinerary, others) else {
+            let waits = draft
+                .waits
+                .iter()
+                .map(|(k, s)| {
+                    let robots = blockers
+                        .iter()
+                        .filter(|(at, _)| at == k)
+                        .flat_map(|(_, r)| r.clone())
+                        .collect::<Vec<_>>();
+                    (*k, *s, dedup(robots))
+                })
+                .collect();
+            return Ok((itinerary, at_waypoint, waits));
+        };
+        if !in_the_way.contains(&c.b_robot) {
+            in_the_way.push(c.b_robot.clone());
+        }
+        if draft.total_wait() + WAIT_STEP_S > max_wait_s + 1e-9 {
+            return Err(no_fit(template, &draft, others, in_the_way, max_wait_s));
+        }
+        let t_c = (c.at_unix_ms - template.start_unix_ms) as f64 / 1000.0;
+        // Waiting at a stop the conflict happens at (or while standing there) does not help:
+        // the wait moves to the stop before.
+        // The last stop is the goal, where the robot stays until its itinerary expires.
+        let last = steps.len().saturating_sub(1);
+        let standing = stops[..ceiling].iter().position(|&k| {
+            let (from, to) = (draft.time_of(k), draft.time_of(k + 1));
+            let until = if k == last { f64::INFINITY } else { to };
+            t_c >= from - 1e-9 && t_c <= until + template.tolerance_s && k > 0
+        });
+        if let Some(i) = standing {
+            let moved: f64 = draft
+                .waits
+                .iter()
+                .filter(|(k, _)| stops[i..].contains(k))
+                .map(|(_, s)| s)
+                .sum();
+            draft.waits.retain(|(k, _)| !stops[i..].contains(k));
+            ceiling = i;
+            let before = stops[ceiling - 1];
+            draft.add_wait(before, moved.max(WAIT_STEP_S));
+            blockers.push((before, vec![c.b_robot.clone()]));
+            continue;
+        }
+        // The last stop reached before the conflict, within the ceiling.
+        let at = stops[..ceiling]
+            .iter()
+            .rev()
+            .copied()
+            .find(|&k| draft.time_of(k) < t_c - template.tolerance_s)
+            .unwrap_or(0);
+        draft.add_wait(at, WAIT_STEP_S);
+        blockers.push((at, vec![c.b_robot.clone()]));
+    }
+}
+
+fn dedup(mut v: Vec<String>) -> Vec<String> {
+    let mut seen = Vec::new();
+    v.retain(|r| {
+        let new = !seen.contains(r);
+        if new {
+            seen.push(r.clone());
+        }
+        new
+    });
+    v
+}
+
+/// The refusal: the robots in the way and the earliest later start that fits without waits
+/// (searched second by second until every other itinerary has expired).
+fn no_fit(
+    template: &Itinerary,
+    draft: &Draft<'_>,
+    others: &[Itinerary],
+    robots: Vec<String>,
+    max_wait_s: f64,
+) -> NoFit {
+    let horizon = others
+        .iter()
+        .map(|o| o.expires_unix_ms)
+        .max()
+        .unwrap_or(template.start_unix_ms);
+    let plain = Draft {
+        steps: draft.steps,
+        dt: draft.dt,
+        waits: Vec::new(),
+    }
+    .itinerary(template);
+    let mut earliest = None;
+    let mut delay_ms = 1000_i64;
+    while template.start_unix_ms + delay_ms <= horizon + 1000 {
+        let shifted = Itinerary {
+            start_unix_ms: plain.start_unix_ms + delay_ms,
+            expires_unix_ms: plain.expires_unix_ms + delay_ms,
+            ..plain.clone()
+        };
+        if first(&shifted, others).is_none() {
+            earliest = Some(shifted.start_unix_ms);
+            break;
+        }
+        delay_ms += 1000;
+    }
+    let message = format!(
+        "the plan conflicts with the committed plans of {} on this floor, and waiting up to {max_wait_s} s (`options.max_wait_s`) does not resolve it{}",
+        robots.join(", "),
+        match earliest {
+            Some(t) => format!(
+                "; the earliest start that fits is {} s later (unix ms {t})",
+                (t - template.start_unix_ms) / 1000
+            ),
+            None => String::new(),
+        }
+    );
+    NoFit {
+        robots,
+        earliest_start_unix_ms: earliest,
+        message,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn straight(from: (f64, f64), to: (f64, f64), speed: f64, dt: f64) -> Vec<Pose2> {
+        let len = (to.0 - from.0).hypot(to.1 - from.1);
+        let n = (len / (speed * dt)).ceil() as usize;
+        let yaw = (to.1 - from.1).atan2(to.0 - from.0);
+        (0..=n)
+            .map(|k| {
+                let s = k as f64 / n as f64;
+                Pose2::new(
+                    from.0 + s * (to.0 - from.0),
+                    from.1 + s * (to.1 - from.1),
+                    yaw,
+                )
+            })
+            .collect()
+    }
+
+    fn template(robot: &str, start_ms: i64) -> Itinerary {
+        Itinerary {
+            plan_id: format!("p-{robot}"),
+            robot: robot.to_owned(),
+            floor: "F".to_owned(),
+            start_unix_ms: start_ms,
+            trajectory: Vec::new(),
+            radius_m: 0.2,
+            tolerance_s: 1.0,
+            expires_unix_ms: start_ms + 5_000,
+            delay_s: 0.0,
+        }
+    }
+
+    fn committed(robot: &str, steps: &[Pose2], dt: f64, start_ms: i64) -> Itinerary {
+        Draft {
+            steps,
+            dt,
+            waits: Vec::new(),
+        }
+        .itinerary(&template(robot, start_ms))
+    }
+
+    #[test]
+    fn a_robot_crossing_anothers_path_waits_before_the_crossing() {
+        let dt = 0.1;
+        // A drives along y = 0 from x = -5 to 5; B crosses along x = 0 from y = -5 to 5,
+        // both setting off at once at 1 m/s: they would meet at the origin after 5 s.
+        let a = committed("A", &straight((-5.0, 0.0), (5.0, 0.0), 1.0, dt), dt, 0);
+        let b_steps = straight((0.0, -5.0), (0.0, 5.0), 1.0, dt);
+        let waypoints = [Point2::new(0.0, -3.0), Point2::new(0.0, 5.0)];
+        let (it, at, waits) = fit(
+            &template("B", 0),
+            &b_steps,
+            dt,
+            &waypoints,
+            std::slice::from_ref(&a),
+            120.0,
+        )
+        .unwrap();
+        assert!(first(&it, std::slice::from_ref(&a)).is_none());
+        assert_eq!(at.len(), 2);
+        assert_eq!(waits.len(), 1, "{waits:?}");
+        // At the waypoint 2 m before the crossing, for A.
+        assert_eq!(waits[0].0, at[0]);
+        assert_eq!(waits[0].2, vec!["A".to_owned()]);
+        assert!(waits[0].1 >= 1.0 && waits[0].1 <= 10.0, "{waits:?}");
+    }
+
+    #[test]
+    fn robots_sent_down_one_corridor_from_both_ends_do_not_meet_in_it() {
+        let dt = 0.1;
+        // A drives the corridor y = 0 from x = 0 to 10. B comes the other way, from a side
+        // room at (12, 3) to the corridor's far end (10, 0) and on to x = 0.
+        let a = committed("A", &straight((0.0, 0.0), (10.0, 0.0), 1.0, dt), dt, 0);
+        let mut b_steps = straight((12.0, 3.0), (10.0, 0.0), 1.0, dt);
+        b_steps.extend(
+            straight((10.0, 0.0), (0.0, 0.0), 1.0, dt)
+                .into_iter()
+                .skip(1),
+        );
+        let waypoints = [Point2::new(10.0, 0.0), Point2::new(0.0, 0.0)];
+        let (it, _, waits) = fit(
+            &template("B", 0),
+            &b_steps,
+            dt,
+            &waypoints,
+            std::slice::from_ref(&a),
+            120.0,
+        )
+        .unwrap();
+        assert!(first(&it, std::slice::from_ref(&a)).is_none());
+        // The corridor's end is in A's way (A arrives there): B waits at its start instead.
+        assert_eq!(waits.len(), 1, "{waits:?}");
+        assert_eq!(waits[0].0, 0, "a later start: {waits:?}");
+    }
+
+    #[test]
+    fn without_enough_time_the_plan_is_refused_with_the_earliest_start_that_fits() {
+        let dt = 0.1;
+        let a = committed("A", &straight((-5.0, 0.0), (5.0, 0.0), 1.0, dt), dt, 0);
+        let b_steps = straight((0.0, -5.0), (0.0, 5.0), 1.0, dt);
+        let e = fit(
+            &template("B", 0),
+            &b_steps,
+            dt,
+            &[Point2::new(0.0, 5.0)],
+            std::slice::from_ref(&a),
+            0.0,
+        )
+        .unwrap_err();
+        assert_eq!(e.robots, vec!["A".to_owned()]);
+        let t = e.earliest_start_unix_ms.expect("A's itinerary expires");
+        assert!(t > 0);
+        assert!(e.message.contains("earliest start"), "{}", e.message);
+    }
+
+    #[test]
+    fn a_robot_following_another_to_its_goal_waits_before_the_goal_until_it_is_free() {
+        let dt = 0.1;
+        // A drives to (10, 0) and is held there 5 s (its template's hold); B takes the same
+        // path 3 s later.
+        let path = straight((0.0, 0.0), (10.0, 0.0), 1.0, dt);
+        let a = committed("A", &path, dt, 0);
+        let waypoints = [Point2::new(5.0, 0.0), Point2::new(10.0, 0.0)];
+        let (it, at, waits) = fit(
+            &template("B", 3_000),
+            &path,
+            dt,
+            &waypoints,
+            std::slice::from_ref(&a),
+            120.0,
+        )
+        .unwrap();
+        assert!(first(&it, std::slice::from_ref(&a)).is_none());
+        assert!(!waits.is_empty());
+        assert!(
+            waits.iter().all(|w| w.0 != at[1]),
+            "never at the goal: {waits:?}"
+        );
+    }
+
+    #[test]
+    fn waypoints_are_found_along_the_steps_in_order() {
+        let steps = straight((0.0, 0.0), (10.0, 0.0), 1.0, 0.1);
+        let at = waypoint_steps(&steps, &[Point2::new(3.0, 0.2), Point2::new(10.0, 0.0)]);
+        assert_eq!(at, vec![30, steps.len() - 1]);
+    }
+}

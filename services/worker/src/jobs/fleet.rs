@@ -1,0 +1,105 @@
+//! The planner's fleet schedule: the `traffic` store in the job database the queue opened
+//! (SQLite by default, PostgreSQL beyond one machine), so every API process sharing that
+//! database shares the schedule.
+
+use std::future::Future;
+use std::sync::Arc;
+
+use planner::fleet::{Committed, FleetFuture, FleetSchedule};
+use queue::LazyQueue;
+use tokio::sync::OnceCell;
+use traffic::{Itinerary, Schedule, TrafficError};
+
+/// The floor schedules in the queue's database, opened on first use.
+#[derive(Debug)]
+pub struct QueueFleet {
+    queue: Arc<LazyQueue>,
+    schedule: OnceCell<Schedule>,
+}
+
+impl QueueFleet {
+    /// The schedule in `queue`'s database.
+    pub fn new(queue: Arc<LazyQueue>) -> Self {
+        Self {
+            queue,
+            schedule: OnceCell::new(),
+        }
+    }
+
+    /// The schedule, opening (and migrating) its tables on first use.
+    pub async fn schedule(&self) -> Result<&Schedule, String> {
+        self.schedule
+            .get_or_try_init(|| async {
+                let queue = self
+                    .queue
+                    .get()
+                    .await
+                    .map_err(|e| format!("the job database is not available: {e}"))?;
+                let db = queue.database().clone();
+                on_own_thread(move || futures_block_on(Schedule::open(&db)))
+                    .await?
+                    .map_err(|e| e.to_string())
+            })
+            .await
+    }
+}
+
+impl FleetSchedule for QueueFleet {
+    fn snapshot<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, (i64, Vec<Itinerary>)> {
+        Box::pin(async move {
+            let schedule = self.schedule().await?.clone();
+            let floor = floor.to_owned();
+            on_own_thread(move || {
+                let now = schedule.now_ms();
+                futures_block_on(schedule.snapshot(&floor, now))
+            })
+            .await?
+            .map_err(|e| e.to_string())
+        })
+    }
+
+    fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed> {
+        Box::pin(async move {
+            let schedule = self.schedule().await?.clone();
+            let committed = on_own_thread(move || {
+                futures_block_on(schedule.commit(itinerary, expected_version))
+            })
+            .await?;
+            match committed {
+                Ok(v) => Ok(Committed::Yes(v)),
+                Err(TrafficError::VersionChanged { .. }) => Ok(Committed::VersionChanged),
+                Err(e) => Err(e.to_string()),
+            }
+        })
+    }
+
+    fn now_ms(&self) -> i64 {
+        self.schedule
+            .get()
+            .map_or_else(now_unix_ms, Schedule::now_ms)
+    }
+}
+
+/// The wall clock, ms since the Unix epoch.
+fn now_unix_ms() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
+}
+
+/// Runs `f` on the runtime's blocking pool. The schedule's calls run there, each driven to
+/// completion with [`futures_block_on`]: rustc cannot prove sqlx's transaction futures `Send`
+/// for every lifetime inside a boxed trait future (the "`Executor` is not general enough"
+/// limitation of async generators), and a blocking thread needs no such proof.
+async fn on_own_thread<T: Send + 'static>(
+    f: impl FnOnce() -> T + Send + 'static,
+) -> Result<T, String> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| format!("the schedule task failed: {e}"))
+}
+
+/// Drives `future` to completion on this (blocking-pool) thread, within the runtime.
+fn futures_block_on<F: Future>(future: F) -> F::Output {
+    tokio::runtime::Handle::current().block_on(future)
+}

@@ -1,0 +1,316 @@
+//! The fleet's traffic schedule through the real service: plans committed to the job
+//! database (SQLite), a second robot's plan fitted around the first one's with waits, the
+//! 409 that names who is in the way, cancel and progress with their permissions, and two
+//! service processes sharing one job database never committing conflicting plans.
+
+use reqwest::Method;
+use serde_json::{Value, json};
+
+use crate::helpers::{TestApp, spawn_app_with};
+use crate::plan::{centroid, free_near, plan};
+
+const FIRST: &str = "https://mentalsim.dev/data/robots/differential-robot";
+const SECOND: &str = "https://mentalsim.dev/data/robots/second-robot";
+const ENGINEER: &str = "fleet-engineer-token-0001";
+const FIRST_ROBOT: &str = "fleet-first-robot-token-01";
+const SECOND_ROBOT: &str = "fleet-second-robot-token-1";
+
+/// An app whose tokens name the two robots, on `database_url` when given.
+async fn fleet_app(database_url: Option<String>) -> TestApp {
+    let temp = tempfile::tempdir().expect("temporary directory");
+    let data_dir = temp.path().join("data");
+    let mut app = spawn_app_with(
+        |c| {
+            c.data_dir = data_dir.clone();
+            c.database_url = database_url;
+            c.tokens = [
+                (ENGINEER, "engineer", edge::Role::Engineer),
+                (FIRST_ROBOT, FIRST, edge::Role::Robot),
+                (SECOND_ROBOT, "second-robot", edge::Role::Robot),
+            ]
+            .into_iter()
+            .map(|(token, name, role)| mentalsim::config::TokenConfig {
+                token: token.into(),
+                name: name.into(),
+                role,
+            })
+            .collect();
+        },
+        Some(temp),
+    )
+    .await;
+    app.token = ENGINEER.to_owned();
+    add_second_robot(&app).await;
+    app
+}
+
+/// The bundled robot again under another IRI and identifier (`R-002`).
+async fn add_second_robot(app: &TestApp) {
+    let ttl = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("ontologies/robots/differential-robot.ttl"),
+    )
+    .unwrap()
+    .replace("differential-robot", "second-robot")
+    .replace("R-001", "R-002");
+    let r = app
+        .request(Method::POST, &format!("/store?graph={SECOND}"))
+        .header("content-type", "text/turtle")
+        .body(ttl)
+        .send()
+        .await
+        .unwrap();
+    assert!(r.status().is_success(), "{}", r.text().await.unwrap());
+}
+
+/// The same route for `robot`, setting off at `start_ms`.
+fn route(robot: &str, from: (f64, f64), to: (f64, f64), start_ms: i64, options: Value) -> Value {
+    let mut o =
+        json!({"seed": 4, "trajectory_stride": 0, "people": "none", "start_time_ms": start_ms});
+    for (k, v) in options.as_object().unwrap() {
+        o[k] = v.clone();
+    }
+    json!({
+        "robot": robot, "place": "F0",
+        "start": {"x": from.0, "y": from.1, "yaw": 0.0},
+        "goal": {"x": to.0, "y": to.1},
+        "options": o
+    })
+}
+
+fn now_ms() -> i64 {
+    i64::try_from(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_millis(),
+    )
+    .unwrap()
+}
+
+/// The floor's committed plans.
+async fn traffic(app: &TestApp, robot_token: &str) -> Value {
+    let r = app
+        .client
+        .get(format!("{}/v1/places/F0/traffic?robot=R-001", app.address))
+        .bearer_auth(robot_token)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    r.json().await.unwrap()
+}
+
+/// Checks every pair of committed plans with the schedule's own geometry.
+fn assert_apart(plans: &[Value]) {
+    let itineraries: Vec<traffic::Itinerary> = plans
+        .iter()
+        .map(|p| serde_json::from_value(p.clone()).unwrap())
+        .collect();
+    for (i, a) in itineraries.iter().enumerate() {
+        for b in &itineraries[i + 1..] {
+            let conflict = traffic::first_conflict(a, b, 0.1);
+            assert!(conflict.is_none(), "{conflict:?}");
+        }
+    }
+}
+
+/// Two robots sent the same way at the same time: the first is committed as asked; the
+/// second waits (at its start, then wherever the first is in its way) and says for whom, and
+/// the committed pair never comes closer than the margin. Without time to wait, a 409 names
+/// the robot in the way and the earliest start that fits; once the first plan is cancelled
+/// (only by its robot or an engineer), the second goes without waiting. Progress reports shift
+/// a late robot's schedule.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() {
+    let app = fleet_app(None).await;
+    let from = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let to = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let start = now_ms() + 5_000;
+
+    let (status, first) = plan(&app, &route("R-001", from, to, start, json!({}))).await;
+    assert_eq!(status, 200, "{first}");
+    let s1 = &first["schedule"];
+    assert_eq!(s1["committed"], true, "{first}");
+    assert_eq!(s1["others_checked"], 0, "{first}");
+    assert!(s1["waits"].as_array().unwrap().is_empty(), "{first}");
+    assert_eq!(s1["start_time_ms"], start);
+    let times = s1["waypoint_times_ms"].as_array().unwrap();
+    assert_eq!(times.len(), first["waypoints"].as_array().unwrap().len());
+    assert!(times.windows(2).all(|w| w[0].as_i64() <= w[1].as_i64()));
+    // The ROS path carries the times: the start, then each waypoint.
+    let poses = first["path"]["poses"].as_array().unwrap();
+    assert_eq!(poses[0]["header"]["stamp"]["sec"], start / 1000, "{first}");
+    assert!(poses.iter().all(|p| p["header"]["stamp"].is_object()));
+
+    // The second robot takes the same route 10 s later: the first is held at the goal when
+    // it would arrive.
+    let later = start + 10_000;
+    let (status, second) = plan(&app, &route("R-002", from, to, later, json!({}))).await;
+    assert_eq!(status, 200, "{second}");
+    let s2 = &second["schedule"];
+    assert_eq!(s2["committed"], true);
+    assert_eq!(s2["others_checked"], 1, "{second}");
+    let waits = s2["waits"].as_array().unwrap();
+    assert!(!waits.is_empty(), "the second robot must wait: {second}");
+    assert!(
+        waits.iter().all(|w| w["for_robots"] == json!([FIRST])),
+        "{second}"
+    );
+    assert!(s2["start_time_ms"].as_i64().unwrap() >= later, "{second}");
+    let committed = traffic(&app, SECOND_ROBOT).await;
+    let plans = committed["plans"].as_array().unwrap();
+    assert_eq!(plans.len(), 2, "{committed}");
+    assert_apart(plans);
+
+    // No time to wait: refused, naming the robot in the way and when it would fit. Nothing
+    // is committed (the second robot's earlier plan stays).
+    let (status, refused) = plan(
+        &app,
+        &route("R-002", from, to, later, json!({"max_wait_s": 0})),
+    )
+    .await;
+    assert_eq!(status, 409, "{refused}");
+    assert_eq!(
+        refused["error"]["details"]["robots"],
+        json!([FIRST]),
+        "{refused}"
+    );
+    assert!(
+        refused["error"]["details"]["earliest_start_ms"]
+            .as_i64()
+            .unwrap()
+            > later,
+        "{refused}"
+    );
+    let version = committed["version"].as_i64().unwrap();
+    assert_eq!(traffic(&app, SECOND_ROBOT).await["version"], version);
+
+    // Only the plan's robot (or an engineer) may cancel it.
+    let id1 = s1["plan_id"].as_str().unwrap();
+    let r = app
+        .client
+        .delete(format!("{}/v1/plans/{id1}", app.address))
+        .bearer_auth(SECOND_ROBOT)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 403);
+    let r = app
+        .client
+        .delete(format!("{}/v1/plans/{id1}", app.address))
+        .bearer_auth(FIRST_ROBOT)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.json::<Value>().await.unwrap()["plan_id"], id1);
+    let r = app
+        .request(Method::DELETE, &format!("/v1/plans/{id1}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 404, "cancelled already");
+    let (status, alone) = plan(
+        &app,
+        &route("R-002", from, to, later, json!({"max_wait_s": 0})),
+    )
+    .await;
+    assert_eq!(status, 200, "{alone}");
+    assert!(alone["schedule"]["waits"].as_array().unwrap().is_empty());
+    assert_eq!(
+        traffic(&app, FIRST_ROBOT).await["plans"]
+            .as_array()
+            .unwrap()
+            .len(),
+        1
+    );
+
+    // The second robot reports itself still at its start 10 s after it should have set off:
+    // the rest of its schedule shifts.
+    let id2 = alone["schedule"]["plan_id"].as_str().unwrap();
+    let progress = |token: &'static str, body: Value| {
+        app.client
+            .post(format!("{}/v1/plans/{id2}/progress", app.address))
+            .bearer_auth(token)
+            .json(&body)
+            .send()
+    };
+    let r = progress(FIRST_ROBOT, json!({"x": from.0, "y": from.1}))
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 403, "another robot's plan");
+    let r = progress(SECOND_ROBOT, json!({"x": "here", "y": 0}))
+        .await
+        .unwrap();
+    assert!(r.status() == 400 || r.status() == 422, "{}", r.status());
+    let r = progress(
+        SECOND_ROBOT,
+        json!({"x": from.0, "y": from.1, "time_ms": later + 10_000}),
+    )
+    .await
+    .unwrap();
+    assert_eq!(r.status(), 200);
+    let shifted: Value = r.json().await.unwrap();
+    // Late by 10 s less the time the schedule had it turning on the spot at its start.
+    let delay = shifted["delay_s"].as_f64().unwrap();
+    assert!((6.0..=10.0).contains(&delay), "{}", shifted["delay_s"]);
+    let r = app
+        .request(Method::POST, "/v1/plans/plan-nope/progress")
+        .json(&json!({"x": 0.0, "y": 0.0}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 404);
+    app.stop().await;
+}
+
+/// Two service processes on one job database, each asked at the same moment to send a robot
+/// the same way (the second 10 s later): whatever order their commits land in, the committed
+/// plans keep the robots apart — the floor's version makes the later commit check again, and
+/// it then waits, or is refused (409) when no wait fits; never both committed in conflict.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_processes_sharing_the_job_database_never_commit_conflicting_plans() {
+    let shared = tempfile::tempdir().unwrap();
+    let url = format!("sqlite://{}", shared.path().join("jobs.db").display());
+    let (a, b) = tokio::join!(fleet_app(Some(url.clone())), fleet_app(Some(url)));
+    let from = free_near(&a, centroid(&a, "F0-living-room").await).await;
+    let to = free_near(&a, centroid(&a, "F0-hall").await).await;
+    let start = now_ms() + 5_000;
+    let (ask_first, ask_second) = (
+        route("R-001", from, to, start, json!({})),
+        route("R-002", from, to, start + 10_000, json!({})),
+    );
+    let (first, second) = tokio::join!(plan(&a, &ask_first), plan(&b, &ask_second));
+    let answered: Vec<&Value> = [&first, &second]
+        .into_iter()
+        .filter(|(status, body)| {
+            assert!(*status == 200 || *status == 409, "{status} {body}");
+            *status == 200
+        })
+        .map(|(_, body)| body)
+        .collect();
+    assert!(!answered.is_empty(), "{first:?} {second:?}");
+    assert!(
+        answered.iter().all(|p| p["schedule"]["committed"] == true),
+        "{answered:?}"
+    );
+    for app in [&a, &b] {
+        let committed = traffic(app, FIRST_ROBOT).await;
+        let plans = committed["plans"].as_array().unwrap();
+        assert_eq!(plans.len(), answered.len(), "{committed}");
+        assert_apart(plans);
+    }
+    if answered.len() == 2 {
+        let waited = answered
+            .iter()
+            .filter(|p| !p["schedule"]["waits"].as_array().unwrap().is_empty())
+            .count();
+        assert_eq!(
+            waited, 1,
+            "the later commit fitted around the first: {answered:?}"
+        );
+    }
+    a.stop().await;
+    b.stop().await;
+}
