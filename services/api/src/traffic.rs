@@ -196,6 +196,8 @@ async fn cancel_plan(
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, description = "Another robot's plan", body = edge::ErrorBody),
         (status = 404, description = "No such committed plan (or it expired)", body = edge::ErrorBody),
+        (status = 413, response = edge::error::responses::PayloadTooLarge),
+        (status = 415, response = edge::error::responses::UnsupportedMediaType),
         (status = 422, description = "A position or time that is not a number", body = edge::ErrorBody),
         (status = 503, response = edge::error::responses::ServiceUnavailable),
     ),

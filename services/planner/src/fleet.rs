@@ -30,12 +30,14 @@ use traffic::{Conflict, Itinerary, TimedPose};
 pub type FleetFuture<'a, T> = Pin<Box<dyn Future<Output = Result<T, String>> + Send + 'a>>;
 
 /// How a commit went.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Committed {
     /// Committed; the floor's new version.
     Yes(i64),
     /// Another plan was committed on the floor since the snapshot: check again.
     VersionChanged,
+    /// The schedule refuses the itinerary (a value out of its range); why.
+    Refused(String),
 }
 
 /// The fleet's schedule as the planner sees it (the `traffic` store in the job database).
@@ -79,6 +81,8 @@ impl Default for FleetOptions {
 
 /// Largest tolerance, wait and hold, seconds.
 pub const MAX_FLEET_S: f64 = 3600.0;
+/// Latest start a plan may ask for, ms since the Unix epoch (2100-01-01).
+pub const MAX_START_UNIX_MS: i64 = 4_102_444_800_000;
 /// Gap kept between two robots' footprints beyond their radii, metres.
 pub const ROBOT_MARGIN_M: f64 = 0.1;
 /// Steps of waiting tried, seconds.
@@ -97,6 +101,13 @@ impl FleetOptions {
                     "`options.{name}` must lie in [0, {MAX_FLEET_S}] seconds, got {v}"
                 ));
             }
+        }
+        if let Some(t) = self.start_unix_ms
+            && !(0..=MAX_START_UNIX_MS).contains(&t)
+        {
+            return Err(format!(
+                "`options.start_time_ms` must lie in [0, {MAX_START_UNIX_MS}] ms since the Unix epoch, got {t}"
+            ));
         }
         Ok(())
     }

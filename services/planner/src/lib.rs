@@ -486,6 +486,7 @@ impl Planner {
                 {
                     fleet::Committed::Yes(v) => Some(v),
                     fleet::Committed::VersionChanged => continue,
+                    fleet::Committed::Refused(m) => return Err(PlanFailure::Unprocessable(m)),
                 }
             } else {
                 None

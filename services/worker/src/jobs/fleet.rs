@@ -68,6 +68,9 @@ impl FleetSchedule for QueueFleet {
             match committed {
                 Ok(v) => Ok(Committed::Yes(v)),
                 Err(TrafficError::VersionChanged { .. }) => Ok(Committed::VersionChanged),
+                Err(e @ (TrafficError::Invalid(_) | TrafficError::PlanIdTaken { .. })) => {
+                    Ok(Committed::Refused(format!("the traffic schedule: {e}")))
+                }
                 Err(e) => Err(e.to_string()),
             }
         })

@@ -138,7 +138,8 @@ pub struct PlanOptions {
     /// Commit the plan to the floor's traffic schedule, replacing the robot's previous plan
     /// (default true); false only checks it against the other robots' committed plans.
     pub commit: bool,
-    /// When the robot sets off, ms since the Unix epoch [default: now].
+    /// When the robot sets off, ms since the Unix epoch, up to 2100-01-01 [default: now].
+    #[schema(minimum = 0, maximum = 4_102_444_800_000_i64)]
     pub start_time_ms: Option<i64>,
     /// How early or late the robot may be on its schedule, seconds, in [0, 3600] (default 2):
     /// other plans keep clear of it over that window.
