@@ -186,6 +186,15 @@ async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() 
     let version = committed["version"].as_i64().unwrap();
     assert_eq!(traffic(&app, SECOND_ROBOT).await["version"], version);
 
+    // A start in the past, beyond the tolerance, cannot be scheduled.
+    let (status, past) = plan(
+        &app,
+        &route("R-002", from, to, now_ms() - 60_000, json!({})),
+    )
+    .await;
+    assert_eq!(status, 422, "{past}");
+    assert!(past.to_string().contains("start_time_ms"), "{past}");
+
     // Only the plan's robot (or an engineer) may cancel it.
     let id1 = s1["plan_id"].as_str().unwrap();
     let r = app

@@ -83,6 +83,10 @@ impl Default for FleetOptions {
 pub const MAX_FLEET_S: f64 = 3600.0;
 /// Latest start a plan may ask for, ms since the Unix epoch (2100-01-01).
 pub const MAX_START_UNIX_MS: i64 = 4_102_444_800_000;
+/// Most other robots' plans a floor's schedule holds when a plan is checked against it: past
+/// it, the plan is refused (a floor that busy needs traffic management this schedule does not
+/// do).
+pub const MAX_ROBOTS_PER_FLOOR: usize = 100;
 /// Gap kept between two robots' footprints beyond their radii, metres.
 pub const ROBOT_MARGIN_M: f64 = 0.1;
 /// Steps of waiting tried, seconds.

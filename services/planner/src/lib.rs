@@ -431,6 +431,14 @@ impl Planner {
     ) -> Result<FleetOutcome, PlanFailure> {
         let now = schedule.now_ms();
         let start = options.start_unix_ms.unwrap_or(now);
+        let slack_ms = (options.tolerance_s * 1000.0).round() as i64;
+        if start < now - slack_ms {
+            return Err(PlanFailure::Unprocessable(format!(
+                "`options.start_time_ms` {start} is {:.1} s in the past, beyond the plan's tolerance of {} s: a schedule cannot start before it is made",
+                (now - start) as f64 / 1000.0,
+                options.tolerance_s
+            )));
+        }
         let template = traffic::Itinerary {
             plan_id: fleet::plan_id(&db.robot, now),
             robot: db.robot.clone(),
@@ -451,6 +459,13 @@ impl Planner {
                 .into_iter()
                 .filter(|i| i.robot != db.robot)
                 .collect();
+            if others.len() >= fleet::MAX_ROBOTS_PER_FLOOR {
+                return Err(PlanFailure::Unprocessable(format!(
+                    "the floor's traffic schedule holds {} other robots' plans, the most it takes ({}); cancel some or wait for them to expire",
+                    others.len(),
+                    fleet::MAX_ROBOTS_PER_FLOOR
+                )));
+            }
             let (itinerary, at_steps, waits) = fleet::fit(
                 &template,
                 &report.steps,
