@@ -375,7 +375,7 @@ fn dedup(mut v: Vec<String>) -> Vec<String> {
 }
 
 /// The refusal: the robots in the way and the earliest later start that fits without waits
-/// (searched second by second until every other itinerary has expired).
+/// (searched second by second until every other itinerary has expired, tolerances included).
 fn no_fit(
     template: &Itinerary,
     draft: &Draft<'_>,
@@ -383,11 +383,13 @@ fn no_fit(
     robots: Vec<String>,
     max_wait_s: f64,
 ) -> NoFit {
+    // Once every other itinerary has expired, and both tolerances have passed, any start fits.
     let horizon = others
         .iter()
-        .map(|o| o.expires_unix_ms)
+        .map(|o| o.expires_unix_ms + (o.tolerance_s * 1000.0).ceil() as i64)
         .max()
-        .unwrap_or(template.start_unix_ms);
+        .unwrap_or(template.start_unix_ms)
+        + (template.tolerance_s * 1000.0).ceil() as i64;
     let plain = Draft {
         steps: draft.steps,
         dt: draft.dt,
@@ -565,6 +567,30 @@ mod tests {
         assert!(
             waits.iter().all(|w| w.0 != at[1]),
             "never at the goal: {waits:?}"
+        );
+    }
+
+    #[test]
+    fn a_start_inside_a_robot_held_there_is_refused_naming_it() {
+        let dt = 0.1;
+        // A ends at (0, 0) and is held there; B would set off from (0, 0) meanwhile.
+        let a = committed("A", &straight((-5.0, 0.0), (0.0, 0.0), 1.0, dt), dt, 0);
+        let b_steps = straight((0.0, 0.0), (0.0, 5.0), 1.0, dt);
+        let e = fit(
+            &template("B", 6_000),
+            &b_steps,
+            dt,
+            &[Point2::new(0.0, 5.0)],
+            std::slice::from_ref(&a),
+            3.0,
+        )
+        .unwrap_err();
+        assert_eq!(e.robots, vec!["A".to_owned()]);
+        // A's hold ends at 5 s + 1 s tolerance + 5 s: B fits once it has expired.
+        let t = e.earliest_start_unix_ms.unwrap();
+        assert!(
+            t > a.expires_unix_ms - 6_000 && t <= a.expires_unix_ms + 2_000,
+            "{t}"
         );
     }
 
