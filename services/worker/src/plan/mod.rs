@@ -3,9 +3,13 @@
 //! with [`PlanApiRequest::into_query`] and [`PlanApiResponse::of`] and leave every decision to
 //! [`planner::Planner::plan`].
 //!
-//! - [`types`]: options, reports and the ROS path (serde, OpenAPI schemas), converted field by
-//!   field to and from the executor's core types.
+//! - [`types`]: options and reports (serde, OpenAPI schemas), converted field by field to and
+//!   from the executor's core types;
+//! - [`ros`]: the path as a ROS 2 `nav_msgs/Path`;
+//! - [`schedule`]: the plan in the floor's traffic schedule.
 
+pub mod ros;
+pub mod schedule;
 pub mod types;
 
 use planner::{PeopleSummary, PlanOutcome, PlanPeople, PlanQuery};

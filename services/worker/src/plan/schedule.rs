@@ -1,0 +1,87 @@
+//! A plan in the floor's traffic schedule, as the answer carries it.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+/// The plan in the floor's traffic schedule.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PlanSchedule {
+    /// The plan's id: `DELETE /v1/plans/{id}` cancels it, `POST /v1/plans/{id}/progress`
+    /// reports the robot's progress on it.
+    pub plan_id: String,
+    /// Whether it was committed (`options.commit`).
+    pub committed: bool,
+    /// The floor schedule's version after the commit.
+    pub version: Option<i64>,
+    /// When the robot sets off (after any wait at the start), ms since the Unix epoch.
+    pub start_time_ms: i64,
+    /// When the robot reaches each waypoint, ms since the Unix epoch (index as `waypoints`).
+    pub waypoint_times_ms: Vec<i64>,
+    /// Where and how long the robot waits for other robots to pass, in order.
+    pub waits: Vec<PlanWait>,
+    /// Other robots' committed plans on the floor it was checked against.
+    pub others_checked: usize,
+    /// How early or late the robot may be, seconds.
+    pub tolerance_s: f64,
+    /// When the schedule lets the robot's place go (its last goal held until then), ms since
+    /// the Unix epoch.
+    pub expires_ms: i64,
+}
+
+/// A wait in a plan, so that other robots can pass.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PlanWait {
+    /// The waypoint waited at (index into `waypoints`); absent: at the start (a later start).
+    pub waypoint: Option<usize>,
+    /// Seconds waited.
+    pub wait_s: f64,
+    /// When the robot may go on, ms since the Unix epoch.
+    pub not_before_ms: i64,
+    /// The robots it lets pass (IRIs).
+    pub for_robots: Vec<String>,
+}
+
+impl From<planner::FleetOutcome> for PlanSchedule {
+    fn from(f: planner::FleetOutcome) -> Self {
+        let start_wait = f
+            .waits
+            .iter()
+            .find(|w| w.waypoint.is_none())
+            .map(|w| w.not_before_unix_ms);
+        Self {
+            plan_id: f.itinerary.plan_id.clone(),
+            committed: f.version.is_some(),
+            version: f.version,
+            start_time_ms: start_wait.unwrap_or(f.itinerary.start_unix_ms),
+            waypoint_times_ms: f.waypoint_times_unix_ms,
+            waits: f
+                .waits
+                .into_iter()
+                .map(|w| PlanWait {
+                    waypoint: w.waypoint,
+                    wait_s: w.wait_s,
+                    not_before_ms: w.not_before_unix_ms,
+                    for_robots: w.for_robots,
+                })
+                .collect(),
+            others_checked: f.others,
+            tolerance_s: f.itinerary.tolerance_s,
+            expires_ms: f.itinerary.expires_unix_ms,
+        }
+    }
+}
+
+impl PlanSchedule {
+    /// The time each pose of the plan's path is stamped with: the start, then each waypoint's
+    /// arrival, or the end of its wait where the robot waits there.
+    pub fn path_times(&self) -> Vec<i64> {
+        std::iter::once(self.start_time_ms)
+            .chain(self.waypoint_times_ms.iter().enumerate().map(|(i, &t)| {
+                self.waits
+                    .iter()
+                    .find(|w| w.waypoint == Some(i))
+                    .map_or(t, |w| w.not_before_ms)
+            }))
+            .collect()
+    }
+}
