@@ -7,9 +7,8 @@
 //! `MENTALSIM_REQUIRE_POSTGRES=1`; in a clone of one's own they print why and return.
 #![allow(dead_code, clippy::unwrap_used)] // reason: shared by several test binaries; tests panic on failure
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
-use fixtures::{Durability, TempPostgres, TempPostgresError};
 use queue::{JobDatabase, ManualClock};
 use traffic::{Itinerary, Schedule, TimedPose};
 
@@ -55,28 +54,12 @@ pub async fn sqlite() -> Option<Fixture> {
     Some(Fixture::new(url, Some(dir)).await)
 }
 
-fn cluster() -> Option<&'static TempPostgres> {
-    static CLUSTER: OnceLock<Option<TempPostgres>> = OnceLock::new();
-    CLUSTER
-        .get_or_init(|| match TempPostgres::start(Durability::Fast) {
-            Ok(pg) => Some(pg),
-            Err(e @ TempPostgresError::NotInstalled) => {
-                let what = format!("PostgreSQL for the PostgreSQL tests: {e}");
-                if std::env::var("MENTALSIM_REQUIRE_POSTGRES").as_deref() == Ok("1") {
-                    panic!("missing: {what} (MENTALSIM_REQUIRE_POSTGRES=1)");
-                }
-                fixtures::missing(what);
-                None
-            }
-            Err(e) => panic!("{e}"),
-        })
-        .as_ref()
-}
-
 /// A fresh database in the shared temporary cluster, or `None` (the test returns) when
 /// PostgreSQL is missing and [`fixtures::missing`] lets the test skip.
 pub async fn postgres_url() -> Option<String> {
-    let pg = tokio::task::spawn_blocking(cluster).await.unwrap()?;
+    let pg = tokio::task::spawn_blocking(fixtures::temp_postgres::shared_cluster)
+        .await
+        .unwrap()?;
     let name = format!("t_{}", uuid::Uuid::new_v4().simple());
     Some(pg.create_database(&name).await.unwrap())
 }
