@@ -769,15 +769,17 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             people,
             controllers,
         } => {
-            let md = crate::train::bench_edges(
-                &maps,
-                &policies,
+            let md = bench::edges::run_edge_bench(&bench::edges::EdgeBenchOptions {
+                maps: maps.clone(),
+                policies,
                 rollouts,
                 seed,
-                &out,
-                &people,
-                &controllers,
-            )?;
+                out: out.clone(),
+                people,
+                controllers,
+                robot_ttl: crate::train::bundled_robot_ttl().as_bytes().to_vec(),
+                robot_iri: crate::train::ROBOT_IRI.to_owned(),
+            })?;
             println!("{md}");
             println!(
                 "wrote {} and {}",

@@ -5,13 +5,7 @@
 use reqwest::Method;
 use serde_json::{Value, json};
 
-use crate::helpers::{TestApp, spawn_app, spawn_app_with};
-
-async fn get_json(app: &TestApp, path: &str) -> (u16, Value) {
-    let r = app.request(Method::GET, path).send().await.unwrap();
-    let status = r.status().as_u16();
-    (status, r.json().await.unwrap_or(Value::Null))
-}
+use crate::helpers::{spawn_app, spawn_app_with};
 
 #[tokio::test]
 async fn the_pages_and_the_merged_document_need_no_token() {
@@ -82,7 +76,7 @@ async fn the_pages_and_the_merged_document_need_no_token() {
 #[tokio::test]
 async fn me_names_the_token_holder_and_role() {
     let app = spawn_app().await;
-    let (status, me) = get_json(&app, "/v1/me").await;
+    let (status, me) = app.get_json("/v1/me").await;
     assert_eq!(status, 200, "{me}");
     assert_eq!(me["role"], "engineer");
     assert!(me["name"].as_str().is_some_and(|n| !n.is_empty()));
@@ -92,11 +86,11 @@ async fn me_names_the_token_holder_and_role() {
 #[tokio::test]
 async fn a_floor_lists_its_objects_as_the_simulation_sees_them() {
     let app = spawn_app().await;
-    let (status, before) = get_json(&app, "/v1/places/F0/objects").await;
+    let (status, before) = app.get_json("/v1/places/F0/objects").await;
     assert_eq!(status, 200, "{before}");
     let n = before.as_array().unwrap().len();
     app.report_box("F0-hall", "crate-7", (1.0, 1.0), 0.5).await;
-    let (_, after) = get_json(&app, "/v1/places/F0-hall/objects").await;
+    let (_, after) = app.get_json("/v1/places/F0-hall/objects").await;
     let objects = after.as_array().unwrap();
     assert_eq!(objects.len(), n + 1, "{after}");
     let reported = objects
@@ -106,7 +100,7 @@ async fn a_floor_lists_its_objects_as_the_simulation_sees_them() {
     assert_eq!(reported["shape"], "box");
     assert!(reported["colour"].as_str().unwrap().starts_with('#'));
     assert!(reported["size"][0].as_f64().unwrap() > 0.0);
-    let (status, missing) = get_json(&app, "/v1/places/no-such-place/objects").await;
+    let (status, missing) = app.get_json("/v1/places/no-such-place/objects").await;
     assert_eq!(status, 404, "{missing}");
     app.stop().await;
 }
@@ -114,7 +108,7 @@ async fn a_floor_lists_its_objects_as_the_simulation_sees_them() {
 #[tokio::test]
 async fn a_floor_roadmap_has_nodes_and_edges_and_names_bad_queries() {
     let app = spawn_app().await;
-    let (status, roadmap) = get_json(&app, "/v1/roadmaps?place=F0&robot=R-001").await;
+    let (status, roadmap) = app.get_json("/v1/roadmaps?place=F0&robot=R-001").await;
     assert_eq!(status, 200, "{roadmap}");
     assert_eq!(roadmap["kind"], "geometric");
     let nodes = roadmap["nodes"].as_array().unwrap();
@@ -127,12 +121,12 @@ async fn a_floor_roadmap_has_nodes_and_edges_and_names_bad_queries() {
         assert!(e["success"].is_null());
     }
     assert!(roadmap["inflation_m"].as_f64().unwrap() > 0.1);
-    let (status, body) = get_json(&app, "/v1/roadmaps?place=F0&robot=R-001&policy=nope").await;
+    let (status, body) = app.get_json("/v1/roadmaps?place=F0&robot=R-001&policy=nope").await;
     assert_eq!(status, 404, "{body}");
-    let (status, body) = get_json(&app, "/v1/roadmaps?place=F0").await;
+    let (status, body) = app.get_json("/v1/roadmaps?place=F0").await;
     assert_eq!(status, 400, "{body}");
     let (status, body) =
-        get_json(&app, "/v1/roadmaps?place=F0&robot=R-001&safety_margin_m=9").await;
+        app.get_json("/v1/roadmaps?place=F0&robot=R-001&safety_margin_m=9").await;
     assert_eq!(status, 422, "{body}");
     app.stop().await;
 }
@@ -141,7 +135,7 @@ async fn a_floor_roadmap_has_nodes_and_edges_and_names_bad_queries() {
 async fn a_traced_plan_carries_every_attempts_drive_and_the_laser() {
     let app = spawn_app().await;
     // Two points in free space, from the roadmap itself.
-    let (_, roadmap) = get_json(&app, "/v1/roadmaps?place=F0&robot=R-001").await;
+    let (_, roadmap) = app.get_json("/v1/roadmaps?place=F0&robot=R-001").await;
     let nodes = roadmap["nodes"].as_array().unwrap();
     let (a, b) = (&nodes[0], &nodes[nodes.len() / 2]);
     let r = app
@@ -204,9 +198,7 @@ async fn curves_belong_to_training_jobs() {
         Some(temp),
     )
     .await;
-    let (status, body) = get_json(
-        &app,
-        "/v1/jobs/01890000-0000-7000-8000-000000000000/curves.csv",
+    let (status, body) = app.get_json("/v1/jobs/01890000-0000-7000-8000-000000000000/curves.csv",
     )
     .await;
     assert_eq!(status, 404, "{body}");
@@ -220,7 +212,7 @@ async fn curves_belong_to_training_jobs() {
     assert_eq!(r.status(), 201);
     let job: Value = r.json().await.unwrap();
     let id = job["id"].as_str().unwrap();
-    let (status, body) = get_json(&app, &format!("/v1/jobs/{id}/curves.png")).await;
+    let (status, body) = app.get_json(&format!("/v1/jobs/{id}/curves.png")).await;
     assert_eq!(status, 404, "{body}");
     assert!(
         body["error"]["message"]
@@ -234,7 +226,7 @@ async fn curves_belong_to_training_jobs() {
 #[tokio::test]
 async fn a_floor_route_graph_is_nav2_route_server_geojson() {
     let app = spawn_app().await;
-    let (_, roadmap) = get_json(&app, "/v1/roadmaps?place=F0&robot=R-001").await;
+    let (_, roadmap) = app.get_json("/v1/roadmaps?place=F0&robot=R-001").await;
     let r = app
         .request(Method::GET, "/v1/places/F0/route-graph.geojson?robot=R-001")
         .send()

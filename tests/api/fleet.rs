@@ -6,7 +6,7 @@
 use reqwest::Method;
 use serde_json::{Value, json};
 
-use crate::helpers::{TestApp, spawn_app_with};
+use crate::helpers::{TestApp, spawn_app_with, with_tokens};
 use crate::plan::{centroid, free_near, plan};
 
 const FIRST: &str = "https://mentalsim.dev/data/robots/differential-robot";
@@ -23,18 +23,14 @@ async fn fleet_app(database_url: Option<String>) -> TestApp {
         |c| {
             c.data_dir = data_dir.clone();
             c.database_url = database_url;
-            c.tokens = [
-                (ENGINEER, "engineer", edge::Role::Engineer),
-                (FIRST_ROBOT, FIRST, edge::Role::Robot),
-                (SECOND_ROBOT, "second-robot", edge::Role::Robot),
-            ]
-            .into_iter()
-            .map(|(token, name, role)| mentalsim::config::TokenConfig {
-                token: token.into(),
-                name: name.into(),
-                role,
-            })
-            .collect();
+            with_tokens(
+                c,
+                &[
+                    (ENGINEER, "engineer", edge::Role::Engineer),
+                    (FIRST_ROBOT, FIRST, edge::Role::Robot),
+                    (SECOND_ROBOT, "second-robot", edge::Role::Robot),
+                ],
+            );
         },
         Some(temp),
     )
@@ -90,15 +86,16 @@ fn now_ms() -> i64 {
 
 /// The floor's committed plans.
 async fn traffic(app: &TestApp, robot_token: &str) -> Value {
-    let r = app
-        .client
-        .get(format!("{}/v1/places/F0/traffic?robot=R-001", app.address))
-        .bearer_auth(robot_token)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 200);
-    r.json().await.unwrap()
+    let (status, body) = app
+        .json_as(
+            robot_token,
+            Method::GET,
+            "/v1/places/F0/traffic?robot=R-001",
+            None,
+        )
+        .await;
+    assert_eq!(status, 200, "{body}");
+    body
 }
 
 /// Checks every pair of committed plans with the schedule's own geometry.

@@ -4,8 +4,11 @@
 //! Logs are silent unless `TEST_LOG` is set.
 
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
-use mentalsim::config::{Config, LogFormat};
+use mentalsim::config::{Config, LogFormat, TokenConfig};
+use reqwest::Method;
+use serde_json::Value;
 use mentalsim::startup::Application;
 use tokio_util::sync::CancellationToken;
 
@@ -65,7 +68,111 @@ pub async fn spawn_app_with(
     }
 }
 
+/// Gives `config` exactly these tokens: `(token, name, role)`; a robot's token is named after
+/// the robot it may speak for (its IRI or identifier).
+pub fn with_tokens(config: &mut Config, tokens: &[(&str, &str, edge::Role)]) {
+    config.tokens = tokens
+        .iter()
+        .map(|&(token, name, role)| TokenConfig {
+            token: token.to_owned(),
+            name: name.to_owned(),
+            role,
+        })
+        .collect();
+}
+
+/// `s` percent-encoded for a path segment or a query value.
+pub fn url_encode(s: &str) -> String {
+    percent_encoding::utf8_percent_encode(s, percent_encoding::NON_ALPHANUMERIC).to_string()
+}
+
+/// The status and JSON body of a response (`{"text": …}` when the body is not JSON).
+pub async fn answer(response: reqwest::Response) -> (u16, Value) {
+    let status = response.status().as_u16();
+    let text = response.text().await.expect("body read");
+    let body = serde_json::from_str(&text).unwrap_or_else(|_| serde_json::json!({ "text": text }));
+    (status, body)
+}
+
 impl TestApp {
+    /// `method path` with `token` and an optional JSON body: the status and the JSON answer.
+    pub async fn json_as(
+        &self,
+        token: &str,
+        method: Method,
+        path: &str,
+        body: Option<&Value>,
+    ) -> (u16, Value) {
+        let mut request = self
+            .client
+            .request(method, format!("{}{path}", self.address))
+            .bearer_auth(token);
+        if let Some(body) = body {
+            request = request.json(body);
+        }
+        answer(request.send().await.expect("request sent")).await
+    }
+
+    /// `GET path` with the engineer token: the status and the JSON answer.
+    pub async fn get_json(&self, path: &str) -> (u16, Value) {
+        self.json_as(&self.token, Method::GET, path, None).await
+    }
+
+    /// `POST path` with `body` and the engineer token: the status and the JSON answer.
+    pub async fn post_json(&self, path: &str, body: &Value) -> (u16, Value) {
+        self.json_as(&self.token, Method::POST, path, Some(body))
+            .await
+    }
+
+    /// `POST /sparql` with a SPARQL query, asking for JSON results, with the engineer token.
+    pub async fn sparql_query(&self, query: &str) -> reqwest::Response {
+        self.request(Method::POST, "/sparql")
+            .header("content-type", "application/sparql-query")
+            .header("accept", "application/sparql-results+json")
+            .body(query.to_owned())
+            .send()
+            .await
+            .expect("request sent")
+    }
+
+    /// `POST /sparql` with a SPARQL update, with the engineer token.
+    pub async fn sparql_update(&self, update: &str) -> reqwest::Response {
+        self.request(Method::POST, "/sparql")
+            .header("content-type", "application/sparql-update")
+            .body(update.to_owned())
+            .send()
+            .await
+            .expect("request sent")
+    }
+
+    /// Job `id` (`GET /v1/jobs/{id}`, which must answer 200) once `done` says so; fails after
+    /// `timeout` naming the job's last state.
+    pub async fn wait_for_job(
+        &self,
+        id: &str,
+        timeout: Duration,
+        done: impl Fn(&Value) -> bool,
+    ) -> Value {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let (status, job) = self.get_json(&format!("/v1/jobs/{id}")).await;
+            assert_eq!(status, 200, "GET /v1/jobs/{id}: {job}");
+            if done(&job) {
+                return job;
+            }
+            assert!(Instant::now() < deadline, "timed out; job is {job:#}");
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    }
+
+    /// Job `id` once it has succeeded or failed (two minutes at most).
+    pub async fn finished_job(&self, id: &str) -> Value {
+        self.wait_for_job(id, Duration::from_secs(120), |j| {
+            j["state"] == "succeeded" || j["state"] == "failed"
+        })
+        .await
+    }
+
     /// `GET path`.
     pub async fn get(&self, path: &str) -> reqwest::Response {
         self.client
@@ -76,7 +183,7 @@ impl TestApp {
     }
 
     /// A request builder for `method path` carrying the engineer token.
-    pub fn request(&self, method: reqwest::Method, path: &str) -> reqwest::RequestBuilder {
+    pub fn request(&self, method: Method, path: &str) -> reqwest::RequestBuilder {
         self.client
             .request(method, format!("{}{path}", self.address))
             .bearer_auth(&self.token)
@@ -87,7 +194,7 @@ impl TestApp {
     pub async fn report_box(&self, place: &str, id: &str, (x, y): (f64, f64), size: f64) {
         let created = self
             .request(
-                reqwest::Method::POST,
+                Method::POST,
                 &format!("/v1/places/{place}/objects"),
             )
             .json(&serde_json::json!({

@@ -43,30 +43,9 @@ async fn post_job(app: &TestApp, body: &Value) -> reqwest::Response {
 }
 
 async fn get_job(app: &TestApp, id: &str) -> Value {
-    let r = app
-        .request(Method::GET, &format!("/v1/jobs/{id}"))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 200);
-    r.json().await.unwrap()
-}
-
-async fn wait_for(
-    app: &TestApp,
-    id: &str,
-    timeout: Duration,
-    done: impl Fn(&Value) -> bool,
-) -> Value {
-    let deadline = Instant::now() + timeout;
-    loop {
-        let job = get_job(app, id).await;
-        if done(&job) {
-            return job;
-        }
-        assert!(Instant::now() < deadline, "timed out; job is {job:#}");
-        tokio::time::sleep(Duration::from_millis(200)).await;
-    }
+    let (status, job) = app.get_json(&format!("/v1/jobs/{id}")).await;
+    assert_eq!(status, 200, "{job}");
+    job
 }
 
 /// One server-sent event.
@@ -290,7 +269,7 @@ async fn a_training_job_streams_its_events_and_exports_a_policy_that_downloads_a
         .as_str()
         .unwrap()
         .to_owned();
-    let eval = wait_for(&app, &eval_id, Duration::from_secs(120), |j| {
+    let eval = app.wait_for_job(&eval_id, Duration::from_secs(120), |j| {
         j["state"] != "queued" && j["state"] != "running"
     })
     .await;
@@ -323,7 +302,7 @@ async fn cancelling_a_running_training_stops_its_trainer() {
         .as_str()
         .unwrap()
         .to_owned();
-    let running = wait_for(&app, &id, Duration::from_secs(120), |j| {
+    let running = app.wait_for_job(&id, Duration::from_secs(120), |j| {
         j["state"] == "running" && j["progress"]["env_steps"].as_u64().unwrap_or(0) > 0
     })
     .await;
@@ -340,7 +319,7 @@ async fn cancelling_a_running_training_stops_its_trainer() {
     let asked: Value = cancel.json().await.unwrap();
     assert_eq!(asked["cancel_requested"], true);
     let started = Instant::now();
-    let job = wait_for(&app, &id, Duration::from_secs(60), |j| {
+    let job = app.wait_for_job(&id, Duration::from_secs(60), |j| {
         j["state"] != "running" && j["state"] != "queued"
     })
     .await;
@@ -637,7 +616,7 @@ async fn a_training_stopped_by_shutdown_checkpoints_and_resumes_in_the_next_proc
         .as_str()
         .unwrap()
         .to_owned();
-    wait_for(&app, &id, Duration::from_secs(120), |j| {
+    app.wait_for_job(&id, Duration::from_secs(120), |j| {
         j["state"] == "running" && j["progress"]["env_steps"].as_u64().unwrap_or(0) > 0
     })
     .await;
@@ -645,7 +624,7 @@ async fn a_training_stopped_by_shutdown_checkpoints_and_resumes_in_the_next_proc
     app.stop().await;
     let dir = data_dir.clone();
     let app = spawn_app_with(move |c| c.data_dir = dir, None).await;
-    let job = wait_for(&app, &id, Duration::from_secs(240), |j| {
+    let job = app.wait_for_job(&id, Duration::from_secs(240), |j| {
         j["state"] != "queued" && j["state"] != "running"
     })
     .await;

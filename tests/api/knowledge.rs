@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use reqwest::Method;
 use serde_json::{Value, json};
 
-use crate::helpers::spawn_app;
+use crate::helpers::{spawn_app, url_encode};
 
 fn shared_ros_maps() -> Option<Vec<PathBuf>> {
     let root = fixtures::shared_fixture("maps/ros", "the shared ROS maps")?;
@@ -164,10 +164,6 @@ async fn every_shared_ros_map_imports_and_reads_back() {
         assert_eq!(by_name.status(), 200, "{name}");
     }
     app.stop().await;
-}
-
-fn url_encode(s: &str) -> String {
-    percent_encoding::utf8_percent_encode(s, percent_encoding::NON_ALPHANUMERIC).to_string()
 }
 
 #[tokio::test]

@@ -4,11 +4,10 @@
 //! 0.2), survives a restart, and reaches a mission's on-demand database; bad counts are 4xx
 //! naming what is wrong, and change nothing.
 
-use mentalsim::config::{Config, TokenConfig};
-use reqwest::StatusCode;
+use mentalsim::config::Config;
 use serde_json::{Value, json};
 
-use crate::helpers::{TestApp, spawn_app_with};
+use crate::helpers::{TestApp, answer, spawn_app_with, url_encode, with_tokens};
 
 const ENGINEER: &str = "engineer-token-for-people";
 const ROBOT: &str = "robot-token-for-people-1";
@@ -17,35 +16,29 @@ const FLOOR0: &str = "https://mentalsim.dev/data/buildings/sample-building/floor
 const TOSM: &str = "https://mentalsim.dev/ontology/tosm#";
 
 fn tokens(c: &mut Config) {
-    c.tokens = [
-        (ENGINEER, "alice", edge::Role::Engineer),
-        (ROBOT, "robot-1", edge::Role::Robot),
-        (OTHER_ROBOT, "robot-2", edge::Role::Robot),
-    ]
-    .into_iter()
-    .map(|(token, name, role)| TokenConfig {
-        token: token.to_owned(),
-        name: name.to_owned(),
-        role,
-    })
-    .collect();
+    with_tokens(
+        c,
+        &[
+            (ENGINEER, "alice", edge::Role::Engineer),
+            (ROBOT, "robot-1", edge::Role::Robot),
+            (OTHER_ROBOT, "robot-2", edge::Role::Robot),
+        ],
+    );
 }
 
 /// The app on `data_dir` (kept by the caller, so that a second app can open it again).
 async fn app_on(data_dir: &std::path::Path) -> TestApp {
     let dir = data_dir.to_owned();
-    spawn_app_with(
+    let mut app = spawn_app_with(
         |c| {
             c.data_dir = dir;
             tokens(c);
         },
         None,
     )
-    .await
-}
-
-fn url_encode(s: &str) -> String {
-    percent_encoding::utf8_percent_encode(s, percent_encoding::NON_ALPHANUMERIC).to_string()
+    .await;
+    app.token = ENGINEER.to_owned();
+    app
 }
 
 /// `POST /v1/places/{place}/observations` with `body` as `token`.
@@ -59,39 +52,14 @@ async fn observe(app: &TestApp, token: &str, place: &str, body: Value) -> reqwes
         .unwrap()
 }
 
-/// The status and JSON body of a response.
-async fn answer(response: reqwest::Response) -> (StatusCode, Value) {
-    let status = response.status();
-    let text = response.text().await.unwrap();
-    let body = serde_json::from_str(&text).unwrap_or_else(|_| json!({ "text": text }));
-    (status, body)
-}
-
 async fn sparql_update(app: &TestApp, update: String) {
-    let r = app
-        .client
-        .post(format!("{}/sparql", app.address))
-        .bearer_auth(ENGINEER)
-        .header("content-type", "application/sparql-update")
-        .body(update)
-        .send()
-        .await
-        .unwrap();
+    let r = app.sparql_update(&update).await;
     assert_eq!(r.status(), 204, "{}", r.text().await.unwrap());
 }
 
 /// The single binding of `?v` in the answer to `query`, if any.
 async fn sparql_value(app: &TestApp, query: String) -> Option<String> {
-    let r = app
-        .client
-        .post(format!("{}/sparql", app.address))
-        .bearer_auth(ENGINEER)
-        .header("content-type", "application/sparql-query")
-        .header("accept", "application/sparql-results+json")
-        .body(query)
-        .send()
-        .await
-        .unwrap();
+    let r = app.sparql_query(&query).await;
     assert_eq!(r.status(), 200);
     let json: Value = r.json().await.unwrap();
     json["results"]["bindings"][0]["v"]["value"]
@@ -354,7 +322,7 @@ async fn bad_counts_are_4xx_naming_what_is_wrong_and_change_nothing() {
     ];
     for (what, place, body, status, needle) in cases {
         let (got, answer) = answer(observe(&app, ROBOT, place, body).await).await;
-        assert_eq!(got.as_u16(), status, "{what}: {answer}");
+        assert_eq!(got, status, "{what}: {answer}");
         let message = answer["error"]["message"].as_str().unwrap_or_default();
         assert!(message.contains(needle), "{what}: {answer}");
     }
@@ -405,7 +373,7 @@ async fn bad_counts_are_4xx_naming_what_is_wrong_and_change_nothing() {
         ),
     ] {
         let (got, answer) = answer(raw(body, content_type, token).await.unwrap()).await;
-        assert_eq!(got.as_u16(), status, "{body}: {answer}");
+        assert_eq!(got, status, "{body}: {answer}");
         assert!(answer["error"]["message"].is_string(), "{answer}");
     }
     // A body beyond the small body limit is refused before it is read.

@@ -8,14 +8,7 @@ use serde_json::{Value, json};
 use crate::helpers::{TestApp, spawn_app};
 
 pub(crate) async fn plan(app: &TestApp, body: &Value) -> (u16, Value) {
-    let r = app
-        .request(Method::POST, "/v1/plan")
-        .json(body)
-        .send()
-        .await
-        .unwrap();
-    let status = r.status().as_u16();
-    (status, r.json().await.unwrap_or(Value::Null))
+    app.post_json("/v1/plan", body).await
 }
 
 /// The centroid of a place's boundary, from the browsing API.
@@ -316,26 +309,6 @@ async fn plans_need_a_token() {
     assert_eq!(r.status(), 401);
 }
 
-/// The job once it has succeeded or failed (two minutes at most).
-async fn finished_job(app: &TestApp, id: &str) -> Value {
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
-    loop {
-        let v: Value = app
-            .request(Method::GET, &format!("/v1/jobs/{id}"))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        if v["state"] == "succeeded" || v["state"] == "failed" {
-            return v;
-        }
-        assert!(std::time::Instant::now() < deadline, "job stuck: {v}");
-        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
-    }
-}
-
 #[tokio::test]
 async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
     let app = spawn_app().await;
@@ -355,7 +328,7 @@ async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
     assert_eq!(r.status(), 201);
     let job: Value = r.json().await.unwrap();
     let id = job["id"].as_str().unwrap().to_owned();
-    let done = finished_job(&app, &id).await;
+    let done = app.finished_job(&id).await;
     assert_eq!(done["state"], "succeeded", "{done}");
     assert_eq!(done["result"]["controller"], "classical");
     assert!(done["result"]["waypoints"].as_array().unwrap().len() >= 2);
@@ -375,7 +348,7 @@ async fn a_validate_job_runs_the_plan_executor_and_stores_its_report() {
         .as_str()
         .unwrap()
         .to_owned();
-    let failed = finished_job(&app, &id).await;
+    let failed = app.finished_job(&id).await;
     assert_eq!(failed["state"], "failed", "{failed}");
     assert!(failed.to_string().contains("obstacle"), "{failed}");
     // Refused at submission with the plan endpoint's bounds, naming the field; an unknown
@@ -894,7 +867,7 @@ async fn a_validate_job_answers_what_the_plan_endpoint_answers() {
         .as_str()
         .unwrap()
         .to_owned();
-    let done = finished_job(&app, &id).await;
+    let done = app.finished_job(&id).await;
     assert_eq!(done["state"], "succeeded", "{done}");
     let mut validated = done["result"].clone();
     // A job checks the plan against the fleet but never commits it (a rehearsal, not an

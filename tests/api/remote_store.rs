@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use reqwest::Method;
 use serde_json::{Value, json};
 
-use crate::helpers::{TestApp, spawn_app_with};
+use crate::helpers::{spawn_app_with, url_encode};
 
 const TOSM: &str = "https://mentalsim.dev/ontology/tosm#";
 const INFERRED: &str = "https://mentalsim.dev/graph/inferred";
@@ -112,37 +112,6 @@ impl Drop for OxigraphServer {
     }
 }
 
-async fn sparql_select(app: &TestApp, query: &str) -> reqwest::Response {
-    app.request(Method::POST, "/sparql")
-        .header("content-type", "application/sparql-query")
-        .header("accept", "application/sparql-results+json")
-        .body(query.to_owned())
-        .send()
-        .await
-        .unwrap()
-}
-
-async fn sparql_update(app: &TestApp, update: &str) -> reqwest::Response {
-    app.request(Method::POST, "/sparql")
-        .header("content-type", "application/sparql-update")
-        .body(update.to_owned())
-        .send()
-        .await
-        .unwrap()
-}
-
-fn url_encode(s: &str) -> String {
-    s.bytes()
-        .map(|b| {
-            if b.is_ascii_alphanumeric() {
-                (b as char).to_string()
-            } else {
-                format!("%{b:02X}")
-            }
-        })
-        .collect()
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
     let Some(binary) = oxigraph_binary() else {
@@ -200,9 +169,7 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
     );
 
     // A query through our /sparql.
-    let response = sparql_select(
-        &app,
-        &format!("SELECT (COUNT(DISTINCT ?p) AS ?n) WHERE {{ GRAPH ?g {{ ?p a <{TOSM}Room> }} }}"),
+    let response = app.sparql_query(&format!("SELECT (COUNT(DISTINCT ?p) AS ?n) WHERE {{ GRAPH ?g {{ ?p a <{TOSM}Room> }} }}"),
     )
     .await;
     assert_eq!(response.status(), 200);
@@ -236,9 +203,7 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
     assert!(turtle.text().await.unwrap().contains("differential-robot"));
 
     // An update through our /sparql is in the remote, and its entailments are too.
-    let update = sparql_update(
-        &app,
-        &format!(
+    let update = app.sparql_update(&format!(
             "INSERT DATA {{ GRAPH <urn:test:g> {{ <urn:test:lab> a <{TOSM}Room> ; <{TOSM}name> \"lab\" }} }}"
         ),
     )
@@ -450,7 +415,7 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
         .unwrap();
     let reason = body["reason"].as_str().unwrap();
     assert!(reason.contains(&remote.url), "{reason}");
-    let down = sparql_select(&app, "SELECT * WHERE { ?s ?p ?o } LIMIT 1").await;
+    let down = app.sparql_query("SELECT * WHERE { ?s ?p ?o } LIMIT 1").await;
     assert!(
         down.status() == 502 || down.status() == 503,
         "{}",

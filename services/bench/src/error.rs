@@ -51,6 +51,14 @@ pub enum BenchError {
     /// An option is out of range.
     #[error("bad option: {0}")]
     BadOption(String),
+    /// The rehearsal (roadmap, rollouts) failed on a map.
+    #[error("{map}: {source}")]
+    Rehearsal {
+        /// The map.
+        map: String,
+        /// What failed.
+        source: rehearsal::PlanError,
+    },
     /// The plot could not be drawn.
     #[error("plot {path}: {message}")]
     Plot {

@@ -1,6 +1,7 @@
 //! Benchmark harnesses behind `mentalsim bench ...`.
 
 pub mod beta;
+pub mod edges;
 pub mod error;
 pub mod knowledge;
 pub mod learner;

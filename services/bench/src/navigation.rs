@@ -26,7 +26,7 @@
 //! one `rehearsal::validate` call for the long mission, p50 and p99 over runs).
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 mod report;
 pub use report::{Stats, to_csv};
@@ -46,7 +46,7 @@ use rehearsal::{
 };
 use sim::{Action, Pose2, World};
 
-use crate::error::BenchError;
+use crate::error::{BenchError, io_err};
 use crate::maps::{find_yamls, map_names};
 
 /// What `mentalsim bench navigation` runs.
@@ -320,13 +320,6 @@ impl NavigationBenchReport {
             self.markdown_path.display()
         );
         s
-    }
-}
-
-fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> BenchError + '_ {
-    move |source| BenchError::Io {
-        path: path.to_path_buf(),
-        source,
     }
 }
 

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use sim::{Action, EnvBatch, EnvConfig, NavEnv, ObjectSpec, Observation, Outcome, Shape, World};
 
-use crate::error::BenchError;
+use crate::error::{BenchError, io_err};
 
 /// The paper's Gazebo set-up: about 2.4 experiences per second (§5.2: ~1 million experiences in
 /// 116 hours).
@@ -248,13 +248,6 @@ impl SimBenchReport {
                 )
             })
             .collect::<String>()
-    }
-}
-
-fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> BenchError + '_ {
-    move |source| BenchError::Io {
-        path: path.to_path_buf(),
-        source,
     }
 }
 

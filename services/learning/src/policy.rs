@@ -377,6 +377,25 @@ pub fn write_policy(
     Ok(())
 }
 
+/// Replaces the training summary in the metadata of the policy in `dir` (what an exported
+/// policy says about itself once it has been evaluated), atomically; the weights stay.
+pub fn set_summary(dir: &Path, summary: serde_json::Value) -> Result<(), PolicyError> {
+    let path = dir.join(METADATA_FILE);
+    let io = |source| PolicyError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let bytes = std::fs::read(&path).map_err(io)?;
+    let mut meta: PolicyMetadata =
+        serde_json::from_slice(&bytes).map_err(|e| PolicyError::Metadata(e.to_string()))?;
+    if !meta.training.is_object() {
+        meta.training = serde_json::json!({});
+    }
+    meta.training["summary"] = summary;
+    let json = serde_json::to_vec_pretty(&meta).map_err(|e| PolicyError::Metadata(e.to_string()))?;
+    write_atomic(&path, &json).map_err(io)
+}
+
 /// Little-endian bytes of `values`.
 pub fn le_bytes(values: &[f32]) -> Vec<u8> {
     values.iter().flat_map(|v| v.to_le_bytes()).collect()

@@ -16,7 +16,7 @@ use crate::config::TrainConfig;
 use crate::curves::{self, PlotError};
 use crate::observation::Scaling;
 use crate::policy::{Policy, PolicyError};
-use crate::summary::{Goals, TrainSummary, held_out};
+use crate::summary::{Goals, HeldOut, TrainSummary, held_out};
 use crate::trainer::{Budget, Progress, TrainError, TrainOptions, Trainer};
 
 /// What to run.
@@ -245,14 +245,7 @@ pub fn run(
     let config = learned[chosen].config.clone();
     let interrupted = learned.iter().any(|l| l.interrupted);
     let policy = Policy::load(&run.out)?;
-    let held_out_seed = config.eval_seed.wrapping_add(1);
-    let evaluation = held_out(
-        &policy,
-        &run.world,
-        run.eval_episodes,
-        held_out_seed,
-        run.goals,
-    )?;
+    let evaluation = evaluate(&policy, &run.world, &config, run.eval_episodes, run.goals)?;
     let summary = TrainSummary {
         episodes: counters.episodes,
         env_steps: counters.env_steps,
@@ -304,66 +297,214 @@ fn train_one(
     })?;
     let mut config = run.config.clone();
     config.seed = config.seed.wrapping_add(k as u64);
-    let options = TrainOptions {
-        config,
-        env: EnvConfig::default(),
-        scaling: Scaling::default(),
-        out_dir: dir.clone(),
-    };
-    let trainer = if !run.fresh && Trainer::has_checkpoint(&dir) {
-        Trainer::resume(Arc::clone(&run.world), options)?
-    } else {
-        Trainer::new(Arc::clone(&run.world), options)?
-    };
-    let mut trainer = if run.hold_out && !run.extra_worlds.is_empty() {
-        trainer.with_training_worlds(run.extra_worlds.clone())?
-    } else {
-        trainer.with_extra_worlds(run.extra_worlds.clone())?
-    };
-    let budget = Budget {
-        wall_s: Some(run.minutes * 60.0),
-        env_steps: None,
-    };
-    let mut interrupted = false;
-    trainer.run(budget, &mut |p| {
-        let go_on = on_progress(p);
-        interrupted |= !go_on;
-        go_on
+    let mut learner = Learner::open(LearnerSpec {
+        world: Arc::clone(&run.world),
+        extra_worlds: run.extra_worlds.clone(),
+        hold_out: run.hold_out,
+        options: TrainOptions {
+            config,
+            env: EnvConfig::default(),
+            scaling: Scaling::default(),
+            out_dir: dir.clone(),
+        },
+        resume: if run.fresh {
+            Resume::Never
+        } else {
+            Resume::Checkpoint
+        },
     })?;
-    let counters = trainer.counters().clone();
-    let config = trainer.options().config.clone();
-
-    // Curves.
-    let episodes = trainer.episodes();
+    learner.train(run.minutes * 60.0, on_progress)?;
     let title = format!(
         "TD3 in the mental simulation of {} (β1 = β2 = {})",
         map_name(&run.map),
-        config.td3.beta1
+        learner.trainer().options().config.td3.beta1
     );
-    curves::write_curves(&dir, &title, episodes)?;
-    let mut evals_csv = String::from(
-        "env_steps,wall_s,success_rate,collision_rate,timeout_rate,mean_time_to_goal_s,mean_return\n",
-    );
-    for e in trainer.evals() {
-        evals_csv.push_str(&format!(
-            "{},{:.1},{:.4},{:.4},{:.4},{:.2},{:.2}\n",
-            e.env_steps,
-            e.wall_s,
-            e.report.success_rate,
-            e.report.collision_rate,
-            e.report.timeout_rate,
-            e.report.mean_time_to_goal_s,
-            e.report.mean_return
-        ));
-    }
-    write(dir.join("evals.csv"), evals_csv)?;
-    trainer.export(
+    learner.export(
         &dir,
+        &title,
         serde_json::json!({ "map": run.map.display().to_string() }),
     )?;
     Ok(Learned {
-        counters,
-        config,
-        interrupted,
+        counters: learner.trainer().counters().clone(),
+        config: learner.trainer().options().config.clone(),
+        interrupted: learner.interrupted(),
     })
+}
+
+/// Whether [`Learner::open`] continues the checkpoint in the options' directory.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Resume {
+    /// Start from scratch.
+    Never,
+    /// Resume the checkpoint when there is one; one that cannot be resumed is an error.
+    Checkpoint,
+    /// Resume the checkpoint when there is one and it can be resumed, else start from scratch
+    /// (a job that must make progress whatever an earlier attempt left).
+    CheckpointOrFresh,
+}
+
+/// What [`Learner::open`] trains.
+pub struct LearnerSpec {
+    /// The world evaluated on (and trained in unless `hold_out`).
+    pub world: Arc<World>,
+    /// Further worlds sharing the training environments.
+    pub extra_worlds: Vec<Arc<World>>,
+    /// Train in `extra_worlds` only (when there are any).
+    pub hold_out: bool,
+    /// Configuration, environment, scaling and the checkpoint directory.
+    pub options: TrainOptions,
+    /// Whether to continue a checkpoint.
+    pub resume: Resume,
+}
+
+/// One learner's training, the pipeline `mentalsim train` (once per learner) and the `train`
+/// job share: open (start, or resume a checkpoint), [`train`](Self::train) for a wall-clock
+/// budget, [`export`](Self::export) the curves and the policy, then evaluate the exported
+/// policy on held-out missions ([`evaluate`]).
+pub struct Learner {
+    trainer: Trainer,
+    resumed: bool,
+    discarded: Option<String>,
+    interrupted: bool,
+}
+
+impl Learner {
+    /// Starts or resumes, as `spec.resume` says.
+    pub fn open(spec: LearnerSpec) -> Result<Self, RunError> {
+        let LearnerSpec {
+            world,
+            extra_worlds,
+            hold_out,
+            options,
+            resume,
+        } = spec;
+        let checkpointed =
+            resume != Resume::Never && Trainer::has_checkpoint(&options.out_dir);
+        let mut discarded = None;
+        let (trainer, resumed) = if checkpointed {
+            match Trainer::resume(Arc::clone(&world), options.clone()) {
+                Ok(t) => (t, true),
+                Err(e) if resume == Resume::CheckpointOrFresh => {
+                    discarded = Some(e.to_string());
+                    (Trainer::new(world, options)?, false)
+                }
+                Err(e) => return Err(e.into()),
+            }
+        } else {
+            (Trainer::new(world, options)?, false)
+        };
+        let trainer = if hold_out && !extra_worlds.is_empty() {
+            trainer.with_training_worlds(extra_worlds)?
+        } else {
+            trainer.with_extra_worlds(extra_worlds)?
+        };
+        Ok(Self {
+            trainer,
+            resumed,
+            discarded,
+            interrupted: false,
+        })
+    }
+
+    /// Why a checkpoint was there but not resumed ([`Resume::CheckpointOrFresh`]).
+    pub fn discarded_checkpoint(&self) -> Option<&str> {
+        self.discarded.as_deref()
+    }
+
+    /// Whether it continued a checkpoint.
+    pub fn resumed(&self) -> bool {
+        self.resumed
+    }
+
+    /// Whether a progress callback stopped training early.
+    pub fn interrupted(&self) -> bool {
+        self.interrupted
+    }
+
+    /// The trainer (counters, evaluations, episodes, options).
+    pub fn trainer(&self) -> &Trainer {
+        &self.trainer
+    }
+
+    /// The trainer, e.g. to set an install guard on its checkpoints.
+    pub fn trainer_mut(&mut self) -> &mut Trainer {
+        &mut self.trainer
+    }
+
+    /// Trains until `budget_s` of wall-clock time (counting earlier sessions) is spent or
+    /// `on_progress` returns false (then with a checkpoint).
+    pub fn train(
+        &mut self,
+        budget_s: f64,
+        on_progress: &mut dyn FnMut(&Progress) -> bool,
+    ) -> Result<(), RunError> {
+        let budget = Budget {
+            wall_s: Some(budget_s),
+            env_steps: None,
+        };
+        let interrupted = &mut self.interrupted;
+        self.trainer.run(budget, &mut |p| {
+            let go_on = on_progress(p);
+            *interrupted |= !go_on;
+            go_on
+        })?;
+        Ok(())
+    }
+
+    /// Writes the curves (`curves.csv`, `curves.png` titled `title`, `evals.csv`) and the
+    /// exported policy, with `summary` in its metadata, into `dir`; returns the policy as
+    /// robots load it.
+    pub fn export(
+        &self,
+        dir: &Path,
+        title: &str,
+        summary: serde_json::Value,
+    ) -> Result<Policy, RunError> {
+        std::fs::create_dir_all(dir).map_err(|error| RunError::Io {
+            path: dir.to_path_buf(),
+            error,
+        })?;
+        curves::write_curves(dir, title, self.trainer.episodes())?;
+        let mut evals_csv = String::from(
+            "env_steps,wall_s,success_rate,collision_rate,timeout_rate,mean_time_to_goal_s,mean_return\n",
+        );
+        for e in self.trainer.evals() {
+            evals_csv.push_str(&format!(
+                "{},{:.1},{:.4},{:.4},{:.4},{:.2},{:.2}\n",
+                e.env_steps,
+                e.wall_s,
+                e.report.success_rate,
+                e.report.collision_rate,
+                e.report.timeout_rate,
+                e.report.mean_time_to_goal_s,
+                e.report.mean_return
+            ));
+        }
+        write(dir.join("evals.csv"), evals_csv)?;
+        self.trainer.export(dir, summary)?;
+        Ok(Policy::load(dir)?)
+    }
+}
+
+/// The held-out evaluation of an exported policy trained with `config`: `episodes` missions
+/// from a seed training never used, on `goals` and on the other kind beside them.
+pub fn evaluate(
+    policy: &Policy,
+    world: &Arc<World>,
+    config: &TrainConfig,
+    episodes: usize,
+    goals: Goals,
+) -> Result<HeldOut, RunError> {
+    Ok(held_out(
+        policy,
+        world,
+        episodes,
+        held_out_seed(config),
+        goals,
+    )?)
+}
+
+/// The seed of the held-out evaluation: one neither training nor learner selection uses.
+pub fn held_out_seed(config: &TrainConfig) -> u64 {
+    config.eval_seed.wrapping_add(1)
 }

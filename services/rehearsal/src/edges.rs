@@ -392,6 +392,22 @@ where
     })
 }
 
+/// The geometric roadmap of `world` a plan's first attempt uses: n* samples of the free
+/// region at the plan's default safety margin, seeded with `seed`. What `mentalsim eval
+/// --goals edges`, a run's learner selection and `bench edges` drive edge by edge.
+pub fn first_attempt_roadmap(world: &Arc<World>, seed: u64) -> Result<Arc<Roadmap>, PlanError> {
+    let cache = crate::RoadmapCache::default();
+    let opts = crate::PlanOptions::default();
+    let space = crate::config_space(world, &cache, "first-attempt", opts.safety_margin_m)?;
+    let params = planning::PrmParams {
+        samples: planning::optimal_samples(space.free_area_m2),
+        seed,
+        ..planning::PrmParams::default()
+    };
+    let (roadmap, _) = cache.roadmap("first-attempt", &space, &params)?;
+    Ok(roadmap)
+}
+
 /// Metres of detour a policy-aware roadmap's search pays per unit of `-ln p` of an edge
 /// ([`EdgeReport::cost`]): about 7 m to halve a route's risk of failing.
 pub const RISK_M: f64 = 10.0;

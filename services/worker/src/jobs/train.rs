@@ -11,8 +11,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use learning::trainer::{Budget, Progress, TrainOptions, Trainer};
-use learning::{Policy, Scaling, TrainConfig};
+use learning::run::{Learner, LearnerSpec, Resume, RunError};
+use learning::trainer::{Budget, Progress, TrainError, TrainOptions, Trainer};
+use learning::{PolicyError, Scaling, TrainConfig};
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use sim::{EnvConfig, World};
@@ -276,6 +277,21 @@ pub fn checkpoint_dir(
     recorded.unwrap_or_else(|| checkpoints_dir.join(job.to_string()))
 }
 
+/// A training pipeline's error as the job's: out of memory is this machine's state, not the
+/// job's (another attempt may find room); a file that found the disk full waits for space;
+/// other files are retried; the rest (settings, evaluation) fails the job.
+fn run_error(what: &str, e: RunError) -> JobError {
+    let message = format!("{what}: {e}");
+    match e {
+        RunError::Train(TrainError::OutOfMemory(_)) => JobError::Retryable(message),
+        RunError::Train(TrainError::Checkpoint { .. }) => unless_full(message, JobError::Fatal),
+        RunError::Io { .. } | RunError::Plot(_) | RunError::Policy(PolicyError::Io { .. }) => {
+            unless_full(message, JobError::Retryable)
+        }
+        _ => JobError::Fatal(message),
+    }
+}
+
 /// `OutOfSpace` when the message of an error writing this job's own files says the disk is
 /// full (the edge's reading of such messages), else `otherwise(message)`.
 fn unless_full(message: String, otherwise: fn(String) -> JobError) -> JobError {
@@ -298,37 +314,27 @@ fn train_blocking(
     } = run;
     let out_dir = options.out_dir.clone();
     let budget_s = budget.wall_s.unwrap_or(0.0);
-    // Out of memory is this machine's state, not the job's: another attempt may find room.
-    let fatal = |e: learning::trainer::TrainError| match e {
-        learning::trainer::TrainError::OutOfMemory(_) => {
-            JobError::Retryable(format!("training: {e}"))
-        }
-        // A checkpoint that found the disk full waits for space instead of failing the job.
-        learning::trainer::TrainError::Checkpoint { .. } => {
-            unless_full(format!("training: {e}"), JobError::Fatal)
-        }
-        _ => JobError::Fatal(format!("training: {e}")),
-    };
-    let mut trainer = if Trainer::has_checkpoint(&out_dir) {
-        match Trainer::resume(Arc::clone(&world), options.clone()) {
-            Ok(t) => {
-                tracing::info!(job = %ctx.id(), dir = %out_dir.display(), env_steps = t.counters().env_steps, "resuming training from its checkpoint");
-                t
-            }
-            Err(e) => {
-                tracing::warn!(job = %ctx.id(), error = %e, "the checkpoint cannot be resumed; starting over");
-                Trainer::new(Arc::clone(&world), options).map_err(fatal)?
-            }
-        }
-    } else {
-        Trainer::new(Arc::clone(&world), options).map_err(fatal)?
-    };
+    let mut learner = Learner::open(LearnerSpec {
+        world: Arc::clone(&world),
+        extra_worlds: Vec::new(),
+        hold_out: false,
+        options,
+        resume: Resume::CheckpointOrFresh,
+    })
+    .map_err(|e| run_error("training", e))?;
+    if let Some(why) = learner.discarded_checkpoint() {
+        tracing::warn!(job = %ctx.id(), error = %why, "the checkpoint cannot be resumed; starting over");
+    } else if learner.resumed() {
+        tracing::info!(job = %ctx.id(), dir = %out_dir.display(), env_steps = learner.trainer().counters().env_steps, "resuming training from its checkpoint");
+    }
     // A checkpoint replaces the previous one only under a freshly renewed lease: a worker that
     // lost the job cannot overwrite what its successor wrote.
     let fence = ctx.clone();
-    trainer.set_install_guard(Box::new(move || {
-        fence.fence_blocking().map_err(|e| e.to_string())
-    }));
+    learner
+        .trainer_mut()
+        .set_install_guard(Box::new(move || {
+            fence.fence_blocking().map_err(|e| e.to_string())
+        }));
     let mut last_sent: Option<Instant> = None;
     let mut checkpoints = 0u64;
     let (mut disk_checked, mut out_of_space) = (Instant::now(), false);
@@ -355,7 +361,10 @@ fn train_blocking(
         }
         !ctx.is_stopping() && !out_of_space
     };
-    trainer.run(budget, &mut on_progress).map_err(fatal)?;
+    learner
+        .train(budget_s, &mut on_progress)
+        .map_err(|e| run_error("training", e))?;
+    let trainer = learner.trainer();
     if out_of_space && !ctx.is_stopping() {
         return Err(JobError::OutOfSpace(format!(
             "training stopped at {} environment steps: less than {} MiB free for checkpoints",
@@ -372,26 +381,30 @@ fn train_blocking(
         return Ok(Finished::Stopped);
     }
 
-    // Export, then evaluate the exported policy with the pure-Rust runtime robots embed, on
-    // held-out missions drawn from a seed training never used.
+    // Export with the learning curves (`GET /v1/jobs/{id}/curves.csv`, `.png`), then evaluate
+    // the exported policy with the pure-Rust runtime robots embed, as `mentalsim train` does.
     // Staged under this attempt's own name; installed only under a renewed lease.
     let staged = env.policies.staging(&policy_id, ctx.attempt());
     let io = |what: &str, e: std::io::Error| JobError::Retryable(format!("{what}: {e}"));
     if staged.exists() {
         std::fs::remove_dir_all(&staged).map_err(|e| io("clearing the staging directory", e))?;
     }
-    std::fs::create_dir_all(&staged).map_err(|e| io("creating the staging directory", e))?;
-    trainer.export(&staged, to_json(&summary)).map_err(|e| {
-        let _ = std::fs::remove_dir_all(&staged);
-        unless_full(format!("exporting the policy: {e}"), JobError::Retryable)
-    })?;
-    let policy = Policy::load(&staged)
-        .map_err(|e| JobError::Fatal(format!("the exported policy does not load: {e}")))?;
+    let policy = learner
+        .export(&staged, &curves_title(ctx.id()), to_json(&summary))
+        .map_err(|e| {
+            let _ = std::fs::remove_dir_all(&staged);
+            run_error("exporting the policy", e)
+        })?;
     let config = &trainer.options().config;
-    let held_out_seed = config.eval_seed.wrapping_add(1);
-    let report =
-        learning::evaluate_held_out(&policy, &world, config.eval_episodes, held_out_seed, true)
-            .map_err(|e| JobError::Fatal(format!("evaluating the exported policy: {e}")))?;
+    let held_out = learning::run::evaluate(
+        &policy,
+        &world,
+        config,
+        config.eval_episodes,
+        learning::Goals::InView,
+    )
+    .map_err(|e| run_error("evaluating the exported policy", e))?;
+    let report = held_out.report;
     let created_ms = queue::Clock::now_ms(&queue::SystemClock);
     summary.created_ms = created_ms;
     summary.eval = Some(HeldOutEval {
@@ -400,18 +413,11 @@ fn train_blocking(
         timeout_rate: report.timeout_rate,
         mean_time_to_goal_s: measured(report.mean_time_to_goal_s),
         episodes: report.episodes,
-        seed: held_out_seed,
+        seed: learning::run::held_out_seed(config),
         goals: "in-view".to_owned(),
     });
-    trainer
-        .export(&staged, to_json(&summary))
-        .map_err(|e| JobError::Retryable(format!("exporting the policy: {e}")))?;
-    // The learning curves travel with the policy (`GET /v1/jobs/{id}/curves.csv`, `.png`).
-    if let Err(e) =
-        learning::curves::write_curves(&staged, &curves_title(ctx.id()), trainer.episodes())
-    {
-        tracing::warn!(job = %ctx.id(), error = %e, "the learning curves were not written");
-    }
+    learning::policy::set_summary(&staged, to_json(&summary))
+        .map_err(|e| unless_full(format!("exporting the policy: {e}"), JobError::Retryable))?;
     ctx.fence_blocking()?;
     env.policies
         .install(&policy_id, &staged)
