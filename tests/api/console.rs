@@ -121,12 +121,15 @@ async fn a_floor_roadmap_has_nodes_and_edges_and_names_bad_queries() {
         assert!(e["success"].is_null());
     }
     assert!(roadmap["inflation_m"].as_f64().unwrap() > 0.1);
-    let (status, body) = app.get_json("/v1/roadmaps?place=F0&robot=R-001&policy=nope").await;
+    let (status, body) = app
+        .get_json("/v1/roadmaps?place=F0&robot=R-001&policy=nope")
+        .await;
     assert_eq!(status, 404, "{body}");
     let (status, body) = app.get_json("/v1/roadmaps?place=F0").await;
     assert_eq!(status, 400, "{body}");
-    let (status, body) =
-        app.get_json("/v1/roadmaps?place=F0&robot=R-001&safety_margin_m=9").await;
+    let (status, body) = app
+        .get_json("/v1/roadmaps?place=F0&robot=R-001&safety_margin_m=9")
+        .await;
     assert_eq!(status, 422, "{body}");
     app.stop().await;
 }
@@ -198,9 +201,9 @@ async fn curves_belong_to_training_jobs() {
         Some(temp),
     )
     .await;
-    let (status, body) = app.get_json("/v1/jobs/01890000-0000-7000-8000-000000000000/curves.csv",
-    )
-    .await;
+    let (status, body) = app
+        .get_json("/v1/jobs/01890000-0000-7000-8000-000000000000/curves.csv")
+        .await;
     assert_eq!(status, 404, "{body}");
     // A queued training has no point yet; the 404 says so.
     let r = app

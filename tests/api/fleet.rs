@@ -148,6 +148,16 @@ async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() 
     let s2 = &second["schedule"];
     assert_eq!(s2["committed"], true);
     assert_eq!(s2["others_checked"], 1, "{second}");
+    // Driven again with its waits while the first robot drives its plan: it arrives, and the
+    // two never touch.
+    let among = &s2["among_fleet"];
+    assert_eq!(among["robots"], 1, "{second}");
+    assert_eq!(among["arrived"], true, "{second}");
+    assert!(
+        among["min_robot_clearance_m"].as_f64().unwrap() > 0.0,
+        "{second}"
+    );
+    assert!(s1["among_fleet"].is_null(), "{first}");
     let waits = s2["waits"].as_array().unwrap();
     assert!(!waits.is_empty(), "the second robot must wait: {second}");
     assert!(

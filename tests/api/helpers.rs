@@ -7,9 +7,9 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use mentalsim::config::{Config, LogFormat, TokenConfig};
+use mentalsim::startup::Application;
 use reqwest::Method;
 use serde_json::Value;
-use mentalsim::startup::Application;
 use tokio_util::sync::CancellationToken;
 
 /// A running app and a client for it. Stops the app when dropped.
@@ -193,10 +193,7 @@ impl TestApp {
     /// in `place` through `POST /v1/places/{place}/objects`, and checks it was created.
     pub async fn report_box(&self, place: &str, id: &str, (x, y): (f64, f64), size: f64) {
         let created = self
-            .request(
-                Method::POST,
-                &format!("/v1/places/{place}/objects"),
-            )
+            .request(Method::POST, &format!("/v1/places/{place}/objects"))
             .json(&serde_json::json!({
                 "id": id,
                 "class": "Table",

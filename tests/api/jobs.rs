@@ -269,10 +269,11 @@ async fn a_training_job_streams_its_events_and_exports_a_policy_that_downloads_a
         .as_str()
         .unwrap()
         .to_owned();
-    let eval = app.wait_for_job(&eval_id, Duration::from_secs(120), |j| {
-        j["state"] != "queued" && j["state"] != "running"
-    })
-    .await;
+    let eval = app
+        .wait_for_job(&eval_id, Duration::from_secs(120), |j| {
+            j["state"] != "queued" && j["state"] != "running"
+        })
+        .await;
     assert_eq!(eval["state"], "succeeded", "{eval:#}");
     assert_eq!(eval["result"]["episodes"], 4);
     for key in ["success_rate", "collision_rate", "env_steps", "wall_s"] {
@@ -302,10 +303,11 @@ async fn cancelling_a_running_training_stops_its_trainer() {
         .as_str()
         .unwrap()
         .to_owned();
-    let running = app.wait_for_job(&id, Duration::from_secs(120), |j| {
-        j["state"] == "running" && j["progress"]["env_steps"].as_u64().unwrap_or(0) > 0
-    })
-    .await;
+    let running = app
+        .wait_for_job(&id, Duration::from_secs(120), |j| {
+            j["state"] == "running" && j["progress"]["env_steps"].as_u64().unwrap_or(0) > 0
+        })
+        .await;
     assert!(
         running["progress"]["eta_s"].as_f64().unwrap() > 0.0,
         "{running:#}"
@@ -319,10 +321,11 @@ async fn cancelling_a_running_training_stops_its_trainer() {
     let asked: Value = cancel.json().await.unwrap();
     assert_eq!(asked["cancel_requested"], true);
     let started = Instant::now();
-    let job = app.wait_for_job(&id, Duration::from_secs(60), |j| {
-        j["state"] != "running" && j["state"] != "queued"
-    })
-    .await;
+    let job = app
+        .wait_for_job(&id, Duration::from_secs(60), |j| {
+            j["state"] != "running" && j["state"] != "queued"
+        })
+        .await;
     assert_eq!(job["state"], "cancelled", "{job:#}");
     assert!(
         started.elapsed() < Duration::from_secs(30),
@@ -624,10 +627,11 @@ async fn a_training_stopped_by_shutdown_checkpoints_and_resumes_in_the_next_proc
     app.stop().await;
     let dir = data_dir.clone();
     let app = spawn_app_with(move |c| c.data_dir = dir, None).await;
-    let job = app.wait_for_job(&id, Duration::from_secs(240), |j| {
-        j["state"] != "queued" && j["state"] != "running"
-    })
-    .await;
+    let job = app
+        .wait_for_job(&id, Duration::from_secs(240), |j| {
+            j["state"] != "queued" && j["state"] != "running"
+        })
+        .await;
     assert_eq!(job["state"], "succeeded", "{job:#}");
     // The same attempt, resumed from its checkpoint in a second session.
     assert_eq!(job["attempts"], 1, "{job:#}");

@@ -169,9 +169,11 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
     );
 
     // A query through our /sparql.
-    let response = app.sparql_query(&format!("SELECT (COUNT(DISTINCT ?p) AS ?n) WHERE {{ GRAPH ?g {{ ?p a <{TOSM}Room> }} }}"),
-    )
-    .await;
+    let response = app
+        .sparql_query(&format!(
+            "SELECT (COUNT(DISTINCT ?p) AS ?n) WHERE {{ GRAPH ?g {{ ?p a <{TOSM}Room> }} }}"
+        ))
+        .await;
     assert_eq!(response.status(), 200);
     let body: Value = response.json().await.unwrap();
     let rooms: usize = body["results"]["bindings"][0]["n"]["value"]
@@ -415,7 +417,9 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
         .unwrap();
     let reason = body["reason"].as_str().unwrap();
     assert!(reason.contains(&remote.url), "{reason}");
-    let down = app.sparql_query("SELECT * WHERE { ?s ?p ?o } LIMIT 1").await;
+    let down = app
+        .sparql_query("SELECT * WHERE { ?s ?p ?o } LIMIT 1")
+        .await;
     assert!(
         down.status() == 502 || down.status() == 503,
         "{}",

@@ -265,11 +265,12 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
     for yaml in &yamls {
         let map = learning::run::map_name(yaml);
         let world = crate::sim::world_from_map(yaml, robot_ttl, robot_iri, 0, seed)?;
-        let roadmap = rehearsal::first_attempt_roadmap(&world, seed)
-            .map_err(|source| BenchError::Rehearsal {
+        let roadmap = rehearsal::first_attempt_roadmap(&world, seed).map_err(|source| {
+            BenchError::Rehearsal {
                 map: map.clone(),
                 source,
-            })?;
+            }
+        })?;
         std::fs::create_dir_all(out).map_err(io_err(out))?;
         for &density in &densities {
             for (name, which, policy) in &drivers {
@@ -413,4 +414,3 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
     std::fs::write(&md_path, &md).map_err(io_err(&md_path))?;
     Ok(md)
 }
-

@@ -789,6 +789,8 @@ fn run_map(
                 stop: rehearsal::Stop::default(),
                 trace: false,
                 recoveries: rehearsal::recoveries_for(&request.options),
+                others: None,
+                holds: Vec::new(),
             },
             None,
         )

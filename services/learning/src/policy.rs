@@ -392,7 +392,8 @@ pub fn set_summary(dir: &Path, summary: serde_json::Value) -> Result<(), PolicyE
         meta.training = serde_json::json!({});
     }
     meta.training["summary"] = summary;
-    let json = serde_json::to_vec_pretty(&meta).map_err(|e| PolicyError::Metadata(e.to_string()))?;
+    let json =
+        serde_json::to_vec_pretty(&meta).map_err(|e| PolicyError::Metadata(e.to_string()))?;
     write_atomic(&path, &json).map_err(io)
 }
 

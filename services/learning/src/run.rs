@@ -378,8 +378,7 @@ impl Learner {
             options,
             resume,
         } = spec;
-        let checkpointed =
-            resume != Resume::Never && Trainer::has_checkpoint(&options.out_dir);
+        let checkpointed = resume != Resume::Never && Trainer::has_checkpoint(&options.out_dir);
         let mut discarded = None;
         let (trainer, resumed) = if checkpointed {
             match Trainer::resume(Arc::clone(&world), options.clone()) {

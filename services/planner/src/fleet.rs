@@ -13,10 +13,15 @@
 //! one's path leaves room. Where the waits would exceed `max_wait_s`, the plan is refused,
 //! naming the robots in the way and the earliest later start that fits with no wait.
 //!
+//! Then the plan is driven again in the simulation with its waits, while every other robot
+//! drives its committed itinerary in the same simulation ([`simulated_robots`]: footprints the
+//! laser sees, moving along their schedules, as they do not react to this robot); a plan that
+//! touches another robot there is refused (409, naming it) and not committed.
+//!
 //! What is guaranteed: the committed itineraries keep the robots apart by the margin as long as
 //! each stays within its tolerance of its schedule (progress reports shift a late robot's
-//! schedule). The waits are not driven in the simulation: a robot standing still at a waypoint
-//! it reached is assumed to be able to go on as rehearsed.
+//! schedule), and the robot, holding at its waypoints and setting off again under noise among
+//! the others and the people, arrived in that drive.
 
 use std::future::Future;
 use std::pin::Pin;
@@ -140,10 +145,66 @@ pub struct FleetOutcome {
     pub waypoint_times_unix_ms: Vec<i64>,
     /// The waits that let other robots pass, in order.
     pub waits: Vec<Wait>,
+    /// The plan driven again with its waits among the other robots' committed plans (`None`
+    /// when there were none).
+    pub among: Option<rehearsal::AmongReport>,
     /// Other robots' itineraries it was checked against.
     pub others: usize,
     /// The floor's version after the commit; `None` when not committed.
     pub version: Option<i64>,
+}
+
+/// The other robots' itineraries as robots of a simulation whose clock starts at
+/// `start_unix_ms` (seconds after it), as the schedule places them: along their trajectories
+/// (with their delays), held at their last pose until they expire, absent before they start.
+pub fn simulated_robots(
+    others: &[Itinerary],
+    start_unix_ms: i64,
+) -> Result<sim::OtherRobots, String> {
+    let seconds = |unix_ms: i64| (unix_ms - start_unix_ms) as f64 / 1000.0;
+    sim::OtherRobots::new(
+        others
+            .iter()
+            .map(|it| {
+                let origin = seconds(it.start_unix_ms) + it.delay_s;
+                let mut track: Vec<(f64, f64, f64)> = it
+                    .trajectory
+                    .iter()
+                    .map(|p| (origin + p.t_s, p.x, p.y))
+                    .collect();
+                if let Some(&(t, x, y)) = track.last() {
+                    track.push((seconds(it.expires_unix_ms).max(t), x, y));
+                }
+                sim::OtherRobot {
+                    name: it.robot.clone(),
+                    radius: it.radius_m,
+                    track,
+                }
+            })
+            .collect(),
+    )
+}
+
+/// When the robot may leave each point of its route, seconds after its start: `[0]` the start,
+/// `[k + 1]` waypoint `k` (reached at step `at_steps[k]`); 0 where it does not wait. `waits`
+/// are `fit`'s (step, seconds, robots); `since_start_ms(step)` is when the robot reaches a step,
+/// waits before it included, ms after the start.
+pub fn holds(
+    at_steps: &[usize],
+    waits: &[(usize, f64, Vec<String>)],
+    since_start_ms: impl Fn(usize) -> i64,
+) -> Vec<f64> {
+    std::iter::once(0)
+        .chain(at_steps.iter().copied())
+        .map(|k| {
+            let wait: f64 = waits.iter().filter(|w| w.0 == k).map(|w| w.1).sum();
+            if wait > 0.0 {
+                since_start_ms(k) as f64 / 1000.0 + wait
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
 
 /// Why no schedule fits.

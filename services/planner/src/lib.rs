@@ -393,14 +393,14 @@ impl Planner {
             people,
             controller,
         };
-        let (report, world, people, pick) =
+        let (report, world, people, pick, replay) =
             tokio::task::spawn_blocking(move || rehearsal.run(request))
                 .await
                 .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
         let note = note(policy_id.is_some(), &pick, &report);
         let fleet = match &self.fleet {
             Some(schedule) => Some(
-                self.among_the_fleet(schedule.as_ref(), &db, &world, &report, &fleet)
+                self.among_the_fleet(schedule.as_ref(), &db, &world, &report, replay, &fleet)
                     .await?,
             ),
             None => None,
@@ -425,10 +425,12 @@ impl Planner {
         &self,
         schedule: &dyn FleetSchedule,
         db: &FloorDatabase,
-        world: &World,
+        world: &Arc<World>,
         report: &rehearsal::PlanReport,
+        replay: Replay,
         options: &FleetOptions,
     ) -> Result<FleetOutcome, PlanFailure> {
+        let replay = Arc::new(replay);
         let now = schedule.now_ms();
         let start = options.start_unix_ms.unwrap_or(now);
         let slack_ms = (options.tolerance_s * 1000.0).round() as i64;
@@ -483,6 +485,7 @@ impl Planner {
                     .sum();
                 start + ((k as f64 * report.control_period_s + waited) * 1000.0).round() as i64
             };
+            let holds = fleet::holds(&at_steps, &waits, |k| time_at(k) - start);
             let waits: Vec<fleet::Wait> = waits
                 .iter()
                 .map(|(k, s, robots)| fleet::Wait {
@@ -492,7 +495,33 @@ impl Planner {
                     for_robots: robots.clone(),
                 })
                 .collect();
-            let waypoint_times_unix_ms = at_steps.iter().map(|&k| time_at(k)).collect();
+            let waypoint_times_unix_ms: Vec<i64> = at_steps.iter().map(|&k| time_at(k)).collect();
+            // Driven again with its waits while the others drive theirs: a plan that meets
+            // another robot there is not committed.
+            let among = if others.is_empty() {
+                None
+            } else {
+                let robots =
+                    fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?;
+                let (replay, world, report) =
+                    (Arc::clone(&replay), Arc::clone(world), report.clone());
+                let among = tokio::task::spawn_blocking(move || {
+                    replay.among(&world, &report, &robots, &holds)
+                })
+                .await
+                .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
+                if let Some(robot) = among.met_robot() {
+                    return Err(PlanFailure::FleetConflict(NoFit {
+                        robots: vec![robot.to_owned()],
+                        earliest_start_unix_ms: None,
+                        message: format!(
+                            "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
+                            among.robots, among.reason
+                        ),
+                    }));
+                }
+                Some(among)
+            };
             let version = if options.commit {
                 match schedule
                     .commit(itinerary.clone(), version)
@@ -509,6 +538,7 @@ impl Planner {
             return Ok(FleetOutcome {
                 itinerary,
                 waypoint_times_unix_ms,
+                among,
                 waits,
                 others: others.len(),
                 version,
@@ -598,7 +628,50 @@ type Rehearsed = (
     Arc<World>,
     Option<PeopleSummary>,
     ControllerPick,
+    Replay,
 );
+
+/// What a validated plan needs to be driven again (among the fleet): the request as
+/// rehearsed (its people resolved), the policy and the controller picked.
+struct Replay {
+    request: PlanRequest,
+    policy: Option<Arc<learning::Policy>>,
+    choice: ControllerChoice,
+}
+
+impl Replay {
+    /// Drives `report` again among `others` with `holds` ([`rehearsal::drive_among`]), with
+    /// the controller picked and the follower behind it, as the rehearsal did. Blocks.
+    fn among(
+        &self,
+        world: &Arc<World>,
+        report: &rehearsal::PlanReport,
+        others: &sim::OtherRobots,
+        holds: &[f64],
+    ) -> Result<rehearsal::AmongReport, PlanFailure> {
+        let mut primary = self
+            .choice
+            .build(self.policy.as_ref(), self.request.options.seed)
+            .ok_or_else(|| PlanFailure::Internal("the picked controller needs a policy".into()))?;
+        let mut follower = (!matches!(
+            self.choice,
+            ControllerChoice::Follower | ControllerChoice::ShieldedFollower
+        ))
+        .then(|| rehearsal::follower_for(&self.request.options));
+        rehearsal::drive_among(
+            world,
+            &self.request,
+            report,
+            &mut *primary,
+            follower
+                .as_deref_mut()
+                .map(|f| f as &mut dyn rehearsal::Controller),
+            others,
+            holds,
+        )
+        .map_err(PlanFailure::Plan)
+    }
+}
 
 impl Rehearsal {
     /// The world, the people, the roadmap, and the executor. Blocks.
@@ -665,7 +738,12 @@ impl Rehearsal {
                 &report,
             )
         });
-        Ok((report, world, people, pick))
+        let replay = Replay {
+            request,
+            policy: self.policy.clone(),
+            choice: pick.choice,
+        };
+        Ok((report, world, people, pick, replay))
     }
 
     /// The controller: the one asked for, else `auto`'s pick from the floor state's trial.

@@ -16,6 +16,10 @@ use crate::types::AttemptOutcome;
 /// How the reason of a drive that ended touching a person begins.
 pub const PERSON_COLLISION: &str = "collision with a person";
 
+/// How the reason of a drive that ended touching another robot begins (the robot's name
+/// follows).
+pub const ROBOT_COLLISION: &str = "collision with robot";
+
 /// Whether a drive's (or attempt's) `reason` says it ended touching a person.
 pub fn hit_person(reason: &str) -> bool {
     reason.starts_with(PERSON_COLLISION)
@@ -75,6 +79,14 @@ pub struct DriveLimits {
     /// Recovery behaviours for a robot that stops making progress ([`crate::recovery`]);
     /// `None` for none.
     pub recoveries: Option<RecoveryParams>,
+    /// Other robots moving along their schedules on the drive's clock (seconds since its
+    /// start), seen by the laser; touching one ends the drive in a collision.
+    pub others: Option<Arc<sim::OtherRobots>>,
+    /// Waits: `holds[0]` is when the robot may leave its start, `holds[k]` when it may leave
+    /// the k-th waypoint it reaches, seconds since the drive's start (missing or past: at
+    /// once). The robot stands still until then; the waypoint timer and the progress checker
+    /// wait with it.
+    pub holds: Vec<f64>,
 }
 
 /// Replans from the robot's position (first point) to a goal (second): the remaining waypoints
@@ -115,6 +127,8 @@ pub struct DriveRun {
     pub handover_steps: u64,
     /// Closest approach of the footprint to a person, metres (`None` without people).
     pub min_person_clearance_m: Option<f64>,
+    /// Closest approach of the footprint to another robot, metres (`None` without others).
+    pub min_robot_clearance_m: Option<f64>,
     /// Intrusions into people's space and time standing still ([`crate::social`]).
     pub social: SocialMetrics,
     /// The recoveries tried, in order.
@@ -172,6 +186,7 @@ pub fn drive(
     };
     let mut env = NavEnv::new(Arc::clone(world), env_config.clone(), limits.sim_seed)
         .map_err(|e| invalid("policy", e.to_string()))?;
+    env.set_other_robots(limits.others.clone());
     let mut obs = env
         .reset(start, (current.0.x, current.0.y))
         .map_err(|e| env_error(Endpoint::Start, e))?;
@@ -192,6 +207,8 @@ pub fn drive(
     let (mut steps, mut handover_steps) = (0u64, 0u64);
     let mut min_clearance = world.clearance(start.x, start.y);
     let mut min_person = (!env.people().is_empty()).then_some(f64::INFINITY);
+    let mut min_robot = env.other_robots().map(|_| f64::INFINITY);
+    let mut hold_until = limits.holds.first().copied().unwrap_or(0.0);
     let mut replans = 0u32;
     let mut reached = Vec::new();
     let mut goal_indices = Vec::new();
@@ -210,9 +227,12 @@ pub fn drive(
             return Err(PlanError::Stopped);
         }
         let pose = env.pose();
-        // A recovery under way drives instead of the controller.
-        let mut action = None;
-        if let (Some(active), Some(params)) = (&mut recovering, &limits.recoveries) {
+        // A robot told to wait stands still; a recovery under way drives instead of the
+        // controller.
+        #[allow(clippy::cast_precision_loss, reason = "step counts are far below 2^52")]
+        let holding = (steps as f64) * dt + 1e-9 < hold_until;
+        let mut action = holding.then(Action::default);
+        if !holding && let (Some(active), Some(params)) = (&mut recovering, &limits.recoveries) {
             match active.command(params, pose, world, angular_max, dt) {
                 Ok(a) => action = Some(a),
                 Err(why) => {
@@ -226,7 +246,7 @@ pub fn drive(
                 }
             }
         }
-        let in_recovery = action.is_some();
+        let in_recovery = action.is_some() && !holding;
         let action = match action {
             Some(a) => a,
             None => {
@@ -249,6 +269,9 @@ pub fn drive(
         if let Some(m) = &mut min_person {
             *m = m.min(step.info.person_clearance);
         }
+        if let Some(m) = &mut min_robot {
+            *m = m.min(step.info.robot_clearance);
+        }
         let people: Vec<((f64, f64), f64)> = env
             .people()
             .iter()
@@ -261,13 +284,14 @@ pub fn drive(
             dt,
             &people,
         );
-        if !in_recovery {
+        if !in_recovery && !holding {
             steps_on_waypoint += 1;
         }
         let mut outcome = step.info.outcome;
         // A waypoint the controller drove past counts as reached (never a leg's goal).
         if outcome == Outcome::Running
             && !in_recovery
+            && !holding
             && current.1.is_none()
             && controller.passed(step.info.pose, current.0)
         {
@@ -276,10 +300,17 @@ pub fn drive(
         match outcome {
             Outcome::Collision => {
                 let p = step.info.pose;
+                let robot = step
+                    .info
+                    .nearest_robot
+                    .filter(|_| step.info.robot_clearance < env_config.collision_clearance)
+                    .and_then(|i| env.other_robots().map(|o| o.robots()[i].name.clone()));
                 let with = if step.info.person_clearance < env_config.collision_clearance {
-                    PERSON_COLLISION
+                    PERSON_COLLISION.to_owned()
+                } else if let Some(name) = robot {
+                    format!("{ROBOT_COLLISION} {name}")
                 } else {
-                    "collision"
+                    "collision".to_owned()
                 };
                 let mut contact = if with == PERSON_COLLISION {
                     person_contact(&env, step.observation.velocity[0])
@@ -309,6 +340,7 @@ pub fn drive(
             }
             Outcome::ReachedGoal => {
                 reached.push(current.0);
+                hold_until = limits.holds.get(reached.len()).copied().unwrap_or(0.0);
                 if current.1.is_some() {
                     goal_indices.push(reached.len() - 1);
                 }
@@ -335,6 +367,10 @@ pub fn drive(
             Outcome::TimeLimit | Outcome::Running => {
                 obs = step.observation;
                 let p = env.pose();
+                if holding {
+                    anchor = (p, steps);
+                    continue;
+                }
                 // The progress checker, and a recovery when the robot is stuck.
                 if (p.x - anchor.0.x).hypot(p.y - anchor.0.y)
                     > limits
@@ -463,6 +499,7 @@ pub fn drive(
         ranges,
         steps,
         handover_steps,
+        min_robot_clearance_m: min_robot,
         min_person_clearance_m: min_person,
         social: social.metrics(),
         recoveries,

@@ -357,6 +357,8 @@ where
                             stop: grid::Stop::never(),
                             trace: false,
                             recoveries: recoveries.clone(),
+                            others: None,
+                            holds: Vec::new(),
                         },
                         None,
                     )?;

@@ -23,7 +23,9 @@ use crate::cache::{RoadmapCache, SpaceEntry};
 pub use crate::checks::check_request;
 use crate::checks::{blocked_error, check_goals, segment_clear, start_entry};
 use crate::controller::{ClassicalFollower, Controller, PolicyController, ShieldedFollower};
-pub use crate::drive::{DriveLimits, DriveRun, PERSON_COLLISION, Replanner, drive, hit_person};
+pub use crate::drive::{
+    DriveLimits, DriveRun, PERSON_COLLISION, ROBOT_COLLISION, Replanner, drive, hit_person,
+};
 use crate::error::{Endpoint, PlanError, invalid};
 use crate::recovery::{RecoveryEvent, RecoveryParams};
 use crate::social::SocialMetrics;
@@ -106,14 +108,14 @@ pub fn validate_with(
 }
 
 /// A controller ready to drive one world: attached, with the simulation settings it needs.
-struct Driver<'c> {
-    controller: &'c mut dyn Controller,
-    env: EnvConfig,
+pub(crate) struct Driver<'c> {
+    pub(crate) controller: &'c mut dyn Controller,
+    pub(crate) env: EnvConfig,
     max_segment_m: f64,
 }
 
 impl<'c> Driver<'c> {
-    fn new(
+    pub(crate) fn new(
         world: &Arc<World>,
         opts: &PlanOptions,
         controller: &'c mut dyn Controller,
@@ -342,6 +344,8 @@ fn validate_inner(
                         stop: request.stop.clone(),
                         trace: opts.trace,
                         recoveries: recoveries_for(opts),
+                        others: None,
+                        holds: Vec::new(),
                     },
                     Some(replanner),
                 )?;
@@ -504,6 +508,8 @@ fn drive_draws(
                     stop: request.stop.clone(),
                     trace: false,
                     recoveries: recoveries_for(opts),
+                    others: None,
+                    holds: Vec::new(),
                 },
                 None,
             )?;

@@ -29,6 +29,7 @@
     clippy::cast_possible_wrap
 )]
 
+pub mod among;
 pub mod cache;
 mod checks;
 pub mod controller;
@@ -42,6 +43,7 @@ pub mod recovery;
 pub mod social;
 pub mod types;
 
+pub use among::{AmongReport, drive_among};
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
 pub use controller::{
     ClassicalFollower, Controller, FollowerParams, HANDOVER_MARGIN_M, POLICY_CONTROLLER_REVISION,
@@ -53,9 +55,9 @@ pub use edges::{
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
-    AttemptDetails, Detailed, DriveLimits, DriveRun, MAX_PEOPLE_DRAWS, PERSON_COLLISION, Replanner,
-    check_request, config_space, drive, env_config, follower_for, hit_person, recoveries_for,
-    validate, validate_detailed, validate_with, validate_with_fallback,
+    AttemptDetails, Detailed, DriveLimits, DriveRun, MAX_PEOPLE_DRAWS, PERSON_COLLISION,
+    ROBOT_COLLISION, Replanner, check_request, config_space, drive, env_config, follower_for,
+    hit_person, recoveries_for, validate, validate_detailed, validate_with, validate_with_fallback,
 };
 pub use nav2::{ControllerChoice, MppiController, MppiCycles, RppController};
 pub use planning_grid::planning_grid;

@@ -49,6 +49,8 @@ fn limits(recoveries: Option<RecoveryParams>) -> DriveLimits {
         stop: rehearsal::Stop::default(),
         trace: false,
         recoveries,
+        others: None,
+        holds: Vec::new(),
     }
 }
 

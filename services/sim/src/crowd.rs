@@ -796,7 +796,7 @@ impl Crowd {
 
 /// Distance along a ray from `o` in unit direction `d` to the circle, if it meets it ahead (0
 /// from inside).
-fn ray_circle(o: (f64, f64), d: (f64, f64), c: (f64, f64), r: f64) -> Option<f64> {
+pub(crate) fn ray_circle(o: (f64, f64), d: (f64, f64), c: (f64, f64), r: f64) -> Option<f64> {
     let (fx, fy) = (o.0 - c.0, o.1 - c.1);
     let b = fx * d.0 + fy * d.1;
     let cc = fx * fx + fy * fy - r * r;

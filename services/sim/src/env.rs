@@ -12,6 +12,7 @@ use rand_distr::StandardNormal;
 use crate::crowd::{Crowd, PeopleConfig, Person, RobotDisc};
 use crate::field::PathField;
 use crate::kinematics::{Action, CommandLimits, DiffDrive, integrate, wrap_angle};
+use crate::others::OtherRobots;
 use crate::spec::Pose2;
 use crate::world::World;
 
@@ -242,6 +243,11 @@ pub struct StepInfo {
     /// Smallest gap between the footprint and a person during the step, metres (infinite with
     /// no one about); a collision with a person when below the collision clearance.
     pub person_clearance: f64,
+    /// Smallest gap between the footprint and another robot during the step, metres
+    /// (infinite with none about; [`NavEnv::set_other_robots`]).
+    pub robot_clearance: f64,
+    /// The other robot nearest during the step (an index of [`OtherRobots::robots`]).
+    pub nearest_robot: Option<usize>,
 }
 
 /// The result of [`NavEnv::step`].
@@ -341,6 +347,10 @@ pub struct NavEnv {
     crowd_seed: u64,
     /// Smallest gap to a person in the last step.
     person_clearance: f64,
+    /// Other robots moving along their tracks, when set.
+    others: Option<Arc<OtherRobots>>,
+    /// Smallest gap to another robot in the last step, and which.
+    robot_clearance: (f64, Option<usize>),
 }
 
 /// Mixed into an environment's seed for its people's own generator, so that people leave the
@@ -372,6 +382,8 @@ impl NavEnv {
             crowd,
             crowd_seed,
             person_clearance: f64::INFINITY,
+            others: None,
+            robot_clearance: (f64::INFINITY, None),
             drive,
             dirs,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -428,6 +440,18 @@ impl NavEnv {
             None => {}
         }
         Ok(())
+    }
+
+    /// Other robots on the floor, moving along their tracks on this episode's clock (seconds
+    /// since the reset); `None` for none. Their footprints are seen by the laser, and touching
+    /// one is a collision.
+    pub fn set_other_robots(&mut self, others: Option<Arc<OtherRobots>>) {
+        self.others = others.filter(|o| !o.is_empty());
+    }
+
+    /// The other robots, when set.
+    pub fn other_robots(&self) -> Option<&Arc<OtherRobots>> {
+        self.others.as_ref()
     }
 
     /// The people about now (none without people in the configuration).
@@ -624,6 +648,7 @@ impl NavEnv {
         self.outcome = Outcome::Running;
         self.started = true;
         self.person_clearance = f64::INFINITY;
+        self.robot_clearance = (f64::INFINITY, None);
         if let Some(crowd) = &mut self.crowd {
             let robot = RobotDisc {
                 position: (start.x, start.y),
@@ -715,6 +740,13 @@ impl NavEnv {
         let mut min_clearance = f64::INFINITY;
         let mut collided = false;
         self.person_clearance = f64::INFINITY;
+        self.robot_clearance = (f64::INFINITY, None);
+        // The other robots where they are at the end of the step.
+        let robots_at = self
+            .others
+            .as_ref()
+            .map(|o| o.at(f64::from(self.steps + 1) * dt))
+            .unwrap_or_default();
         for k in 1..=n {
             let p = integrate(start, exec, dt * k as f64 / n as f64);
             let mut c = self.world.clearance(p.x, p.y);
@@ -722,6 +754,13 @@ impl NavEnv {
                 let to_people = crowd.clearance(p.x, p.y, radius);
                 self.person_clearance = self.person_clearance.min(to_people);
                 c = c.min(to_people);
+            }
+            if !robots_at.is_empty() {
+                let to_robots = crate::others::clearance(&robots_at, p.x, p.y, radius);
+                if to_robots.0 < self.robot_clearance.0 {
+                    self.robot_clearance = to_robots;
+                }
+                c = c.min(to_robots.0);
             }
             min_clearance = min_clearance.min(c);
             self.pose = p;
@@ -837,6 +876,8 @@ impl NavEnv {
             steps: self.steps,
             time_s: f64::from(self.steps) * self.config.control_period,
             person_clearance: self.person_clearance,
+            robot_clearance: self.robot_clearance.0,
+            nearest_robot: self.robot_clearance.1,
         }
     }
 
@@ -856,6 +897,16 @@ impl NavEnv {
                 .iter()
                 .map(|(bc, bs)| (c * bc - s * bs, s * bc + c * bs));
             crowd.occlude((lx, ly), dirs, &mut self.ranges);
+        }
+        if let Some(others) = &self.others {
+            let at = others.at(f64::from(self.steps) * self.config.control_period);
+            let (lx, ly, heading) = self.world.laser_origin(self.pose);
+            let (s, c) = heading.sin_cos();
+            let dirs = self
+                .dirs
+                .iter()
+                .map(|(bc, bs)| (c * bc - s * bs, s * bc + c * bs));
+            crate::others::occlude(&at, (lx, ly), dirs, &mut self.ranges);
         }
         let laser = &self.world.spec().robot.laser;
         let (lo, hi) = (laser.range_min, laser.range_max);

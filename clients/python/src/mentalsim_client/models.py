@@ -507,6 +507,30 @@ class PlanWait:
 
 
 @dataclass(frozen=True, slots=True)
+class PlanAmongFleet:
+    """The plan driven again with its waits among the other robots' committed plans (schema
+    ``PlanAmongFleet``)."""
+
+    robots: int
+    arrived: bool
+    reason: str
+    time_s: float
+    #: Closest approach to another robot, metres; ``None`` when none was on the floor.
+    min_robot_clearance_m: float | None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> PlanAmongFleet:
+        c = d.get("min_robot_clearance_m")
+        return cls(
+            _int(d, "robots"),
+            _bool(d, "arrived"),
+            _str(d, "reason"),
+            _float(d, "time_s"),
+            None if c is None else float(c),
+        )
+
+
+@dataclass(frozen=True, slots=True)
 class PlanSchedule:
     """A plan in the floor's traffic schedule (schema ``PlanSchedule``)."""
 
@@ -522,10 +546,13 @@ class PlanSchedule:
     others_checked: int
     tolerance_s: float
     expires_ms: int
+    #: ``None`` when no other robot's plan was committed on the floor.
+    among_fleet: PlanAmongFleet | None = None
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> PlanSchedule:
         v = d.get("version")
+        among = d.get("among_fleet")
         return cls(
             _str(d, "plan_id"),
             _bool(d, "committed"),
@@ -536,6 +563,7 @@ class PlanSchedule:
             _int(d, "others_checked"),
             _float(d, "tolerance_s"),
             _int(d, "expires_ms"),
+            None if among is None else PlanAmongFleet.from_json(_obj(among, "among_fleet")),
         )
 
 

@@ -330,11 +330,9 @@ fn train_blocking(
     // A checkpoint replaces the previous one only under a freshly renewed lease: a worker that
     // lost the job cannot overwrite what its successor wrote.
     let fence = ctx.clone();
-    learner
-        .trainer_mut()
-        .set_install_guard(Box::new(move || {
-            fence.fence_blocking().map_err(|e| e.to_string())
-        }));
+    learner.trainer_mut().set_install_guard(Box::new(move || {
+        fence.fence_blocking().map_err(|e| e.to_string())
+    }));
     let mut last_sent: Option<Instant> = None;
     let mut checkpoints = 0u64;
     let (mut disk_checked, mut out_of_space) = (Instant::now(), false);

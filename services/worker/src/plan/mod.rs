@@ -18,8 +18,9 @@ use utoipa::ToSchema;
 
 pub use self::types::{
     AttemptOutcome, AttemptReport, ControllerChoiceReport, ControllerKind, ControllerOption,
-    LegReport, PeopleChoice, PeopleDraws, PeopleMode, PeopleReport, PlanOptions, PlanReport,
-    PlanSchedule, PlanWait, Point, Pose, RoadmapChoice, RoadmapInfo, RoadmapKind, RosPath, RosTime,
+    LegReport, PeopleChoice, PeopleDraws, PeopleMode, PeopleReport, PlanAmongFleet, PlanOptions,
+    PlanReport, PlanSchedule, PlanWait, Point, Pose, RoadmapChoice, RoadmapInfo, RoadmapKind,
+    RosPath, RosTime,
 };
 
 /// What a robot asks.

@@ -21,11 +21,31 @@ pub struct PlanSchedule {
     pub waits: Vec<PlanWait>,
     /// Other robots' committed plans on the floor it was checked against.
     pub others_checked: usize,
+    /// The plan driven again in the simulation with its waits while the other robots drive
+    /// their committed plans; absent when there were none.
+    pub among_fleet: Option<PlanAmongFleet>,
     /// How early or late the robot may be, seconds.
     pub tolerance_s: f64,
     /// When the schedule lets the robot's place go (its last goal held until then), ms since
     /// the Unix epoch.
     pub expires_ms: i64,
+}
+
+/// A plan driven again with its waits among the other robots' committed plans (their
+/// footprints seen by the laser, moving along their schedules).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PlanAmongFleet {
+    /// Other robots in the simulation.
+    pub robots: usize,
+    /// Whether the robot arrived (a plan that touched another robot is never answered: 409).
+    pub arrived: bool,
+    /// How the drive ended, in words.
+    pub reason: String,
+    /// Simulated time from the start to the last goal, waits included, seconds.
+    pub time_s: f64,
+    /// Closest approach of the footprint to another robot, metres (absent when none was on the
+    /// floor during the drive).
+    pub min_robot_clearance_m: Option<f64>,
 }
 
 /// A wait in a plan, so that other robots can pass.
@@ -65,6 +85,13 @@ impl From<planner::FleetOutcome> for PlanSchedule {
                 })
                 .collect(),
             others_checked: f.others,
+            among_fleet: f.among.map(|a| PlanAmongFleet {
+                robots: a.robots,
+                arrived: a.outcome == rehearsal::AttemptOutcome::Reached,
+                reason: a.reason,
+                time_s: a.time_s,
+                min_robot_clearance_m: a.min_robot_clearance_m.filter(|c| c.is_finite()),
+            }),
             tolerance_s: f.itinerary.tolerance_s,
             expires_ms: f.itinerary.expires_unix_ms,
         }

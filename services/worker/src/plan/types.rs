@@ -6,7 +6,7 @@
 pub use super::ros::{
     RosHeader, RosPath, RosPoint, RosPose, RosPoseStamped, RosQuaternion, RosTime,
 };
-pub use super::schedule::{PlanSchedule, PlanWait};
+pub use super::schedule::{PlanAmongFleet, PlanSchedule, PlanWait};
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;

@@ -1,0 +1,137 @@
+//! A validated plan driven again among the fleet: the same legs, controllers and waypoints,
+//! with the waits the fleet's schedule gave it, while the other robots drive their own
+//! committed plans in the same simulation ([`sim::OtherRobots`]: footprints the laser sees,
+//! moving along their schedules) and the people walk about as in the rehearsal.
+//!
+//! This checks what the schedule's geometry cannot: that the robot, holding at its waypoints
+//! and setting off again under noise, with its controller reacting to what its laser sees,
+//! still arrives without touching another robot.
+
+use std::sync::Arc;
+
+use grid::seed::mix;
+use sim::{Action, OtherRobots, World};
+
+use crate::controller::Controller;
+use crate::drive::{DriveLimits, drive};
+use crate::error::PlanError;
+use crate::executor::{Driver, recoveries_for};
+use crate::types::{AttemptOutcome, PlanReport, PlanRequest};
+
+/// Mixed into the plan's seed for the drive among the fleet, so that it is not the
+/// validating run's noise again.
+const AMONG_STREAM: u64 = 0x0f1e_e7a1_0e6e_7e5d;
+
+/// How a plan fared driven among the other robots.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AmongReport {
+    /// How the drive ended.
+    pub outcome: AttemptOutcome,
+    /// Why, in words (a contact names the robot).
+    pub reason: String,
+    /// Simulated time from the start to the end of the drive, waits included, seconds.
+    pub time_s: f64,
+    /// Closest approach of the footprint to another robot, metres (`None` when no other
+    /// robot was on the floor during the drive).
+    pub min_robot_clearance_m: Option<f64>,
+    /// Other robots in the simulation.
+    pub robots: usize,
+}
+
+impl AmongReport {
+    /// The robot the drive ended touching, if it did.
+    pub fn met_robot(&self) -> Option<&str> {
+        if self.outcome != AttemptOutcome::Collision {
+            return None;
+        }
+        let at = self.reason.find(crate::drive::ROBOT_COLLISION)?;
+        let rest = &self.reason[at + crate::drive::ROBOT_COLLISION.len()..];
+        rest.trim_start().split(" at (").next()
+    }
+}
+
+/// Drives `report` (validated for `request`) again from its start, leg by leg with the
+/// controller that validated each leg (`primary`, or `fallback` where the follower did),
+/// holding at the start until `holds[0]` and at waypoint `k` of `report.waypoints` until
+/// `holds[k + 1]` (seconds since the start), among `others` on the plan's clock.
+pub fn drive_among(
+    world: &Arc<World>,
+    request: &PlanRequest,
+    report: &PlanReport,
+    primary: &mut dyn Controller,
+    mut fallback: Option<&mut dyn Controller>,
+    others: &OtherRobots,
+    holds: &[f64],
+) -> Result<AmongReport, PlanError> {
+    let opts = &request.options;
+    let mut primary = Driver::new(world, opts, primary)?;
+    let mut fallback = match fallback.take() {
+        Some(f) => Some(Driver::new(world, opts, f)?),
+        None => None,
+    };
+    let mut pose = request.start;
+    let (mut clock_s, mut first) = (0.0, 0usize);
+    let mut closest: Option<f64> = None;
+    let seed = mix(opts.seed, AMONG_STREAM);
+    for (leg, leg_report) in report.legs.iter().enumerate() {
+        let Some(&last) = report.goal_indices.get(leg) else {
+            break;
+        };
+        let waypoints = report
+            .waypoints
+            .get(first..=last)
+            .unwrap_or_default()
+            .to_vec();
+        let driver = match &mut fallback {
+            Some(f) if f.controller.kind() == leg_report.controller => f,
+            _ => &mut primary,
+        };
+        driver.controller.start_attempt(0);
+        // This leg's clock starts at 0: the other robots and the holds move with it.
+        let shifted = Arc::new(others.shifted(-clock_s));
+        let leg_holds: Vec<f64> = (first..=last + 1)
+            .map(|k| holds.get(k).map_or(0.0, |h| h - clock_s))
+            .collect();
+        let run = drive(
+            world,
+            &driver.env,
+            pose,
+            std::slice::from_ref(&waypoints),
+            &mut *driver.controller,
+            DriveLimits {
+                waypoint_timeout_s: opts.waypoint_timeout_s,
+                max_replans: 0,
+                sim_seed: mix(seed, leg as u64),
+                initial_velocity: Action::default(),
+                stop: request.stop.clone(),
+                trace: false,
+                recoveries: recoveries_for(opts),
+                others: Some(shifted),
+                holds: leg_holds,
+            },
+            None,
+        )?;
+        if let Some(c) = run.min_robot_clearance_m {
+            closest = Some(closest.map_or(c, |m: f64| m.min(c)));
+        }
+        clock_s += run.time_s;
+        if run.outcome != AttemptOutcome::Reached {
+            return Ok(AmongReport {
+                outcome: run.outcome,
+                reason: format!("leg {}: {}", leg + 1, run.reason),
+                time_s: clock_s,
+                min_robot_clearance_m: closest,
+                robots: others.robots().len(),
+            });
+        }
+        pose = run.end_pose;
+        first = last + 1;
+    }
+    Ok(AmongReport {
+        outcome: AttemptOutcome::Reached,
+        reason: "every goal reached among the other robots".to_owned(),
+        time_s: clock_s,
+        min_robot_clearance_m: closest,
+        robots: others.robots().len(),
+    })
+}

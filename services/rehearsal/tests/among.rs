@@ -1,0 +1,133 @@
+//! A validated plan driven again among other robots ([`rehearsal::drive_among`]): robots
+//! moving along their schedules in the same simulation, seen by the laser; waits held at the
+//! start and at waypoints. Real worlds (`sim`), roadmaps (`planning`) and controllers.
+
+use std::sync::Arc;
+
+use planning::Point2;
+use rehearsal::{
+    AttemptOutcome, ClassicalFollower, PlanOptions, PlanReport, PlanRequest, RoadmapCache,
+    drive_among, validate,
+};
+use sim::{OtherRobot, OtherRobots, Pose2, World};
+
+fn room() -> Arc<World> {
+    fixtures::worlds::walled_room()
+}
+
+fn plan(world: &Arc<World>) -> (PlanRequest, PlanReport) {
+    let request = PlanRequest {
+        start: Pose2::new(2.0, 2.0, 0.0),
+        goals: vec![Point2::new(7.0, 2.0)],
+        options: PlanOptions::default(),
+        stop: rehearsal::Stop::default(),
+    };
+    let report = validate(world, &RoadmapCache::default(), "room", &request, None).unwrap();
+    (request, report)
+}
+
+/// A robot standing at `(x, y)` from `from_s` to `to_s`.
+fn standing(name: &str, (x, y): (f64, f64), from_s: f64, to_s: f64) -> OtherRobot {
+    OtherRobot {
+        name: name.into(),
+        radius: 0.2,
+        track: vec![(from_s, x, y), (to_s, x, y)],
+    }
+}
+
+#[test]
+fn alone_the_plan_arrives_as_rehearsed() {
+    let world = room();
+    let (request, report) = plan(&world);
+    let among = drive_among(
+        &world,
+        &request,
+        &report,
+        &mut ClassicalFollower::default(),
+        None,
+        &OtherRobots::default(),
+        &[],
+    )
+    .unwrap();
+    assert_eq!(among.outcome, AttemptOutcome::Reached, "{among:?}");
+    assert_eq!(among.min_robot_clearance_m, None);
+    assert_eq!(among.robots, 0);
+}
+
+/// A robot parked on the route the whole time is met, and named; the same robot leaving
+/// before the plan gets there is not.
+#[test]
+fn a_robot_in_the_way_is_met_and_named_and_one_gone_is_not() {
+    let world = room();
+    let (request, report) = plan(&world);
+    // Where the validated run passed halfway.
+    let mid = report.trajectory[report.trajectory.len() / 2];
+    let drive = |others: OtherRobots| {
+        drive_among(
+            &world,
+            &request,
+            &report,
+            &mut ClassicalFollower::default(),
+            None,
+            &others,
+            &[],
+        )
+        .unwrap()
+    };
+    let parked = OtherRobots::new(vec![standing(
+        "urn:robot:parked",
+        (mid.x, mid.y),
+        0.0,
+        600.0,
+    )])
+    .unwrap();
+    let met = drive(parked);
+    // The classical follower has no shield: it drives into it.
+    assert_eq!(met.outcome, AttemptOutcome::Collision, "{met:?}");
+    assert_eq!(met.met_robot(), Some("urn:robot:parked"), "{met:?}");
+    assert!(
+        met.reason.contains("collision with robot urn:robot:parked"),
+        "{met:?}"
+    );
+    let gone =
+        OtherRobots::new(vec![standing("urn:robot:gone", (mid.x, mid.y), 0.0, 0.5)]).unwrap();
+    let clear = drive(gone);
+    assert_eq!(clear.outcome, AttemptOutcome::Reached, "{clear:?}");
+    assert_eq!(clear.met_robot(), None);
+}
+
+/// A wait at the start holds the robot: it sets off after the other robot has left the route,
+/// and arrives; the drive's time includes the wait.
+#[test]
+fn a_wait_at_the_start_lets_a_robot_pass() {
+    let world = room();
+    let (request, report) = plan(&world);
+    let mid = report.trajectory[report.trajectory.len() / 2];
+    let others = OtherRobots::new(vec![standing(
+        "urn:robot:passing",
+        (mid.x, mid.y),
+        0.0,
+        20.0,
+    )])
+    .unwrap();
+    let run = |holds: &[f64]| {
+        drive_among(
+            &world,
+            &request,
+            &report,
+            &mut ClassicalFollower::default(),
+            None,
+            &others,
+            holds,
+        )
+        .unwrap()
+    };
+    let waited = run(&[21.0]);
+    assert_eq!(waited.outcome, AttemptOutcome::Reached, "{waited:?}");
+    assert!(
+        waited.time_s >= 21.0 + 0.5 * report.simulated_time_s,
+        "{waited:?}"
+    );
+    assert!(waited.min_robot_clearance_m.unwrap() > 0.0, "{waited:?}");
+    assert_ne!(run(&[]).outcome, AttemptOutcome::Reached);
+}
