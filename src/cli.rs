@@ -295,6 +295,33 @@ pub enum BenchCommand {
         #[arg(long = "controller", value_delimiter = ',')]
         controllers: Vec<String>,
     },
+    /// N robots ask for plans at once on each map; the committed plans are then driven
+    /// together (joint success, robot collisions, stalls, makespan against the robots alone,
+    /// plan latency p50/p95).
+    Fleet {
+        /// Directory searched recursively for ROS map_server YAML files (`random`).
+        #[arg(long, default_value = "../shared/maps/ros")]
+        maps: PathBuf,
+        /// Robots at once.
+        #[arg(long, default_value_t = 20)]
+        robots: usize,
+        /// People per 100 m² of free region.
+        #[arg(long, default_value_t = 0.0)]
+        people: f64,
+        /// `random` missions on every map, or `corridor`: a generated corridor one robot
+        /// wide, half the robots at each end.
+        #[arg(long, value_parser = ["random", "corridor"], default_value = "random")]
+        scenario: String,
+        /// Seed of the missions and simulations.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        /// Most waiting a plan may take to let others pass (`options.max_wait_s`), seconds.
+        #[arg(long, default_value_t = 600.0)]
+        max_wait_s: f64,
+        /// Writes the rows as JSON (one object per map and scenario).
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// POST /v1/plan latency of a running service under C concurrent robot clients.
     PlanLoad {
         /// The service's URL.
@@ -786,6 +813,48 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 out.join("edges.csv").display(),
                 out.join("edges.md").display()
             );
+            Ok(())
+        }
+        BenchCommand::Fleet {
+            maps,
+            robots,
+            people,
+            scenario,
+            seed,
+            max_wait_s,
+            json,
+        } => {
+            use anyhow::Context;
+            let rows = bench::fleet::run_fleet_bench(&bench::fleet::FleetBenchOptions {
+                maps,
+                robots,
+                people,
+                scenario: if scenario == "corridor" {
+                    bench::fleet::Scenario::Corridor
+                } else {
+                    bench::fleet::Scenario::Random
+                },
+                seed,
+                robot_ttl: crate::train::bundled_robot_ttl().as_bytes().to_vec(),
+                robot_iri: crate::train::ROBOT_IRI.to_owned(),
+                max_wait_s,
+            })?;
+            println!("{}", bench::fleet::markdown(&rows));
+            for r in &rows {
+                for line in r
+                    .refusals
+                    .iter()
+                    .map(|l| format!("refused: {l}"))
+                    .chain(r.joint_failures.iter().map(|l| format!("joint run: {l}")))
+                {
+                    println!("{} ({}) {line}", r.map, r.scenario);
+                }
+            }
+            if let Some(path) = json {
+                std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
             Ok(())
         }
         BenchCommand::PlanLoad {

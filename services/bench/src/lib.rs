@@ -3,6 +3,7 @@
 pub mod beta;
 pub mod edges;
 pub mod error;
+pub mod fleet;
 pub mod knowledge;
 pub mod learner;
 pub mod maps;

@@ -185,26 +185,17 @@ pub fn simulated_robots(
     )
 }
 
-/// When the robot may leave each point of its route, seconds after its start: `[0]` the start,
-/// `[k + 1]` waypoint `k` (reached at step `at_steps[k]`); 0 where it does not wait. `waits`
-/// are `fit`'s (step, seconds, robots); `since_start_ms(step)` is when the robot reaches a step,
-/// waits before it included, ms after the start.
-pub fn holds(
-    at_steps: &[usize],
-    waits: &[(usize, f64, Vec<String>)],
-    since_start_ms: impl Fn(usize) -> i64,
-) -> Vec<f64> {
-    std::iter::once(0)
-        .chain(at_steps.iter().copied())
-        .map(|k| {
-            let wait: f64 = waits.iter().filter(|w| w.0 == k).map(|w| w.1).sum();
-            if wait > 0.0 {
-                since_start_ms(k) as f64 / 1000.0 + wait
-            } else {
-                0.0
-            }
-        })
-        .collect()
+/// When the robot may leave each point of its route, seconds after `start_unix_ms`: `[0]` the
+/// start, `[k + 1]` waypoint `k` of `waypoints`; 0 where it does not wait.
+pub fn holds(waits: &[Wait], start_unix_ms: i64, waypoints: usize) -> Vec<f64> {
+    let mut holds = vec![0.0; waypoints + 1];
+    for w in waits {
+        let at = w.waypoint.map_or(0, |k| k + 1);
+        if let Some(h) = holds.get_mut(at) {
+            *h = f64::max(*h, (w.not_before_unix_ms - start_unix_ms) as f64 / 1000.0);
+        }
+    }
+    holds
 }
 
 /// Why no schedule fits.
@@ -385,7 +376,26 @@ pub fn fit(
             in_the_way.push(c.b_robot.clone());
         }
         if draft.total_wait() + WAIT_STEP_S > max_wait_s + 1e-9 {
-            return Err(no_fit(template, &draft, others, in_the_way, max_wait_s));
+            let refused = no_fit(template, &draft, others, in_the_way.clone(), max_wait_s);
+            // Waits along the way did not fit in the budget; a later start within it does.
+            if let Some(t) = refused.earliest_start_unix_ms {
+                // Off at `t`, as the earliest start was found: the robot takes its place in
+                // the schedule then.
+                let wait = (t - template.start_unix_ms) as f64 / 1000.0;
+                let mut shifted = template.clone();
+                shifted.start_unix_ms = t;
+                shifted.expires_unix_ms += t - template.start_unix_ms;
+                let itinerary = Draft {
+                    steps,
+                    dt,
+                    waits: Vec::new(),
+                }
+                .itinerary(&shifted);
+                if wait <= max_wait_s + 1e-9 && first(&itinerary, others).is_none() {
+                    return Ok((itinerary, at_waypoint, vec![(0, wait, dedup(in_the_way))]));
+                }
+            }
+            return Err(refused);
         }
         let t_c = (c.at_unix_ms - template.start_unix_ms) as f64 / 1000.0;
         // Waiting at a stop the conflict happens at (or while standing there) does not help:

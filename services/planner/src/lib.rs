@@ -134,6 +134,40 @@ pub struct PlanOutcome {
     pub people: Option<PeopleSummary>,
     /// The mental simulation it was validated in.
     pub world: Arc<World>,
+    /// How to drive it again.
+    replay: Arc<Replay>,
+}
+
+impl PlanOutcome {
+    /// The plan driven again with its waits while the robots of `others` drive their
+    /// itineraries in the same simulation ([`rehearsal::drive_among`]), on the clock of the
+    /// plan's start (now, without a schedule). Blocks: seconds for long plans.
+    pub fn rehearse_among(
+        &self,
+        others: &[traffic::Itinerary],
+    ) -> Result<rehearsal::AmongReport, PlanFailure> {
+        let (start, holds) = match &self.fleet {
+            Some(f) => (
+                f.itinerary.start_unix_ms,
+                fleet::holds(
+                    &f.waits,
+                    f.itinerary.start_unix_ms,
+                    self.report.waypoints.len(),
+                ),
+            ),
+            None => (now_ms(), Vec::new()),
+        };
+        let robots = fleet::simulated_robots(others, start).map_err(PlanFailure::Internal)?;
+        self.replay
+            .among(&self.world, &self.report, &robots, &holds)
+    }
+}
+
+/// Now, ms since the Unix epoch.
+fn now_ms() -> i64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
 }
 
 /// Why no plan was answered. Callers map each to their own error (the HTTP edge to a status).
@@ -196,6 +230,10 @@ pub trait RoadmapBuilds: Send + Sync {
         margin: f64,
     ) -> BuildFuture<'a>;
 }
+
+/// Times a plan is fitted and committed again when other plans were committed on its floor
+/// meanwhile (each time against the new schedule) before it answers 503.
+const COMMIT_ATTEMPTS: usize = 16;
 
 /// Policies kept loaded at most.
 const LOADED_POLICIES: usize = 16;
@@ -400,7 +438,7 @@ impl Planner {
         let note = note(policy_id.is_some(), &pick, &report);
         let fleet = match &self.fleet {
             Some(schedule) => Some(
-                self.among_the_fleet(schedule.as_ref(), &db, &world, &report, replay, &fleet)
+                self.among_the_fleet(schedule.as_ref(), &db, &world, &report, &replay, &fleet)
                     .await?,
             ),
             None => None,
@@ -415,6 +453,7 @@ impl Planner {
             report,
             people,
             world,
+            replay,
         })
     }
 
@@ -427,10 +466,9 @@ impl Planner {
         db: &FloorDatabase,
         world: &Arc<World>,
         report: &rehearsal::PlanReport,
-        replay: Replay,
+        replay: &Arc<Replay>,
         options: &FleetOptions,
     ) -> Result<FleetOutcome, PlanFailure> {
-        let replay = Arc::new(replay);
         let now = schedule.now_ms();
         let start = options.start_unix_ms.unwrap_or(now);
         let slack_ms = (options.tolerance_s * 1000.0).round() as i64;
@@ -452,7 +490,7 @@ impl Planner {
             expires_unix_ms: start + (options.hold_s * 1000.0).round() as i64,
             delay_s: 0.0,
         };
-        for _ in 0..5 {
+        for _ in 0..COMMIT_ATTEMPTS {
             let (version, committed) = schedule
                 .snapshot(&db.floor)
                 .await
@@ -485,7 +523,6 @@ impl Planner {
                     .sum();
                 start + ((k as f64 * report.control_period_s + waited) * 1000.0).round() as i64
             };
-            let holds = fleet::holds(&at_steps, &waits, |k| time_at(k) - start);
             let waits: Vec<fleet::Wait> = waits
                 .iter()
                 .map(|(k, s, robots)| fleet::Wait {
@@ -503,8 +540,9 @@ impl Planner {
             } else {
                 let robots =
                     fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?;
+                let holds = fleet::holds(&waits, start, report.waypoints.len());
                 let (replay, world, report) =
-                    (Arc::clone(&replay), Arc::clone(world), report.clone());
+                    (Arc::clone(replay), Arc::clone(world), report.clone());
                 let among = tokio::task::spawn_blocking(move || {
                     replay.among(&world, &report, &robots, &holds)
                 })
@@ -628,11 +666,12 @@ type Rehearsed = (
     Arc<World>,
     Option<PeopleSummary>,
     ControllerPick,
-    Replay,
+    Arc<Replay>,
 );
 
 /// What a validated plan needs to be driven again (among the fleet): the request as
 /// rehearsed (its people resolved), the policy and the controller picked.
+#[derive(Debug)]
 struct Replay {
     request: PlanRequest,
     policy: Option<Arc<learning::Policy>>,
@@ -738,11 +777,11 @@ impl Rehearsal {
                 &report,
             )
         });
-        let replay = Replay {
+        let replay = Arc::new(Replay {
             request,
             policy: self.policy.clone(),
             choice: pick.choice,
-        };
+        });
         Ok((report, world, people, pick, replay))
     }
 

@@ -133,6 +133,7 @@ impl PlanApiResponse {
             people,
             world,
             fleet,
+            ..
         } = outcome;
         let mut report = PlanReport::from(report);
         report.people = people.map(PeopleReport::from);

@@ -1,0 +1,582 @@
+//! `mentalsim bench fleet`: N robots on one floor ask the planner for plans at once, each
+//! fitted among the plans already committed to the floor's traffic schedule (waits, refusals)
+//! and driven again among them, as `POST /v1/plan` does; then every committed plan is driven
+//! once more among all the others (the joint run: every robot in one simulation, the others'
+//! footprints moving along their schedules, with people), to see whether the plans hold
+//! together. Reported per map and scenario: joint success, robot–robot collisions, stalls,
+//! makespan and sum of times against the same robots planned alone, plan latency under the
+//! concurrent requests.
+//!
+//! The planner is the service's (`planner::Planner`), its knowledge the on-demand database an
+//! import of the map makes, its schedule an in-memory one (the service keeps it in the job
+//! database: add its commit, two round trips, to the latency).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Instant, SystemTime};
+
+use planner::fleet::{Committed, FleetFuture};
+use planner::{
+    FleetOptions, FleetSchedule, FloorDatabase, KnowledgeSource, PlanOutcome, PlanPeople,
+    PlanQuery, Planner, PolicyStore, RoadmapStore, SourceError, SourceFuture,
+};
+use rayon::prelude::*;
+use rehearsal::{AttemptOutcome, PlanOptions, PlanRequest};
+use sim::{Pose2, World};
+use tosm::{Occupancy, OccupancyGrid};
+use traffic::Itinerary;
+
+use crate::error::BenchError;
+
+/// Which missions the robots get.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Scenario {
+    /// Random missions across the floor's roadmap (start and goal at least a quarter of its
+    /// extent apart), on every map under `--maps`.
+    Random,
+    /// A generated floor: two rooms joined by a corridor one robot wide (12 m), half the
+    /// robots in each room sent to the other.
+    Corridor,
+}
+
+impl Scenario {
+    /// Its name on the command line and in the report.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Scenario::Random => "random",
+            Scenario::Corridor => "corridor",
+        }
+    }
+}
+
+/// What `bench fleet` runs.
+#[derive(Debug, Clone)]
+pub struct FleetBenchOptions {
+    /// Directory searched recursively for ROS map_server YAML files (random missions).
+    pub maps: PathBuf,
+    /// Robots at once.
+    pub robots: usize,
+    /// People per 100 m² of free region.
+    pub people: f64,
+    /// The missions.
+    pub scenario: Scenario,
+    /// Seed of the missions and simulations.
+    pub seed: u64,
+    /// The robot's TOSM description (Turtle); robot `k` is it under the IRI `robot_iri-k`.
+    pub robot_ttl: Vec<u8>,
+    /// The robot's IRI in it.
+    pub robot_iri: String,
+    /// Most waiting a plan may take (`options.max_wait_s`), seconds.
+    pub max_wait_s: f64,
+}
+
+/// One map and scenario.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FleetRow {
+    /// The map's short name.
+    pub map: String,
+    /// `random` or `corridor`.
+    pub scenario: String,
+    /// Robots that asked.
+    pub robots: usize,
+    /// People per 100 m².
+    pub people: f64,
+    /// Plans answered (the others were refused: 409 or another error).
+    pub planned: usize,
+    /// Why plans were refused, one line each.
+    pub refusals: Vec<String>,
+    /// Why robots did not arrive in the joint run, one line each.
+    pub joint_failures: Vec<String>,
+    /// Share of the robots that arrived in the joint run (a refused plan counts as not).
+    pub joint_success_rate: f64,
+    /// Robots whose joint drive ended touching another robot.
+    pub robot_collisions: usize,
+    /// Robots whose joint drive stalled (a waypoint not reached in time: blocked).
+    pub stalls: usize,
+    /// Stalls with another robot within a robot's width: robots blocking each other.
+    pub deadlocks: usize,
+    /// When the last robot arrived in the joint run, seconds after the common start.
+    pub makespan_s: f64,
+    /// The same robots' plans driven alone (no waits): the longest, seconds.
+    pub makespan_alone_s: f64,
+    /// `makespan_s / makespan_alone_s`.
+    pub makespan_ratio: f64,
+    /// Sum of the arrived robots' times in the joint run, seconds.
+    pub sum_of_times_s: f64,
+    /// Sum of the same robots' times alone, seconds.
+    pub sum_alone_s: f64,
+    /// Total waiting the schedule gave the robots, seconds.
+    pub waits_s: f64,
+    /// Plan latency under the concurrent requests, ms.
+    pub latency_p50_ms: f64,
+    /// Plan latency under the concurrent requests, ms.
+    pub latency_p95_ms: f64,
+}
+
+/// The knowledge of one floor: one on-demand database per robot.
+struct Floor(HashMap<String, Arc<FloorDatabase>>);
+
+impl KnowledgeSource for Floor {
+    fn floor_database<'a>(&'a self, _place: &'a str, robot: &'a str) -> SourceFuture<'a> {
+        Box::pin(async move {
+            self.0
+                .get(robot)
+                .cloned()
+                .ok_or_else(|| SourceError::NotFound(format!("no robot `{robot}`")))
+        })
+    }
+}
+
+/// No policy-aware roadmap builds: the bench plans without a policy or with its stored
+/// roadmap absent (the geometric roadmap).
+struct NoBuilds;
+
+impl planner::RoadmapBuilds for NoBuilds {
+    fn ensure<'a>(
+        &'a self,
+        _key: &'a planner::PolicyRoadmapKey,
+        _floor: &'a str,
+        _robot: &'a str,
+        _margin: f64,
+    ) -> planner::BuildFuture<'a> {
+        Box::pin(async { Err("the fleet benchmark builds no policy-aware roadmaps".to_owned()) })
+    }
+}
+
+/// The floor's traffic schedule in memory: a version and the committed itineraries.
+#[derive(Default)]
+struct MemorySchedule(Mutex<(i64, Vec<Itinerary>)>);
+
+impl MemorySchedule {
+    fn all(&self) -> Vec<Itinerary> {
+        self.0
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .1
+            .clone()
+    }
+}
+
+impl FleetSchedule for MemorySchedule {
+    fn snapshot<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, (i64, Vec<Itinerary>)> {
+        let g = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let now = self.now_ms();
+        let found =
+            g.1.iter()
+                .filter(|i| i.floor == floor && i.expires_unix_ms >= now)
+                .cloned()
+                .collect();
+        let version = g.0;
+        Box::pin(async move { Ok((version, found)) })
+    }
+
+    fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed> {
+        let mut g = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let answer = if g.0 == expected_version {
+            g.1.retain(|i| i.robot != itinerary.robot);
+            g.1.push(itinerary);
+            g.0 += 1;
+            Committed::Yes(g.0)
+        } else {
+            Committed::VersionChanged
+        };
+        Box::pin(async move { Ok(answer) })
+    }
+
+    fn now_ms(&self) -> i64 {
+        now_ms()
+    }
+}
+
+fn now_ms() -> i64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
+}
+
+/// Runs the benchmark: every map under `maps` (random missions) or the generated floor.
+pub fn run_fleet_bench(opts: &FleetBenchOptions) -> Result<Vec<FleetRow>, BenchError> {
+    if !(1..=planner::fleet::MAX_ROBOTS_PER_FLOOR).contains(&opts.robots) {
+        return Err(BenchError::BadOption(format!(
+            "--robots must lie in [1, {}], got {}",
+            planner::fleet::MAX_ROBOTS_PER_FLOOR,
+            opts.robots
+        )));
+    }
+    if !(opts.max_wait_s.is_finite()
+        && (0.0..=planner::fleet::MAX_FLEET_S).contains(&opts.max_wait_s))
+    {
+        return Err(BenchError::BadOption(format!(
+            "--max-wait-s must lie in [0, {}] s, got {}",
+            planner::fleet::MAX_FLEET_S,
+            opts.max_wait_s
+        )));
+    }
+    if !(opts.people.is_finite() && (0.0..=50.0).contains(&opts.people)) {
+        return Err(BenchError::BadOption(format!(
+            "--people must lie in [0, 50] people per 100 m², got {}",
+            opts.people
+        )));
+    }
+    let floors: Vec<(String, PathBuf, OccupancyGrid)> = match opts.scenario {
+        Scenario::Random => {
+            let yamls = crate::maps::find_yamls(&opts.maps)?;
+            if yamls.is_empty() {
+                return Err(BenchError::NoMaps(opts.maps.clone()));
+            }
+            yamls
+                .into_iter()
+                .map(|y| {
+                    let grid = knowledge::maps::read_ros_map(&y)?;
+                    Ok((learning::run::map_name(&y), y, grid))
+                })
+                .collect::<Result<_, BenchError>>()?
+        }
+        Scenario::Corridor => vec![(
+            "corridor".to_owned(),
+            PathBuf::from("corridor/corridor.yaml"),
+            corridor_floor(),
+        )],
+    };
+    floors
+        .into_iter()
+        .map(|(name, yaml, grid)| run_floor(opts, &name, &yaml, grid))
+        .collect()
+}
+
+/// Width of the generated corridor, metres: one robot of up to 0.35 m radius fits with the
+/// plans' 0.1 m safety margin; two robots of more than 0.25 m radius cannot pass each other.
+pub const CORRIDOR_WIDTH_M: f64 = 1.0;
+
+/// Two 4.5 m × 5 m rooms joined by a 12 m corridor [`CORRIDOR_WIDTH_M`] wide, at 5 cm.
+fn corridor_floor() -> OccupancyGrid {
+    let res = 0.05;
+    let (w, h) = (440usize, 120usize); // 22 m x 6 m
+    let mut grid = OccupancyGrid::filled(w, h, res, Pose2::new(0.0, 0.0, 0.0), Occupancy::Occupied);
+    let mut free = |x0: f64, y0: f64, x1: f64, y1: f64| {
+        for cy in 0..h {
+            for cx in 0..w {
+                let (x, y) = ((cx as f64 + 0.5) * res, (cy as f64 + 0.5) * res);
+                if x >= x0 && x < x1 && y >= y0 && y < y1 {
+                    grid.cells[cy * w + cx] = Occupancy::Free;
+                }
+            }
+        }
+    };
+    free(0.5, 0.5, 5.0, 5.5);
+    free(17.0, 0.5, 21.5, 5.5);
+    let half = CORRIDOR_WIDTH_M / 2.0;
+    free(4.9, 3.0 - half, 17.1, 3.0 + half);
+    grid
+}
+
+/// `n` missions: random ones across the roadmap's largest component with starts and goals
+/// kept a robot's width apart, or the corridor's two rooms swapping.
+fn missions(
+    scenario: Scenario,
+    world: &Arc<World>,
+    n: usize,
+    seed: u64,
+) -> Result<Vec<(Pose2, planning::Point2)>, BenchError> {
+    let radius = world.spec().robot.footprint_radius;
+    let apart = 2.0 * radius + 0.4;
+    if scenario == Scenario::Corridor {
+        // Rooms (0.5..5) and (17..21.5) by (0.5..5.5): robots start in the column by the far
+        // wall and park in the column nearer the corridor of the other room, so that no goal is
+        // another robot's start.
+        let column = |x: f64, j: usize| planning::Point2::new(x, 1.2 + 0.9 * (j % 5) as f64);
+        let out = (0..n)
+            .map(|k| {
+                let j = k / 2;
+                let (s, g, yaw) = if k % 2 == 0 {
+                    (
+                        column(1.2 + 0.9 * (j / 5) as f64, j),
+                        column(18.6 + 0.9 * (j / 5) as f64, j),
+                        0.0,
+                    )
+                } else {
+                    (
+                        column(20.8 - 0.9 * (j / 5) as f64, j),
+                        column(3.4 - 0.9 * (j / 5) as f64, j),
+                        std::f64::consts::PI,
+                    )
+                };
+                (Pose2::new(s.x, s.y, yaw), g)
+            })
+            .collect();
+        return Ok(out);
+    }
+    let roadmap =
+        rehearsal::first_attempt_roadmap(world, seed).map_err(|source| BenchError::Rehearsal {
+            map: "missions".into(),
+            source,
+        })?;
+    let far = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).hypot(a.1 - b.1) >= apart;
+    let mut out: Vec<(Pose2, planning::Point2)> = Vec::new();
+    for (s, g) in planner::controllers::trial_missions(&roadmap, 40 * n, seed) {
+        if out.len() == n {
+            break;
+        }
+        let ok = out.iter().all(|(s2, g2)| {
+            far((s.x, s.y), (s2.x, s2.y))
+                && far((g.x, g.y), (g2.x, g2.y))
+                && far((s.x, s.y), (g2.x, g2.y))
+                && far((g.x, g.y), (s2.x, s2.y))
+        });
+        if ok {
+            out.push((s, g));
+        }
+    }
+    Ok(out)
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+fn run_floor(
+    opts: &FleetBenchOptions,
+    name: &str,
+    yaml: &Path,
+    grid: OccupancyGrid,
+) -> Result<FleetRow, BenchError> {
+    let floor_iri = knowledge::maps::floor_iri(&knowledge::maps::name_for_path(yaml));
+    let ttl = String::from_utf8_lossy(&opts.robot_ttl).into_owned();
+    // One database (and world) per robot, built side by side before anything is timed.
+    let dbs: Vec<(String, Arc<FloorDatabase>)> = (0..opts.robots)
+        .into_par_iter()
+        .map(|k| {
+            let iri = format!("{}-{k}", opts.robot_iri);
+            let turtle = ttl.replace(&opts.robot_iri, &iri);
+            let graph = knowledge::maps::on_demand_database(
+                yaml,
+                grid.clone(),
+                &[],
+                turtle.as_bytes(),
+                &iri,
+            )?;
+            let db = Arc::new(FloorDatabase::new(
+                graph,
+                iri.clone(),
+                floor_iri.clone(),
+                "bench",
+            ));
+            db.world().map_err(|message| BenchError::Format {
+                path: yaml.to_path_buf(),
+                message,
+            })?;
+            Ok((iri, db))
+        })
+        .collect::<Result<_, BenchError>>()?;
+    let world = dbs[0].1.world().map_err(|message| BenchError::Format {
+        path: yaml.to_path_buf(),
+        message,
+    })?;
+    let radius = world.spec().robot.footprint_radius;
+    if opts.scenario == Scenario::Corridor
+        && !(2.0 * (radius + PlanOptions::default().safety_margin_m) < CORRIDOR_WIDTH_M
+            && CORRIDOR_WIDTH_M < 4.0 * radius)
+    {
+        return Err(BenchError::BadOption(format!(
+            "the corridor scenario is for robots that fit its {CORRIDOR_WIDTH_M} m one at a time; this robot's radius is {radius} m"
+        )));
+    }
+    let missions = missions(opts.scenario, &world, opts.robots, opts.seed)?;
+    let policies =
+        tempfile::tempdir().map_err(crate::error::io_err(Path::new("temporary directory")))?;
+    let schedule = Arc::new(MemorySchedule::default());
+    let planner = Arc::new(
+        Planner::new(
+            Arc::new(Floor(dbs.iter().cloned().collect())),
+            PolicyStore::new(policies.path()),
+            Arc::new(rehearsal::RoadmapCache::default()),
+            RoadmapStore::new(policies.path().join("roadmaps")),
+            Arc::new(NoBuilds),
+        )
+        .with_fleet(Arc::clone(&schedule) as Arc<dyn FleetSchedule>),
+    );
+    // The roadmap of the floor, once, before the clock runs (every robot has its own
+    // database version, so each plans on its own cached roadmap: warm them all).
+    let people = sim::PeopleConfig {
+        density: opts.people,
+        ..sim::PeopleConfig::default()
+    };
+    let t0 = now_ms() + 60_000;
+    let queries: Vec<PlanQuery> = missions
+        .iter()
+        .zip(&dbs)
+        .enumerate()
+        .map(|(k, ((start, goal), (iri, _)))| PlanQuery {
+            robot: iri.clone(),
+            place: floor_iri.clone(),
+            request: PlanRequest {
+                start: *start,
+                goals: vec![*goal],
+                options: PlanOptions {
+                    seed: opts.seed.wrapping_add(k as u64),
+                    people: people.clone(),
+                    ..PlanOptions::default()
+                },
+                stop: rehearsal::Stop::default(),
+            },
+            people: PlanPeople::AsGiven,
+            policy: None,
+            controller: None,
+            fleet: FleetOptions {
+                start_unix_ms: Some(t0),
+                max_wait_s: opts.max_wait_s,
+                ..FleetOptions::default()
+            },
+        })
+        .collect();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(crate::error::io_err(Path::new("tokio runtime")))?;
+    let answers: Vec<(f64, Result<PlanOutcome, String>)> = runtime.block_on(async {
+        let tasks: Vec<_> = queries
+            .into_iter()
+            .map(|q| {
+                let planner = Arc::clone(&planner);
+                tokio::spawn(async move {
+                    let t = Instant::now();
+                    let r = planner.plan(q, rehearsal::Stop::default()).await;
+                    (
+                        t.elapsed().as_secs_f64() * 1e3,
+                        r.map_err(|e| e.to_string()),
+                    )
+                })
+            })
+            .collect();
+        let mut out = Vec::new();
+        for t in tasks {
+            out.push(
+                t.await
+                    .unwrap_or_else(|e| (f64::NAN, Err(format!("the plan task failed: {e}")))),
+            );
+        }
+        out
+    });
+    let mut latencies: Vec<f64> = answers
+        .iter()
+        .map(|a| a.0)
+        .filter(|l| l.is_finite())
+        .collect();
+    latencies.sort_by(f64::total_cmp);
+    let mut refusals = Vec::new();
+    let mut planned = Vec::new();
+    for (_, a) in answers {
+        match a {
+            Ok(o) => planned.push(o),
+            Err(e) => refusals.push(e),
+        }
+    }
+    // The joint run: every committed plan among all the others.
+    let committed = schedule.all();
+    let joint: Vec<Result<rehearsal::AmongReport, String>> = planned
+        .par_iter()
+        .map(|o| {
+            let others: Vec<Itinerary> = committed
+                .iter()
+                .filter(|i| i.robot != o.robot)
+                .cloned()
+                .collect();
+            o.rehearse_among(&others).map_err(|e| e.to_string())
+        })
+        .collect();
+    let (mut arrived, mut collisions, mut stalls, mut deadlocks) = (0usize, 0usize, 0usize, 0usize);
+    let (mut makespan, mut sum) = (0.0f64, 0.0f64);
+    let (mut makespan_alone, mut sum_alone) = (0.0f64, 0.0f64);
+    let mut joint_failures = Vec::new();
+    for (o, j) in planned.iter().zip(&joint) {
+        let alone = o.report.simulated_time_s;
+        makespan_alone = makespan_alone.max(alone);
+        sum_alone += alone;
+        match j {
+            Ok(r) if r.outcome == AttemptOutcome::Reached => {
+                arrived += 1;
+                makespan = makespan.max(r.time_s);
+                sum += r.time_s;
+                continue;
+            }
+            Ok(r) if r.met_robot().is_some() => collisions += 1,
+            Ok(r) if r.outcome == AttemptOutcome::Stalled => {
+                stalls += 1;
+                if r.min_robot_clearance_m.is_some_and(|c| c < 2.0 * radius) {
+                    deadlocks += 1;
+                }
+            }
+            Ok(_) => {}
+            Err(e) => {
+                joint_failures.push(format!("{}: {e}", o.robot));
+                continue;
+            }
+        }
+        if let Ok(r) = j {
+            joint_failures.push(format!("{}: {}", o.robot, r.reason));
+        }
+    }
+    let waits_s: f64 = planned
+        .iter()
+        .filter_map(|o| o.fleet.as_ref())
+        .flat_map(|f| f.waits.iter().map(|w| w.wait_s))
+        .sum();
+    Ok(FleetRow {
+        map: name.to_owned(),
+        scenario: opts.scenario.as_str().to_owned(),
+        robots: opts.robots,
+        people: opts.people,
+        planned: planned.len(),
+        refusals,
+        joint_failures,
+        joint_success_rate: arrived as f64 / opts.robots as f64,
+        robot_collisions: collisions,
+        stalls,
+        deadlocks,
+        makespan_s: makespan,
+        makespan_alone_s: makespan_alone,
+        makespan_ratio: if makespan_alone > 0.0 {
+            makespan / makespan_alone
+        } else {
+            f64::NAN
+        },
+        sum_of_times_s: sum,
+        sum_alone_s: sum_alone,
+        waits_s,
+        latency_p50_ms: percentile(&latencies, 0.5),
+        latency_p95_ms: percentile(&latencies, 0.95),
+    })
+}
+
+/// The rows as a Markdown table.
+pub fn markdown(rows: &[FleetRow]) -> String {
+    let mut md = String::from(
+        "| map | scenario | robots | people/100 m² | planned | joint success | robot collisions | stalls | deadlocks | makespan (s) | alone (s) | ratio | waits (s) | latency p50 / p95 (ms) |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        md.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {:.0}% | {} | {} | {} | {:.1} | {:.1} | {:.2} | {:.1} | {:.0} / {:.0} |\n",
+            r.map,
+            r.scenario,
+            r.robots,
+            r.people,
+            r.planned,
+            r.joint_success_rate * 100.0,
+            r.robot_collisions,
+            r.stalls,
+            r.deadlocks,
+            r.makespan_s,
+            r.makespan_alone_s,
+            r.makespan_ratio,
+            r.waits_s,
+            r.latency_p50_ms,
+            r.latency_p95_ms
+        ));
+    }
+    md
+}
