@@ -385,7 +385,18 @@ pub enum BenchCommand {
         /// Seconds of measurement per server.
         #[arg(long, default_value_t = 10.0)]
         seconds: f64,
+        /// Exit non-zero when the query mix runs below this ratio ours/oxigraph serve (the
+        /// figures are still printed and written).
+        #[arg(long, value_name = "R", value_parser = positive_ratio)]
+        min_ratio: Option<f64>,
     },
+}
+
+fn positive_ratio(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(r) if r.is_finite() && r > 0.0 => Ok(r),
+        _ => Err(format!("`{text}` is not a positive ratio (e.g. 0.9)")),
+    }
 }
 
 /// Runs the command line; the process exit code says whether it worked.
@@ -661,7 +672,10 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             requests,
             clients,
             seconds,
-        } => knowledge_bench(json, oxigraph, triples, requests, clients, seconds),
+            min_ratio,
+        } => knowledge_bench(
+            json, oxigraph, triples, requests, clients, seconds, min_ratio,
+        ),
         BenchCommand::Prm {
             maps,
             runs,
@@ -942,6 +956,7 @@ fn knowledge_bench(
     requests: usize,
     clients: usize,
     seconds: f64,
+    min_ratio: Option<f64>,
 ) -> anyhow::Result<()> {
     use anyhow::Context;
     let mentalsim = std::env::current_exe().context("cannot locate the mentalsim binary")?;
@@ -963,6 +978,9 @@ fn knowledge_bench(
         std::fs::write(&path, format!("{text}\n"))
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());
+    }
+    if let Some(min) = min_ratio {
+        report.check_ratio(min).map_err(anyhow::Error::msg)?;
     }
     Ok(())
 }

@@ -131,6 +131,28 @@ pub struct KnowledgeBenchReport {
 }
 
 impl KnowledgeBenchReport {
+    /// `Err` with a message for people when the mix's ratio ours/oxigraph is below `min` (or
+    /// not a number): what `bench knowledge --min-ratio` guards.
+    pub fn check_ratio(&self, min: f64) -> Result<(), String> {
+        if self.ratio >= min {
+            return Ok(());
+        }
+        let kinds: Vec<String> = self
+            .by_kind
+            .iter()
+            .map(|k| format!("{} {:.3}", k.kind, k.ratio))
+            .collect();
+        Err(format!(
+            "the SPARQL mix ran at {:.3}x oxigraph serve ({:.0} against {:.0} queries/s), below \
+             the minimum {min} ({}); profile both servers under the same load \
+             (docs/benchmarks.md) before accepting the change",
+            self.ratio,
+            self.queries_per_s_ours,
+            self.queries_per_s_oxigraph_server,
+            kinds.join(", ")
+        ))
+    }
+
     /// A table for people.
     pub fn table(&self) -> String {
         let mut out = String::new();
@@ -1018,6 +1040,42 @@ mod tests {
         let (start, goal, places) = mission(2).unwrap();
         assert!(start.starts_with("C2-") && goal.starts_with("C2-"));
         assert!(places >= 3, "{start} -> {goal}: {places}");
+    }
+
+    #[test]
+    fn the_ratio_check_fails_below_the_minimum_and_names_the_figures() {
+        let report = |ratio: f64| KnowledgeBenchReport {
+            triples: 0,
+            floor_copies: 0,
+            floors: 0,
+            load_s: 0.0,
+            on_demand_route_places: 0,
+            on_demand_triples: 0,
+            on_demand_p50_ms: 0.0,
+            on_demand_p99_ms: 0.0,
+            on_demand_requests: 0,
+            clients: 4,
+            seconds: 10.0,
+            queries_per_s_ours: 700.0 * ratio,
+            queries_per_s_oxigraph_server: 700.0,
+            ratio,
+            target_ratio: TARGET_RATIO,
+            by_kind: vec![QueryKindReport {
+                kind: "join".to_owned(),
+                ours: 1.0,
+                oxigraph_server: 2.0,
+                ratio: 0.5,
+            }],
+            oxigraph_version: String::new(),
+            release_build: true,
+        };
+        assert!(report(0.95).check_ratio(0.9).is_ok());
+        assert!(report(0.9).check_ratio(0.9).is_ok());
+        let message = report(0.7).check_ratio(0.9).unwrap_err();
+        assert!(message.contains("0.700x"), "{message}");
+        assert!(message.contains("minimum 0.9"), "{message}");
+        assert!(message.contains("join 0.500"), "{message}");
+        assert!(report(f64::NAN).check_ratio(0.9).is_err());
     }
 
     #[test]

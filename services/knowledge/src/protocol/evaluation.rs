@@ -139,19 +139,28 @@ pub(crate) struct CappedBuffer {
 impl CappedBuffer {
     pub(crate) fn new(cap: usize) -> Self {
         Self {
-            bytes: Vec::new(),
+            // Most answers are small: start with a few pages rather than growing from nothing.
+            bytes: Vec::with_capacity(cap.min(16 * 1024)),
             cap,
         }
     }
 }
 
 impl std::io::Write for CappedBuffer {
+    #[inline]
     fn write(&mut self, data: &[u8]) -> std::io::Result<usize> {
+        self.write_all(data).map(|()| data.len())
+    }
+
+    /// The serializers write a JSON or XML answer a few bytes at a time: one check and one
+    /// copy each, without `write_all`'s default loop.
+    #[inline]
+    fn write_all(&mut self, data: &[u8]) -> std::io::Result<()> {
         if self.bytes.len().saturating_add(data.len()) > self.cap {
             return Err(std::io::Error::other(CapExceeded(self.cap)));
         }
         self.bytes.extend_from_slice(data);
-        Ok(data.len())
+        Ok(())
     }
 
     fn flush(&mut self) -> std::io::Result<()> {
