@@ -320,6 +320,40 @@ impl Draft<'_> {
 }
 
 /// The earliest conflict of `itinerary` with `others`, if any.
+/// The first conflict of `itinerary` with `others` (footprints closer than
+/// [`ROBOT_MARGIN_M`], each robot anywhere within its tolerance of its schedule).
+pub fn first_conflict(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
+    first(itinerary, others)
+}
+
+/// `fitted` with the trajectory the robot drove (`steps` every `dt` seconds from
+/// `start_unix_ms`, waits included, a later start as standing at the start): standing still,
+/// only the first and last pose of each stop are kept; the hold at the goal is as fitted.
+pub fn driven(fitted: &Itinerary, start_unix_ms: i64, steps: &[Pose2], dt: f64) -> Itinerary {
+    let still = |a: &Pose2, b: &Pose2| (a.x - b.x).hypot(a.y - b.y) < 1e-6;
+    let mut trajectory: Vec<TimedPose> = Vec::with_capacity(steps.len());
+    for (k, p) in steps.iter().enumerate() {
+        let keep =
+            k == 0 || k + 1 == steps.len() || !still(p, &steps[k - 1]) || !still(p, &steps[k + 1]);
+        if keep {
+            trajectory.push(TimedPose {
+                t_s: k as f64 * dt,
+                x: p.x,
+                y: p.y,
+                yaw: p.yaw,
+            });
+        }
+    }
+    let hold_ms = fitted.expires_unix_ms - fitted.end_unix_ms();
+    let mut out = Itinerary {
+        trajectory,
+        start_unix_ms,
+        ..fitted.clone()
+    };
+    out.expires_unix_ms = out.end_unix_ms() + hold_ms.max(0);
+    out
+}
+
 fn first(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
     traffic::conflicts(itinerary, others, ROBOT_MARGIN_M)
         .into_iter()

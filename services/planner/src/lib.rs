@@ -479,18 +479,25 @@ impl Planner {
                 options.tolerance_s
             )));
         }
-        let template = traffic::Itinerary {
-            plan_id: fleet::plan_id(&db.robot, now),
-            robot: db.robot.clone(),
-            floor: db.floor.clone(),
-            start_unix_ms: start,
-            trajectory: Vec::new(),
-            radius_m: world.spec().robot.footprint_radius,
-            tolerance_s: options.tolerance_s,
-            expires_unix_ms: start + (options.hold_s * 1000.0).round() as i64,
-            delay_s: 0.0,
-        };
+        let plan_id = fleet::plan_id(&db.robot, now);
+        let requested = start;
+        // A plan the drive among the fleet refuses is fitted again from a later start: 2 s,
+        // then twice as late each time, within `max_wait_s`.
+        let mut later_s = 0.0f64;
+        let mut in_the_way: Vec<String> = Vec::new();
         for _ in 0..COMMIT_ATTEMPTS {
+            let start = requested + (later_s * 1000.0).round() as i64;
+            let template = traffic::Itinerary {
+                plan_id: plan_id.clone(),
+                robot: db.robot.clone(),
+                floor: db.floor.clone(),
+                start_unix_ms: start,
+                trajectory: Vec::new(),
+                radius_m: world.spec().robot.footprint_radius,
+                tolerance_s: options.tolerance_s,
+                expires_unix_ms: start + (options.hold_s * 1000.0).round() as i64,
+                delay_s: 0.0,
+            };
             let (version, committed) = schedule
                 .snapshot(&db.floor)
                 .await
@@ -523,7 +530,7 @@ impl Planner {
                     .sum();
                 start + ((k as f64 * report.control_period_s + waited) * 1000.0).round() as i64
             };
-            let waits: Vec<fleet::Wait> = waits
+            let mut waits: Vec<fleet::Wait> = waits
                 .iter()
                 .map(|(k, s, robots)| fleet::Wait {
                     waypoint: at_steps.iter().position(|a| a == k).filter(|_| *k > 0),
@@ -532,34 +539,80 @@ impl Planner {
                     for_robots: robots.clone(),
                 })
                 .collect();
+            if later_s > 0.0 {
+                waits.insert(
+                    0,
+                    fleet::Wait {
+                        waypoint: None,
+                        wait_s: later_s,
+                        not_before_unix_ms: start,
+                        for_robots: in_the_way.clone(),
+                    },
+                );
+            }
             let waypoint_times_unix_ms: Vec<i64> = at_steps.iter().map(|&k| time_at(k)).collect();
             // Driven again with its waits while the others drive theirs: a plan that meets
-            // another robot there is not committed.
-            let among = if others.is_empty() {
-                None
-            } else {
-                let robots =
-                    fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?;
-                let holds = fleet::holds(&waits, start, report.waypoints.len());
-                let (replay, world, report) =
-                    (Arc::clone(replay), Arc::clone(world), report.clone());
-                let among = tokio::task::spawn_blocking(move || {
-                    replay.among(&world, &report, &robots, &holds)
+            // another robot there is not committed. What is committed is that drive, waits
+            // included, so the schedule holds where the robot will be as it waits and sets off.
+            let robots = fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?;
+            let holds = fleet::holds(&waits, start, report.waypoints.len());
+            let (replay2, world2, report2) =
+                (Arc::clone(replay), Arc::clone(world), report.clone());
+            let among = tokio::task::spawn_blocking(move || {
+                replay2.among(&world2, &report2, &robots, &holds)
+            })
+            .await
+            .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
+            let refused = |robot: String, message: String| {
+                PlanFailure::FleetConflict(NoFit {
+                    robots: vec![robot],
+                    earliest_start_unix_ms: None,
+                    message,
                 })
-                .await
-                .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
-                if let Some(robot) = among.met_robot() {
+            };
+            let (itinerary, refusal) = if let Some(robot) = among.met_robot() {
+                let why = format!(
+                    "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
+                    among.robots, among.reason
+                );
+                (itinerary, Some(refused(robot.to_owned(), why)))
+            } else if among.outcome == rehearsal::AttemptOutcome::Reached {
+                let driven = fleet::driven(&itinerary, start, &among.steps, among.control_period_s);
+                match fleet::first_conflict(&driven, &others) {
+                    Some(c) => {
+                        let why = format!(
+                            "driven with its waits, the robot would come within {} m of {} {:.1} s after its start",
+                            fleet::ROBOT_MARGIN_M,
+                            c.b_robot,
+                            (c.at_unix_ms - start) as f64 / 1000.0
+                        );
+                        (driven, Some(refused(c.b_robot.clone(), why)))
+                    }
+                    None => (driven, None),
+                }
+            } else {
+                (itinerary, None)
+            };
+            if let Some(PlanFailure::FleetConflict(no_fit)) = refusal {
+                let next = if later_s == 0.0 { 2.0 } else { 2.0 * later_s };
+                for r in &no_fit.robots {
+                    if !in_the_way.contains(r) {
+                        in_the_way.push(r.clone());
+                    }
+                }
+                if next > options.max_wait_s {
                     return Err(PlanFailure::FleetConflict(NoFit {
-                        robots: vec![robot.to_owned()],
-                        earliest_start_unix_ms: None,
                         message: format!(
-                            "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
-                            among.robots, among.reason
+                            "{}; starting up to {later_s} s later did not help within `options.max_wait_s` ({} s)",
+                            no_fit.message, options.max_wait_s
                         ),
+                        ..no_fit
                     }));
                 }
-                Some(among)
-            };
+                later_s = next;
+                continue;
+            }
+            let among = (!others.is_empty()).then_some(among);
             let version = if options.commit {
                 match schedule
                     .commit(itinerary.clone(), version)

@@ -36,6 +36,11 @@ pub struct AmongReport {
     pub min_robot_clearance_m: Option<f64>,
     /// Other robots in the simulation.
     pub robots: usize,
+    /// Where the robot was at every control period from the start (waits included), as far
+    /// as it drove.
+    pub steps: Vec<sim::Pose2>,
+    /// Seconds between two of `steps`.
+    pub control_period_s: f64,
 }
 
 impl AmongReport {
@@ -73,6 +78,8 @@ pub fn drive_among(
     let (mut clock_s, mut first) = (0.0, 0usize);
     let mut closest: Option<f64> = None;
     let seed = mix(opts.seed, AMONG_STREAM);
+    let mut steps: Vec<sim::Pose2> = Vec::new();
+    let dt = primary.env.control_period;
     for (leg, leg_report) in report.legs.iter().enumerate() {
         let Some(&last) = report.goal_indices.get(leg) else {
             break;
@@ -115,6 +122,9 @@ pub fn drive_among(
             closest = Some(closest.map_or(c, |m: f64| m.min(c)));
         }
         clock_s += run.time_s;
+        // Each leg's trajectory starts where the last one ended: keep that pose once.
+        let skip = usize::from(!steps.is_empty());
+        steps.extend(run.trajectory.iter().skip(skip).copied());
         if run.outcome != AttemptOutcome::Reached {
             return Ok(AmongReport {
                 outcome: run.outcome,
@@ -122,6 +132,8 @@ pub fn drive_among(
                 time_s: clock_s,
                 min_robot_clearance_m: closest,
                 robots: others.robots().len(),
+                steps,
+                control_period_s: dt,
             });
         }
         pose = run.end_pose;
@@ -133,5 +145,7 @@ pub fn drive_among(
         time_s: clock_s,
         min_robot_clearance_m: closest,
         robots: others.robots().len(),
+        steps,
+        control_period_s: dt,
     })
 }

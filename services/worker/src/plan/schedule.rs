@@ -66,8 +66,9 @@ impl From<planner::FleetOutcome> for PlanSchedule {
         let start_wait = f
             .waits
             .iter()
-            .find(|w| w.waypoint.is_none())
-            .map(|w| w.not_before_unix_ms);
+            .filter(|w| w.waypoint.is_none())
+            .map(|w| w.not_before_unix_ms)
+            .max();
         Self {
             plan_id: f.itinerary.plan_id.clone(),
             committed: f.version.is_some(),

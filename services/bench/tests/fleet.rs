@@ -1,0 +1,98 @@
+//! The fleet benchmark end to end on its generated corridor: two robots sent through it from
+//! its two ends ask the service's planner at once; one is fitted around the other, and the
+//! committed pair is driven together.
+
+use bench::fleet::{FleetBenchOptions, Scenario, markdown, run_fleet_bench};
+
+const ROBOT_IRI: &str = "https://mentalsim.dev/data/robots/differential-robot";
+
+fn options(robots: usize) -> FleetBenchOptions {
+    let ttl = knowledge::bundled::BUNDLED
+        .iter()
+        .find(|b| b.file.starts_with("robots/"))
+        .expect("the bundled robot")
+        .turtle;
+    FleetBenchOptions {
+        maps: std::path::PathBuf::from("unused"),
+        robots,
+        people: 0.0,
+        scenario: Scenario::Corridor,
+        seed: 7,
+        robot_ttl: ttl.as_bytes().to_vec(),
+        robot_iri: ROBOT_IRI.to_owned(),
+        max_wait_s: 600.0,
+    }
+}
+
+#[test]
+fn two_robots_swap_through_a_corridor_one_robot_wide() {
+    let rows = run_fleet_bench(&options(2)).expect("runs");
+    assert_eq!(rows.len(), 1);
+    let r = &rows[0];
+    assert_eq!(
+        (r.map.as_str(), r.scenario.as_str(), r.robots),
+        ("corridor", "corridor", 2)
+    );
+    // Both are answered; they cannot pass in the corridor, so one waits for the other.
+    assert_eq!(r.planned, 2, "{r:?}");
+    assert!(r.waits_s > 0.0, "{r:?}");
+    assert!(
+        r.makespan_alone_s > 0.0 && r.sum_alone_s >= r.makespan_alone_s,
+        "{r:?}"
+    );
+    assert!(
+        r.latency_p50_ms > 0.0 && r.latency_p95_ms >= r.latency_p50_ms,
+        "{r:?}"
+    );
+    // The joint run's figures are consistent with each other.
+    let arrived = (r.joint_success_rate * 2.0).round() as usize;
+    assert_eq!(arrived + r.joint_failures.len(), 2, "{r:?}");
+    assert!(
+        r.robot_collisions + r.stalls <= r.joint_failures.len(),
+        "{r:?}"
+    );
+    if arrived == 2 {
+        assert!(
+            r.makespan_ratio >= 1.0,
+            "waiting cannot make the last arrival earlier: {r:?}"
+        );
+    }
+    assert!(markdown(&rows).contains("| corridor | corridor | 2 |"));
+    // The JSON rows carry the fields the issue names.
+    let json = serde_json::to_value(&rows).expect("json");
+    for key in [
+        "map",
+        "scenario",
+        "robots",
+        "people",
+        "joint_success_rate",
+        "robot_collisions",
+        "deadlocks",
+        "makespan_ratio",
+        "latency_p95_ms",
+    ] {
+        assert!(json[0].get(key).is_some(), "no {key} in {json}");
+    }
+}
+
+#[test]
+fn bad_options_are_refused_naming_them() {
+    let err = run_fleet_bench(&options(0)).unwrap_err().to_string();
+    assert!(err.contains("--robots"), "{err}");
+    let mut o = options(2);
+    o.people = -1.0;
+    assert!(
+        run_fleet_bench(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("--people")
+    );
+    let mut o = options(2);
+    o.max_wait_s = f64::NAN;
+    assert!(
+        run_fleet_bench(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("--max-wait-s")
+    );
+}
