@@ -2,6 +2,8 @@
 //! moving along their schedules in the same simulation, seen by the laser; waits held at the
 //! start and at waypoints. Real worlds (`sim`), roadmaps (`planning`) and controllers.
 
+#![allow(clippy::unwrap_used, reason = "a test fails loudly")]
+
 use std::sync::Arc;
 
 use planning::Point2;
