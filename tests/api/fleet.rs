@@ -193,6 +193,24 @@ async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() 
     let version = committed["version"].as_i64().unwrap();
     assert_eq!(traffic(&app, SECOND_ROBOT).await["version"], version);
 
+    // A start where the first robot is held at its goal at that time cannot be waited out:
+    // refused, naming it.
+    let arrived = s1["waypoint_times_ms"]
+        .as_array()
+        .unwrap()
+        .last()
+        .unwrap()
+        .as_i64()
+        .unwrap();
+    let (status, inside) = plan(&app, &route("R-002", to, from, arrived + 2_000, json!({}))).await;
+    assert_eq!(status, 409, "{inside}");
+    assert_eq!(
+        inside["error"]["details"]["robots"],
+        json!([FIRST]),
+        "{inside}"
+    );
+    assert!(inside.to_string().contains("footprint"), "{inside}");
+
     // A start in the past, beyond the tolerance, cannot be scheduled.
     let (status, past) = plan(
         &app,

@@ -506,6 +506,25 @@ impl Planner {
                 .into_iter()
                 .filter(|i| i.robot != db.robot)
                 .collect();
+            // A start inside another robot's reserved footprint cannot be waited out: the
+            // robot is already there.
+            if let Some(here) = report.steps.first()
+                && let Some(other) = others.iter().find(|o| {
+                    o.pose_at(requested).is_some_and(|(x, y)| {
+                        (x - here.x).hypot(y - here.y)
+                            < o.radius_m + world.spec().robot.footprint_radius
+                    })
+                })
+            {
+                return Err(PlanFailure::FleetConflict(NoFit {
+                    robots: vec![other.robot.clone()],
+                    earliest_start_unix_ms: None,
+                    message: format!(
+                        "the start ({:.2}, {:.2}) lies in the footprint the schedule reserves for {} at that time",
+                        here.x, here.y, other.robot
+                    ),
+                }));
+            }
             if others.len() >= fleet::MAX_ROBOTS_PER_FLOOR {
                 return Err(PlanFailure::Unprocessable(format!(
                     "the floor's traffic schedule holds {} other robots' plans, the most it takes ({}); cancel some or wait for them to expire",
@@ -550,7 +569,8 @@ impl Planner {
                     },
                 );
             }
-            let waypoint_times_unix_ms: Vec<i64> = at_steps.iter().map(|&k| time_at(k)).collect();
+            let mut waypoint_times_unix_ms: Vec<i64> =
+                at_steps.iter().map(|&k| time_at(k)).collect();
             // Driven again with its waits while the others drive theirs: a plan that meets
             // another robot there is not committed. What is committed is that drive, waits
             // included, so the schedule holds where the robot will be as it waits and sets off.
@@ -611,6 +631,13 @@ impl Planner {
                 }
                 later_s = next;
                 continue;
+            }
+            // The times the robot reaches its waypoints are those of the drive committed.
+            if among.outcome == rehearsal::AttemptOutcome::Reached {
+                waypoint_times_unix_ms = fleet::waypoint_steps(&among.steps, &report.waypoints)
+                    .iter()
+                    .map(|&k| start + (k as f64 * among.control_period_s * 1000.0).round() as i64)
+                    .collect();
             }
             let among = (!others.is_empty()).then_some(among);
             let version = if options.commit {
