@@ -28,6 +28,26 @@ fn plan(world: &Arc<World>) -> (PlanRequest, PlanReport) {
     (request, report)
 }
 
+/// `report` (validated for `request`) driven again by the classical follower among `others`
+/// with `holds`.
+fn among(
+    world: &Arc<World>,
+    (request, report): &(PlanRequest, PlanReport),
+    others: &OtherRobots,
+    holds: &[f64],
+) -> rehearsal::AmongReport {
+    drive_among(
+        world,
+        request,
+        report,
+        &mut ClassicalFollower::default(),
+        None,
+        others,
+        holds,
+    )
+    .unwrap()
+}
+
 /// A robot standing at `(x, y)` from `from_s` to `to_s`.
 fn standing(name: &str, (x, y): (f64, f64), from_s: f64, to_s: f64) -> OtherRobot {
     OtherRobot {
@@ -40,17 +60,8 @@ fn standing(name: &str, (x, y): (f64, f64), from_s: f64, to_s: f64) -> OtherRobo
 #[test]
 fn alone_the_plan_arrives_as_rehearsed() {
     let world = room();
-    let (request, report) = plan(&world);
-    let among = drive_among(
-        &world,
-        &request,
-        &report,
-        &mut ClassicalFollower::default(),
-        None,
-        &OtherRobots::default(),
-        &[],
-    )
-    .unwrap();
+    let planned = plan(&world);
+    let among = among(&world, &planned, &OtherRobots::default(), &[]);
     assert_eq!(among.outcome, AttemptOutcome::Reached, "{among:?}");
     assert_eq!(among.min_robot_clearance_m, None);
     assert_eq!(among.robots, 0);
@@ -61,21 +72,11 @@ fn alone_the_plan_arrives_as_rehearsed() {
 #[test]
 fn a_robot_in_the_way_is_met_and_named_and_one_gone_is_not() {
     let world = room();
-    let (request, report) = plan(&world);
+    let planned = plan(&world);
     // Where the validated run passed halfway.
-    let mid = report.trajectory[report.trajectory.len() / 2];
-    let drive = |others: OtherRobots| {
-        drive_among(
-            &world,
-            &request,
-            &report,
-            &mut ClassicalFollower::default(),
-            None,
-            &others,
-            &[],
-        )
-        .unwrap()
-    };
+    let trajectory = &planned.1.trajectory;
+    let mid = trajectory[trajectory.len() / 2];
+    let drive = |others: OtherRobots| among(&world, &planned, &others, &[]);
     let parked = OtherRobots::new(vec![standing(
         "urn:robot:parked",
         (mid.x, mid.y),
@@ -103,8 +104,9 @@ fn a_robot_in_the_way_is_met_and_named_and_one_gone_is_not() {
 #[test]
 fn a_wait_at_the_start_lets_a_robot_pass() {
     let world = room();
-    let (request, report) = plan(&world);
-    let mid = report.trajectory[report.trajectory.len() / 2];
+    let planned = plan(&world);
+    let trajectory = &planned.1.trajectory;
+    let mid = trajectory[trajectory.len() / 2];
     let others = OtherRobots::new(vec![standing(
         "urn:robot:passing",
         (mid.x, mid.y),
@@ -112,22 +114,11 @@ fn a_wait_at_the_start_lets_a_robot_pass() {
         20.0,
     )])
     .unwrap();
-    let run = |holds: &[f64]| {
-        drive_among(
-            &world,
-            &request,
-            &report,
-            &mut ClassicalFollower::default(),
-            None,
-            &others,
-            holds,
-        )
-        .unwrap()
-    };
+    let run = |holds: &[f64]| among(&world, &planned, &others, holds);
     let waited = run(&[21.0]);
     assert_eq!(waited.outcome, AttemptOutcome::Reached, "{waited:?}");
     assert!(
-        waited.time_s >= 21.0 + 0.5 * report.simulated_time_s,
+        waited.time_s >= 21.0 + 0.5 * planned.1.simulated_time_s,
         "{waited:?}"
     );
     assert!(waited.min_robot_clearance_m.unwrap() > 0.0, "{waited:?}");

@@ -889,24 +889,21 @@ impl NavEnv {
     fn observe(&mut self) -> Observation {
         self.world
             .scan_dirs(self.pose, &self.dirs, &mut self.ranges);
-        if let Some(crowd) = &self.crowd {
+        // People and other robots shorten the beams, cast from the laser in world directions.
+        if self.crowd.is_some() || self.others.is_some() {
             let (lx, ly, heading) = self.world.laser_origin(self.pose);
             let (s, c) = heading.sin_cos();
             let dirs = self
                 .dirs
                 .iter()
-                .map(|(bc, bs)| (c * bc - s * bs, s * bc + c * bs));
-            crowd.occlude((lx, ly), dirs, &mut self.ranges);
-        }
-        if let Some(others) = &self.others {
-            let at = others.at(f64::from(self.steps) * self.config.control_period);
-            let (lx, ly, heading) = self.world.laser_origin(self.pose);
-            let (s, c) = heading.sin_cos();
-            let dirs = self
-                .dirs
-                .iter()
-                .map(|(bc, bs)| (c * bc - s * bs, s * bc + c * bs));
-            crate::others::occlude(&at, (lx, ly), dirs, &mut self.ranges);
+                .map(move |(bc, bs)| (c * bc - s * bs, s * bc + c * bs));
+            if let Some(crowd) = &self.crowd {
+                crowd.occlude((lx, ly), dirs.clone(), &mut self.ranges);
+            }
+            if let Some(others) = &self.others {
+                let at = others.at(f64::from(self.steps) * self.config.control_period);
+                crate::others::occlude(&at, (lx, ly), dirs, &mut self.ranges);
+            }
         }
         let laser = &self.world.spec().robot.laser;
         let (lo, hi) = (laser.range_min, laser.range_max);
