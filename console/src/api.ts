@@ -232,3 +232,9 @@ export interface PolicySummary {
   created?: string | null; eval: Record<string, unknown>;
 }
 export interface Me { name: string; role: 'engineer' | 'robot' | string }
+export interface TimedPose { t_s: number; x: number; y: number; yaw: number }
+export interface Itinerary {
+  plan_id: string; robot: string; floor: string; start_unix_ms: number; trajectory: TimedPose[];
+  radius_m: number; tolerance_s: number; expires_unix_ms: number; delay_s: number;
+}
+export interface FloorTraffic { floor: string; version: number; plans: Itinerary[] }

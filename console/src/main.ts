@@ -19,6 +19,7 @@ interface Page {
 const PAGES: { path: string; title: string; load: () => Promise<Page> }[] = [
   { path: 'floors', title: 'Floors', load: async () => floors },
   { path: 'plan', title: 'Plan', load: () => import('./pages/plan') },
+  { path: 'traffic', title: 'Traffic', load: () => import('./pages/traffic') },
   { path: 'jobs', title: 'Jobs', load: () => import('./pages/jobs') },
   { path: 'policies', title: 'Policies', load: () => import('./pages/policies') },
   { path: 'knowledge', title: 'Knowledge', load: () => import('./pages/knowledge') },

@@ -6,7 +6,7 @@
 use reqwest::Method;
 use serde_json::{Value, json};
 
-use crate::helpers::{TestApp, spawn_app_with, with_tokens};
+use crate::helpers::{EventReader, TestApp, spawn_app_with, with_tokens};
 use crate::plan::{centroid, free_near, plan};
 
 const FIRST: &str = "https://mentalsim.dev/data/robots/differential-robot";
@@ -299,6 +299,123 @@ async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() 
     app.stop().await;
 }
 
+/// The floor's traffic as server-sent events (what the console's live view reads), opened
+/// with a robot's token.
+async fn traffic_events(app: &TestApp) -> EventReader {
+    let r = app
+        .client
+        .get(format!(
+            "{}/v1/places/F0/traffic/events?robot=R-001",
+            app.address
+        ))
+        .bearer_auth(FIRST_ROBOT)
+        .send()
+        .await
+        .unwrap();
+    EventReader::new(r)
+}
+
+fn deadline(seconds: u64) -> tokio::time::Instant {
+    tokio::time::Instant::now() + std::time::Duration::from_secs(seconds)
+}
+
+/// The floor's traffic streamed: a snapshot first, then each commit, replacement, progress
+/// report and cancel as it happens, each event's id the floor's version after it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_floor_traffic_streams_every_change_with_its_version() {
+    let app = fleet_app(None).await;
+    let (status, body) = app
+        .json_as(
+            FIRST_ROBOT,
+            Method::GET,
+            "/v1/places/F0/traffic/events",
+            None,
+        )
+        .await;
+    assert_eq!(status, 400, "a place without its robot: {body}");
+    let (status, body) = app
+        .json_as(
+            FIRST_ROBOT,
+            Method::GET,
+            "/v1/places/nowhere/traffic/events?robot=R-001",
+            None,
+        )
+        .await;
+    assert_eq!(status, 404, "{body}");
+
+    let mut events = traffic_events(&app).await;
+    let snapshot = events.next(deadline(30)).await.unwrap();
+    assert_eq!(snapshot.event, "snapshot", "{snapshot:?}");
+    assert_eq!((snapshot.id, &snapshot.data["plans"]), (0, &json!([])));
+    let floor = snapshot.data["floor"].as_str().unwrap().to_owned();
+    assert!(floor.contains("://"), "{floor}");
+
+    let from = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let to = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let start = now_ms() + 5_000;
+    let (status, first) = plan(&app, &route("R-001", from, to, start, json!({}))).await;
+    assert_eq!(status, 200, "{first}");
+    let id1 = first["schedule"]["plan_id"].as_str().unwrap().to_owned();
+    let committed = events.next(deadline(30)).await.unwrap();
+    assert_eq!((committed.event.as_str(), committed.id), ("committed", 1));
+    assert_eq!(committed.data["kind"], "committed");
+    assert_eq!(committed.data["itinerary"]["plan_id"], id1.as_str());
+    assert_eq!(committed.data["itinerary"]["robot"], FIRST);
+    assert_eq!(committed.data["itinerary"]["floor"], floor.as_str());
+
+    // A new plan for the same robot replaces its first: both changes carry version 2.
+    let (status, second) = plan(&app, &route("R-001", to, from, start, json!({}))).await;
+    assert_eq!(status, 200, "{second}");
+    let id2 = second["schedule"]["plan_id"].as_str().unwrap().to_owned();
+    let mut seen = Vec::new();
+    for _ in 0..2 {
+        let e = events.next(deadline(30)).await.unwrap();
+        assert_eq!(e.id, 2, "{e:?}");
+        seen.push(e);
+    }
+    seen.sort_by_key(|e| e.event.clone());
+    assert_eq!(seen[0].event, "committed");
+    assert_eq!(seen[0].data["itinerary"]["plan_id"], id2.as_str());
+    assert_eq!(seen[1].event, "removed");
+    assert_eq!(seen[1].data["plan_id"], id1.as_str());
+    assert_eq!(seen[1].data["reason"], "replaced");
+
+    let r = app
+        .client
+        .post(format!("{}/v1/plans/{id2}/progress", app.address))
+        .bearer_auth(FIRST_ROBOT)
+        .json(&json!({"x": to.0, "y": to.1, "time_ms": start + 8_000}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    let progressed = events.next(deadline(30)).await.unwrap();
+    assert_eq!(
+        (progressed.event.as_str(), progressed.id),
+        ("progressed", 3)
+    );
+    assert!(progressed.data["itinerary"]["delay_s"].as_f64().unwrap() > 0.0);
+
+    let r = app
+        .client
+        .delete(format!("{}/v1/plans/{id2}", app.address))
+        .bearer_auth(FIRST_ROBOT)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    let removed = events.next(deadline(30)).await.unwrap();
+    assert_eq!((removed.event.as_str(), removed.id), ("removed", 4));
+    assert_eq!(removed.data["reason"], "cancelled");
+    assert!(
+        traffic(&app, FIRST_ROBOT).await["plans"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+    app.stop().await;
+}
+
 /// Two service processes on one job database, each asked at the same moment to send a robot
 /// the same way (the second 10 s later): whatever order their commits land in, the committed
 /// plans keep the robots apart — the floor's version makes the later commit check again, and
@@ -311,6 +428,9 @@ async fn two_processes_sharing_the_job_database_never_commit_conflicting_plans()
     let from = free_near(&a, centroid(&a, "F0-living-room").await).await;
     let to = free_near(&a, centroid(&a, "F0-hall").await).await;
     let start = now_ms() + 5_000;
+    // A live view of the floor on process `a`: it sees `b`'s commit too.
+    let mut live = traffic_events(&a).await;
+    assert_eq!(live.next(deadline(30)).await.unwrap().event, "snapshot");
     let (ask_first, ask_second) = (
         route("R-001", from, to, start, json!({})),
         route("R-002", from, to, start + 10_000, json!({})),
@@ -334,6 +454,31 @@ async fn two_processes_sharing_the_job_database_never_commit_conflicting_plans()
         let plans = committed["plans"].as_array().unwrap();
         assert_eq!(plans.len(), answered.len(), "{committed}");
         assert_apart(plans);
+    }
+    // What the live view on `a` holds converges to what is committed, within the stream's
+    // poll of the floor's version (another process's commit arrives as a new snapshot).
+    let want: std::collections::BTreeSet<String> = answered
+        .iter()
+        .map(|p| p["schedule"]["plan_id"].as_str().unwrap().to_owned())
+        .collect();
+    let mut held = std::collections::BTreeSet::new();
+    let until = deadline(30);
+    while held != want {
+        let e = live.next(until).await.unwrap();
+        match e.event.as_str() {
+            "snapshot" => {
+                held = e.data["plans"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|p| p["plan_id"].as_str().unwrap().to_owned())
+                    .collect();
+            }
+            "committed" => {
+                held.insert(e.data["itinerary"]["plan_id"].as_str().unwrap().to_owned());
+            }
+            other => panic!("unexpected {other}: {e:?}"),
+        }
     }
     if answered.len() == 2 {
         let waited = answered

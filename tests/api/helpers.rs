@@ -225,3 +225,85 @@ impl Drop for TestApp {
         self.stop.cancel();
     }
 }
+
+/// One server-sent event whose data is JSON.
+#[derive(Debug)]
+pub struct SseEvent {
+    /// Its `id`, an integer.
+    pub id: i64,
+    /// Its `event` name.
+    pub event: String,
+    /// Its `data`, parsed.
+    pub data: Value,
+}
+
+/// Reads server-sent events from a response as they arrive.
+pub struct EventReader {
+    response: reqwest::Response,
+    text: String,
+}
+
+impl EventReader {
+    /// Checks the response is a 200 event stream.
+    pub fn new(response: reqwest::Response) -> Self {
+        assert_eq!(response.status(), 200);
+        assert!(
+            response.headers()[reqwest::header::CONTENT_TYPE]
+                .to_str()
+                .unwrap()
+                .starts_with("text/event-stream")
+        );
+        Self {
+            response,
+            text: String::new(),
+        }
+    }
+
+    /// The next event with an id (comments and keep-alives skipped); `None` when the server
+    /// closed the stream. Panics when none arrives by `deadline`.
+    pub async fn next(&mut self, deadline: tokio::time::Instant) -> Option<SseEvent> {
+        loop {
+            while let Some(end) = self.text.find("\n\n") {
+                let block: String = self.text.drain(..end + 2).collect();
+                if let Some(event) = parse_event(&block) {
+                    return Some(event);
+                }
+            }
+            match tokio::time::timeout_at(deadline, self.response.chunk()).await {
+                Ok(Ok(Some(chunk))) => self.text.push_str(&String::from_utf8_lossy(&chunk)),
+                Ok(Ok(None)) => return None,
+                Ok(Err(e)) => panic!("stream failed: {e}"),
+                Err(_) => panic!("no event before the deadline; unparsed:\n{}", self.text),
+            }
+        }
+    }
+}
+
+fn parse_event(block: &str) -> Option<SseEvent> {
+    let (mut id, mut event, mut data) = (None, String::new(), String::new());
+    for line in block.lines() {
+        if let Some(v) = line.strip_prefix("id:") {
+            id = Some(v.trim().parse::<i64>().unwrap());
+        } else if let Some(v) = line.strip_prefix("event:") {
+            event = v.trim().to_owned();
+        } else if let Some(v) = line.strip_prefix("data:") {
+            data.push_str(v.trim());
+        }
+    }
+    Some(SseEvent {
+        id: id?,
+        event,
+        data: serde_json::from_str(&data).unwrap(),
+    })
+}
+
+/// Reads an event stream until the server closes it (panics after `timeout`).
+pub async fn read_events(response: reqwest::Response, timeout: Duration) -> Vec<SseEvent> {
+    let deadline = tokio::time::Instant::now() + timeout;
+    let mut reader = EventReader::new(response);
+    let mut events = Vec::new();
+    while let Some(e) = reader.next(deadline).await {
+        events.push(e);
+    }
+    events
+}

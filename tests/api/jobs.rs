@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use reqwest::Method;
 use serde_json::{Value, json};
 
-use crate::helpers::{TestApp, spawn_app, spawn_app_with};
+use crate::helpers::{SseEvent, TestApp, read_events, spawn_app, spawn_app_with};
 
 /// A training that finishes in seconds.
 fn tiny_train(minutes: f64) -> Value {
@@ -48,57 +48,6 @@ async fn get_job(app: &TestApp, id: &str) -> Value {
     job
 }
 
-/// One server-sent event.
-#[derive(Debug)]
-struct Sse {
-    id: i64,
-    event: String,
-    data: Value,
-}
-
-/// Reads an event stream until the server closes it (or `timeout`).
-async fn read_events(response: reqwest::Response, timeout: Duration) -> Vec<Sse> {
-    assert_eq!(response.status(), 200);
-    assert!(
-        response.headers()[reqwest::header::CONTENT_TYPE]
-            .to_str()
-            .unwrap()
-            .starts_with("text/event-stream")
-    );
-    let mut response = response;
-    let mut text = String::new();
-    let deadline = tokio::time::Instant::now() + timeout;
-    loop {
-        match tokio::time::timeout_at(deadline, response.chunk()).await {
-            Ok(Ok(Some(chunk))) => text.push_str(&String::from_utf8_lossy(&chunk)),
-            Ok(Ok(None)) => break,
-            Ok(Err(e)) => panic!("stream failed: {e}"),
-            Err(_) => panic!("the stream did not end within {timeout:?}; got:\n{text}"),
-        }
-    }
-    let mut events = Vec::new();
-    for block in text.split("\n\n") {
-        let (mut id, mut event, mut data) = (None, String::new(), String::new());
-        for line in block.lines() {
-            if let Some(v) = line.strip_prefix("id:") {
-                id = Some(v.trim().parse::<i64>().unwrap());
-            } else if let Some(v) = line.strip_prefix("event:") {
-                event = v.trim().to_owned();
-            } else if let Some(v) = line.strip_prefix("data:") {
-                data.push_str(v.trim());
-            }
-        }
-        if let Some(id) = id {
-            events.push(Sse {
-                id,
-                event,
-                data: serde_json::from_str(&data).unwrap(),
-            });
-        }
-    }
-    events
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_training_job_streams_its_events_and_exports_a_policy_that_downloads_and_loads() {
     let app = spawn_app().await;
@@ -128,7 +77,7 @@ async fn a_training_job_streams_its_events_and_exports_a_policy_that_downloads_a
     );
     assert_eq!(events[0].event, "state");
     assert_eq!(events[0].data["data"]["state"], "queued");
-    let progress: Vec<&Sse> = events.iter().filter(|e| e.event == "progress").collect();
+    let progress: Vec<&SseEvent> = events.iter().filter(|e| e.event == "progress").collect();
     assert!(!progress.is_empty(), "{events:?}");
     assert!(
         progress.last().unwrap().data["data"]["env_steps"]
@@ -636,7 +585,7 @@ async fn a_training_stopped_by_shutdown_checkpoints_and_resumes_in_the_next_proc
     // The same attempt, resumed from its checkpoint in a second session.
     assert_eq!(job["attempts"], 1, "{job:#}");
     assert_eq!(job["result"]["sessions"], 2, "{job:#}");
-    let events: Vec<Sse> = read_events(
+    let events: Vec<SseEvent> = read_events(
         app.request(Method::GET, &format!("/v1/jobs/{id}/events"))
             .send()
             .await

@@ -10,15 +10,18 @@ two tokens (one engineer, one robot), serving the console from `console/dist`
 1. every page loads, for both roles, with no console error or warning and no uncaught exception;
 2. plan: clicks on the map set the start (a drag sets its heading) and a goal, Run validates the
    plan, and the page draws the validated trajectory and lists the attempts;
-3. jobs: the form shows the server's 422 in place (next to `minutes`); a short training job
+3. traffic: a plan committed through the API appears on the traffic page live (server-sent
+   events) with its robot drawn where the schedule puts it; Cancel removes it; a joint
+   rehearsal file replays;
+4. jobs: the form shows the server's 422 in place (next to `minutes`); a short training job
    (`minutes` 0.3 on the sample building's floor F0 with R-001) is submitted from the form, and
    its success-rate curve gains points as the job's server-sent events arrive; once it has
    finished, its curves (PNG) are shown, and once its policy's roadmap job has run, the floor
    page draws the policy-aware roadmap;
-4. knowledge: YASGUI runs an example query and shows rows; the browser lists an IRI's properties;
-5. a robot's token sees no job submission form and no cancel button;
-6. keyboard: Tab reaches every visible control of every page;
-7. numbers: the floor page of the largest shared map (most cells) is drawn and answers a zoom
+5. knowledge: YASGUI runs an example query and shows rows; the browser lists an IRI's properties;
+6. a robot's token sees no job submission form and no cancel button;
+7. keyboard: Tab reaches every visible control of every page;
+8. numbers: the floor page of the largest shared map (most cells) is drawn and answers a zoom
    within 1000 ms of navigation (Performance API, median of 3 loads); a long rehearsal on the
    production plant (the README's 140 m mission) replays at >= 58 frames per second
    (`window.__replayStats`; the display's 60 Hz is the ceiling of requestAnimationFrame);
@@ -66,7 +69,7 @@ TOKENS = {
     "robot": "browser-robot-token-0123456789abcdef",
 }
 # The measurements run before the training job, whose follow-up roadmap job would load the CPU.
-ALL_CHECKS = ["pages", "floor-perf", "replay", "plan", "knowledge", "keyboard", "jobs", "robot"]
+ALL_CHECKS = ["pages", "floor-perf", "replay", "plan", "traffic", "knowledge", "keyboard", "jobs", "robot"]
 FLOOR_BUDGET_MS = 1000.0
 FPS_TARGET = 60.0
 FPS_FLOOR = 58.0  # requestAnimationFrame runs at the display's 60 Hz: allow frame-timing jitter
@@ -242,7 +245,9 @@ class Checks:
     def goto(self, page, hash_: str) -> None:
         page.evaluate("h => { location.hash = h; }", hash_)
         page.wait_for_selector("#page-title")
-        page.wait_for_load_state("networkidle")
+        # The traffic page holds an event stream open: the network never goes idle there.
+        if not hash_.startswith("#/traffic"):
+            page.wait_for_load_state("networkidle")
 
     def world_to_page(self, page, canvas_sel: str, x: float, y: float) -> tuple[float, float]:
         el = page.locator(canvas_sel)
@@ -258,6 +263,7 @@ class Checks:
         for hash_, ready, name in [
             ("#/floors", ".page-floors canvas[data-ready='1']", "floors"),
             ("#/plan", "#plan-map canvas[data-ready='1']", "plan"),
+            ("#/traffic", "#traffic-map canvas[data-ready='1']", "traffic"),
             ("#/jobs", "#job-list", "jobs"),
             ("#/policies", "#page-title", "policies"),
             ("#/knowledge", "#yasgui[data-ready='1']", "knowledge"),
@@ -335,6 +341,69 @@ class Checks:
             self.check("plan: the replay is available", False, "Play is disabled (no trajectory in the report?)")
         self.shot(page, "plan-validated")
         self.console_clean(page, "plan page")
+        page.context.close()
+
+    def traffic(self) -> None:
+        say("traffic: a committed plan appears live and moves; Cancel removes it; a joint rehearsal file replays:")
+        start = self.free_near("F0", self.centroid("F0-living-room"))
+        goal = self.free_near("F0", self.centroid("F0-hall"))
+        page = self.new_page("engineer")
+        self.goto(page, "#/traffic/F0")
+        page.wait_for_selector("#traffic-map canvas[data-ready='1']", timeout=60_000)
+        page.wait_for_function("() => /Snapshot/.test(document.querySelector('#traffic-status')?.textContent || '')", timeout=30_000)
+        body = {"robot": "R-001", "place": "F0", "start": {"x": start[0], "y": start[1], "yaw": 0.0},
+                "goal": {"x": goal[0], "y": goal[1]}, "options": {"people": "none", "trajectory_stride": 0}}
+        status, answer = self.api.call("POST", "/v1/plan", body)
+        committed = status == 200 and bool(answer.get("schedule", {}).get("committed"))
+        if not self.check("traffic: the plan is committed", committed, f"{status} {str(answer)[:300]}"):
+            page.context.close()
+            return
+        plan_id = answer["schedule"]["plan_id"]
+        row = f"#traffic-plans tr[data-plan='{plan_id}']"
+        try:
+            page.wait_for_selector(row, timeout=30_000)
+            self.check("traffic: the committed plan appears live (server-sent event)", True)
+        except Exception as e:  # noqa: BLE001
+            self.check("traffic: the committed plan appears live (server-sent event)", False,
+                       page.locator("#traffic-status").inner_text() + " " + str(e).splitlines()[0])
+            page.context.close()
+            return
+        try:
+            page.wait_for_function("() => +(document.querySelector('#traffic-map canvas')?.dataset.robotsDrawn || 0) >= 1", timeout=30_000)
+            t1 = page.locator("#traffic-time").inner_text()
+            page.wait_for_timeout(1200)
+            t2 = page.locator("#traffic-time").inner_text()
+            self.check("traffic: the robot is drawn where its schedule puts it, live", t1 != t2, f"{t1} then {t2}")
+        except Exception as e:  # noqa: BLE001
+            self.check("traffic: the robot is drawn where its schedule puts it, live", False, str(e).splitlines()[0])
+        self.shot(page, "traffic-live")
+        _, floor_traffic = self.api.call("GET", "/v1/places/F0/traffic?robot=R-001")
+        mine = [p for p in floor_traffic.get("plans", []) if p["plan_id"] == plan_id]
+        page.click(f"{row} button")
+        try:
+            page.wait_for_selector(row, state="detached", timeout=30_000)
+            _, after = self.api.call("GET", "/v1/places/F0/traffic?robot=R-001")
+            gone = all(p["plan_id"] != plan_id for p in after.get("plans", []))
+            self.check("traffic: Cancel removes the plan from the schedule and the page", gone, json.dumps(after)[:200])
+        except Exception as e:  # noqa: BLE001
+            self.check("traffic: Cancel removes the plan from the schedule and the page", False, str(e).splitlines()[0])
+        # A joint rehearsal file (the shape `bench fleet --replay` writes) replays on the floor.
+        if mine:
+            replay = dict(floor_traffic, plans=mine, map="F0", scenario="browser",
+                          joint=[{"robot": mine[0]["robot"], "outcome": "reached", "reason": "reached", "time_s": mine[0]["trajectory"][-1]["t_s"]}])
+            path = self.out / "joint-replay.json"
+            path.write_text(json.dumps(replay))
+            page.set_input_files("input[name=replay]", str(path))
+            try:
+                page.wait_for_function("() => /1 of 1 arrived/.test(document.querySelector('#traffic-status')?.textContent || '')", timeout=10_000)
+                page.click("#traffic-play")
+                page.wait_for_timeout(1000)
+                drawn = page.get_attribute("#traffic-map canvas", "data-robots-drawn")
+                self.check("traffic: a joint rehearsal file replays", drawn == "1", f"robots drawn {drawn}")
+            except Exception as e:  # noqa: BLE001
+                self.check("traffic: a joint rehearsal file replays", False, page.locator("#traffic-status").inner_text() + str(e).splitlines()[0])
+            self.shot(page, "traffic-replay")
+        self.console_clean(page, "traffic page")
         page.context.close()
 
     def jobs(self) -> None:
@@ -483,6 +552,7 @@ class Checks:
         for hash_, ready, name in [
             ("#/floors", ".page-floors canvas[data-ready='1']", "floors"),
             ("#/plan", "#plan-map canvas[data-ready='1']", "plan"),
+            ("#/traffic", "#traffic-map canvas[data-ready='1']", "traffic"),
             ("#/jobs", "#job-form select[name=robot] option >> nth=0", "jobs"),
             ("#/policies", "#page-title", "policies"),
             ("#/knowledge", "#yasgui[data-ready='1']", "knowledge"),
@@ -749,6 +819,8 @@ def main(argv=None) -> int:
                             checks.pages()
                         elif name == "plan":
                             checks.plan()
+                        elif name == "traffic":
+                            checks.traffic()
                         elif name == "jobs":
                             checks.jobs()
                         elif name == "knowledge":

@@ -139,6 +139,7 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         "roadmap": lambda c: c.roadmap("F0", "R-001", policy="p-1", safety_margin_m=0.2),
         "route_graph": lambda c: c.route_graph("F0", "R-001", policy="p-1"),
         "traffic": lambda c: c.traffic("F0", "R-001"),
+        "traffic_events": lambda c: list(c.traffic_events("F0", "R-001", reconnect=False)),
         "cancel_plan": lambda c: c.cancel_plan("plan-1"),
         "report_progress": lambda c: c.report_progress("plan-1", 1.0, 2.0, time_ms=5),
         "submit_job": lambda c: c.submit_job("train", {"robot": "R-001", "place": "F0", "minutes": 1}, priority=3, max_attempts=2),

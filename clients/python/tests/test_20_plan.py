@@ -186,6 +186,9 @@ def test_a_plan_among_people_says_how_close_they_came(robot: Client, kitchen: st
 
 def test_a_plan_takes_its_place_in_the_floors_traffic(robot: Client, engineer: Client, kitchen: str, mission: tuple[Point, Point]) -> None:
     start, goal = mission
+    live = robot.traffic_events(kitchen, "R-001")
+    first = next(live)
+    assert first.kind == "snapshot" and first.traffic is not None and first.version == first.traffic.version
     plan = robot.plan("R-001", kitchen, (start.x, start.y, 0.0), goal, options=PlanOptions(seed=5, people="none", tolerance_s=1.5))
     s = plan.schedule
     assert s is not None and s.committed and s.tolerance_s == 1.5
@@ -194,6 +197,10 @@ def test_a_plan_takes_its_place_in_the_floors_traffic(robot: Client, engineer: C
     # The ROS path carries the schedule's times.
     assert all(p.stamp_ms is not None for p in plan.path.poses)
     committed = robot.traffic(kitchen, "R-001")
+    # The live stream saw the commit (a robot's earlier plan, replaced, leaves first).
+    seen = next(e for e in live if e.kind == "committed")
+    assert seen.plan_id == s.plan_id and seen.version > first.version and seen.itinerary is not None
+    live.close()
     assert [p.plan_id for p in committed.plans if p.robot.endswith("differential-robot")] == [s.plan_id]
     # Still at its start 5 s after setting off: the rest of its schedule shifts.
     late = engineer.report_progress(s.plan_id, start.x, start.y, time_ms=s.start_time_ms + 5000)

@@ -33,7 +33,7 @@ use worker::jobs::{EvaluatePayload, JobEnv, JobKind, PayloadError, TrainPayload}
 #[derive(OpenApi)]
 #[openapi(
     info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
-    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph, crate::traffic::floor_traffic, crate::traffic::cancel_plan, crate::traffic::report_progress),
+    paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph, crate::traffic::floor_traffic, crate::traffic::floor_traffic_events, crate::traffic::cancel_plan, crate::traffic::report_progress),
     components(
         schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, worker::jobs::RoadmapPayload, worker::jobs::JobResult, worker::jobs::TrainResult, worker::jobs::EvaluateResult, worker::jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, worker::plan::types::PlanApiRequestDoc, worker::plan::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, traffic::Itinerary, traffic::TimedPose),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
@@ -81,7 +81,7 @@ impl StreamLimits {
     }
 
     /// A place for one more stream of `who`, held until the stream ends.
-    fn open(self: &Arc<Self>, who: &str) -> Result<StreamPermit, ApiError> {
+    pub(crate) fn open(self: &Arc<Self>, who: &str) -> Result<StreamPermit, ApiError> {
         let mut open = self
             .open
             .lock()
@@ -111,7 +111,7 @@ impl StreamLimits {
 }
 
 /// One open stream's place; given back when the stream is dropped.
-struct StreamPermit {
+pub(crate) struct StreamPermit {
     limits: Arc<StreamLimits>,
     who: String,
 }

@@ -2,22 +2,28 @@
 //! robot's progress on its plan. Plans are committed by `POST /v1/plan` (the planner); these
 //! routes read and amend what it committed.
 
+use std::convert::Infallible;
 use std::sync::Arc;
+use std::time::Duration;
 
 use axum::extract::{Path, Query, State};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
 use axum::routing::{delete, get, post};
 use axum::{Json, Router};
 use edge::{ApiError, ErrorCode, Principal, RobotCaller, Role};
 use serde::{Deserialize, Serialize};
-use traffic::{Itinerary, TrafficError};
+use tokio::sync::broadcast;
+use traffic::{Change, Itinerary, Schedule, TrafficError};
 use utoipa::{IntoParams, ToSchema};
 
-use crate::jobs::JobsApi;
+use crate::jobs::{JobsApi, StreamPermit};
 
 /// The routes of the traffic schedule, over the jobs API's state (its job database).
 pub fn router(state: Arc<JobsApi>) -> Router {
     Router::new()
         .route("/v1/places/{id}/traffic", get(floor_traffic))
+        .route("/v1/places/{id}/traffic/events", get(floor_traffic_events))
         .route("/v1/plans/{id}", delete(cancel_plan))
         .route("/v1/plans/{id}/progress", post(report_progress))
         .with_state(state)
@@ -125,33 +131,186 @@ async fn floor_traffic(
     Path(id): Path<String>,
     Query(query): Query<TrafficQuery>,
 ) -> Result<Json<FloorTraffic>, ApiError> {
-    let floor = if id.contains("://") && query.robot.is_none() {
-        id
-    } else {
-        let robot = query.robot.ok_or_else(|| {
-            ApiError::new(
-                ErrorCode::BadRequest,
-                "give the floor's IRI, or a place with `robot` (identifier or IRI) to find its floor",
-            )
-        })?;
-        api.env
-            .planner
-            .floor(&id, &robot)
-            .await
-            .map_err(crate::plan::plan_failure)?
-            .floor
-            .clone()
-    };
+    let floor = traffic_floor(&api, id, query.robot).await?;
     let schedule = schedule(&api).await?;
+    Ok(Json(floor_snapshot(schedule, floor).await?))
+}
+
+/// The floor a traffic route names: its IRI, or the floor of a place on `robot`'s map.
+async fn traffic_floor(
+    api: &JobsApi,
+    id: String,
+    robot: Option<String>,
+) -> Result<String, ApiError> {
+    if id.contains("://") && robot.is_none() {
+        return Ok(id);
+    }
+    let robot = robot.ok_or_else(|| {
+        ApiError::new(
+            ErrorCode::BadRequest,
+            "give the floor's IRI, or a place with `robot` (identifier or IRI) to find its floor",
+        )
+    })?;
+    Ok(api
+        .env
+        .planner
+        .floor(&id, &robot)
+        .await
+        .map_err(crate::plan::plan_failure)?
+        .floor
+        .clone())
+}
+
+async fn floor_snapshot(schedule: &Schedule, floor: String) -> Result<FloorTraffic, ApiError> {
     let (version, plans) = schedule
         .snapshot(&floor, schedule.now_ms())
         .await
         .map_err(traffic_error)?;
-    Ok(Json(FloorTraffic {
+    Ok(FloorTraffic {
         floor,
         version,
         plans,
-    }))
+    })
+}
+
+/// The floor's traffic as server-sent events, for a live view: first a `snapshot` (what
+/// `GET /v1/places/{id}/traffic` answers), then every change as it happens: `committed`,
+/// `removed` (cancelled or replaced) and `progressed` (`data`: the change as JSON, with its
+/// `kind`). Each event's `id` is the floor's version after it. Changes made by another API
+/// process sharing the job database show as a new `snapshot` within a second, as does a reader
+/// that fell behind. An itinerary leaves at its `expires_unix_ms` without an event.
+#[utoipa::path(
+    get,
+    path = "/v1/places/{id}/traffic/events",
+    params(("id" = String, Path, description = "A floor's IRI, or a place on a floor (identifier or IRI) with `robot`"), TrafficQuery),
+    responses(
+        (status = 200, content_type = "text/event-stream", body = String),
+        (status = 400, description = "A place without `robot`", body = edge::ErrorBody),
+        (status = 401, response = edge::error::responses::Unauthorized),
+        (status = 404, description = "Unknown place", body = edge::ErrorBody),
+        (status = 429, description = "This token already has 8 event streams open (`too_many_requests`, with `Retry-After`); close one.", body = edge::ErrorBody),
+        (status = 503, response = edge::error::responses::ServiceUnavailable),
+    ),
+    security(("bearer" = []))
+)]
+async fn floor_traffic_events(
+    State(api): State<Arc<JobsApi>>,
+    RobotCaller(caller): RobotCaller,
+    Path(id): Path<String>,
+    Query(query): Query<TrafficQuery>,
+) -> Result<Response, ApiError> {
+    let floor = traffic_floor(&api, id, query.robot).await?;
+    let schedule = schedule(&api).await?.clone();
+    let permit = api.streams.open(&caller.name)?;
+    // Subscribed before the first snapshot is read: no change falls between the two.
+    let changes = schedule.changes();
+    let stream = traffic_stream(TrafficCursor {
+        _permit: permit,
+        api,
+        schedule,
+        floor,
+        changes,
+        snapshot_due: true,
+        snapshot_version: 0,
+        version: 0,
+        poll: {
+            let mut poll = tokio::time::interval(VERSION_POLL);
+            poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            poll
+        },
+    });
+    Ok(Sse::new(stream)
+        .keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+        .into_response())
+}
+
+/// How often a traffic stream looks for changes made by other processes.
+const VERSION_POLL: Duration = Duration::from_secs(1);
+
+struct TrafficCursor {
+    /// Held while the stream lives.
+    _permit: StreamPermit,
+    api: Arc<JobsApi>,
+    schedule: Schedule,
+    floor: String,
+    changes: broadcast::Receiver<Change>,
+    /// Whether the next event is a snapshot (at the start, after a gap or a lag).
+    snapshot_due: bool,
+    /// The version of the last snapshot sent: changes up to it are in it.
+    snapshot_version: i64,
+    /// The newest version sent.
+    version: i64,
+    /// When to look at the floor's version again (not reset by other floors' changes).
+    poll: tokio::time::Interval,
+}
+
+fn change_event(change: &Change) -> Event {
+    let kind = match change {
+        Change::Committed { .. } => "committed",
+        Change::Removed { .. } => "removed",
+        Change::Progressed { .. } => "progressed",
+    };
+    Event::default()
+        .id(change.version().to_string())
+        .event(kind)
+        .data(serde_json::to_string(change).unwrap_or_default())
+}
+
+fn traffic_stream(
+    cursor: TrafficCursor,
+) -> impl futures_util::Stream<Item = Result<Event, Infallible>> + Send {
+    futures_util::stream::unfold(cursor, |mut c| async move {
+        loop {
+            if c.api.shutdown.is_cancelled() {
+                return None;
+            }
+            if c.snapshot_due {
+                let snapshot = match floor_snapshot(&c.schedule, c.floor.clone()).await {
+                    Ok(s) => s,
+                    Err(e) => {
+                        tracing::warn!(floor = %c.floor, error = %e.message(), "reading the floor's traffic failed");
+                        return None;
+                    }
+                };
+                c.snapshot_due = false;
+                c.snapshot_version = snapshot.version;
+                c.version = snapshot.version;
+                let event = Event::default()
+                    .id(snapshot.version.to_string())
+                    .event("snapshot")
+                    .data(serde_json::to_string(&snapshot).unwrap_or_default());
+                return Some((Ok(event), c));
+            }
+            tokio::select! {
+                change = c.changes.recv() => match change {
+                    Ok(change) if change.floor() == c.floor => {
+                        let v = change.version();
+                        if v <= c.snapshot_version {
+                            continue;
+                        }
+                        if v > c.version + 1 {
+                            // Another process changed the floor in between: start over.
+                            c.snapshot_due = true;
+                            continue;
+                        }
+                        c.version = v;
+                        return Some((Ok(change_event(&change)), c));
+                    }
+                    Ok(_) => {}
+                    Err(broadcast::error::RecvError::Lagged(_)) => c.snapshot_due = true,
+                    Err(broadcast::error::RecvError::Closed) => return None,
+                },
+                _ = c.poll.tick() => {
+                    match c.schedule.version(&c.floor).await {
+                        Ok(v) if v > c.version => c.snapshot_due = true,
+                        Ok(_) => {}
+                        Err(e) => tracing::warn!(floor = %c.floor, error = %e, "reading the floor's version failed"),
+                    }
+                }
+                () = c.api.shutdown.cancelled() => return None,
+            }
+        }
+    })
 }
 
 /// Cancels a committed plan: its robot's place in the schedule is freed at once.

@@ -4,6 +4,7 @@ pub mod beta;
 pub mod edges;
 pub mod error;
 pub mod fleet;
+pub mod fleet_replay;
 pub mod knowledge;
 pub mod learner;
 pub mod maps;

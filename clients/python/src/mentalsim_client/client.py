@@ -24,6 +24,7 @@ from .errors import MentalsimError
 from .models import (
     Colour,
     FloorTraffic,
+    TrafficEvent,
     Itinerary,
     ImportedMap,
     Job,
@@ -558,6 +559,52 @@ class Client:
         """Every plan committed on the floor ``place`` is on, now (``place`` a floor's IRI, or a
         place with ``robot`` to find its floor)."""
         return FloorTraffic.from_json(self._object("floor_traffic", path={"id": place}, query={"robot": robot}))
+
+    def traffic_events(
+        self,
+        place: str,
+        robot: str | None = None,
+        *,
+        reconnect: bool = True,
+        max_reconnects: int = 10,
+        retry_delay_s: float = 0.5,
+    ) -> Generator[TrafficEvent, None, None]:
+        """The floor's traffic live, from its server-sent event stream: a ``snapshot`` first,
+        then every commit, progress report and removal as it happens. The stream has no end:
+        stop iterating (or close the generator) when done.
+
+        A stream that drops is opened again (after ``retry_delay_s``, doubling, at most
+        ``max_reconnects`` failures in a row) and starts with a fresh ``snapshot``; with
+        ``reconnect=False`` the generator ends (or raises) when the stream does."""
+        failures = 0
+        while True:
+            try:
+                with self._stream("floor_traffic_events", path={"id": place}, query={"robot": robot}) as response:
+                    for sse in parse_sse(response.iter_lines()):
+                        if sse.id is None:
+                            continue
+                        try:
+                            version = int(sse.id)
+                            data = json.loads(sse.data)
+                        except ValueError as e:
+                            raise MentalsimError(None, "bad_response", f"traffic event {sse.id!r}: {e}", operation="floor_traffic_events") from e
+                        failures = 0
+                        yield TrafficEvent.from_sse(version, sse.event, data)
+            except (httpx.TransportError, MentalsimError) as e:
+                transport = isinstance(e, httpx.TransportError) or (
+                    isinstance(e, MentalsimError)
+                    and (e.status == 503 or (e.status is None and e.code in ("unreachable", "timeout")))
+                )
+                if not transport or not reconnect or failures >= max_reconnects:
+                    if isinstance(e, httpx.TransportError):
+                        raise MentalsimError.from_transport(e, "floor_traffic_events") from e
+                    raise
+            if not reconnect:
+                return
+            failures += 1
+            if failures > max_reconnects:
+                raise MentalsimError(None, "unreachable", "the traffic stream keeps ending", operation="floor_traffic_events")
+            time.sleep(min(retry_delay_s * 2 ** (failures - 1), 10.0))
 
     def cancel_plan(self, plan_id: str) -> Itinerary:
         """Cancels a committed plan (its robot's token, or an engineer's): the robot's place in

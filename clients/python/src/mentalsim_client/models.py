@@ -616,6 +616,31 @@ class FloorTraffic:
 
 
 @dataclass(frozen=True, slots=True)
+class TrafficEvent:
+    """One event of a floor's traffic stream. ``kind`` is ``snapshot`` (``traffic`` holds every
+    plan committed on the floor), ``committed`` or ``progressed`` (``itinerary`` is the plan as
+    now scheduled), or ``removed`` (``plan_id``, ``robot`` and ``reason``: ``cancelled`` or
+    ``replaced``). ``version`` is the floor's version after it."""
+
+    kind: str
+    version: int
+    traffic: FloorTraffic | None = None
+    itinerary: Itinerary | None = None
+    plan_id: str | None = None
+    robot: str | None = None
+    reason: str | None = None
+
+    @classmethod
+    def from_sse(cls, version: int, kind: str, d: Mapping[str, Any]) -> TrafficEvent:
+        if kind == "snapshot":
+            return cls(kind, version, traffic=FloorTraffic.from_json(d))
+        if kind in ("committed", "progressed"):
+            it = Itinerary.from_json(_obj(d.get("itinerary"), "itinerary"))
+            return cls(kind, version, itinerary=it, plan_id=it.plan_id, robot=it.robot)
+        return cls(kind, version, plan_id=_str(d, "plan_id"), robot=_str(d, "robot"), reason=_str(d, "reason"))
+
+
+@dataclass(frozen=True, slots=True)
 class PlanResult:
     """A plan validated in the mental simulation (schema ``PlanApiResponse``)."""
 
