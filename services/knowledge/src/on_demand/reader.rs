@@ -1,6 +1,7 @@
 //! The store as the on-demand database reads it: asserted triples only, from a snapshot.
 
 use std::collections::{BTreeSet, HashSet};
+use std::sync::Arc;
 
 use oxigraph::model::vocab::rdf;
 use oxigraph::model::{GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
@@ -36,8 +37,11 @@ impl Reader {
         }
     }
 
-    /// Asserted triples about `subject`.
-    pub(super) fn about(&self, subject: NamedNodeRef<'_>) -> Result<Vec<Triple>, StoreError> {
+    /// Asserted triples about `subject` (cached until the next write).
+    pub(super) fn about(&self, subject: NamedNodeRef<'_>) -> Result<Arc<[Triple]>, StoreError> {
+        if let Some(triples) = self.owner.cached_about(self.key, subject.as_str()) {
+            return Ok(triples);
+        }
         let mut out = Vec::new();
         for quad in self
             .store
@@ -48,7 +52,13 @@ impl Reader {
                 out.push(Triple::from(quad));
             }
         }
-        Ok(out)
+        let triples: Arc<[Triple]> = out.into();
+        // A remote store is read from an in-memory snapshot already: nothing to save there.
+        if self.owner.remote_store().is_none() {
+            self.owner
+                .cache_about(self.key, subject.as_str(), triples.clone());
+        }
+        Ok(triples)
     }
 
     /// Whether `node` has type `class`, asserted or entailed.
@@ -100,7 +110,7 @@ impl Reader {
         if !seen.insert(subject.into_owned()) {
             return Ok(());
         }
-        for triple in self.about(subject)? {
+        for triple in self.about(subject)?.iter() {
             if let Term::NamedNode(object) = &triple.object
                 && triple.predicate.as_ref() != rdf::TYPE
                 && (self.is_a(object.as_ref(), vocab::DESCRIPTOR)?
@@ -108,7 +118,7 @@ impl Reader {
             {
                 self.closure(object.as_ref(), parts, out, seen)?;
             }
-            out.insert(triple);
+            out.insert(triple.clone());
         }
         Ok(())
     }

@@ -107,6 +107,48 @@ fn a_mission_between_two_rooms_holds_the_route_objects_map_and_robot() {
     assert_eq!(again.triples, db.triples);
 }
 
+/// What a mission's database reads is cached until the next write: a triple written about a
+/// place of the route (as the service writes: the store, then the inference refreshed) is in
+/// the next database, and one removed is gone.
+#[test]
+fn a_write_shows_in_the_next_database() {
+    let store = store();
+    let room = places(&store)
+        .into_iter()
+        .find(|p| p.kind == PlaceKind::Room && !p.connected.is_empty())
+        .unwrap();
+    let mission = Mission {
+        robot: robot(),
+        start: Waypoint::Place(room.iri.clone()),
+        goals: vec![Waypoint::Place(room.connected[0].clone())],
+    };
+    let before = build(&store, &mission).unwrap();
+    let comment = oxigraph::model::Quad::new(
+        NamedNode::new_unchecked(room.iri.clone()),
+        oxigraph::model::vocab::rdfs::COMMENT,
+        oxigraph::model::Literal::new_simple_literal("freshly painted"),
+        oxigraph::model::GraphName::DefaultGraph,
+    );
+    store.insert(std::slice::from_ref(&comment)).unwrap();
+    crate::inference::refresh(&store).unwrap();
+    let after = build(&store, &mission).unwrap();
+    let said = |db: &OnDemandDatabase| {
+        db.triples
+            .iter()
+            .any(|t| t.object.to_string().contains("freshly painted"))
+    };
+    assert!(!said(&before));
+    assert!(
+        said(&after),
+        "the cached read of {} was served after a write",
+        room.iri
+    );
+    assert_eq!(after.triples.len(), before.triples.len() + 1);
+    store.embedded().unwrap().remove(comment.as_ref()).unwrap();
+    crate::inference::refresh(&store).unwrap();
+    assert_eq!(build(&store, &mission).unwrap().triples, before.triples);
+}
+
 #[test]
 fn points_resolve_to_the_smallest_place_holding_them() {
     let store = store();
