@@ -1,11 +1,14 @@
 //! The floors `bench fleet` generates for its scenarios, and their missions.
 //!
 //! Every passage is [`CORRIDOR_WIDTH_M`] wide: one robot fits, two do not pass each other.
-//! The rooms at their ends park robots on parking slots along the room's far wall and side
-//! walls, a robot's width plus 0.4 m apart and half that from the walls, so that the open middle
-//! of the room, between the opening and the far wall, is free to drive through: no robot's way
-//! to or from its slot passes another slot. A room's departing robots take every other slot,
-//! its arriving robots the slots between them, so no goal is another robot's start.
+//! The rooms at their ends park robots on slots along the room's far wall and side walls, a
+//! robot's width plus 0.4 m apart and half that from the walls, leaving the middle of the room
+//! open. The robots keep right: a room's departing robots start on the slots right of its middle
+//! line (facing its opening), its arriving robots park on the slots left of it, so no goal is
+//! another robot's start and the two streams run apart but for the stretch by the opening where
+//! their paths converge (the planner fits plans by waiting only, never by another path: two
+//! robots whose paths run less than a robot's width plus the margin apart, one each way, take
+//! turns).
 
 use std::f64::consts::PI;
 
@@ -93,32 +96,49 @@ impl Room {
         self.at(self.depth, 0.0)
     }
 
-    /// Parking slots `spacing` apart and `spacing / 2` from the walls: a row along the far
-    /// wall (centred), then along both side walls towards the opening, alternating sides.
-    fn slots(&self, spacing: f64) -> Vec<Point2> {
+    /// Parking slots `spacing` apart and `spacing / 2` from the walls, in a row along the far
+    /// wall (centred) and along both side walls towards the opening; those right of the room's
+    /// middle line (facing the opening) for the robots that leave, those left of it for the
+    /// robots that arrive (on their right as they come in), the middle one to the fewer: robots
+    /// keep right.
+    fn slots(&self, spacing: f64) -> (Vec<Point2>, Vec<Point2>) {
         let half = spacing / 2.0;
         let mut candidates = Vec::new();
         let across = self.width / 2.0 - half;
         let row = (2.0 * across / spacing + 1e-9).floor() as usize + 1;
         for i in 0..row {
-            candidates.push(self.at(half, (i as f64 - (row - 1) as f64 / 2.0) * spacing));
+            candidates.push((half, (i as f64 - (row - 1) as f64 / 2.0) * spacing));
         }
         let mut d = half;
         while d <= self.depth - half + 1e-9 {
-            candidates.push(self.at(d, across));
-            candidates.push(self.at(d, -across));
+            candidates.push((d, -across));
+            candidates.push((d, across));
             d += spacing;
         }
-        let mut out: Vec<Point2> = Vec::new();
+        let mut kept: Vec<(f64, f64)> = Vec::new();
         for c in candidates {
-            if out
+            if kept
                 .iter()
-                .all(|p| (p.x - c.x).hypot(p.y - c.y) >= spacing - 1e-9)
+                .all(|p| (p.0 - c.0).hypot(p.1 - c.1) >= spacing - 1e-9)
             {
-                out.push(c);
+                kept.push(c);
             }
         }
-        out
+        let side = |keep: fn(f64) -> bool| -> Vec<Point2> {
+            kept.iter()
+                .filter(|c| keep(c.1))
+                .map(|&(d, a)| self.at(d, a))
+                .collect()
+        };
+        let (mut leaving, mut arriving) = (side(|a| a < -1e-9), side(|a| a > 1e-9));
+        if let Some(&(d, a)) = kept.iter().find(|c| c.1.abs() <= 1e-9) {
+            if leaving.len() <= arriving.len() {
+                leaving.push(self.at(d, a));
+            } else {
+                arriving.push(self.at(d, a));
+            }
+        }
+        (leaving, arriving)
     }
 }
 
@@ -287,15 +307,20 @@ pub(super) fn missions(
     }
     let rooms = &layout.rooms;
     let spacing = 2.0 * radius + 0.4;
-    let slots: Vec<Vec<Point2>> = rooms.iter().map(|r| r.slots(spacing)).collect();
+    let slots: Vec<(Vec<Point2>, Vec<Point2>)> = rooms.iter().map(|r| r.slots(spacing)).collect();
     let m = rooms.len();
     let other = |room: usize| (room + m / 2) % m;
     let mut out = Vec::with_capacity(n);
     for k in 0..n {
         let (from, i) = (k % m, k / m);
         let to = other(from);
-        let (Some(s), Some(g)) = (slots[from].get(2 * i), slots[to].get(2 * i + 1)) else {
-            let holds = slots.iter().map(|s| s.len() / 2).min().unwrap_or(0) * m;
+        let (Some(s), Some(g)) = (slots[from].0.get(i), slots[to].1.get(i)) else {
+            let holds = slots
+                .iter()
+                .map(|(l, a)| l.len().min(a.len()))
+                .min()
+                .unwrap_or(0)
+                * m;
             return Err(BenchError::BadOption(format!(
                 "--robots {n}: the {} scenario's rooms park at most {holds} robots of radius {radius} m",
                 scenario.as_str()
