@@ -21,8 +21,8 @@ use crate::error::BenchError;
 
 /// Width of the generated corridors, and of the doorway's opening, metres: one robot of less
 /// than 0.4 m radius fits with the plans' 0.1 m safety margin on both sides (the bundled robot,
-/// 0.357 m: 0.914 m); two robots of more than 0.25 m radius cannot pass each other (the bundled
-/// robot: 1.43 m). [`check_robot`] refuses a robot for which either does not hold.
+/// 0.355 m: 0.91 m); two robots of more than 0.25 m radius cannot pass each other (the bundled
+/// robot: 1.42 m). [`check_robot`] refuses a robot for which either does not hold.
 pub const CORRIDOR_WIDTH_M: f64 = 1.0;
 
 /// Resolution of the generated floors, metres per cell.
@@ -371,7 +371,7 @@ mod tests {
 
     #[test]
     fn missions_start_and_park_apart_on_free_floor() {
-        let radius = 0.357;
+        let radius = 0.355;
         let spacing = 2.0 * radius + 0.4;
         for (scenario, n) in [(Scenario::Crossing, 20), (Scenario::Doorway, 20)] {
             let (grid, layout) = generated(scenario).unwrap();
