@@ -308,9 +308,11 @@ pub enum BenchCommand {
         /// People per 100 m² of free region.
         #[arg(long, default_value_t = 0.0)]
         people: f64,
-        /// `random` missions on every map, or `corridor`: a generated corridor one robot
-        /// wide, half the robots at each end.
-        #[arg(long, value_parser = ["random", "corridor"], default_value = "random")]
+        /// `random` missions on every map, or a generated floor: `corridor` (a corridor one
+        /// robot wide, half the robots at each end), `crossing` (two such corridors crossing,
+        /// the robots split over the rooms at the four ends, each sent to the opposite one) or
+        /// `doorway` (two rooms joined by one door a robot wide, half the robots in each).
+        #[arg(long, value_parser = ["random", "corridor", "crossing", "doorway"], default_value = "random")]
         scenario: String,
         /// Seed of the missions and simulations.
         #[arg(long, default_value_t = 7)]
@@ -843,11 +845,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 maps,
                 robots,
                 people,
-                scenario: if scenario == "corridor" {
-                    bench::fleet::Scenario::Corridor
-                } else {
-                    bench::fleet::Scenario::Random
-                },
+                scenario: scenario.parse().map_err(anyhow::Error::msg)?,
                 seed,
                 robot_ttl: crate::train::bundled_robot_ttl().as_bytes().to_vec(),
                 robot_iri: crate::train::ROBOT_IRI.to_owned(),

@@ -1,12 +1,16 @@
-//! The fleet benchmark end to end on its generated corridor: two robots sent through it from
-//! its two ends ask the service's planner at once; one is fitted around the other, and the
-//! committed pair is driven together.
+//! The fleet benchmark end to end on its generated floors: robots sent through a corridor, a
+//! four-way crossing and a doorway, each one robot wide, ask the service's planner at once; each
+//! is fitted around the others, and the committed plans are driven together.
 
 use bench::fleet::{FleetBenchOptions, Scenario, markdown, run_fleet_bench};
 
 const ROBOT_IRI: &str = "https://mentalsim.dev/data/robots/differential-robot";
 
 fn options(robots: usize) -> FleetBenchOptions {
+    scenario(Scenario::Corridor, robots)
+}
+
+fn scenario(scenario: Scenario, robots: usize) -> FleetBenchOptions {
     let ttl = knowledge::bundled::BUNDLED
         .iter()
         .find(|b| b.file.starts_with("robots/"))
@@ -16,7 +20,7 @@ fn options(robots: usize) -> FleetBenchOptions {
         maps: std::path::PathBuf::from("unused"),
         robots,
         people: 0.0,
-        scenario: Scenario::Corridor,
+        scenario,
         seed: 7,
         robot_ttl: ttl.as_bytes().to_vec(),
         robot_iri: ROBOT_IRI.to_owned(),
@@ -95,4 +99,55 @@ fn bad_options_are_refused_naming_them() {
             .to_string()
             .contains("--max-wait-s")
     );
+}
+
+/// The outcome for a generated floor: every robot planned and arrived in the joint
+/// run, none touching another, none blocked.
+fn all_through(scenario: Scenario, robots: usize) {
+    let rows = run_fleet_bench(&self::scenario(scenario, robots)).expect("runs");
+    assert_eq!(rows.len(), 1);
+    let r = &rows[0];
+    let name = scenario.as_str();
+    assert_eq!(
+        (r.map.as_str(), r.scenario.as_str(), r.robots),
+        (name, name, robots)
+    );
+    assert_eq!(r.planned, robots, "refused: {r:?}");
+    assert_eq!(
+        (r.robot_collisions, r.stalls, r.deadlocks),
+        (0, 0, 0),
+        "{r:?}"
+    );
+    assert!(r.joint_failures.is_empty(), "{r:?}");
+    assert_eq!(r.joint_success_rate, 1.0, "{r:?}");
+    // They meet in a passage one robot wide: someone waits.
+    assert!(r.waits_s > 0.0, "{r:?}");
+    assert!(r.makespan_ratio >= 1.0, "{r:?}");
+}
+
+#[test]
+fn eight_robots_cross_a_four_way_intersection_one_robot_wide() {
+    // Two per arm, each sent to the opposite arm: they all meet at the intersection.
+    all_through(Scenario::Crossing, 8);
+}
+
+#[test]
+fn six_robots_swap_rooms_through_one_doorway() {
+    all_through(Scenario::Doorway, 6);
+}
+
+#[test]
+fn scenarios_parse_by_their_names() {
+    for s in Scenario::ALL {
+        assert_eq!(s.as_str().parse::<Scenario>(), Ok(s));
+    }
+    assert!("roundabout".parse::<Scenario>().is_err());
+}
+
+#[test]
+fn more_robots_than_the_rooms_park_are_refused() {
+    let err = run_fleet_bench(&scenario(Scenario::Doorway, 24))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("--robots 24"), "{err}");
 }

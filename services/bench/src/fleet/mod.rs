@@ -24,10 +24,14 @@ use planner::{
 use rayon::prelude::*;
 use rehearsal::{AttemptOutcome, PlanOptions, PlanRequest};
 use sim::{Pose2, World};
-use tosm::{Occupancy, OccupancyGrid};
+use tosm::OccupancyGrid;
 use traffic::Itinerary;
 
 use crate::error::BenchError;
+
+mod floors;
+
+pub use floors::{CORRIDOR_WIDTH_M, CROSSING_ARM_M, DOOR_WALL_M};
 
 /// Which missions the robots get.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -38,15 +42,42 @@ pub enum Scenario {
     /// A generated floor: two rooms joined by a corridor one robot wide (12 m), half the
     /// robots in each room sent to the other.
     Corridor,
+    /// A generated floor: a four-way crossing of two corridors one robot wide, a room at the
+    /// end of each arm; the robots split over the four rooms, each sent to the opposite one.
+    Crossing,
+    /// A generated floor: two rooms joined by one door a robot wide in the wall between them,
+    /// half the robots in each room sent to the other.
+    Doorway,
 }
 
 impl Scenario {
+    /// Every scenario, in the order of the command line's help.
+    pub const ALL: [Scenario; 4] = [
+        Scenario::Random,
+        Scenario::Corridor,
+        Scenario::Crossing,
+        Scenario::Doorway,
+    ];
+
     /// Its name on the command line and in the report.
     pub fn as_str(self) -> &'static str {
         match self {
             Scenario::Random => "random",
             Scenario::Corridor => "corridor",
+            Scenario::Crossing => "crossing",
+            Scenario::Doorway => "doorway",
         }
+    }
+}
+
+impl std::str::FromStr for Scenario {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Scenario::ALL
+            .into_iter()
+            .find(|c| c.as_str() == s)
+            .ok_or_else(|| format!("no scenario `{s}`"))
     }
 }
 
@@ -76,7 +107,7 @@ pub struct FleetBenchOptions {
 pub struct FleetRow {
     /// The map's short name.
     pub map: String,
-    /// `random` or `corridor`.
+    /// `random`, `corridor`, `crossing` or `doorway`.
     pub scenario: String,
     /// Robots that asked.
     pub robots: usize,
@@ -219,94 +250,51 @@ pub fn run_fleet_bench(opts: &FleetBenchOptions) -> Result<Vec<FleetRow>, BenchE
             opts.people
         )));
     }
-    let floors: Vec<(String, PathBuf, OccupancyGrid)> = match opts.scenario {
-        Scenario::Random => {
-            let yamls = crate::maps::find_yamls(&opts.maps)?;
-            if yamls.is_empty() {
-                return Err(BenchError::NoMaps(opts.maps.clone()));
+    let floors: Vec<(String, PathBuf, OccupancyGrid, Option<floors::Layout>)> =
+        match floors::generated(opts.scenario) {
+            Some((grid, layout)) => {
+                let name = opts.scenario.as_str();
+                vec![(
+                    name.to_owned(),
+                    PathBuf::from(format!("{name}/{name}.yaml")),
+                    grid,
+                    Some(layout),
+                )]
             }
-            yamls
-                .into_iter()
-                .map(|y| {
-                    let grid = knowledge::maps::read_ros_map(&y)?;
-                    Ok((learning::run::map_name(&y), y, grid))
-                })
-                .collect::<Result<_, BenchError>>()?
-        }
-        Scenario::Corridor => vec![(
-            "corridor".to_owned(),
-            PathBuf::from("corridor/corridor.yaml"),
-            corridor_floor(),
-        )],
-    };
+            None => {
+                let yamls = crate::maps::find_yamls(&opts.maps)?;
+                if yamls.is_empty() {
+                    return Err(BenchError::NoMaps(opts.maps.clone()));
+                }
+                yamls
+                    .into_iter()
+                    .map(|y| {
+                        let grid = knowledge::maps::read_ros_map(&y)?;
+                        Ok((learning::run::map_name(&y), y, grid, None))
+                    })
+                    .collect::<Result<_, BenchError>>()?
+            }
+        };
     floors
         .into_iter()
-        .map(|(name, yaml, grid)| run_floor(opts, &name, &yaml, grid))
+        .map(|(name, yaml, grid, layout)| run_floor(opts, &name, &yaml, grid, layout.as_ref()))
         .collect()
 }
 
-/// Width of the generated corridor, metres: one robot of up to 0.35 m radius fits with the
-/// plans' 0.1 m safety margin; two robots of more than 0.25 m radius cannot pass each other.
-pub const CORRIDOR_WIDTH_M: f64 = 1.0;
-
-/// Two 4.5 m × 5 m rooms joined by a 12 m corridor [`CORRIDOR_WIDTH_M`] wide, at 5 cm.
-fn corridor_floor() -> OccupancyGrid {
-    let res = 0.05;
-    let (w, h) = (440usize, 120usize); // 22 m x 6 m
-    let mut grid = OccupancyGrid::filled(w, h, res, Pose2::new(0.0, 0.0, 0.0), Occupancy::Occupied);
-    let mut free = |x0: f64, y0: f64, x1: f64, y1: f64| {
-        for cy in 0..h {
-            for cx in 0..w {
-                let (x, y) = ((cx as f64 + 0.5) * res, (cy as f64 + 0.5) * res);
-                if x >= x0 && x < x1 && y >= y0 && y < y1 {
-                    grid.cells[cy * w + cx] = Occupancy::Free;
-                }
-            }
-        }
-    };
-    free(0.5, 0.5, 5.0, 5.5);
-    free(17.0, 0.5, 21.5, 5.5);
-    let half = CORRIDOR_WIDTH_M / 2.0;
-    free(4.9, 3.0 - half, 17.1, 3.0 + half);
-    grid
-}
-
-/// `n` missions: random ones across the roadmap's largest component with starts and goals
-/// kept a robot's width apart, or the corridor's two rooms swapping.
+/// `n` missions: the generated floor's (see [`floors::missions`]), or random ones across the
+/// roadmap's largest component with starts and goals kept a robot's width apart.
 fn missions(
     scenario: Scenario,
+    layout: Option<&floors::Layout>,
     world: &Arc<World>,
     n: usize,
     seed: u64,
 ) -> Result<Vec<(Pose2, planning::Point2)>, BenchError> {
     let radius = world.spec().robot.footprint_radius;
-    let apart = 2.0 * radius + 0.4;
-    if scenario == Scenario::Corridor {
-        // Rooms (0.5..5) and (17..21.5) by (0.5..5.5): robots start in the column by the far
-        // wall and park in the column nearer the corridor of the other room, so that no goal is
-        // another robot's start.
-        let column = |x: f64, j: usize| planning::Point2::new(x, 1.2 + 0.9 * (j % 5) as f64);
-        let out = (0..n)
-            .map(|k| {
-                let j = k / 2;
-                let (s, g, yaw) = if k % 2 == 0 {
-                    (
-                        column(1.2 + 0.9 * (j / 5) as f64, j),
-                        column(18.6 + 0.9 * (j / 5) as f64, j),
-                        0.0,
-                    )
-                } else {
-                    (
-                        column(20.8 - 0.9 * (j / 5) as f64, j),
-                        column(3.4 - 0.9 * (j / 5) as f64, j),
-                        std::f64::consts::PI,
-                    )
-                };
-                (Pose2::new(s.x, s.y, yaw), g)
-            })
-            .collect();
-        return Ok(out);
+    if let Some(layout) = layout {
+        return floors::missions(scenario, layout, radius, n);
     }
+    let apart = 2.0 * radius + 0.4;
     let roadmap =
         rehearsal::first_attempt_roadmap(world, seed).map_err(|source| BenchError::Rehearsal {
             map: "missions".into(),
@@ -344,6 +332,7 @@ fn run_floor(
     name: &str,
     yaml: &Path,
     grid: OccupancyGrid,
+    layout: Option<&floors::Layout>,
 ) -> Result<FleetRow, BenchError> {
     let floor_iri = knowledge::maps::floor_iri(&knowledge::maps::name_for_path(yaml));
     let ttl = String::from_utf8_lossy(&opts.robot_ttl).into_owned();
@@ -378,15 +367,12 @@ fn run_floor(
         message,
     })?;
     let radius = world.spec().robot.footprint_radius;
-    if opts.scenario == Scenario::Corridor
-        && !(2.0 * (radius + PlanOptions::default().safety_margin_m) < CORRIDOR_WIDTH_M
-            && CORRIDOR_WIDTH_M < 4.0 * radius)
-    {
-        return Err(BenchError::BadOption(format!(
-            "the corridor scenario is for robots that fit its {CORRIDOR_WIDTH_M} m one at a time; this robot's radius is {radius} m"
-        )));
-    }
-    let missions = missions(opts.scenario, &world, opts.robots, opts.seed)?;
+    floors::check_robot(
+        opts.scenario,
+        radius,
+        PlanOptions::default().safety_margin_m,
+    )?;
+    let missions = missions(opts.scenario, layout, &world, opts.robots, opts.seed)?;
     let policies =
         tempfile::tempdir().map_err(crate::error::io_err(Path::new("temporary directory")))?;
     let schedule = Arc::new(MemorySchedule::default());
