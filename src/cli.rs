@@ -323,6 +323,10 @@ pub enum BenchCommand {
         /// Writes the rows as JSON (one object per map and scenario).
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Writes each joint run as `DIR/MAP-SCENARIO.json`, which the console's Traffic page
+        /// replays (every robot as it drove among the others, and how it fared).
+        #[arg(long, value_name = "DIR")]
+        replay: Option<PathBuf>,
     },
     /// POST /v1/plan latency of a running service under C concurrent robot clients.
     PlanLoad {
@@ -839,6 +843,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             seed,
             max_wait_s,
             json,
+            replay,
         } => {
             use anyhow::Context;
             let rows = bench::fleet::run_fleet_bench(&bench::fleet::FleetBenchOptions {
@@ -860,6 +865,19 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                     .chain(r.joint_failures.iter().map(|l| format!("joint run: {l}")))
                 {
                     println!("{} ({}) {line}", r.map, r.scenario);
+                }
+            }
+            if let Some(dir) = replay {
+                std::fs::create_dir_all(&dir)
+                    .with_context(|| format!("cannot create {}", dir.display()))?;
+                for r in &rows {
+                    let path = dir.join(format!("{}-{}.json", r.map, r.scenario));
+                    std::fs::write(&path, serde_json::to_string(&r.replay)?)
+                        .with_context(|| format!("cannot write {}", path.display()))?;
+                    println!(
+                        "wrote {} (open it on the console's Traffic page)",
+                        path.display()
+                    );
                 }
             }
             if let Some(path) = json {

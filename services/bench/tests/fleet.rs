@@ -123,6 +123,36 @@ fn all_through(scenario: Scenario, robots: usize) {
     // They meet in a passage one robot wide: someone waits.
     assert!(r.waits_s > 0.0, "{r:?}");
     assert!(r.makespan_ratio >= 1.0, "{r:?}");
+    // The joint run as the console replays it: every robot's drive, a valid itinerary on the
+    // floor, ending where its plan's goal is, and its outcome.
+    let replay = &r.replay;
+    assert_eq!(replay.plans.len(), robots);
+    assert_eq!(replay.joint.len(), robots);
+    assert!(
+        replay.joint.iter().all(|j| j.outcome == "reached"),
+        "{:?}",
+        replay.joint
+    );
+    for it in &replay.plans {
+        it.check().expect("a valid itinerary");
+        assert_eq!(it.floor, replay.floor);
+        let outcome = replay
+            .joint
+            .iter()
+            .find(|j| j.robot == it.robot)
+            .expect("its outcome");
+        let end = it.trajectory.last().expect("poses").t_s;
+        assert!(
+            (end - outcome.time_s).abs() < 0.5,
+            "{end} against {}",
+            outcome.time_s
+        );
+    }
+    let json = serde_json::to_value(replay).expect("serialises");
+    assert!(
+        json["plans"][0]["trajectory"][0]["t_s"].is_number(),
+        "{json}"
+    );
 }
 
 #[test]

@@ -143,6 +143,9 @@ pub struct FleetRow {
     pub latency_p50_ms: f64,
     /// Plan latency under the concurrent requests, ms.
     pub latency_p95_ms: f64,
+    /// The joint run as the console's Traffic page replays it (`--replay DIR`).
+    #[serde(skip)]
+    pub replay: crate::fleet_replay::JointReplay,
 }
 
 /// The knowledge of one floor: one on-demand database per robot.
@@ -512,7 +515,15 @@ fn run_floor(
         .filter_map(|o| o.fleet.as_ref())
         .flat_map(|f| f.waits.iter().map(|w| w.wait_s))
         .sum();
+    let replay = crate::fleet_replay::joint_replay(
+        name,
+        opts.scenario.as_str(),
+        &floor_iri,
+        &planned,
+        &joint,
+    );
     Ok(FleetRow {
+        replay,
         map: name.to_owned(),
         scenario: opts.scenario.as_str().to_owned(),
         robots: opts.robots,
