@@ -1,7 +1,6 @@
 //! The store as the on-demand database reads it: asserted triples only, from a snapshot.
 
 use std::collections::{BTreeSet, HashSet};
-use std::sync::Arc;
 
 use oxigraph::model::vocab::rdf;
 use oxigraph::model::{GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
@@ -37,11 +36,8 @@ impl Reader {
         }
     }
 
-    /// Asserted triples about `subject` (cached until the next write).
-    pub(super) fn about(&self, subject: NamedNodeRef<'_>) -> Result<Arc<[Triple]>, StoreError> {
-        if let Some(triples) = self.owner.cached_about(self.key, subject.as_str()) {
-            return Ok(triples);
-        }
+    /// Asserted triples about `subject`.
+    pub(super) fn about(&self, subject: NamedNodeRef<'_>) -> Result<Vec<Triple>, StoreError> {
         let mut out = Vec::new();
         for quad in self
             .store
@@ -52,13 +48,7 @@ impl Reader {
                 out.push(Triple::from(quad));
             }
         }
-        let triples: Arc<[Triple]> = out.into();
-        // A remote store is read from an in-memory snapshot already: nothing to save there.
-        if self.owner.remote_store().is_none() {
-            self.owner
-                .cache_about(self.key, subject.as_str(), triples.clone());
-        }
-        Ok(triples)
+        Ok(out)
     }
 
     /// Whether `node` has type `class`, asserted or entailed.
@@ -110,7 +100,7 @@ impl Reader {
         if !seen.insert(subject.into_owned()) {
             return Ok(());
         }
-        for triple in self.about(subject)?.iter() {
+        for triple in self.about(subject)? {
             if let Term::NamedNode(object) = &triple.object
                 && triple.predicate.as_ref() != rdf::TYPE
                 && (self.is_a(object.as_ref(), vocab::DESCRIPTOR)?
@@ -118,7 +108,7 @@ impl Reader {
             {
                 self.closure(object.as_ref(), parts, out, seen)?;
             }
-            out.insert(triple.clone());
+            out.insert(triple);
         }
         Ok(())
     }

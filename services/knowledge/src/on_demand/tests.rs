@@ -107,9 +107,9 @@ fn a_mission_between_two_rooms_holds_the_route_objects_map_and_robot() {
     assert_eq!(again.triples, db.triples);
 }
 
-/// What a mission's database reads is cached until the next write: a triple written about a
-/// place of the route (as the service writes: the store, then the inference refreshed) is in
-/// the next database, and one removed is gone.
+/// A triple written about a place of the route (as the service writes: the store, then the
+/// inference refreshed) is in the next database, and one removed is gone: nothing read for
+/// one database outlives a write.
 #[test]
 fn a_write_shows_in_the_next_database() {
     let store = store();

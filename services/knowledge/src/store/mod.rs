@@ -19,13 +19,12 @@ mod embedded;
 mod error;
 pub mod remote;
 
-use std::collections::HashMap;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use oxigraph::io::{RdfFormat, RdfParser};
-use oxigraph::model::{GraphName, NamedNode, NamedNodeRef, Quad, Triple};
+use oxigraph::model::{GraphName, NamedNode, NamedNodeRef, Quad};
 use oxigraph::store::Store;
 use tosm::Place;
 
@@ -56,21 +55,6 @@ struct Derived {
     /// [`KnowledgeStore::bump_generation`]).
     generation: AtomicU64,
     places: Mutex<Option<(CacheKey, Arc<Vec<Place>>)>>,
-    /// Asserted triples by subject: every on-demand database reads the same places, objects
-    /// and robots again, and each read decodes every term of every quad (one RocksDB lookup
-    /// per long IRI).
-    about: Mutex<AboutCache>,
-}
-
-/// The most triples [`AboutCache`] holds (about 200 bytes each); past it, it starts over.
-const MAX_CACHED_TRIPLES: usize = 300_000;
-
-/// Subjects' asserted triples, for one state of the graph.
-#[derive(Default)]
-struct AboutCache {
-    key: Option<CacheKey>,
-    triples: usize,
-    by_subject: HashMap<String, Arc<[Triple]>>,
 }
 
 impl Default for Derived {
@@ -80,7 +64,6 @@ impl Default for Derived {
             id: STORES.fetch_add(1, Ordering::Relaxed),
             generation: AtomicU64::new(0),
             places: Mutex::new(None),
-            about: Mutex::default(),
         }
     }
 }
@@ -197,11 +180,6 @@ impl KnowledgeStore {
             .places
             .lock()
             .unwrap_or_else(PoisonError::into_inner) = None;
-        *self
-            .derived
-            .about
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner) = AboutCache::default();
     }
 
     /// Names the graph's current state: equal tags mean equal content. It changes with every
@@ -249,45 +227,6 @@ impl KnowledgeStore {
                 .places
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner) = Some((key, places));
-        }
-    }
-
-    /// `subject`'s asserted triples read for state `key`, if they are cached.
-    pub(crate) fn cached_about(&self, key: CacheKey, subject: &str) -> Option<Arc<[Triple]>> {
-        let cache = self
-            .derived
-            .about
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        if cache.key != Some(key) {
-            return None;
-        }
-        cache.by_subject.get(subject).cloned()
-    }
-
-    /// Keeps `subject`'s asserted triples read for state `key`, unless a write happened since.
-    pub(crate) fn cache_about(&self, key: CacheKey, subject: &str, triples: Arc<[Triple]>) {
-        let mut cache = self
-            .derived
-            .about
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        if cache.key != Some(key) {
-            if self.cache_key() != key {
-                return;
-            }
-            *cache = AboutCache {
-                key: Some(key),
-                ..AboutCache::default()
-            };
-        }
-        if cache.triples + triples.len() > MAX_CACHED_TRIPLES {
-            cache.by_subject.clear();
-            cache.triples = 0;
-        }
-        cache.triples += triples.len();
-        if let Some(old) = cache.by_subject.insert(subject.to_owned(), triples) {
-            cache.triples -= old.len();
         }
     }
 
