@@ -92,8 +92,12 @@ pub const MAX_START_UNIX_MS: i64 = 4_102_444_800_000;
 /// it, the plan is refused (a floor that busy needs traffic management this schedule does not
 /// do).
 pub const MAX_ROBOTS_PER_FLOOR: usize = 100;
-/// Gap kept between two robots' footprints beyond their radii, metres.
-pub const ROBOT_MARGIN_M: f64 = 0.1;
+/// Gap kept between two robots' footprints beyond their radii, metres: how close to a robot's
+/// footprint another may pass before the first one's controller reacts to it. Regulated Pure
+/// Pursuit slows for anything closer than Nav2's `cost_scaling_dist` (0.6 m from the centre of
+/// Nav2's 0.22 m default robot: 0.38 m beyond its footprint, `sim::rpp`); a robot that slows for
+/// another leaves its schedule, and the schedule holds only where nobody has to react.
+pub const ROBOT_MARGIN_M: f64 = 0.6 - sim::rpp::NAV2_DEFAULT_ROBOT_RADIUS_M;
 /// Steps of waiting tried, seconds.
 const WAIT_STEP_S: f64 = 1.0;
 

@@ -89,8 +89,10 @@ pub fn drive_among(
             .get(first..=last)
             .unwrap_or_default()
             .to_vec();
+        // The controller that validated the leg: the fallback only where it did (a follower
+        // behind RPP or MPPI is as `Classical` as they are).
         let driver = match &mut fallback {
-            Some(f) if f.controller.kind() == leg_report.controller => f,
+            Some(f) if leg_report.by_fallback => f,
             _ => &mut primary,
         };
         driver.controller.start_attempt(0);

@@ -140,6 +140,8 @@ impl<'c> Driver<'c> {
 struct ValidatedLeg {
     run: DriveRun,
     controller: ControllerKind,
+    /// Whether the fallback (not the primary controller) validated it.
+    by_fallback: bool,
     prm_path_length_m: f64,
     roadmap: RoadmapInfo,
 }
@@ -385,6 +387,7 @@ fn validate_inner(
                     done = Some(ValidatedLeg {
                         run,
                         controller: driver.controller.kind(),
+                        by_fallback: d > 0,
                         prm_path_length_m: legs.length_m,
                         roadmap: RoadmapInfo {
                             samples: roadmap.params().samples,
@@ -487,10 +490,8 @@ fn drive_draws(
         let mut closest = f64::INFINITY;
         let mut failure = None;
         for (leg, v) in validated.iter().enumerate() {
-            let Some(driver) = drivers
-                .iter_mut()
-                .find(|d| d.controller.kind() == v.controller)
-            else {
+            // The one that validated the leg: the fallback is the second driver.
+            let Some(driver) = drivers.get_mut(usize::from(v.by_fallback)) else {
                 continue;
             };
             driver.controller.start_attempt(opts.max_attempts + draw);
@@ -584,6 +585,7 @@ fn assemble(
         leg_reports.push(LegReport {
             goal_index: i,
             controller: leg.controller,
+            by_fallback: leg.by_fallback,
             roadmap: leg.roadmap.kind,
             attempts: attempts.iter().filter(|a| a.leg == i).count(),
             roadmap_seed: leg.roadmap.seed,

@@ -268,6 +268,10 @@ pub struct LegReport {
     /// The controller whose run validated the leg: the classical follower when the policy
     /// validated it in no attempt.
     pub controller: ControllerKind,
+    /// Whether the fallback controller validated it (the primary, a policy or a classical
+    /// controller other than the follower, validated it in no attempt). `controller` cannot
+    /// say so when both are classical.
+    pub by_fallback: bool,
     /// The roadmap the validating run planned on.
     pub roadmap: RoadmapKind,
     /// Attempts spent on the leg, every controller's, the validating one included.

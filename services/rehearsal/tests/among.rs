@@ -124,3 +124,50 @@ fn a_wait_at_the_start_lets_a_robot_pass() {
     assert!(waited.min_robot_clearance_m.unwrap() > 0.0, "{waited:?}");
     assert_ne!(run(&[]).outcome, AttemptOutcome::Reached);
 }
+
+/// RPP validates the plan with the follower behind it (both classical): driven again alone,
+/// the leg goes to RPP again, not to the follower, and takes about the rehearsal's time (the
+/// follower stops and turns at every waypoint; it took half as long again before).
+#[test]
+fn alone_a_plan_rpp_validated_is_driven_by_rpp_in_about_its_time() {
+    let world = room();
+    let request = PlanRequest {
+        start: Pose2::new(2.0, 2.0, 0.0),
+        goals: vec![Point2::new(7.5, 6.0)],
+        options: PlanOptions::default(),
+        stop: rehearsal::Stop::default(),
+    };
+    let mut rpp = rehearsal::RppController::new();
+    let mut follower = rehearsal::follower_for(&request.options);
+    let report = rehearsal::validate_with_fallback(
+        &world,
+        &RoadmapCache::default(),
+        "room",
+        &request,
+        &mut rpp,
+        Some(&mut *follower),
+        None,
+    )
+    .unwrap();
+    assert!(!report.legs[0].by_fallback, "{:?}", report.legs);
+    let mut rpp = rehearsal::RppController::new();
+    let mut follower = rehearsal::follower_for(&request.options);
+    let again = drive_among(
+        &world,
+        &request,
+        &report,
+        &mut rpp,
+        Some(&mut *follower),
+        &OtherRobots::default(),
+        &[],
+    )
+    .unwrap();
+    assert_eq!(again.outcome, AttemptOutcome::Reached, "{again:?}");
+    let ratio = again.time_s / report.simulated_time_s;
+    assert!(
+        (0.8..1.2).contains(&ratio),
+        "driven again in {:.1} s, rehearsed in {:.1} s",
+        again.time_s,
+        report.simulated_time_s
+    );
+}

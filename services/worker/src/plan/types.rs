@@ -847,6 +847,7 @@ impl From<rehearsal::LegReport> for LegReport {
         let rehearsal::LegReport {
             goal_index,
             controller,
+            by_fallback: _,
             roadmap,
             attempts,
             roadmap_seed,
