@@ -1,6 +1,7 @@
 // Shared, cached reads: places, robots, map images, objects.
 
 import { getBlob, getJson, ApiError, type PlaceView, type RobotView, type ObjectView, type Roadmap, type PolicySummary } from './api';
+import type { MapCanvas } from './mapview';
 
 const cache = new Map<string, Promise<unknown>>();
 
@@ -111,4 +112,26 @@ export function indexPlaces(all: PlaceView[]): FloorIndex {
 /** A missing endpoint (the contract's new ones, before they land) as a readable message. */
 export function missing(e: unknown): boolean {
   return e instanceof ApiError && (e.status === 404 || e.status === 405) && e.code !== 'not_found_place';
+}
+
+/** Puts `floor` on the map canvas `m`: its frame at once, its image when it arrives (unless
+ * `alive()` has turned false; a failure goes to `onError`), then marks the canvas ready and
+ * hands the floor's objects to `onObjects` when they arrive. */
+export async function showFloorOn(
+  m: MapCanvas, floor: PlaceView, alive: () => boolean,
+  onObjects: (o: ObjectView[]) => void, onError: (e: unknown) => void,
+): Promise<void> {
+  m.setMap(null, floor.map ?? null);
+  m.canvas.dataset.floor = floor.id ?? floor.iri;
+  try {
+    if (floor.map) {
+      const img = await mapImage(floor);
+      if (!alive()) return;
+      m.setMap(img, floor.map);
+    }
+  } catch (e) {
+    onError(e);
+  }
+  m.canvas.dataset.ready = '1';
+  objects(floor).then((o) => { if (alive()) onObjects(o); }, () => undefined);
 }

@@ -327,20 +327,8 @@ export async function mount(root: HTMLElement, ctx: PageContext): Promise<Cleanu
     if (!floor) return;
     areas = index.areasOn(floor);
     objects = [];
-    m.setMap(null, floor.map ?? null);
-    m.canvas.dataset.floor = floor.id ?? floor.iri;
     if (listen) void subscribe();
-    try {
-      if (floor.map) {
-        const img = await data.mapImage(floor);
-        if (!alive) return;
-        m.setMap(img, floor.map);
-      }
-    } catch (e) {
-      showError(topErr, e, 'map: ');
-    }
-    m.canvas.dataset.ready = '1';
-    data.objects(floor).then((o) => { objects = o; m.invalidate(); }, () => undefined);
+    await data.showFloorOn(m, floor, () => alive, (o) => { objects = o; m.invalidate(); }, (e) => showError(topErr, e, 'map: '));
   }
   floorSel.addEventListener('change', () => {
     floor = index.floors.find((f) => (f.id ?? f.iri) === floorSel.value) ?? floor;
