@@ -41,10 +41,15 @@ pub struct FloorDatabase {
 }
 
 impl FloorDatabase {
-    /// A database read at knowledge state `state`.
+    /// A database read at knowledge state `state`. Its version names its triples, not the
+    /// state: a write elsewhere in the knowledge, or a restart of the service, keeps the
+    /// floor's cached world and its stored roadmaps. A graph with blank nodes (whose labels
+    /// differ from one read to the next) is named by `state` instead.
     pub fn new(graph: Graph, robot: String, floor: String, state: &str) -> Self {
+        let content = content_version(&graph)
+            .map_or_else(|| state.to_owned(), |(a, b)| format!("{a:016x}{b:016x}"));
         Self {
-            version: format!("{floor}|{robot}|{state}"),
+            version: format!("{floor}|{robot}|{content}"),
             graph,
             robot,
             floor,
@@ -68,6 +73,22 @@ impl FloorDatabase {
     }
 }
 
+/// A fingerprint of `graph`'s triples that does not depend on their order (the sum and the
+/// xor of each triple's FNV-1a hash, with the count folded in: 128 bits), or `None` when it
+/// holds a blank node.
+fn content_version(graph: &Graph) -> Option<(u64, u64)> {
+    let (mut sum, mut xor) = (graph.len() as u64, 0u64);
+    for t in graph {
+        if t.subject.is_blank_node() || t.object.is_blank_node() {
+            return None;
+        }
+        let h = grid::hash::fnv1a(t.to_string().as_bytes());
+        sum = sum.wrapping_add(h);
+        xor ^= h.rotate_left(17);
+    }
+    Some((sum, xor))
+}
+
 /// A boxed future, for the object-safe trait below.
 pub type SourceFuture<'a> =
     Pin<Box<dyn Future<Output = Result<Arc<FloorDatabase>, SourceError>> + Send + 'a>>;
@@ -77,4 +98,43 @@ pub trait KnowledgeSource: Send + Sync + 'static {
     /// The database of the floor `place` (a floor, or a place on one; IRI or identifier) is
     /// on, with `robot` (IRI or identifier).
     fn floor_database<'a>(&'a self, place: &'a str, robot: &'a str) -> SourceFuture<'a>;
+}
+
+#[cfg(test)]
+mod tests {
+    use oxrdf::{BlankNode, Graph, Literal, NamedNode, Triple};
+
+    use super::FloorDatabase;
+
+    fn triple(s: &str, o: &str) -> Triple {
+        Triple::new(
+            NamedNode::new_unchecked(format!("https://ex.org/{s}")),
+            NamedNode::new_unchecked("https://ex.org/p"),
+            Literal::new_simple_literal(o),
+        )
+    }
+
+    fn version(triples: &[Triple], state: &str) -> String {
+        let mut g = Graph::new();
+        for t in triples {
+            g.insert(t);
+        }
+        FloorDatabase::new(g, "r".into(), "f".into(), state).version
+    }
+
+    #[test]
+    fn the_version_names_the_triples_not_the_state_they_were_read_at() {
+        let (a, b, c) = (triple("a", "1"), triple("b", "2"), triple("b", "3"));
+        let ab = version(&[a.clone(), b.clone()], "state-1");
+        assert_eq!(ab, version(&[b.clone(), a.clone()], "state-2"));
+        assert_ne!(ab, version(&[a.clone(), c.clone()], "state-1"));
+        assert_ne!(ab, version(&[a.clone()], "state-1"));
+        // Blank node labels change between reads: such a graph is named by its state.
+        let blank = Triple::new(
+            BlankNode::default(),
+            NamedNode::new_unchecked("https://ex.org/p"),
+            Literal::new_simple_literal("x"),
+        );
+        assert!(version(&[a, blank], "state-9").ends_with("|state-9"));
+    }
 }

@@ -463,7 +463,8 @@ fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
     } else {
         0.0
     };
-    (a.0 + t * dx - p.0).hypot(a.1 + t * dy - p.1)
+    let (ex, ey) = (a.0 + t * dx - p.0, a.1 + t * dy - p.1);
+    (ex * ex + ey * ey).sqrt()
 }
 
 #[cfg(test)]
