@@ -263,6 +263,10 @@ pub struct Planner {
     /// Loaded policies by id, with the modification time of the weights they were read from.
     loaded: Mutex<HashMap<String, (SystemTime, LoadedPolicy)>>,
     applied: Arc<Applied>,
+    /// One lock per robot, held from a fleet snapshot to its commit: two plans for the same
+    /// robot at once (the later replaces the earlier anyway) would otherwise each see the
+    /// other's commit as a changed schedule and fit again, many times over.
+    robot_locks: Mutex<HashMap<String, Arc<tokio::sync::Mutex<()>>>>,
 }
 
 impl std::fmt::Debug for Planner {
@@ -293,6 +297,7 @@ impl Planner {
             fleet: None,
             loaded: Mutex::new(HashMap::new()),
             applied: Arc::default(),
+            robot_locks: Mutex::new(HashMap::new()),
         }
     }
 
@@ -432,9 +437,7 @@ impl Planner {
             controller,
         };
         let (report, world, people, pick, replay) =
-            tokio::task::spawn_blocking(move || rehearsal.run(request))
-                .await
-                .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
+            self.blocking(move || rehearsal.run(request)).await??;
         let note = note(policy_id.is_some(), &pick, &report);
         let fleet = match &self.fleet {
             Some(schedule) => Some(
@@ -455,6 +458,28 @@ impl Planner {
             world,
             replay,
         })
+    }
+
+    /// Runs the blocking `work` on the blocking pool. (Holding plans back to one per core
+    /// was measured: 44 plans/s at 50 clients against 62 without, on 2 cores.)
+    async fn blocking<T: Send + 'static>(
+        &self,
+        work: impl FnOnce() -> T + Send + 'static,
+    ) -> Result<T, PlanFailure> {
+        tokio::task::spawn_blocking(work)
+            .await
+            .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))
+    }
+
+    /// The lock serialising `robot`'s fleet commits in this process.
+    fn robot_lock(&self, robot: &str) -> Arc<tokio::sync::Mutex<()>> {
+        let mut locks = self
+            .robot_locks
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        // Locks nobody holds or waits for go, so the map stays as large as the robots planning.
+        locks.retain(|_, l| Arc::strong_count(l) > 1);
+        Arc::clone(locks.entry(robot.to_owned()).or_default())
     }
 
     /// The validated plan among the other robots' committed plans on its floor: fitted with
@@ -485,6 +510,8 @@ impl Planner {
         // then twice as late each time, within `max_wait_s`.
         let mut later_s = 0.0f64;
         let mut in_the_way: Vec<String> = Vec::new();
+        let robot_lock = self.robot_lock(&db.robot);
+        let _one_at_a_time = robot_lock.lock().await;
         for _ in 0..COMMIT_ATTEMPTS {
             let start = requested + (later_s * 1000.0).round() as i64;
             let template = traffic::Itinerary {
@@ -584,11 +611,9 @@ impl Planner {
                 let holds = fleet::holds(&waits, start, report.waypoints.len());
                 let (replay2, world2, report2) =
                     (Arc::clone(replay), Arc::clone(world), report.clone());
-                let among = tokio::task::spawn_blocking(move || {
-                    replay2.among(&world2, &report2, &robots, &holds)
-                })
-                .await
-                .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))??;
+                let among = self
+                    .blocking(move || replay2.among(&world2, &report2, &robots, &holds))
+                    .await??;
                 let refused = |robot: String, message: String| {
                     PlanFailure::FleetConflict(NoFit {
                         robots: vec![robot],
