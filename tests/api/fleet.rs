@@ -299,6 +299,42 @@ async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() 
     app.stop().await;
 }
 
+/// Many plans for one robot at once (a robot re-asking while its last request still runs):
+/// each is answered and committed in turn, the later replacing the earlier, and the schedule
+/// ends with exactly one of them. None is refused because the others' commits changed the
+/// floor's version under it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_plans_for_one_robot_all_commit_and_the_last_one_stands() {
+    let app = fleet_app(None).await;
+    let from = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let to = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let start = now_ms() + 5_000;
+    let body = route("R-001", from, to, start, json!({}));
+    let mut requests = tokio::task::JoinSet::new();
+    for _ in 0..24 {
+        let request = app
+            .client
+            .post(format!("{}/v1/plan", app.address))
+            .bearer_auth(&app.token)
+            .json(&body);
+        requests.spawn(async move {
+            let r = request.send().await.unwrap();
+            (r.status().as_u16(), r.json::<Value>().await.unwrap())
+        });
+    }
+    let answers = requests.join_all().await;
+    let mut ids = Vec::new();
+    for (status, answer) in &answers {
+        assert_eq!(*status, 200, "{answer}");
+        assert_eq!(answer["schedule"]["committed"], true, "{answer}");
+        ids.push(answer["schedule"]["plan_id"].clone());
+    }
+    let committed = traffic(&app, FIRST_ROBOT).await;
+    let plans = committed["plans"].as_array().unwrap();
+    assert_eq!(plans.len(), 1, "{committed}");
+    assert!(ids.contains(&plans[0]["plan_id"]), "{committed}");
+}
+
 /// The floor's traffic as server-sent events (what the console's live view reads), opened
 /// with a robot's token.
 async fn traffic_events(app: &TestApp) -> EventReader {
