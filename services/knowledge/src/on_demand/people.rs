@@ -3,7 +3,7 @@
 
 use std::collections::{BTreeSet, HashMap};
 
-use oxigraph::model::NamedNode;
+use oxigraph::model::{NamedNode, NamedNodeRef};
 use tosm::{Place, vocab};
 
 use super::reader::Reader;
@@ -41,22 +41,24 @@ pub(super) fn people_on_floors(
         }
         Ok(())
     };
-    for place in index.values() {
-        if on_one_of_the_floors(place) && reader.knows_people_in(&place.iri)? {
+    // From the places on the floors to what is inside them, not from every walking route and
+    // attractor of the store to its place: a store of many buildings costs no more per floor.
+    for place in index.values().filter(|p| on_one_of_the_floors(p)) {
+        if reader.knows_people_in(&place.iri)? {
             add_place(place, &mut out)?;
         }
-    }
-    for class in [vocab::WALKING_ROUTE, vocab::ATTRACTOR] {
-        for individual in reader.instances(class)? {
-            let container =
-                reader.asserted_object(individual.as_ref(), vocab::IS_DIRECTLY_INSIDE_OF)?;
-            let Some(place) = container.as_deref().and_then(|c| index.get(c).copied()) else {
-                continue;
-            };
-            if on_one_of_the_floors(place) {
-                add_place(place, &mut out)?;
+        let node = NamedNodeRef::new_unchecked(&place.iri);
+        let mut walked = false;
+        for individual in reader.asserted_subjects(vocab::IS_DIRECTLY_INSIDE_OF, node)? {
+            if reader.is_a(individual.as_ref(), vocab::WALKING_ROUTE)?
+                || reader.is_a(individual.as_ref(), vocab::ATTRACTOR)?
+            {
+                walked = true;
                 out.individuals.insert(individual);
             }
+        }
+        if walked {
+            add_place(place, &mut out)?;
         }
     }
     Ok(out)

@@ -135,24 +135,25 @@ impl Reader {
         Ok(false)
     }
 
-    /// The asserted IRI value of `subject`'s `property`, if any (the first, in store order).
-    pub(super) fn asserted_object(
+    /// The named subjects asserted (not inferred) to be `property` of `object`.
+    pub(super) fn asserted_subjects(
         &self,
-        subject: NamedNodeRef<'_>,
         property: NamedNodeRef<'_>,
-    ) -> Result<Option<String>, StoreError> {
+        object: NamedNodeRef<'_>,
+    ) -> Result<BTreeSet<NamedNode>, StoreError> {
+        let mut out = BTreeSet::new();
         for quad in self
             .store
-            .quads_for_pattern(Some(subject.into()), Some(property), None, None)
+            .quads_for_pattern(None, Some(property), Some(object.into()), None)
         {
             let quad = quad.map_err(|e| self.err(e))?;
             if quad.graph_name.as_ref() != GraphNameRef::NamedNode(INFERRED_GRAPH)
-                && let Term::NamedNode(n) = quad.object
+                && let oxigraph::model::NamedOrBlankNode::NamedNode(n) = quad.subject
             {
-                return Ok(Some(n.into_string()));
+                out.insert(n);
             }
         }
-        Ok(None)
+        Ok(out)
     }
 
     /// The individual named `name`: an IRI, or the subject of `tosm:identifier "name"`.
