@@ -70,53 +70,22 @@ def sigmoid(x: float) -> float:
 # The arithmetic
 
 
-def test_fma32_is_the_c_librarys_fmaf() -> None:
-    if not _libm.has_fmaf():
-        pytest.skip("no C math library with fmaf to compare with")
-    rng = np.random.default_rng(18)
-    n = 20000
-    a = (rng.standard_normal(n) * np.exp2(rng.integers(-30, 30, n))).astype(np.float32)
-    b = (rng.standard_normal(n) * np.exp2(rng.integers(-30, 30, n))).astype(np.float32)
-    c = (rng.standard_normal(n) * np.exp2(rng.integers(-60, 60, n))).astype(np.float32)
-    # Cancellations: c close to -a*b.
-    c[: n // 4] = (-(a[: n // 4].astype(np.float64) * b[: n // 4])).astype(np.float32)
-    got = _libm.fma32(a, b, c)
-    want = np.array([_libm.fmaf3(float(x), float(y), float(z)) for x, y, z in zip(a, b, c)], dtype=np.float32)
-    assert np.array_equal(got.view(np.uint32), want.view(np.uint32))
-
-
-def test_fma32_rounds_once_where_rounding_twice_would_not() -> None:
-    # a*b = 2^-24 (1 - 2^-46); c + a*b lies just below the midpoint between 1 + 2^-23 and
-    # 1 + 2^-22: rounding to float64 first lands on the midpoint, and ties-to-even then goes up.
-    a = np.float32(2.0**-24 * (1 + 2.0**-23))
-    b = np.float32(1 - 2.0**-23)
-    c = np.float32(1 + 2.0**-23)
-    naive = np.float32(float(a) * float(b) + float(c))
-    fused = _libm.fma32(np.array([a]), np.array([b]), np.array([c]))[0]
-    assert naive == np.float32(1 + 2.0**-22)
-    assert fused == np.float32(1 + 2.0**-23)
-    if _libm.has_fmaf():
-        assert fused == np.float32(_libm.fmaf3(float(a), float(b), float(c)))
-
-
 def rust_dot(row: list[float], x: list[float]) -> np.float32:
-    """services/learning/src/policy.rs `dot`, transcribed line by line with the C library's fmaf."""
-    fma = _libm.fmaf3
-    acc = [np.float32(0.0)] * 8
+    """services/learning/src/policy.rs `dot`, transcribed line by line in float32 scalars."""
+    f = np.float32
+    acc = [f(0.0)] * 8
     chunks = len(row) // 8
     for k in range(chunks):
         for i in range(8):
-            acc[i] = np.float32(fma(row[8 * k + i], x[8 * k + i], float(acc[i])))
+            acc[i] = f(acc[i] + f(f(row[8 * k + i]) * f(x[8 * k + i])))
     s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))
     for j in range(8 * chunks, len(row)):
-        s = np.float32(fma(row[j], x[j], float(s)))
-    return np.float32(s)
+        s = f(s + f(f(row[j]) * f(x[j])))
+    return f(s)
 
 
 @pytest.mark.parametrize("inputs", [3, 8, 13, 28, 64])
 def test_a_dense_layer_sums_in_rusts_order(inputs: int) -> None:
-    if not _libm.has_fmaf():
-        pytest.skip("no C math library with fmaf to compare with")
     rng = np.random.default_rng(inputs)
     w = rng.standard_normal((5, inputs)).astype(np.float32)
     b = rng.standard_normal(5).astype(np.float32)

@@ -94,47 +94,8 @@ cos: Final = _f64("cos", math.cos, 1)
 hypot: Final = _f64("hypot", math.hypot, 2)
 
 
-def has_fmaf() -> bool:
-    """Whether the C library's ``fmaf`` is available (tests compare :func:`fma32` with it)."""
-    return _LIB is not None and hasattr(_LIB, "fmaf")
-
-
-def fmaf3(a: float, b: float, c: float) -> float:
-    """The C library's ``fmaf(a, b, c)`` (see :func:`has_fmaf`)."""
-    assert _LIB is not None
-    fn = _LIB.fmaf
-    fn.argtypes = [ctypes.c_float, ctypes.c_float, ctypes.c_float]
-    fn.restype = ctypes.c_float
-    result: float = fn(a, b, c)
-    return result
-
-
 def map_f32(fn: Callable[[float], float], values: F32Array) -> F32Array:
     """``fn`` applied to every element of a float32 array."""
     flat = values.astype(np.float32, copy=False).ravel()
     out = np.fromiter((fn(float(v)) for v in flat), dtype=np.float32, count=flat.size)
     return out.reshape(values.shape)
-
-
-def fma32(a: F32Array, b: F32Array, c: F32Array) -> F32Array:
-    """``a * b + c`` rounded once to float32, element-wise with broadcasting: Rust's
-    ``f32::mul_add``.
-
-    The product of two float32 values is exact in float64, and their sum with ``c`` is rounded
-    to float64 by round-to-odd (round to nearest, then, when inexact, the value truncated towards
-    zero with its last bit set: Boldo and Melquiond's rule). Rounding that float64 to float32 is
-    then the correctly rounded fused result, since float64 has more than 24 + 1 bits.
-    """
-    p = a.astype(np.float64) * b.astype(np.float64)
-    c64 = np.broadcast_to(c.astype(np.float64), p.shape)
-    s = p + c64
-    # TwoSum: s + err == p + c exactly.
-    bb = s - p
-    err = (p - (s - bb)) + (c64 - bb)
-    inexact = (err != 0.0) & np.isfinite(s)
-    bits = np.ascontiguousarray(s).view(np.int64).copy()
-    # |exact| < |s| when err points back towards zero: step s one unit towards zero first.
-    towards_zero = inexact & ((err > 0.0) != (s > 0.0))
-    bits[towards_zero] -= 1
-    bits[inexact] |= 1
-    return bits.view(np.float64).astype(np.float32)

@@ -10,9 +10,9 @@ scaling, hidden widths, output activations, the residual base). The network is
 for the same input, written as pre-activations, is added to the two raw outputs; then
 ``sigmoid`` (linear speed in [0, 1]) and ``tanh`` (angular speed in [-1, 1]).
 
-The arithmetic is the Rust runtime's, in its order: each dot product accumulates fused
-multiply-adds in eight lanes over chunks of eight inputs, sums the lanes pairwise, adds the
-remainder with fused multiply-adds, then the bias, all in float32; the activations and the
+The arithmetic is the Rust runtime's, in its order: each dot product accumulates products in
+eight lanes over chunks of eight inputs (each product rounded to float32, then each sum), sums
+the lanes pairwise, adds the remainder's products, then the bias, all in float32; the activations and the
 follower's trigonometry call the C math library as Rust does (see ``_libm``). So for the same
 input the outputs are the same float32 values as the service's.
 
@@ -35,7 +35,7 @@ import numpy.typing as npt
 from safetensors.numpy import load as load_safetensors
 
 from . import _libm
-from ._libm import F32Array, fma32
+from ._libm import F32Array
 
 #: Name of the weights file in a policy directory.
 WEIGHTS_FILE: Final = "policy.safetensors"
@@ -298,11 +298,11 @@ class _Dense:
         xs = x[:, np.newaxis, :]
         acc = np.zeros((n, outputs, 8), dtype=np.float32)
         for k in range(chunks):
-            acc = fma32(w[:, :, 8 * k : 8 * k + 8], xs[:, :, 8 * k : 8 * k + 8], acc)
+            acc = acc + w[:, :, 8 * k : 8 * k + 8] * xs[:, :, 8 * k : 8 * k + 8]
         a = [acc[:, :, i] for i in range(8)]
         s: F32Array = ((a[0] + a[4]) + (a[1] + a[5])) + ((a[2] + a[6]) + (a[3] + a[7]))
         for j in range(8 * chunks, inputs):
-            s = fma32(w[:, :, j], xs[:, :, j], s)
+            s = s + w[:, :, j] * xs[:, :, j]
         out: F32Array = (s + self.bias[np.newaxis, :]).astype(np.float32)
         return out
 
