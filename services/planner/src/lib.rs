@@ -598,83 +598,73 @@ impl Planner {
             }
             let mut waypoint_times_unix_ms: Vec<i64> =
                 at_steps.iter().map(|&k| time_at(k)).collect();
-            // Alone on the floor with nothing to wait for, the drive that validated the plan
-            // is what is committed: driving it again among nobody would check nothing new.
-            let (itinerary, among) = if others.is_empty() && waits.is_empty() {
-                (itinerary, None)
-            } else {
-                // Driven again with its waits while the others drive theirs: a plan that meets
-                // another robot there is not committed. What is committed is that drive, waits
-                // included, so the schedule holds where the robot will be as it waits and sets off.
-                let robots =
-                    fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?;
-                let holds = fleet::holds(&waits, start, report.waypoints.len());
-                let (replay2, world2, report2) =
-                    (Arc::clone(replay), Arc::clone(world), report.clone());
-                let among = self
-                    .blocking(move || replay2.among(&world2, &report2, &robots, &holds))
-                    .await??;
-                let refused = |robot: String, message: String| {
-                    PlanFailure::FleetConflict(NoFit {
-                        robots: vec![robot],
-                        earliest_start_unix_ms: None,
-                        message,
-                    })
-                };
-                let (itinerary, refusal) = if let Some(robot) = among.met_robot() {
-                    let why = format!(
-                        "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
-                        among.robots, among.reason
-                    );
-                    (itinerary, Some(refused(robot.to_owned(), why)))
-                } else if among.outcome == rehearsal::AttemptOutcome::Reached {
-                    let driven =
-                        fleet::driven(&itinerary, start, &among.steps, among.control_period_s);
-                    match fleet::first_conflict(&driven, &others) {
-                        Some(c) => {
-                            let why = format!(
-                                "driven with its waits, the robot would come within {} m of {} {:.1} s after its start",
-                                fleet::ROBOT_MARGIN_M,
-                                c.b_robot,
-                                (c.at_unix_ms - start) as f64 / 1000.0
-                            );
-                            (driven, Some(refused(c.b_robot.clone(), why)))
-                        }
-                        None => (driven, None),
-                    }
-                } else {
-                    (itinerary, None)
-                };
-                if let Some(PlanFailure::FleetConflict(no_fit)) = refusal {
-                    let next = if later_s == 0.0 { 2.0 } else { 2.0 * later_s };
-                    for r in &no_fit.robots {
-                        if !in_the_way.contains(r) {
-                            in_the_way.push(r.clone());
-                        }
-                    }
-                    if next > options.max_wait_s {
-                        return Err(PlanFailure::FleetConflict(NoFit {
-                            message: format!(
-                                "{}; starting up to {later_s} s later did not help within `options.max_wait_s` ({} s)",
-                                no_fit.message, options.max_wait_s
-                            ),
-                            ..no_fit
-                        }));
-                    }
-                    later_s = next;
-                    continue;
-                }
-                // The times the robot reaches its waypoints are those of the drive committed.
-                if among.outcome == rehearsal::AttemptOutcome::Reached {
-                    waypoint_times_unix_ms = fleet::waypoint_steps(&among.steps, &report.waypoints)
-                        .iter()
-                        .map(|&k| {
-                            start + (k as f64 * among.control_period_s * 1000.0).round() as i64
-                        })
-                        .collect();
-                }
-                (itinerary, Some(among))
+            // Driven again with its waits while the others drive theirs: a plan that meets
+            // another robot there is not committed. What is committed is that drive, waits
+            // included, so the schedule holds where the robot will be as it waits and sets off.
+            let robots = fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?;
+            let holds = fleet::holds(&waits, start, report.waypoints.len());
+            let (replay2, world2, report2) =
+                (Arc::clone(replay), Arc::clone(world), report.clone());
+            let among = self
+                .blocking(move || replay2.among(&world2, &report2, &robots, &holds))
+                .await??;
+            let refused = |robot: String, message: String| {
+                PlanFailure::FleetConflict(NoFit {
+                    robots: vec![robot],
+                    earliest_start_unix_ms: None,
+                    message,
+                })
             };
+            let (itinerary, refusal) = if let Some(robot) = among.met_robot() {
+                let why = format!(
+                    "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
+                    among.robots, among.reason
+                );
+                (itinerary, Some(refused(robot.to_owned(), why)))
+            } else if among.outcome == rehearsal::AttemptOutcome::Reached {
+                let driven = fleet::driven(&itinerary, start, &among.steps, among.control_period_s);
+                match fleet::first_conflict(&driven, &others) {
+                    Some(c) => {
+                        let why = format!(
+                            "driven with its waits, the robot would come within {} m of {} {:.1} s after its start",
+                            fleet::ROBOT_MARGIN_M,
+                            c.b_robot,
+                            (c.at_unix_ms - start) as f64 / 1000.0
+                        );
+                        (driven, Some(refused(c.b_robot.clone(), why)))
+                    }
+                    None => (driven, None),
+                }
+            } else {
+                (itinerary, None)
+            };
+            if let Some(PlanFailure::FleetConflict(no_fit)) = refusal {
+                let next = if later_s == 0.0 { 2.0 } else { 2.0 * later_s };
+                for r in &no_fit.robots {
+                    if !in_the_way.contains(r) {
+                        in_the_way.push(r.clone());
+                    }
+                }
+                if next > options.max_wait_s {
+                    return Err(PlanFailure::FleetConflict(NoFit {
+                        message: format!(
+                            "{}; starting up to {later_s} s later did not help within `options.max_wait_s` ({} s)",
+                            no_fit.message, options.max_wait_s
+                        ),
+                        ..no_fit
+                    }));
+                }
+                later_s = next;
+                continue;
+            }
+            // The times the robot reaches its waypoints are those of the drive committed.
+            if among.outcome == rehearsal::AttemptOutcome::Reached {
+                waypoint_times_unix_ms = fleet::waypoint_steps(&among.steps, &report.waypoints)
+                    .iter()
+                    .map(|&k| start + (k as f64 * among.control_period_s * 1000.0).round() as i64)
+                    .collect();
+            }
+            let among = (!others.is_empty()).then_some(among);
             let version = if options.commit {
                 match schedule
                     .commit(itinerary.clone(), version)
