@@ -345,6 +345,10 @@ pub enum BenchCommand {
         /// The plan request (JSON file) [default: across the bundled building's ground floor].
         #[arg(long)]
         body: Option<PathBuf>,
+        /// The service's process id, when it runs on this machine: the figures then include
+        /// its CPU time per plan (and the load generator's own, which shares the cores).
+        #[arg(long, value_name = "PID")]
+        server_pid: Option<u32>,
         /// Write the figures as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -893,6 +897,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             clients,
             seconds,
             body,
+            server_pid,
             json,
         } => {
             let body = match body {
@@ -906,6 +911,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 clients,
                 seconds,
                 body,
+                server_pid,
             })?;
             print_json(&serde_json::to_value(&report)?, json)
         }

@@ -15,6 +15,7 @@ use nix::unistd::Pid;
 
 mod bounds;
 mod faults;
+mod plan_load;
 mod train;
 mod worker;
 
@@ -61,9 +62,18 @@ fn assert_graceful_stop_on(signal: Signal) {
     assert_stops_on(signal, &[], Duration::from_secs(20));
 }
 
-/// Starts `serve` with `env`, sends `signal` once it is ready, and asserts a clean exit within
-/// `within`.
-fn assert_stops_on(signal: Signal, env: &[(&str, &str)], within: Duration) {
+/// A service started by [`serve`]: the process, its URL and its data directory's parent.
+struct Served {
+    child: std::process::Child,
+    url: String,
+    dir: tempfile::TempDir,
+    /// Its standard output, kept open: what it prints later must not meet a closed pipe.
+    _stdout: BufReader<std::process::ChildStdout>,
+}
+
+/// Starts `serve` on a free port with `env` and a new data directory, and waits until it is
+/// ready (its start printed the admin token's file, then the URL).
+fn serve(env: &[(&str, &str)]) -> Served {
     let dir = tempfile::tempdir().unwrap();
     let mut child = mentalsim()
         .args(["serve", "--bind", "127.0.0.1:0", "--data-dir"])
@@ -95,7 +105,20 @@ fn assert_stops_on(signal: Signal, env: &[(&str, &str)], within: Duration) {
         .to_owned();
     let body = reqwest::blocking_get(&format!("{url}/readyz"));
     assert!(body.contains("\"ready\""), "{body}");
+    Served {
+        child,
+        url,
+        dir,
+        _stdout: reader,
+    }
+}
 
+/// Starts `serve` with `env`, sends `signal` once it is ready, and asserts a clean exit within
+/// `within`.
+fn assert_stops_on(signal: Signal, env: &[(&str, &str)], within: Duration) {
+    let Served {
+        mut child, dir, ..
+    } = serve(env);
     kill(Pid::from_raw(i32::try_from(child.id()).unwrap()), signal).unwrap();
     let deadline = Instant::now() + within;
     loop {

@@ -21,6 +21,8 @@ pub struct PlanLoadOptions {
     pub seconds: f64,
     /// The plan request every client sends.
     pub body: serde_json::Value,
+    /// The service's process on this machine, whose CPU time is then measured.
+    pub server_pid: Option<u32>,
 }
 
 /// The figures.
@@ -46,6 +48,36 @@ pub struct PlanLoadReport {
     pub clients: usize,
     /// Seconds of load.
     pub seconds: f64,
+    /// The service's CPU time (user + system, every thread) per answered plan, milliseconds
+    /// (with `--server-pid`).
+    pub server_cpu_ms_per_plan: Option<f64>,
+    /// The load generator's own CPU time per answered plan, milliseconds: on the service's
+    /// machine it takes that much from the cores the service plans on.
+    pub client_cpu_ms_per_plan: Option<f64>,
+}
+
+/// CPU time (user + system) of process `pid` (`None`: this one) so far, milliseconds, from
+/// `/proc/PID/stat` (fields 14 and 15, in the kernel's fixed 100 Hz user ticks); `None` where
+/// it cannot be read.
+fn cpu_ms(pid: Option<u32>) -> Option<f64> {
+    let path = match pid {
+        Some(p) => format!("/proc/{p}/stat"),
+        None => "/proc/self/stat".to_owned(),
+    };
+    let stat = std::fs::read_to_string(path).ok()?;
+    // The command name (field 2) is in parentheses and may hold spaces: count after it.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    // `rest` starts at field 3, so fields 14 and 15 are its 12th and 13th.
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) * 10.0)
+}
+
+/// The one field of an answer the load generator reads (the rest is skipped, not built).
+#[derive(serde::Deserialize)]
+struct Answered {
+    service_ms: Option<f64>,
 }
 
 /// A plan across the bundled sample building's ground floor: from the living room to the hall
@@ -90,6 +122,14 @@ pub fn run(opts: &PlanLoadOptions) -> Result<PlanLoadReport, BenchError> {
             "the service refused the plan request ({status}): {text}"
         )));
     }
+    if let Some(pid) = opts.server_pid
+        && cpu_ms(Some(pid)).is_none()
+    {
+        return Err(BenchError::BadOption(format!(
+            "--server-pid {pid}: no such process on this machine (/proc/{pid}/stat unreadable)"
+        )));
+    }
+    let cpu_before = (opts.server_pid.and_then(|p| cpu_ms(Some(p))), cpu_ms(None));
     let deadline = Instant::now() + Duration::from_secs_f64(opts.seconds);
     let started = Instant::now();
     let results: Vec<ClientResult> = std::thread::scope(|s| {
@@ -109,9 +149,9 @@ pub fn run(opts: &PlanLoadOptions) -> Result<PlanLoadReport, BenchError> {
                             .send();
                         match r {
                             Ok(r) if r.status().is_success() => {
-                                let v: serde_json::Value = r.json().unwrap_or_default();
+                                let answered = r.json::<Answered>().ok();
                                 lat.push(t.elapsed().as_secs_f64() * 1000.0);
-                                if let Some(ms) = v["service_ms"].as_f64() {
+                                if let Some(ms) = answered.and_then(|a| a.service_ms) {
                                     service.push(ms);
                                 }
                             }
@@ -135,6 +175,7 @@ pub fn run(opts: &PlanLoadOptions) -> Result<PlanLoadReport, BenchError> {
             .collect()
     });
     let wall = started.elapsed().as_secs_f64();
+    let cpu_after = (opts.server_pid.and_then(|p| cpu_ms(Some(p))), cpu_ms(None));
     let mut lat: Vec<f64> = results.iter().flat_map(|r| r.0.iter().copied()).collect();
     let mut service: Vec<f64> = results.iter().flat_map(|r| r.1.iter().copied()).collect();
     let errors = results.iter().map(|r| r.2).sum();
@@ -165,5 +206,13 @@ pub fn run(opts: &PlanLoadOptions) -> Result<PlanLoadReport, BenchError> {
         requests_per_s: n / wall,
         clients: opts.clients,
         seconds: opts.seconds,
+        server_cpu_ms_per_plan: cpu_before
+            .0
+            .zip(cpu_after.0)
+            .map(|(b, a)| (a - b) / n.max(1.0)),
+        client_cpu_ms_per_plan: cpu_before
+            .1
+            .zip(cpu_after.1)
+            .map(|(b, a)| (a - b) / n.max(1.0)),
     })
 }
