@@ -116,9 +116,7 @@ fn serve(env: &[(&str, &str)]) -> Served {
 /// Starts `serve` with `env`, sends `signal` once it is ready, and asserts a clean exit within
 /// `within`.
 fn assert_stops_on(signal: Signal, env: &[(&str, &str)], within: Duration) {
-    let Served {
-        mut child, dir, ..
-    } = serve(env);
+    let Served { mut child, dir, .. } = serve(env);
     kill(Pid::from_raw(i32::try_from(child.id()).unwrap()), signal).unwrap();
     let deadline = Instant::now() + within;
     loop {

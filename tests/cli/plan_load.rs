@@ -14,7 +14,15 @@ fn plan_load_measures_a_running_service_and_its_cpu_time_per_plan() {
     let token = std::fs::read_to_string(dir.path().join("data/admin.token")).unwrap();
     let json = dir.path().join("plan-load.json");
     let out = mentalsim()
-        .args(["bench", "plan-load", "--clients", "2", "--seconds", "2", "--url"])
+        .args([
+            "bench",
+            "plan-load",
+            "--clients",
+            "2",
+            "--seconds",
+            "2",
+            "--url",
+        ])
         .arg(&url)
         .args(["--token", token.trim(), "--server-pid"])
         .arg(child.id().to_string())
@@ -24,8 +32,7 @@ fn plan_load_measures_a_running_service_and_its_cpu_time_per_plan() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert!(report["requests"].as_u64().unwrap() >= 2, "{report}");
     assert_eq!(report["errors"], 0, "{report}");
     assert!(report["p50_ms"].as_f64().unwrap() > 0.0, "{report}");
@@ -37,11 +44,22 @@ fn plan_load_measures_a_running_service_and_its_cpu_time_per_plan() {
         server > 0.0 && server < 1.5 * cores * wall_per_plan,
         "{report}"
     );
-    assert!(report["client_cpu_ms_per_plan"].as_f64().unwrap() >= 0.0, "{report}");
+    assert!(
+        report["client_cpu_ms_per_plan"].as_f64().unwrap() >= 0.0,
+        "{report}"
+    );
 
     // A process that is not there is named, not measured as nothing.
     let out = mentalsim()
-        .args(["bench", "plan-load", "--clients", "1", "--seconds", "1", "--url"])
+        .args([
+            "bench",
+            "plan-load",
+            "--clients",
+            "1",
+            "--seconds",
+            "1",
+            "--url",
+        ])
         .arg(&url)
         .args(["--token", token.trim(), "--server-pid", "4194305"])
         .output()

@@ -66,7 +66,10 @@ fn alone_the_plan_arrives_as_rehearsed() {
     assert_eq!(among.min_robot_clearance_m, None);
     assert_eq!(among.robots, 0);
     assert!(planned.1.drives_again_alike(), "{:?}", planned.1.legs);
-    assert_eq!(among.steps, planned.1.steps, "driven again alone, step for step");
+    assert_eq!(
+        among.steps, planned.1.steps,
+        "driven again alone, step for step"
+    );
     assert_eq!(among.time_s, planned.1.simulated_time_s);
 }
 
@@ -87,7 +90,11 @@ fn alone_every_controller_drives_its_validated_legs_again_step_for_step() {
         };
         let request = PlanRequest {
             start: Pose2::new(2.0, 2.0, 0.0),
-            goals: vec![Point2::new(7.5, 6.0), Point2::new(2.5, 6.5), Point2::new(7.0, 2.0)],
+            goals: vec![
+                Point2::new(7.5, 6.0),
+                Point2::new(2.5, 6.5),
+                Point2::new(7.0, 2.0),
+            ],
             options,
             stop: rehearsal::Stop::default(),
         };
@@ -121,8 +128,16 @@ fn alone_every_controller_drives_its_validated_legs_again_step_for_step() {
                 &[],
             )
             .unwrap();
-            assert_eq!(again.outcome, AttemptOutcome::Reached, "{kind:?}: {again:?}");
-            assert_eq!(again.steps.len(), report.steps.len(), "{kind:?}, {people} people");
+            assert_eq!(
+                again.outcome,
+                AttemptOutcome::Reached,
+                "{kind:?}: {again:?}"
+            );
+            assert_eq!(
+                again.steps.len(),
+                report.steps.len(),
+                "{kind:?}, {people} people"
+            );
             assert_eq!(again.steps, report.steps, "{kind:?}, {people} people");
         }
     }
