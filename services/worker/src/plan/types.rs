@@ -855,7 +855,6 @@ impl From<rehearsal::LegReport> for LegReport {
             distance_m,
             min_clearance_m,
             replans,
-            rerouted: _,
         } = l;
         Self {
             goal_index,
