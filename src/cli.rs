@@ -320,6 +320,10 @@ pub enum BenchCommand {
         /// Most waiting a plan may take to let others pass (`options.max_wait_s`), seconds.
         #[arg(long, default_value_t = 600.0)]
         max_wait_s: f64,
+        /// Plans the robots one after another in an order shuffled by SEED instead of all at
+        /// once, so that a run whose outcome depends on the plan order can be repeated.
+        #[arg(long, value_name = "SEED")]
+        order_seed: Option<u64>,
         /// Writes the rows as JSON (one object per map and scenario).
         #[arg(long)]
         json: Option<PathBuf>,
@@ -846,6 +850,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             scenario,
             seed,
             max_wait_s,
+            order_seed,
             json,
             replay,
         } => {
@@ -859,6 +864,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 robot_ttl: crate::train::bundled_robot_ttl().as_bytes().to_vec(),
                 robot_iri: crate::train::ROBOT_IRI.to_owned(),
                 max_wait_s,
+                order_seed,
             })?;
             println!("{}", bench::fleet::markdown(&rows));
             for r in &rows {

@@ -16,7 +16,9 @@
 //! Then the plan is driven again in the simulation with its waits, while every other robot
 //! drives its committed itinerary in the same simulation ([`simulated_robots`]: footprints the
 //! laser sees, moving along their schedules, as they do not react to this robot); a plan that
-//! touches another robot there is refused (409, naming it) and not committed.
+//! touches another robot there, or does not arrive among them (blocked), is fitted again from a
+//! later start, and refused (409, naming the robots) where no start within `max_wait_s` helps.
+//! Nothing is committed that was not driven through.
 //!
 //! What is guaranteed: the committed itineraries keep the robots apart by the margin as long as
 //! each stays within its tolerance of its schedule (progress reports shift a late robot's
@@ -187,6 +189,29 @@ pub fn simulated_robots(
             })
             .collect(),
     )
+}
+
+/// The other robots within a metre of the footprint where `among`'s drive ended, when it
+/// ended (those that blocked it, when it stalled), closest first.
+pub fn robots_near_the_end(
+    robots: &sim::OtherRobots,
+    among: &rehearsal::AmongReport,
+    radius_m: f64,
+) -> Vec<String> {
+    let Some(end) = among.steps.last() else {
+        return Vec::new();
+    };
+    let mut near: Vec<(f64, &str)> = robots
+        .at(among.time_s)
+        .into_iter()
+        .filter_map(|(k, (x, y), r)| {
+            let gap = (x - end.x).hypot(y - end.y) - r - radius_m;
+            let name = robots.robots().get(k)?.name.as_str();
+            (gap < 1.0).then_some((gap, name))
+        })
+        .collect();
+    near.sort_by(|a, b| a.0.total_cmp(&b.0));
+    near.into_iter().map(|(_, n)| n.to_owned()).collect()
 }
 
 /// When the robot may leave each point of its route, seconds after `start_unix_ms`: `[0]` the

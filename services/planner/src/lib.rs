@@ -603,12 +603,17 @@ impl Planner {
             // Driven again with its waits while the others drive theirs: a plan that meets
             // another robot there is not committed. What is committed is that drive, waits
             // included, so the schedule holds where the robot will be as it waits and sets off.
-            let robots = fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?;
+            let robots =
+                Arc::new(fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?);
             let holds = fleet::holds(&waits, start, report.waypoints.len());
-            let (replay2, world2, report2) =
-                (Arc::clone(replay), Arc::clone(world), report.clone());
+            let (replay2, world2, report2, robots2) = (
+                Arc::clone(replay),
+                Arc::clone(world),
+                report.clone(),
+                Arc::clone(&robots),
+            );
             let among = self
-                .blocking(move || replay2.among(&world2, &report2, &robots, &holds))
+                .blocking(move || replay2.among(&world2, &report2, &robots2, &holds))
                 .await??;
             let refused = |robot: String, message: String| {
                 PlanFailure::FleetConflict(NoFit {
@@ -637,8 +642,27 @@ impl Planner {
                     }
                     None => (driven, None),
                 }
-            } else {
+            } else if others.is_empty() {
+                // Alone on the floor, the drive differs from the validated one only by its
+                // noise: the validated trajectory is what is committed.
                 (itinerary, None)
+            } else {
+                // Blocked (or out of time) among the others: not committed as it stands.
+                let why = format!(
+                    "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
+                    among.robots, among.reason
+                );
+                let near = fleet::robots_near_the_end(
+                    &robots,
+                    &among,
+                    world.spec().robot.footprint_radius,
+                );
+                let no_fit = NoFit {
+                    robots: near,
+                    earliest_start_unix_ms: None,
+                    message: why,
+                };
+                (itinerary, Some(PlanFailure::FleetConflict(no_fit)))
             };
             if let Some(PlanFailure::FleetConflict(no_fit)) = refusal {
                 let next = if later_s == 0.0 { 2.0 } else { 2.0 * later_s };

@@ -340,7 +340,10 @@ pub fn drive(
             }
             Outcome::ReachedGoal => {
                 reached.push(current.0);
-                hold_until = limits.holds.get(reached.len()).copied().unwrap_or(0.0);
+                // Holds are times since the start: a waypoint reached while the robot still
+                // stands waiting (one within reach of its start) does not end that wait.
+                hold_until =
+                    hold_until.max(limits.holds.get(reached.len()).copied().unwrap_or(0.0));
                 if current.1.is_some() {
                     goal_indices.push(reached.len() - 1);
                 }

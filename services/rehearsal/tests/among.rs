@@ -125,6 +125,34 @@ fn a_wait_at_the_start_lets_a_robot_pass() {
     assert_ne!(run(&[]).outcome, AttemptOutcome::Reached);
 }
 
+/// A wait at the start holds even when the route's first waypoint lies within reach of the
+/// start (reached while the robot stands there): the robot still sets off only after it.
+#[test]
+fn a_wait_at_the_start_holds_when_the_first_waypoint_is_at_the_start() {
+    let world = room();
+    let (request, mut report) = plan(&world);
+    report
+        .waypoints
+        .insert(0, Point2::new(request.start.x, request.start.y));
+    for g in &mut report.goal_indices {
+        *g += 1;
+    }
+    let planned = (request, report);
+    let waited = among(&world, &planned, &OtherRobots::default(), &[21.0]);
+    assert_eq!(waited.outcome, AttemptOutcome::Reached, "{waited:?}");
+    let start = waited.steps[0];
+    let left = waited
+        .steps
+        .iter()
+        .position(|p| (p.x - start.x).hypot(p.y - start.y) > 0.05)
+        .unwrap();
+    assert!(
+        left as f64 * waited.control_period_s >= 21.0 - 1e-6,
+        "left the start after {} s",
+        left as f64 * waited.control_period_s
+    );
+}
+
 /// RPP validates the plan with the follower behind it (both classical): driven again alone,
 /// the leg goes to RPP again, not to the follower, and takes about the rehearsal's time (the
 /// follower stops and turns at every waypoint; it took half as long again before).

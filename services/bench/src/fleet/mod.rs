@@ -100,6 +100,10 @@ pub struct FleetBenchOptions {
     pub robot_iri: String,
     /// Most waiting a plan may take (`options.max_wait_s`), seconds.
     pub max_wait_s: f64,
+    /// `None`: every robot asks at once (the plan order is the scheduler's). `Some(seed)`:
+    /// one after another, in an order shuffled by `seed`, so a run that depends on the order
+    /// can be repeated.
+    pub order_seed: Option<u64>,
 }
 
 /// One map and scenario.
@@ -322,6 +326,56 @@ fn missions(
     Ok(out)
 }
 
+/// A plan's latency (ms) and outcome.
+type Answer = (f64, Result<PlanOutcome, String>);
+
+/// Every query asked at once, as robots of a fleet do; answers in the queries' order.
+async fn plan_at_once(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> Vec<Answer> {
+    let tasks: Vec<_> = queries
+        .into_iter()
+        .map(|q| {
+            let planner = Arc::clone(planner);
+            tokio::spawn(async move { timed_plan(&planner, q).await })
+        })
+        .collect();
+    let mut out = Vec::new();
+    for t in tasks {
+        out.push(
+            t.await
+                .unwrap_or_else(|e| (f64::NAN, Err(format!("the plan task failed: {e}")))),
+        );
+    }
+    out
+}
+
+/// The queries asked one after another in an order shuffled by `seed` (Fisher–Yates);
+/// answers in the queries' order.
+async fn plan_in_turn(planner: &Arc<Planner>, queries: Vec<PlanQuery>, seed: u64) -> Vec<Answer> {
+    let mut order: Vec<usize> = (0..queries.len()).collect();
+    for i in (1..order.len()).rev() {
+        let j = (grid::seed::nth(seed, i as u64) % (i as u64 + 1)) as usize;
+        order.swap(i, j);
+    }
+    let mut queries: Vec<Option<PlanQuery>> = queries.into_iter().map(Some).collect();
+    let mut answers: Vec<Option<Answer>> = (0..queries.len()).map(|_| None).collect();
+    for k in order {
+        if let Some(q) = queries[k].take() {
+            answers[k] = Some(timed_plan(planner, q).await);
+        }
+    }
+    answers.into_iter().flatten().collect()
+}
+
+/// One plan and how long it took, ms.
+async fn timed_plan(planner: &Planner, q: PlanQuery) -> Answer {
+    let t = Instant::now();
+    let r = planner.plan(q, rehearsal::Stop::default()).await;
+    (
+        t.elapsed().as_secs_f64() * 1e3,
+        r.map_err(|e| e.to_string()),
+    )
+}
+
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
@@ -427,30 +481,10 @@ fn run_floor(
         .enable_all()
         .build()
         .map_err(crate::error::io_err(Path::new("tokio runtime")))?;
-    let answers: Vec<(f64, Result<PlanOutcome, String>)> = runtime.block_on(async {
-        let tasks: Vec<_> = queries
-            .into_iter()
-            .map(|q| {
-                let planner = Arc::clone(&planner);
-                tokio::spawn(async move {
-                    let t = Instant::now();
-                    let r = planner.plan(q, rehearsal::Stop::default()).await;
-                    (
-                        t.elapsed().as_secs_f64() * 1e3,
-                        r.map_err(|e| e.to_string()),
-                    )
-                })
-            })
-            .collect();
-        let mut out = Vec::new();
-        for t in tasks {
-            out.push(
-                t.await
-                    .unwrap_or_else(|e| (f64::NAN, Err(format!("the plan task failed: {e}")))),
-            );
-        }
-        out
-    });
+    let answers = match opts.order_seed {
+        None => runtime.block_on(plan_at_once(&planner, queries)),
+        Some(seed) => runtime.block_on(plan_in_turn(&planner, queries, seed)),
+    };
     let mut latencies: Vec<f64> = answers
         .iter()
         .map(|a| a.0)
