@@ -603,18 +603,32 @@ impl Planner {
             // Driven again with its waits while the others drive theirs: a plan that meets
             // another robot there is not committed. What is committed is that drive, waits
             // included, so the schedule holds where the robot will be as it waits and sets off.
+            // Alone on the floor with nothing to wait for, that drive is the validating one,
+            // step for step (`rehearsal::drive_among` drives each leg with its validating
+            // attempt's noise): it is committed as it is.
             let robots =
                 Arc::new(fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?);
-            let holds = fleet::holds(&waits, start, report.waypoints.len());
-            let (replay2, world2, report2, robots2) = (
-                Arc::clone(replay),
-                Arc::clone(world),
-                report.clone(),
-                Arc::clone(&robots),
-            );
-            let among = self
-                .blocking(move || replay2.among(&world2, &report2, &robots2, &holds))
-                .await??;
+            let among = if others.is_empty() && waits.is_empty() && report.drives_again_alike() {
+                rehearsal::AmongReport {
+                    outcome: rehearsal::AttemptOutcome::Reached,
+                    reason: "every goal reached, no other robot on the floor".to_owned(),
+                    time_s: report.simulated_time_s,
+                    min_robot_clearance_m: None,
+                    robots: 0,
+                    steps: report.steps.clone(),
+                    control_period_s: report.control_period_s,
+                }
+            } else {
+                let holds = fleet::holds(&waits, start, report.waypoints.len());
+                let (replay2, world2, report2, robots2) = (
+                    Arc::clone(replay),
+                    Arc::clone(world),
+                    report.clone(),
+                    Arc::clone(&robots),
+                );
+                self.blocking(move || replay2.among(&world2, &report2, &robots2, &holds))
+                    .await??
+            };
             let refused = |robot: String, message: String| {
                 PlanFailure::FleetConflict(NoFit {
                     robots: vec![robot],

@@ -6,21 +6,22 @@
 //! This checks what the schedule's geometry cannot: that the robot, holding at its waypoints
 //! and setting off again under noise, with its controller reacting to what its laser sees,
 //! still arrives without touching another robot.
+//!
+//! Each leg is driven with the noise, people and controller state of the attempt that
+//! validated it, so a plan with no other robot on its floor and nothing to wait for drives
+//! exactly as it was validated ([`PlanReport::drives_again_alike`]): the planner then commits
+//! the validating drive without driving it again, and a joint run of the committed plans
+//! starts every robot on the drive it was committed with.
 
 use std::sync::Arc;
 
-use grid::seed::mix;
 use sim::{Action, OtherRobots, World};
 
 use crate::controller::Controller;
 use crate::drive::{DriveLimits, drive};
 use crate::error::PlanError;
-use crate::executor::{Driver, recoveries_for};
+use crate::executor::{Driver, leg_seed, recoveries_for};
 use crate::types::{AttemptOutcome, PlanReport, PlanRequest};
-
-/// Mixed into the plan's seed for the drive among the fleet, so that it is not the
-/// validating run's noise again.
-const AMONG_STREAM: u64 = 0x0f1e_e7a1_0e6e_7e5d;
 
 /// How a plan fared driven among the other robots.
 #[derive(Clone, Debug, PartialEq)]
@@ -77,7 +78,6 @@ pub fn drive_among(
     let mut pose = request.start;
     let (mut clock_s, mut first) = (0.0, 0usize);
     let mut closest: Option<f64> = None;
-    let seed = mix(opts.seed, AMONG_STREAM);
     let mut steps: Vec<sim::Pose2> = Vec::new();
     let dt = primary.env.control_period;
     for (leg, leg_report) in report.legs.iter().enumerate() {
@@ -95,7 +95,9 @@ pub fn drive_among(
             Some(f) if leg_report.by_fallback => f,
             _ => &mut primary,
         };
-        driver.controller.start_attempt(0);
+        // The validating attempt's noise, people and controller state (see the module).
+        let attempt = report.validating_attempt(leg);
+        driver.controller.start_attempt(attempt);
         // This leg's clock starts at 0: the other robots and the holds move with it.
         let shifted = Arc::new(others.shifted(-clock_s));
         let leg_holds: Vec<f64> = (first..=last + 1)
@@ -110,7 +112,7 @@ pub fn drive_among(
             DriveLimits {
                 waypoint_timeout_s: opts.waypoint_timeout_s,
                 max_replans: 0,
-                sim_seed: mix(seed, leg as u64),
+                sim_seed: leg_seed(opts.seed, attempt, leg),
                 initial_velocity: Action::default(),
                 stop: request.stop.clone(),
                 trace: false,

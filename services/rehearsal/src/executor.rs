@@ -547,7 +547,7 @@ fn drive_draws(
 }
 
 /// The simulation seed of one attempt on one leg: the first leg's are those of a one-leg plan.
-fn leg_seed(seed: u64, attempt: u32, leg: usize) -> u64 {
+pub(crate) fn leg_seed(seed: u64, attempt: u32, leg: usize) -> u64 {
     let s = mix(seed, u64::from(attempt));
     if leg == 0 { s } else { mix(s, leg as u64) }
 }
@@ -593,6 +593,10 @@ fn assemble(
             distance_m: run.distance_m,
             min_clearance_m: run.min_clearance_m,
             replans: run.replans,
+            rerouted: run
+                .recoveries
+                .iter()
+                .any(|r| r.kind == crate::recovery::RecoveryKind::Reroute),
         });
     }
     let waypoint_path_length_m = polyline_length(start, &waypoints);

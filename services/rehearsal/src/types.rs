@@ -242,6 +242,24 @@ pub struct PlanReport {
     pub control_period_s: f64,
 }
 
+impl PlanReport {
+    /// The attempt (1-based, as [`AttemptReport::attempt`] numbers it) whose run validated
+    /// `leg`; 1 for a leg the report holds no such run of.
+    pub fn validating_attempt(&self, leg: usize) -> u32 {
+        self.attempts
+            .iter()
+            .find(|a| a.leg == leg && a.outcome == AttemptOutcome::Reached)
+            .map_or(1, |a| a.attempt)
+    }
+
+    /// Whether [`crate::drive_among`] with no other robot and no hold drives exactly
+    /// [`PlanReport::steps`] again: it does when no validating run replanned (a drive among
+    /// the fleet follows the waypoints reached, without replanning or re-routing).
+    pub fn drives_again_alike(&self) -> bool {
+        self.legs.iter().all(|l| l.replans == 0 && !l.rerouted)
+    }
+}
+
 /// The validated plan driven again among fresh draws of people.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DrawsReport {
@@ -286,6 +304,8 @@ pub struct LegReport {
     pub min_clearance_m: f64,
     /// Replans in the validating run.
     pub replans: u32,
+    /// Whether the validating run re-routed around a blocked stretch (a recovery).
+    pub rerouted: bool,
 }
 
 /// The roadmap a report planned on.

@@ -65,6 +65,82 @@ fn alone_the_plan_arrives_as_rehearsed() {
     assert_eq!(among.outcome, AttemptOutcome::Reached, "{among:?}");
     assert_eq!(among.min_robot_clearance_m, None);
     assert_eq!(among.robots, 0);
+    assert!(planned.1.drives_again_alike(), "{:?}", planned.1.legs);
+    assert_eq!(
+        among.steps, planned.1.steps,
+        "driven again alone, step for step"
+    );
+    assert_eq!(among.time_s, planned.1.simulated_time_s);
+}
+
+/// What lets the planner commit a plan alone on its floor without driving it again: driven
+/// among no robot and with no hold, a validated plan is its validating drive, step for step,
+/// whichever controller and attempt validated each leg, among people and under noise.
+#[test]
+fn alone_every_controller_drives_its_validated_legs_again_step_for_step() {
+    let world = room();
+    for people in [0, 3] {
+        let mut options = PlanOptions {
+            seed: 11 + people as u64,
+            ..PlanOptions::default()
+        };
+        options.people = sim::PeopleConfig {
+            count: (people > 0).then_some(people),
+            ..sim::PeopleConfig::default()
+        };
+        let request = PlanRequest {
+            start: Pose2::new(2.0, 2.0, 0.0),
+            goals: vec![
+                Point2::new(7.5, 6.0),
+                Point2::new(2.5, 6.5),
+                Point2::new(7.0, 2.0),
+            ],
+            options,
+            stop: rehearsal::Stop::default(),
+        };
+        let controllers: [fn() -> Box<dyn rehearsal::Controller>; 3] = [
+            || Box::new(ClassicalFollower::default()),
+            || Box::new(rehearsal::RppController::new()),
+            || Box::new(rehearsal::MppiController::new(5)),
+        ];
+        for make in controllers {
+            let (mut primary, mut follower) = (make(), rehearsal::follower_for(&request.options));
+            let report = rehearsal::validate_with_fallback(
+                &world,
+                &RoadmapCache::default(),
+                "room",
+                &request,
+                &mut *primary,
+                Some(&mut *follower),
+                None,
+            )
+            .unwrap();
+            let kind = primary.kind();
+            assert!(report.drives_again_alike(), "{kind:?}: {:?}", report.legs);
+            let (mut primary, mut follower) = (make(), rehearsal::follower_for(&request.options));
+            let again = drive_among(
+                &world,
+                &request,
+                &report,
+                &mut *primary,
+                Some(&mut *follower),
+                &OtherRobots::default(),
+                &[],
+            )
+            .unwrap();
+            assert_eq!(
+                again.outcome,
+                AttemptOutcome::Reached,
+                "{kind:?}: {again:?}"
+            );
+            assert_eq!(
+                again.steps.len(),
+                report.steps.len(),
+                "{kind:?}, {people} people"
+            );
+            assert_eq!(again.steps, report.steps, "{kind:?}, {people} people");
+        }
+    }
 }
 
 /// A robot parked on the route the whole time is met, and named; the same robot leaving

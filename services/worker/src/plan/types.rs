@@ -855,6 +855,7 @@ impl From<rehearsal::LegReport> for LegReport {
             distance_m,
             min_clearance_m,
             replans,
+            rerouted: _,
         } = l;
         Self {
             goal_index,
