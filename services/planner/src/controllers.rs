@@ -291,7 +291,7 @@ pub struct TrialFloor<'a> {
     pub world: &'a Arc<World>,
     /// Geometric roadmaps (shared with plans).
     pub roadmaps: &'a RoadmapCache,
-    /// The floor state (the roadmap cache's key).
+    /// The roadmap cache's key ([`sim::World::geometry_key`] of `world`).
     pub version: &'a str,
     /// The policy, when the robot has one: the hybrid candidates drive it.
     pub policy: Option<&'a Arc<Policy>>,

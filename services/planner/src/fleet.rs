@@ -31,7 +31,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use planning::Point2;
 use sim::Pose2;
-use traffic::{Conflict, Itinerary, TimedPose};
+use traffic::{Conflict, Itinerary, Reserved, TimedPose};
 
 /// A boxed future of a [`FleetSchedule`] call.
 pub type FleetFuture<'a, T> = Pin<Box<dyn Future<Output = Result<T, String>> + Send + 'a>>;
@@ -352,7 +352,7 @@ impl Draft<'_> {
 /// The first conflict of `itinerary` with `others` (footprints closer than
 /// [`ROBOT_MARGIN_M`], each robot anywhere within its tolerance of its schedule).
 pub fn first_conflict(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
-    first(itinerary, others)
+    first(itinerary, &Reserved::new(others, itinerary.start_unix_ms))
 }
 
 /// `fitted` with the trajectory the robot drove (`steps` every `dt` seconds from
@@ -383,10 +383,8 @@ pub fn driven(fitted: &Itinerary, start_unix_ms: i64, steps: &[Pose2], dt: f64) 
     out
 }
 
-fn first(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
-    traffic::conflicts(itinerary, others, ROBOT_MARGIN_M)
-        .into_iter()
-        .next()
+fn first(itinerary: &Itinerary, others: &Reserved<'_>) -> Option<Conflict> {
+    others.first(itinerary, ROBOT_MARGIN_M)
 }
 
 /// A fitted plan: its itinerary, the step each waypoint is reached at, and each wait (the step
@@ -415,12 +413,14 @@ pub fn fit(
         dt,
         waits: Vec::new(),
     };
+    // The others are cut into pieces once for every candidate checked below.
+    let committed = Reserved::new(others, template.start_unix_ms);
     let mut ceiling = stops.len();
     let mut blockers: Vec<(usize, Vec<String>)> = Vec::new();
     let mut in_the_way: Vec<String> = Vec::new();
     loop {
         let itinerary = draft.itinerary(template);
-        let Some(c) = first(&itinerary, others) else {
+        let Some(c) = first(&itinerary, &committed) else {
             let waits = draft
                 .waits
                 .iter()
@@ -439,7 +439,14 @@ pub fn fit(
             in_the_way.push(c.b_robot.clone());
         }
         if draft.total_wait() + WAIT_STEP_S > max_wait_s + 1e-9 {
-            let refused = no_fit(template, &draft, others, in_the_way.clone(), max_wait_s);
+            let refused = no_fit(
+                template,
+                &draft,
+                others,
+                &committed,
+                in_the_way.clone(),
+                max_wait_s,
+            );
             // Waits along the way did not fit in the budget; a later start within it does.
             if let Some(t) = refused.earliest_start_unix_ms {
                 // Off at `t`, as the earliest start was found: the robot takes its place in
@@ -454,7 +461,7 @@ pub fn fit(
                     waits: Vec::new(),
                 }
                 .itinerary(&shifted);
-                if wait <= max_wait_s + 1e-9 && first(&itinerary, others).is_none() {
+                if wait <= max_wait_s + 1e-9 && first(&itinerary, &committed).is_none() {
                     return Ok((itinerary, at_waypoint, vec![(0, wait, dedup(in_the_way))]));
                 }
             }
@@ -514,6 +521,7 @@ fn no_fit(
     template: &Itinerary,
     draft: &Draft<'_>,
     others: &[Itinerary],
+    committed: &Reserved<'_>,
     robots: Vec<String>,
     max_wait_s: f64,
 ) -> NoFit {
@@ -538,7 +546,7 @@ fn no_fit(
             expires_unix_ms: plain.expires_unix_ms + delay_ms,
             ..plain.clone()
         };
-        if first(&shifted, others).is_none() {
+        if first(&shifted, committed).is_none() {
             earliest = Some(shifted.start_unix_ms);
             break;
         }
@@ -622,7 +630,7 @@ mod tests {
             120.0,
         )
         .unwrap();
-        assert!(first(&it, std::slice::from_ref(&a)).is_none());
+        assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
         assert_eq!(at.len(), 2);
         assert_eq!(waits.len(), 1, "{waits:?}");
         // At the waypoint 2 m before the crossing, for A.
@@ -653,7 +661,7 @@ mod tests {
             120.0,
         )
         .unwrap();
-        assert!(first(&it, std::slice::from_ref(&a)).is_none());
+        assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
         // The corridor's end is in A's way (A arrives there): B waits at its start instead.
         assert_eq!(waits.len(), 1, "{waits:?}");
         assert_eq!(waits[0].0, 0, "a later start: {waits:?}");
@@ -696,7 +704,7 @@ mod tests {
             120.0,
         )
         .unwrap();
-        assert!(first(&it, std::slice::from_ref(&a)).is_none());
+        assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
         assert!(!waits.is_empty());
         assert!(
             waits.iter().all(|w| w.0 != at[1]),

@@ -264,10 +264,14 @@ pub struct Planner {
     /// Loaded policies by id, with the modification time of the weights they were read from.
     loaded: Mutex<HashMap<String, (SystemTime, LoadedPolicy)>>,
     applied: Arc<Applied>,
-    /// One lock per robot, held from a fleet snapshot to its commit: two plans for the same
-    /// robot at once (the later replaces the earlier anyway) would otherwise each see the
-    /// other's commit as a changed schedule and fit again, many times over.
-    robot_locks: Mutex<HashMap<String, Arc<tokio::sync::Mutex<()>>>>,
+    /// One lock per robot and one per floor (keyed `robot <IRI>`, `floor <IRI>`), held from a
+    /// fleet snapshot to its commit, the robot's first. Plans validate in parallel, but in this
+    /// process they are fitted and committed on a floor one at a time: each then sees the
+    /// previous one's commit, and none loses its commit to another (which would fit it and
+    /// drive it among the fleet again, as many times as plans committed meanwhile: twenty
+    /// plans at once spent most of their seconds so). Other processes still race through the
+    /// floor's version.
+    fleet_locks: Mutex<HashMap<String, Arc<tokio::sync::Mutex<()>>>>,
 }
 
 impl std::fmt::Debug for Planner {
@@ -298,7 +302,7 @@ impl Planner {
             fleet: None,
             loaded: Mutex::new(HashMap::new()),
             applied: Arc::default(),
-            robot_locks: Mutex::new(HashMap::new()),
+            fleet_locks: Mutex::new(HashMap::new()),
         }
     }
 
@@ -472,15 +476,15 @@ impl Planner {
             .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))
     }
 
-    /// The lock serialising `robot`'s fleet commits in this process.
-    fn robot_lock(&self, robot: &str) -> Arc<tokio::sync::Mutex<()>> {
+    /// The lock serialising the fleet commits of `key` (a robot or a floor) in this process.
+    fn fleet_lock(&self, key: String) -> Arc<tokio::sync::Mutex<()>> {
         let mut locks = self
-            .robot_locks
+            .fleet_locks
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
         // Locks nobody holds or waits for go, so the map stays as large as the robots planning.
         locks.retain(|_, l| Arc::strong_count(l) > 1);
-        Arc::clone(locks.entry(robot.to_owned()).or_default())
+        Arc::clone(locks.entry(key).or_default())
     }
 
     /// The validated plan among the other robots' committed plans on its floor: fitted with
@@ -511,8 +515,10 @@ impl Planner {
         // then twice as late each time, within `max_wait_s`.
         let mut later_s = 0.0f64;
         let mut in_the_way: Vec<String> = Vec::new();
-        let robot_lock = self.robot_lock(&db.robot);
-        let _one_at_a_time = robot_lock.lock().await;
+        let robot_lock = self.fleet_lock(format!("robot {}", db.robot));
+        let _one_plan_per_robot = robot_lock.lock().await;
+        let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
+        let _one_commit_per_floor = floor_lock.lock().await;
         let mut lost_commits = 0;
         while lost_commits < COMMIT_ATTEMPTS {
             let start = requested + (later_s * 1000.0).round() as i64;
@@ -873,7 +879,9 @@ impl Rehearsal {
             PlanPeople::AsGiven => PeopleSource::Density,
         };
         let crowd = request.options.people.clone();
-        let version = self.db.version.as_str();
+        // The roadmap cache's key: the floor's geometry and the robot's size, so robots of
+        // one model share configuration spaces and roadmaps.
+        let version = world.geometry_key();
         let choice = request.options.roadmap;
         let applied = self.policy_roadmap(&world, choice)?;
         let pick = self.pick(applied.as_ref().and_then(|a| a.trial.as_deref()))?;

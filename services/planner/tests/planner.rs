@@ -307,9 +307,13 @@ async fn auto_validates_with_the_controller_the_floors_trial_measured_best() {
         rollouts: 1,
         ..EdgeRolloutParams::default()
     };
-    let geometric =
-        planner::roadmaps::geometric_roadmap(&world, f.planner.roadmaps(), &f.db.version, margin)
-            .unwrap();
+    let geometric = planner::roadmaps::geometric_roadmap(
+        &world,
+        f.planner.roadmaps(),
+        world.geometry_key(),
+        margin,
+    )
+    .unwrap();
     let report = rehearsal::drive_edges(
         &world,
         &geometric,
@@ -324,7 +328,7 @@ async fn auto_validates_with_the_controller_the_floors_trial_measured_best() {
         &planner::controllers::TrialFloor {
             world: &world,
             roadmaps: f.planner.roadmaps(),
-            version: &f.db.version,
+            version: world.geometry_key(),
             policy: Some(&policy),
             policy_roadmap: Some(&policy_roadmap),
         },

@@ -78,20 +78,51 @@ pub fn first_conflict(a: &Itinerary, b: &Itinerary, margin_m: f64) -> Option<Con
 /// Every committed itinerary in `others` that `new` conflicts with (see [`first_conflict`]),
 /// earliest first. `new` is cut into pieces once; the cost is linear in the total length.
 pub fn conflicts(new: &Itinerary, others: &[Itinerary], margin_m: f64) -> Vec<Conflict> {
-    let origin = new.start_unix_ms;
-    let mine = Occupancy::of(new, origin);
-    let mut work = Work::default();
-    let mut found: Vec<Conflict> = others
-        .iter()
-        .filter(|other| other.robot != new.robot && other.floor == new.floor)
-        .filter_map(|other| earliest(&mine, &Occupancy::of(other, origin), margin_m, &mut work))
-        .collect();
-    found.sort_by(|x, y| {
-        x.at_unix_ms
-            .cmp(&y.at_unix_ms)
-            .then_with(|| x.b_robot.cmp(&y.b_robot))
-    });
-    found
+    Reserved::new(others, new.start_unix_ms).conflicts(new, margin_m)
+}
+
+/// Committed itineraries cut into pieces once, to check many candidate itineraries against
+/// (a plan fitted with one wait more at a time, or started one second later at a time): the
+/// candidates are cut on each check, the committed ones not again.
+pub struct Reserved<'a> {
+    origin_ms: i64,
+    others: Vec<Occupancy<'a>>,
+}
+
+impl<'a> Reserved<'a> {
+    /// `others` cut with times in seconds after `origin_ms` (any instant near the candidates'
+    /// starts: it only keeps the seconds small).
+    pub fn new(others: &'a [Itinerary], origin_ms: i64) -> Self {
+        Self {
+            origin_ms,
+            others: others.iter().map(|o| Occupancy::of(o, origin_ms)).collect(),
+        }
+    }
+
+    /// [`conflicts`] of `new` with these itineraries.
+    pub fn conflicts(&self, new: &Itinerary, margin_m: f64) -> Vec<Conflict> {
+        let mine = Occupancy::of(new, self.origin_ms);
+        let mut work = Work::default();
+        let mut found: Vec<Conflict> = self
+            .others
+            .iter()
+            .filter(|other| {
+                other.itinerary.robot != new.robot && other.itinerary.floor == new.floor
+            })
+            .filter_map(|other| earliest(&mine, other, margin_m, &mut work))
+            .collect();
+        found.sort_by(|x, y| {
+            x.at_unix_ms
+                .cmp(&y.at_unix_ms)
+                .then_with(|| x.b_robot.cmp(&y.b_robot))
+        });
+        found
+    }
+
+    /// The earliest of [`Reserved::conflicts`].
+    pub fn first(&self, new: &Itinerary, margin_m: f64) -> Option<Conflict> {
+        self.conflicts(new, margin_m).into_iter().next()
+    }
 }
 
 /// What a search did: the unit test of the cost counts it.

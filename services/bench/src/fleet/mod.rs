@@ -443,8 +443,18 @@ fn run_floor(
         )
         .with_fleet(Arc::clone(&schedule) as Arc<dyn FleetSchedule>),
     );
-    // The roadmap of the floor, once, before the clock runs (every robot has its own
-    // database version, so each plans on its own cached roadmap: warm them all).
+    // The floor's configuration space, once, before the clock runs: every robot's world has
+    // the same geometry, so all of them plan on it (as robots of one model do in the service).
+    rehearsal::config_space(
+        &world,
+        planner.roadmaps(),
+        world.geometry_key(),
+        PlanOptions::default().safety_margin_m,
+    )
+    .map_err(|source| BenchError::Rehearsal {
+        map: name.to_owned(),
+        source,
+    })?;
     let people = sim::PeopleConfig {
         density: opts.people,
         ..sim::PeopleConfig::default()

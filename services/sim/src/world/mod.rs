@@ -187,6 +187,8 @@ pub struct World {
     robot_height: f64,
     /// Where people walk ([`crate::crowd`]), made when a simulation first has people.
     people_targets: std::sync::OnceLock<Arc<crate::crowd::Targets>>,
+    /// [`World::geometry_key`], made on first use.
+    geometry_key: std::sync::OnceLock<String>,
 }
 
 /// Why a world could not be built.
@@ -349,7 +351,49 @@ impl World {
             collision_buckets,
             region: FreeRegion { cells, member },
             people_targets: std::sync::OnceLock::new(),
+            geometry_key: std::sync::OnceLock::new(),
         }))
+    }
+
+    /// Names what a planner's grid of this world depends on, and nothing else: the floor's
+    /// cells, its walls and objects, the robot's footprint radius and height (an FNV-1a hash,
+    /// 16 hex digits). Two robots of one model on one floor share it whatever their names, so
+    /// they share configuration spaces and roadmaps; any change to the floor changes it.
+    pub fn geometry_key(&self) -> &str {
+        self.geometry_key.get_or_init(|| {
+            let mut h = grid::hash::Fnv1a::new();
+            let spec = &self.spec;
+            if let Some(floor) = &spec.floor {
+                let g = &floor.grid;
+                for v in [g.width as u64, g.height as u64] {
+                    h.write(&v.to_le_bytes());
+                }
+                for v in [
+                    g.resolution,
+                    g.origin.x,
+                    g.origin.y,
+                    g.origin.yaw,
+                    floor.wall_height,
+                ] {
+                    h.write(&v.to_bits().to_le_bytes());
+                }
+                let cells: Vec<u8> = g
+                    .cells
+                    .iter()
+                    .map(|c| match c {
+                        Occupancy::Free => 0,
+                        Occupancy::Occupied => 1,
+                        Occupancy::Unknown => 2,
+                    })
+                    .collect();
+                h.write(&cells);
+            }
+            h.write(format!("{:?}|{:?}", spec.walls, spec.objects).as_bytes());
+            for v in [self.robot_radius, self.robot_height] {
+                h.write(&v.to_bits().to_le_bytes());
+            }
+            format!("{:016x}", h.finish())
+        })
     }
 
     /// Where people walk in this world: the knowledge's routes and attractors and points spread

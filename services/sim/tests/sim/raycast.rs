@@ -210,3 +210,32 @@ fn scans_use_the_mounting_pose_and_clamp_to_the_range() {
     // Rightmost beam (-90°) facing -x points to +y: wall at 5.95.
     assert!((out[0] - 2.95).abs() < 1e-9, "{}", out[0]);
 }
+
+/// Two robots of one model on one floor share a geometry key (and so configuration spaces and
+/// roadmaps) whatever their names; the robot's size, a cell of the floor or an object changes it.
+#[test]
+fn the_geometry_key_names_the_floor_and_the_robots_size_not_the_robot() {
+    let key = |spec: sim::WorldSpec| World::build(spec).unwrap().geometry_key().to_owned();
+    let base = key(room(6.0, 4.0));
+    let mut renamed = room(6.0, 4.0);
+    renamed.robot.id = "https://example.org/robots/another".into();
+    renamed.id = "another mission".into();
+    assert_eq!(key(renamed), base);
+    let mut wider = room(6.0, 4.0);
+    wider.robot.footprint_radius += 0.05;
+    assert_ne!(key(wider), base);
+    let mut blocked = room(6.0, 4.0);
+    if let Some(f) = blocked.floor.as_mut() {
+        f.grid.cells[f.grid.width * 20 + 30] = sim::Occupancy::Occupied;
+    }
+    assert_ne!(key(blocked), base);
+    let mut furnished = room(6.0, 4.0);
+    furnished.objects.push(object(
+        "box",
+        None,
+        Shape::Box,
+        Size3::new(0.5, 0.5, 0.5),
+        Pose3::new(3.0, 2.0, 0.25, 0.0),
+    ));
+    assert_ne!(key(furnished), base);
+}

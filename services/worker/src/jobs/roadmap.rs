@@ -172,7 +172,6 @@ impl JobHandler for RoadmapHandler {
         let key = PolicyRoadmapKey::new(&db.version, &payload.policy, &dir, margin, &params)
             .ok_or_else(|| JobError::Fatal("the policy's weights cannot be read".into()))?;
         let roadmaps = Arc::clone(&self.env.roadmaps);
-        let version = db.version.clone();
         let trial_missions = payload
             .trial_missions
             .unwrap_or(planner::controllers::DEFAULT_TRIAL_MISSIONS)
@@ -183,6 +182,9 @@ impl JobHandler for RoadmapHandler {
                     .map_err(|e| JobError::Fatal(format!("the policy does not load: {e}")))?,
             );
             let world = db.world().map_err(JobError::Fatal)?;
+            // The geometric roadmap plans on this floor share (the cache's key names the
+            // floor's geometry and the robot's size, not the robot).
+            let version = world.geometry_key().to_owned();
             let geometric =
                 geometric_roadmap(&world, &roadmaps, &version, margin).map_err(JobError::Fatal)?;
             let started = std::time::Instant::now();
