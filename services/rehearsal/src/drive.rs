@@ -30,7 +30,7 @@ pub fn hit_person(reason: &str) -> bool {
 /// fast the robot drove, and whether the laser could see them (empty without people).
 fn person_contact(env: &NavEnv, robot_linear: f32) -> String {
     let pose = env.pose();
-    let gap = |q: &sim::Person| (q.position.0 - pose.x).hypot(q.position.1 - pose.y) - q.radius;
+    let gap = |q: &sim::Person| sim::norm(q.position.0 - pose.x, q.position.1 - pose.y) - q.radius;
     let Some(q) = env.people().iter().min_by(|a, b| gap(a).total_cmp(&gap(b))) else {
         return String::new();
     };
@@ -38,7 +38,7 @@ fn person_contact(env: &NavEnv, robot_linear: f32) -> String {
     let bearing = sim::kinematics::wrap_angle(dy.atan2(dx) - pose.yaw);
     let v = f64::from(robot_linear);
     let (rvx, rvy) = (v * pose.yaw.cos(), v * pose.yaw.sin());
-    let dist = dx.hypot(dy).max(1e-9);
+    let dist = sim::norm(dx, dy).max(1e-9);
     let closing = -((q.velocity.0 - rvx) * dx + (q.velocity.1 - rvy) * dy) / dist;
     let view = env.beam_angles().iter().fold(0.0f64, |m, a| m.max(a.abs()));
     let gap = gap(q) - env.world().spec().robot.footprint_radius;
@@ -56,7 +56,7 @@ fn person_contact(env: &NavEnv, robot_linear: f32) -> String {
     format!(
         "; the nearest person was {gap:.2} m away {side}{seen}, walking {:.2} m/s and closing \
          at {closing:.2} m/s, the robot driving {v:.2} m/s",
-        q.velocity.0.hypot(q.velocity.1)
+        sim::norm(q.velocity.0, q.velocity.1)
     )
 }
 

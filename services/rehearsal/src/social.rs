@@ -63,7 +63,7 @@ impl SocialTracker {
             self.inside.resize(people.len(), (false, false));
         }
         for (q, inside) in people.iter().zip(&mut self.inside) {
-            let gap = (q.0.0 - x).hypot(q.0.1 - y) - q.1 - radius;
+            let gap = sim::norm(q.0.0 - x, q.0.1 - y) - q.1 - radius;
             let update = |flag: &mut bool, threshold: f64, count: &mut u32| {
                 if !*flag && gap < threshold {
                     *flag = true;

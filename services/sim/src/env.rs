@@ -774,7 +774,7 @@ impl NavEnv {
             self.trajectory.push(self.pose);
         }
         let time_s = f64::from(self.steps) * dt;
-        let distance = (self.goal.0 - self.pose.x).hypot(self.goal.1 - self.pose.y);
+        let distance = crate::norm(self.goal.0 - self.pose.x, self.goal.1 - self.pose.y);
         self.potential = self.potential_at(distance);
         self.outcome = if collided {
             Outcome::Collision

@@ -236,11 +236,11 @@ impl Mppi {
                 world
                     .unknown
                     .iter()
-                    .any(|u| (u.0 - q.0).hypot(u.1 - q.1) < world.radius)
+                    .any(|u| crate::norm(u.0 - q.0, u.1 - q.1) < world.radius)
             })
             .count();
         let occupancy = blocked as f64 / window.len().max(1) as f64;
-        let to_goal = (goal.0 - pose.x).hypot(goal.1 - pose.y);
+        let to_goal = crate::norm(goal.0 - pose.x, goal.1 - pose.y);
 
         // Samples: noise around the optimal sequence, clamped.
         let nv = Normal::new(0.0, p.vx_std.max(1e-9)).ok();
@@ -370,7 +370,7 @@ impl Ctx<'_> {
         for q in rollout {
             let mut c = (self.world.clearance)(q.x, q.y);
             for u in self.world.unknown {
-                c = c.min((u.0 - q.x).hypot(u.1 - q.y) - self.world.radius);
+                c = c.min(crate::norm(u.0 - q.x, u.1 - q.y) - self.world.radius);
             }
             if c < 0.0 {
                 return Scored {
@@ -389,7 +389,7 @@ impl Ctx<'_> {
         if self.to_goal < p.goal_threshold {
             let d: f64 = rollout
                 .iter()
-                .map(|q| (q.x - self.goal.0).hypot(q.y - self.goal.1))
+                .map(|q| crate::norm(q.x - self.goal.0, q.y - self.goal.1))
                 .sum();
             cost += p.goal_weight * d / n;
         }
@@ -407,7 +407,7 @@ impl Ctx<'_> {
             && let Some(end) = rollout.last()
         {
             let target = self.window[(furthest + p.path_follow_offset).min(last)];
-            cost += p.path_follow_weight * (end.x - target.0).hypot(end.y - target.1);
+            cost += p.path_follow_weight * crate::norm(end.x - target.0, end.y - target.1);
         }
         // Path align: distance of the rollout's points to the path, once on it.
         if self.to_goal >= p.near_goal_threshold
@@ -419,7 +419,7 @@ impl Ctx<'_> {
             for q in rollout.iter().step_by(p.path_align_point_step.max(1)) {
                 let d = upto
                     .iter()
-                    .map(|w| (w.0 - q.x).hypot(w.1 - q.y))
+                    .map(|w| crate::norm(w.0 - q.x, w.1 - q.y))
                     .fold(f64::INFINITY, f64::min);
                 sum += d;
                 count += 1;
@@ -450,8 +450,8 @@ fn nearest_index(path: &[(f64, f64)], p: (f64, f64)) -> usize {
     path.iter()
         .enumerate()
         .min_by(|a, b| {
-            let da = (a.1.0 - p.0).hypot(a.1.1 - p.1);
-            let db = (b.1.0 - p.0).hypot(b.1.1 - p.1);
+            let da = crate::norm(a.1.0 - p.0, a.1.1 - p.1);
+            let db = crate::norm(b.1.0 - p.0, b.1.1 - p.1);
             da.total_cmp(&db)
         })
         .map_or(0, |(i, _)| i)

@@ -109,7 +109,7 @@ pub fn clearance(
     radius: f64,
 ) -> (f64, Option<usize>) {
     at.iter()
-        .map(|&(i, (ox, oy), r)| ((ox - x).hypot(oy - y) - r - radius, Some(i)))
+        .map(|&(i, (ox, oy), r)| (crate::norm(ox - x, oy - y) - r - radius, Some(i)))
         .fold(
             (f64::INFINITY, None),
             |best, c| if c.0 < best.0 { c } else { best },

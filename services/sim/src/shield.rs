@@ -164,7 +164,7 @@ impl Shield {
         let mut last: Option<(f64, f64)> = None;
         for (i, p) in points.iter().enumerate() {
             let gap_allowed = |p: (f64, f64)| {
-                let r = (p.0 - self.origin.0).hypot(p.1 - self.origin.1);
+                let r = crate::norm(p.0 - self.origin.0, p.1 - self.origin.1);
                 CLUSTER_GAP_M.max(1.5 * r * spacing)
             };
             // On a map, what it knows and what it does not are different things.
@@ -172,7 +172,7 @@ impl Shield {
             match (p, last) {
                 (Some(p), Some(q))
                     if (map.is_none() || same_kind)
-                        && (p.0 - q.0).hypot(p.1 - q.1) <= gap_allowed(*p) =>
+                        && crate::norm(p.0 - q.0, p.1 - q.1) <= gap_allowed(*p) =>
                 {
                     if let Some((_, c)) = clusters.last_mut() {
                         c.push(*p);
@@ -183,7 +183,7 @@ impl Shield {
             }
             last = *p;
         }
-        let range_of = |p: (f64, f64)| (p.0 - self.origin.0).hypot(p.1 - self.origin.1);
+        let range_of = |p: (f64, f64)| crate::norm(p.0 - self.origin.0, p.1 - self.origin.1);
         // A thing in front of what is behind it: the beams either side of it reach farther
         // (or nothing). The end of a wall seen at a grazing angle is not: the wall goes on
         // nearer on one side.
@@ -222,7 +222,7 @@ impl Shield {
             let small = if map.is_some() {
                 unknown[*start]
             } else {
-                (first.0 - end.0).hypot(first.1 - end.1) <= MOVER_MAX_WIDTH_M
+                crate::norm(first.0 - end.0, first.1 - end.1) <= MOVER_MAX_WIDTH_M
                     && in_front(*start, cluster.len(), cluster)
             };
             let n = cluster.len() as f64;
@@ -233,16 +233,16 @@ impl Shield {
             let mut velocity = (0.0, 0.0);
             if small && dt > 0.0 {
                 let nearest = previous.iter().min_by(|a, b| {
-                    let d = |q: &(f64, f64)| (q.0 - centroid.0).hypot(q.1 - centroid.1);
+                    let d = |q: &(f64, f64)| crate::norm(q.0 - centroid.0, q.1 - centroid.1);
                     d(&a.0).total_cmp(&d(&b.0))
                 });
                 if let Some((q, u)) = nearest
-                    && (q.0 - centroid.0).hypot(q.1 - centroid.1) <= MOVER_MAX_STEP_M
+                    && crate::norm(q.0 - centroid.0, q.1 - centroid.1) <= MOVER_MAX_STEP_M
                 {
                     let raw = ((centroid.0 - q.0) / dt, (centroid.1 - q.1) / dt);
                     let k = MOVER_SMOOTHING;
                     velocity = (k * raw.0 + (1.0 - k) * u.0, k * raw.1 + (1.0 - k) * u.1);
-                    let speed = velocity.0.hypot(velocity.1);
+                    let speed = crate::norm(velocity.0, velocity.1);
                     if speed > MOVER_MAX_SPEED {
                         velocity = (
                             velocity.0 * MOVER_MAX_SPEED / speed,
@@ -252,7 +252,7 @@ impl Shield {
                 }
                 now_small.push((centroid, velocity));
             }
-            let moving = velocity.0.hypot(velocity.1) >= MOVER_MIN_SPEED;
+            let moving = crate::norm(velocity.0, velocity.1) >= MOVER_MIN_SPEED;
             velocities.extend(std::iter::repeat_n(
                 if moving { velocity } else { (0.0, 0.0) },
                 cluster.len(),

@@ -59,7 +59,7 @@ pub fn densify(path: &[(f64, f64)], spacing: f64) -> Vec<(f64, f64)> {
     out.push(first);
     for w in path.windows(2) {
         let (a, b) = (w[0], w[1]);
-        let d = (b.0 - a.0).hypot(b.1 - a.1);
+        let d = crate::norm(b.0 - a.0, b.1 - a.1);
         #[allow(
             clippy::cast_possible_truncation,
             clippy::cast_sign_loss,

@@ -24,7 +24,7 @@ impl PathTrack {
         for (i, p) in points.iter().enumerate() {
             if i > 0 {
                 let q = points[i - 1];
-                s += (p.0 - q.0).hypot(p.1 - q.1);
+                s += crate::norm(p.0 - q.0, p.1 - q.1);
             }
             along.push(s);
         }
@@ -72,7 +72,7 @@ impl PathTrack {
         }
         let start = self.progress.min(self.points.len() - 1);
         let limit = self.along[start] + search_m;
-        let d = |p: &(f64, f64)| (p.0 - pose.x).hypot(p.1 - pose.y);
+        let d = |p: &(f64, f64)| crate::norm(p.0 - pose.x, p.1 - pose.y);
         let mut best = (start, d(&self.points[start]));
         for i in start + 1..self.points.len() {
             if self.along[i] > limit {
@@ -89,7 +89,7 @@ impl PathTrack {
     /// The carrot: the first point after the progress at least `lookahead_m` from `pose`
     /// (interpolated on the segment that crosses that circle), or the path's end.
     pub fn carrot(&self, pose: Pose2, lookahead_m: f64) -> Option<(f64, f64)> {
-        let d = |p: &(f64, f64)| (p.0 - pose.x).hypot(p.1 - pose.y);
+        let d = |p: &(f64, f64)| crate::norm(p.0 - pose.x, p.1 - pose.y);
         let start = self.progress.min(self.points.len().checked_sub(1)?);
         for i in start..self.points.len() {
             if d(&self.points[i]) >= lookahead_m {
@@ -120,8 +120,8 @@ impl PathTrack {
             .iter()
             .enumerate()
             .min_by(|a, b| {
-                let da = (a.1.0 - p.0).hypot(a.1.1 - p.1);
-                let db = (b.1.0 - p.0).hypot(b.1.1 - p.1);
+                let da = crate::norm(a.1.0 - p.0, a.1.1 - p.1);
+                let db = crate::norm(b.1.0 - p.0, b.1.1 - p.1);
                 da.total_cmp(&db)
             })
             .map_or(0, |(i, _)| i)

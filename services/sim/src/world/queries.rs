@@ -191,7 +191,7 @@ impl World {
         reason = "the step count is a small positive number"
     )]
     pub fn segment_clearance(&self, a: (f64, f64), b: (f64, f64)) -> f64 {
-        let length = (b.0 - a.0).hypot(b.1 - a.1);
+        let length = crate::norm(b.0 - a.0, b.1 - a.1);
         if !length.is_finite() {
             return f64::NEG_INFINITY;
         }
