@@ -8,8 +8,8 @@ Standard library only.
 
 - The binary (:func:`default_binary`): MENTALSIM_BIN, else $CARGO_TARGET_DIR/release/mentalsim
   (CARGO_TARGET_DIR as scripts/env.sh sets it: ~/.cache/mentalsim/target by default).
-- The shared maps (:func:`shared_maps`): MENTALSIM_SHARED_MAPS, else ../shared/maps/ros beside
-  the repository.
+- The shared maps (:func:`shared_maps`): MENTALSIM_SHARED_MAPS, else $MENTALSIM_SHARED/maps/ros,
+  else ../shared/maps/ros beside the repository.
 - A missing tool, file or binary is a skip, but a failure under CI=true or
   MENTALSIM_REQUIRE_ALL=1 (:func:`require_all`). :func:`missing` raises :class:`Missing`, which
   says which of the two it is, for the caller to report its own way (tests/browser/run.py: its
@@ -98,9 +98,12 @@ def missing(what: str, hint: str = "") -> NoReturn:
 
 def shared_maps() -> Path:
     """The shared ROS maps (one folder per map, a .yaml beside its image): MENTALSIM_SHARED_MAPS,
-    else ../shared/maps/ros beside the repository. It may not exist."""
+    else maps/ros under MENTALSIM_SHARED (the shared data directory the Rust tests read), else
+    ../shared/maps/ros beside the repository. It may not exist."""
     if os.environ.get("MENTALSIM_SHARED_MAPS"):
         return Path(os.environ["MENTALSIM_SHARED_MAPS"])
+    if os.environ.get("MENTALSIM_SHARED"):
+        return Path(os.environ["MENTALSIM_SHARED"]) / "maps" / "ros"
     return ROOT.parent / "shared" / "maps" / "ros"
 
 

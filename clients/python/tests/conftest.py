@@ -174,7 +174,7 @@ def shared_map() -> Path:
     folder, yaml = SHARED_MAP
     path = shared_maps() / folder / yaml
     if not path.is_file():
-        missing(f"the shared map {path} (the shared maps directory is ../shared/maps/ros beside the repository, or MENTALSIM_SHARED_MAPS)")
+        missing(f"the shared map {path} (the shared maps directory is ../shared/maps/ros beside the repository, $MENTALSIM_SHARED/maps/ros, or MENTALSIM_SHARED_MAPS)")
     return path
 
 
