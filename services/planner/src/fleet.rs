@@ -191,6 +191,38 @@ pub fn simulated_robots(
     )
 }
 
+/// A plan alone on its floor with nothing to wait for, as its drive among the fleet: the
+/// validating drive itself, step for step (`rehearsal::drive_among` drives each leg with its
+/// validating attempt's noise).
+pub fn validated_alone(report: &rehearsal::PlanReport) -> rehearsal::AmongReport {
+    rehearsal::AmongReport {
+        outcome: rehearsal::AttemptOutcome::Reached,
+        reason: "every goal reached, no other robot on the floor".to_owned(),
+        time_s: report.simulated_time_s,
+        min_robot_clearance_m: None,
+        robots: 0,
+        steps: report.steps.clone(),
+        control_period_s: report.control_period_s,
+    }
+}
+
+/// The refusal of a plan whose drive among `robots` (`among`) did not arrive, naming the
+/// robots near where it ended.
+pub fn did_not_arrive(
+    robots: &sim::OtherRobots,
+    among: &rehearsal::AmongReport,
+    radius_m: f64,
+) -> NoFit {
+    NoFit {
+        robots: robots_near_the_end(robots, among, radius_m),
+        earliest_start_unix_ms: None,
+        message: format!(
+            "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
+            among.robots, among.reason
+        ),
+    }
+}
+
 /// The other robots within a metre of the footprint where `among`'s drive ended, when it
 /// ended (those that blocked it, when it stalled), closest first.
 pub fn robots_near_the_end(

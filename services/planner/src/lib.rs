@@ -615,15 +615,7 @@ impl Planner {
             let robots =
                 Arc::new(fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?);
             let among = if others.is_empty() && waits.is_empty() && report.drives_again_alike() {
-                rehearsal::AmongReport {
-                    outcome: rehearsal::AttemptOutcome::Reached,
-                    reason: "every goal reached, no other robot on the floor".to_owned(),
-                    time_s: report.simulated_time_s,
-                    min_robot_clearance_m: None,
-                    robots: 0,
-                    steps: report.steps.clone(),
-                    control_period_s: report.control_period_s,
-                }
+                fleet::validated_alone(report)
             } else {
                 let holds = fleet::holds(&waits, start, report.waypoints.len());
                 let (replay2, world2, report2, robots2) = (
@@ -668,20 +660,8 @@ impl Planner {
                 (itinerary, None)
             } else {
                 // Blocked (or out of time) among the others: not committed as it stands.
-                let why = format!(
-                    "driven again with its waits among the {} other robots' committed plans, the robot did not arrive: {}",
-                    among.robots, among.reason
-                );
-                let near = fleet::robots_near_the_end(
-                    &robots,
-                    &among,
-                    world.spec().robot.footprint_radius,
-                );
-                let no_fit = NoFit {
-                    robots: near,
-                    earliest_start_unix_ms: None,
-                    message: why,
-                };
+                let radius = world.spec().robot.footprint_radius;
+                let no_fit = fleet::did_not_arrive(&robots, &among, radius);
                 (itinerary, Some(PlanFailure::FleetConflict(no_fit)))
             };
             if let Some(PlanFailure::FleetConflict(no_fit)) = refusal {
