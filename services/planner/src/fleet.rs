@@ -380,7 +380,6 @@ impl Draft<'_> {
     }
 }
 
-/// The earliest conflict of `itinerary` with `others`, if any.
 /// The first conflict of `itinerary` with `others` (footprints closer than
 /// [`ROBOT_MARGIN_M`], each robot anywhere within its tolerance of its schedule).
 pub fn first_conflict(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
