@@ -148,6 +148,7 @@ mod tests {
             robots: 0,
             steps,
             control_period_s: 0.1,
+            people_draw: 0,
         };
         let it = driven(&committed, &report).unwrap();
         it.check().unwrap();

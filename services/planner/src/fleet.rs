@@ -100,6 +100,10 @@ pub const MAX_ROBOTS_PER_FLOOR: usize = 100;
 /// Nav2's 0.22 m default robot: 0.38 m beyond its footprint, `sim::rpp`); a robot that slows for
 /// another leaves its schedule, and the schedule holds only where nobody has to react.
 pub const ROBOT_MARGIN_M: f64 = 0.6 - sim::rpp::NAV2_DEFAULT_ROBOT_RADIUS_M;
+/// Fresh draws of people and noise a plan's drive among the fleet is tried with when it did
+/// not arrive and no other robot was involved (people or noise stopped it): as the rehearsal
+/// re-samples, a person who happened to stand in the way is not a conflict of the schedule.
+pub const FRESH_DRAWS: u32 = 2;
 /// Steps of waiting tried, seconds.
 const WAIT_STEP_S: f64 = 1.0;
 
@@ -154,6 +158,8 @@ pub struct FleetOutcome {
     /// The plan driven again with its waits among the other robots' committed plans (`None`
     /// when there were none).
     pub among: Option<rehearsal::AmongReport>,
+    /// The draw of people and noise of the drive committed ([`rehearsal::AmongReport::people_draw`]).
+    pub people_draw: u32,
     /// Other robots' itineraries it was checked against.
     pub others: usize,
     /// The floor's version after the commit; `None` when not committed.
@@ -203,6 +209,7 @@ pub fn validated_alone(report: &rehearsal::PlanReport) -> rehearsal::AmongReport
         robots: 0,
         steps: report.steps.clone(),
         control_period_s: report.control_period_s,
+        people_draw: 0,
     }
 }
 

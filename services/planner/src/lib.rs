@@ -146,7 +146,7 @@ impl PlanOutcome {
         &self,
         others: &[traffic::Itinerary],
     ) -> Result<rehearsal::AmongReport, PlanFailure> {
-        let (start, holds) = match &self.fleet {
+        let (start, holds, draw) = match &self.fleet {
             Some(f) => (
                 f.itinerary.start_unix_ms,
                 fleet::holds(
@@ -154,12 +154,13 @@ impl PlanOutcome {
                     f.itinerary.start_unix_ms,
                     self.report.waypoints.len(),
                 ),
+                f.people_draw,
             ),
-            None => (now_ms(), Vec::new()),
+            None => (now_ms(), Vec::new(), 0),
         };
         let robots = fleet::simulated_robots(others, start).map_err(PlanFailure::Internal)?;
         self.replay
-            .among(&self.world, &self.report, &robots, &holds)
+            .among(&self.world, &self.report, &robots, &holds, draw)
     }
 }
 
@@ -624,8 +625,11 @@ impl Planner {
                     report.clone(),
                     Arc::clone(&robots),
                 );
-                self.blocking(move || replay2.among(&world2, &report2, &robots2, &holds))
-                    .await??
+                let radius = world.spec().robot.footprint_radius;
+                self.blocking(move || {
+                    replay2.among_fresh_draws(&world2, &report2, &robots2, &holds, radius)
+                })
+                .await??
             };
             let refused = |robot: String, message: String| {
                 PlanFailure::FleetConflict(NoFit {
@@ -690,6 +694,7 @@ impl Planner {
                     .map(|&k| start + (k as f64 * among.control_period_s * 1000.0).round() as i64)
                     .collect();
             }
+            let people_draw = among.people_draw;
             let among = (!others.is_empty()).then_some(among);
             let version = if options.commit {
                 match schedule
@@ -711,6 +716,7 @@ impl Planner {
                 itinerary,
                 waypoint_times_unix_ms,
                 among,
+                people_draw,
                 waits,
                 others: others.len(),
                 version,
@@ -813,14 +819,40 @@ struct Replay {
 }
 
 impl Replay {
+    /// [`Self::among`] on the validating attempts' people and noise, then, while the drive
+    /// did not arrive and no other robot was involved (none touched, none within a metre of
+    /// where it ended: people or noise stopped it), among up to [`fleet::FRESH_DRAWS`] fresh
+    /// draws, as the rehearsal re-samples. The first drive that arrives, else the last. Blocks.
+    fn among_fresh_draws(
+        &self,
+        world: &Arc<World>,
+        report: &rehearsal::PlanReport,
+        others: &sim::OtherRobots,
+        holds: &[f64],
+        radius_m: f64,
+    ) -> Result<rehearsal::AmongReport, PlanFailure> {
+        let mut among = self.among(world, report, others, holds, 0)?;
+        for draw in 1..=fleet::FRESH_DRAWS {
+            let robots_involved = among.met_robot().is_some()
+                || !fleet::robots_near_the_end(others, &among, radius_m).is_empty();
+            if among.outcome == rehearsal::AttemptOutcome::Reached || robots_involved {
+                break;
+            }
+            among = self.among(world, report, others, holds, draw)?;
+        }
+        Ok(among)
+    }
+
     /// Drives `report` again among `others` with `holds` ([`rehearsal::drive_among`]), with
-    /// the controller picked and the follower behind it, as the rehearsal did. Blocks.
+    /// the controller picked and the follower behind it, as the rehearsal did, among the
+    /// people and noise of `draw` (0: the validating attempts'). Blocks.
     fn among(
         &self,
         world: &Arc<World>,
         report: &rehearsal::PlanReport,
         others: &sim::OtherRobots,
         holds: &[f64],
+        draw: u32,
     ) -> Result<rehearsal::AmongReport, PlanFailure> {
         let mut primary = self
             .choice
@@ -841,6 +873,7 @@ impl Replay {
                 .map(|f| f as &mut dyn rehearsal::Controller),
             others,
             holds,
+            draw,
         )
         .map_err(PlanFailure::Plan)
     }

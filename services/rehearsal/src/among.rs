@@ -12,9 +12,15 @@
 //! exactly as it was validated ([`PlanReport::drives_again_alike`]): the planner then commits
 //! the validating drive without driving it again, and a joint run of the committed plans
 //! starts every robot on the drive it was committed with.
+//!
+//! People are drawn at random, so a drive that stalled beside a person who happened to stand
+//! in the way says nothing about the fleet's schedule: the planner may drive the plan again
+//! among a fresh draw of people and noise (`draw` ≥ 1), as the rehearsal re-samples, and the
+//! drive it commits names its draw ([`AmongReport::people_draw`]) so it can be driven again.
 
 use std::sync::Arc;
 
+use grid::seed::mix;
 use sim::{Action, OtherRobots, World};
 
 use crate::controller::Controller;
@@ -22,6 +28,9 @@ use crate::drive::{DriveLimits, drive};
 use crate::error::PlanError;
 use crate::executor::{Driver, leg_seed, recoveries_for};
 use crate::types::{AttemptOutcome, PlanReport, PlanRequest};
+
+/// Mixed into a fresh draw's seeds, so they differ from every rehearsal attempt's.
+const FRESH_DRAW: u64 = 0xf1ee_7d4a_0000_0000;
 
 /// How a plan fared driven among the other robots.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,6 +51,9 @@ pub struct AmongReport {
     pub steps: Vec<sim::Pose2>,
     /// Seconds between two of `steps`.
     pub control_period_s: f64,
+    /// The draw of people and noise it was driven among: 0 the validating attempts', `k` the
+    /// `k`-th fresh one.
+    pub people_draw: u32,
 }
 
 impl AmongReport {
@@ -59,7 +71,10 @@ impl AmongReport {
 /// Drives `report` (validated for `request`) again from its start, leg by leg with the
 /// controller that validated each leg (`primary`, or `fallback` where the follower did),
 /// holding at the start until `holds[0]` and at waypoint `k` of `report.waypoints` until
-/// `holds[k + 1]` (seconds since the start), among `others` on the plan's clock.
+/// `holds[k + 1]` (seconds since the start), among `others` on the plan's clock. `draw` 0
+/// drives each leg among its validating attempt's people and noise; `draw` k ≥ 1 among the
+/// k-th fresh draw (seeds no attempt or people draw of the rehearsal used).
+#[allow(clippy::too_many_arguments)]
 pub fn drive_among(
     world: &Arc<World>,
     request: &PlanRequest,
@@ -68,6 +83,7 @@ pub fn drive_among(
     mut fallback: Option<&mut dyn Controller>,
     others: &OtherRobots,
     holds: &[f64],
+    draw: u32,
 ) -> Result<AmongReport, PlanError> {
     let opts = &request.options;
     let mut primary = Driver::new(world, opts, primary)?;
@@ -96,7 +112,10 @@ pub fn drive_among(
             _ => &mut primary,
         };
         // The validating attempt's noise, people and controller state (see the module).
-        let attempt = report.validating_attempt(leg);
+        let attempt = match draw {
+            0 => report.validating_attempt(leg),
+            k => opts.max_attempts + opts.people_draws + k,
+        };
         driver.controller.start_attempt(attempt);
         // This leg's clock starts at 0: the other robots and the holds move with it.
         let shifted = Arc::new(others.shifted(-clock_s));
@@ -112,7 +131,10 @@ pub fn drive_among(
             DriveLimits {
                 waypoint_timeout_s: opts.waypoint_timeout_s,
                 max_replans: 0,
-                sim_seed: leg_seed(opts.seed, attempt, leg),
+                sim_seed: match draw {
+                    0 => leg_seed(opts.seed, attempt, leg),
+                    k => mix(leg_seed(opts.seed, attempt, leg), FRESH_DRAW ^ u64::from(k)),
+                },
                 initial_velocity: Action::default(),
                 stop: request.stop.clone(),
                 trace: false,
@@ -138,6 +160,7 @@ pub fn drive_among(
                 robots: others.robots().len(),
                 steps,
                 control_period_s: dt,
+                people_draw: draw,
             });
         }
         pose = run.end_pose;
@@ -151,5 +174,6 @@ pub fn drive_among(
         robots: others.robots().len(),
         steps,
         control_period_s: dt,
+        people_draw: draw,
     })
 }

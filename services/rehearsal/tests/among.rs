@@ -44,6 +44,7 @@ fn among(
         None,
         others,
         holds,
+        0,
     )
     .unwrap()
 }
@@ -126,6 +127,7 @@ fn alone_every_controller_drives_its_validated_legs_again_step_for_step() {
                 Some(&mut *follower),
                 &OtherRobots::default(),
                 &[],
+                0,
             )
             .unwrap();
             assert_eq!(
@@ -141,6 +143,57 @@ fn alone_every_controller_drives_its_validated_legs_again_step_for_step() {
             assert_eq!(again.steps, report.steps, "{kind:?}, {people} people");
         }
     }
+}
+
+/// A fresh draw (`draw` ≥ 1) drives among other people and noise than the validating one, and
+/// the same draw drives alike every time: the planner commits a fresh draw's drive when people
+/// stopped the validating one, and a joint run drives it again from its draw.
+#[test]
+fn a_fresh_draw_meets_other_people_and_drives_alike_again() {
+    let world = room();
+    let mut options = PlanOptions {
+        seed: 5,
+        ..PlanOptions::default()
+    };
+    options.people = sim::PeopleConfig {
+        count: Some(4),
+        ..sim::PeopleConfig::default()
+    };
+    let request = PlanRequest {
+        start: Pose2::new(2.0, 2.0, 0.0),
+        goals: vec![Point2::new(7.5, 6.0), Point2::new(2.5, 6.5)],
+        options,
+        stop: rehearsal::Stop::default(),
+    };
+    let report = validate(&world, &RoadmapCache::default(), "room", &request, None).unwrap();
+    // `validate` without a policy drives the follower behind the shield among people.
+    let drive = |draw: u32| {
+        let mut follower = rehearsal::follower_for(&request.options);
+        drive_among(
+            &world,
+            &request,
+            &report,
+            &mut *follower,
+            None,
+            &OtherRobots::default(),
+            &[],
+            draw,
+        )
+        .unwrap()
+    };
+    let (validating, fresh, again) = (drive(0), drive(1), drive(1));
+    assert_eq!(validating.people_draw, 0);
+    assert_eq!(fresh.people_draw, 1);
+    assert_eq!(
+        validating.steps, report.steps,
+        "draw 0 is the validating drive"
+    );
+    assert_ne!(
+        fresh.steps, validating.steps,
+        "a fresh draw: other people, other noise"
+    );
+    assert_eq!(fresh.steps, again.steps, "the same draw drives alike");
+    assert_eq!(drive(2).people_draw, 2);
 }
 
 /// A robot parked on the route the whole time is met, and named; the same robot leaving
@@ -264,6 +317,7 @@ fn alone_a_plan_rpp_validated_is_driven_by_rpp_in_about_its_time() {
         Some(&mut *follower),
         &OtherRobots::default(),
         &[],
+        0,
     )
     .unwrap();
     assert_eq!(again.outcome, AttemptOutcome::Reached, "{again:?}");
