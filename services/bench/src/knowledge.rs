@@ -111,6 +111,11 @@ pub struct KnowledgeBenchReport {
     pub on_demand_p99_ms: f64,
     /// Timed on-demand requests.
     pub on_demand_requests: usize,
+    /// Median latency of an on-demand request right after a write (nothing read from the
+    /// graph is reused), ms.
+    pub on_demand_after_write_p50_ms: f64,
+    /// Timed on-demand requests after a write.
+    pub on_demand_after_write_requests: usize,
     /// Concurrent SPARQL clients.
     pub clients: usize,
     /// Seconds each server was measured.
@@ -168,6 +173,10 @@ impl KnowledgeBenchReport {
             self.on_demand_p50_ms,
             self.on_demand_p99_ms,
             self.on_demand_requests
+        ));
+        out.push_str(&format!(
+            "on-demand database right after a write: p50 {:.2} ms over {} requests\n",
+            self.on_demand_after_write_p50_ms, self.on_demand_after_write_requests
         ));
         out.push_str(&format!(
             "SPARQL throughput, {} clients, {:.0} s each ({}):\n",
@@ -867,6 +876,39 @@ pub fn run_knowledge_bench(
         latencies.push(on_demand()?.0);
     }
     latencies.sort_by(f64::total_cmp);
+    // The first request after a write: every write makes what was read from the graph stale
+    // (the places, the closures of the places crossed), so this is what a mission costs when
+    // robots report often. Each write is one triple in a graph of its own, then one request.
+    let writes = (options.on_demand_requests / 10).max(5);
+    say(&format!(
+        "on-demand database: {writes} requests, each after a write"
+    ));
+    let mut after_write = Vec::with_capacity(writes);
+    for k in 0..writes {
+        checked(
+            client
+                .post(format!("{}/sparql", ours.url))
+                .bearer_auth(&token)
+                .header("content-type", "application/sparql-update")
+                .body(format!(
+                    "INSERT DATA {{ GRAPH <urn:x-bench:writes> {{ <urn:x-bench:write> <urn:x-bench:k> {k} }} }}"
+                ))
+                .send(),
+            "a write between on-demand requests (SPARQL update)",
+        )?;
+        after_write.push(on_demand()?.0);
+    }
+    after_write.sort_by(f64::total_cmp);
+    // The dataset as it was, for the comparison with oxigraph serve.
+    checked(
+        client
+            .post(format!("{}/sparql", ours.url))
+            .bearer_auth(&token)
+            .header("content-type", "application/sparql-update")
+            .body("DROP GRAPH <urn:x-bench:writes>")
+            .send(),
+        "dropping the writes' graph",
+    )?;
 
     // The same dataset into oxigraph serve.
     say("dumping our dataset and loading it into oxigraph serve");
@@ -990,6 +1032,8 @@ pub fn run_knowledge_bench(
         on_demand_p50_ms: percentile(&latencies, 50.0),
         on_demand_p99_ms: percentile(&latencies, 99.0),
         on_demand_requests: latencies.len(),
+        on_demand_after_write_p50_ms: percentile(&after_write, 50.0),
+        on_demand_after_write_requests: after_write.len(),
         clients: options.clients,
         seconds: options.seconds,
         queries_per_s_ours: ours_total,
@@ -1055,6 +1099,8 @@ mod tests {
             on_demand_p50_ms: 0.0,
             on_demand_p99_ms: 0.0,
             on_demand_requests: 0,
+            on_demand_after_write_p50_ms: 0.0,
+            on_demand_after_write_requests: 0,
             clients: 4,
             seconds: 10.0,
             queries_per_s_ours: 700.0 * ratio,

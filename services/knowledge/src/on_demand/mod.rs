@@ -210,8 +210,9 @@ fn places_of(reader: &Reader) -> Result<Arc<Vec<Place>>, StoreError> {
 fn read_places(reader: &Reader) -> Result<Vec<Place>, StoreError> {
     let mut triples = HashSet::new();
     let mut seen = BTreeSet::new();
+    // Every place once, uncached: the places themselves are what is kept for this state.
     for place in reader.instances(vocab::PLACE)? {
-        reader.closure(place.as_ref(), false, &mut triples, &mut seen)?;
+        reader.walk(place.as_ref(), false, &mut triples, &mut seen)?;
     }
     let graph: Graph = triples.into_iter().collect();
     let (places, problems) = tosm::read_places_lenient(&graph);

@@ -1,6 +1,7 @@
 //! The store as the on-demand database reads it: asserted triples only, from a snapshot.
 
 use std::collections::{BTreeSet, HashSet};
+use std::sync::Arc;
 
 use oxigraph::model::vocab::rdf;
 use oxigraph::model::{GraphNameRef, NamedNode, NamedNodeRef, Term, TermRef, Triple};
@@ -89,8 +90,41 @@ impl Reader {
     }
 
     /// `subject`'s triples and, recursively, those of the individuals it owns: descriptors
-    /// (poses, shapes, boundary points, maps) and, when `parts` is set, robot parts.
+    /// (poses, shapes, boundary points, maps) and, when `parts` is set, robot parts. Nothing
+    /// when `seen` holds `subject`; every node visited is added to `seen`.
+    ///
+    /// Each subject's closure is kept for the state of the graph it was read in (until the next
+    /// write, [`KnowledgeStore::cached_closure`]): reading one decodes every term of every quad
+    /// about it, inferred ones included (a RocksDB lookup per IRI), which was 60% of an
+    /// on-demand database's time, and the missions of a fleet cross the same places again.
     pub(super) fn closure(
+        &self,
+        subject: NamedNodeRef<'_>,
+        parts: bool,
+        out: &mut HashSet<Triple>,
+        seen: &mut BTreeSet<NamedNode>,
+    ) -> Result<(), StoreError> {
+        if seen.contains(&subject.into_owned()) {
+            return Ok(());
+        }
+        let closure = match self.owner.cached_closure(self.key, subject.as_str(), parts) {
+            Some(c) => c,
+            None => {
+                let (mut triples, mut visited) = (HashSet::new(), BTreeSet::new());
+                self.walk(subject, parts, &mut triples, &mut visited)?;
+                let c = Arc::new((triples.into_iter().collect(), visited.into_iter().collect()));
+                self.owner
+                    .cache_closure(self.key, subject.as_str(), parts, Arc::clone(&c));
+                c
+            }
+        };
+        out.extend(closure.0.iter().cloned());
+        seen.extend(closure.1.iter().cloned());
+        Ok(())
+    }
+
+    /// [`Self::closure`] read from the store, uncached.
+    pub(super) fn walk(
         &self,
         subject: NamedNodeRef<'_>,
         parts: bool,
@@ -106,7 +140,7 @@ impl Reader {
                 && (self.is_a(object.as_ref(), vocab::DESCRIPTOR)?
                     || (parts && self.is_a(object.as_ref(), vocab::ROBOT_PART)?))
             {
-                self.closure(object.as_ref(), parts, out, seen)?;
+                self.walk(object.as_ref(), parts, out, seen)?;
             }
             out.insert(triple);
         }

@@ -123,6 +123,8 @@ fn a_write_shows_in_the_next_database() {
         goals: vec![Waypoint::Place(room.connected[0].clone())],
     };
     let before = build(&store, &mission).unwrap();
+    // Read again, from the closures kept for this state: the same database.
+    assert_eq!(build(&store, &mission).unwrap().triples, before.triples);
     let comment = oxigraph::model::Quad::new(
         NamedNode::new_unchecked(room.iri.clone()),
         oxigraph::model::vocab::rdfs::COMMENT,

@@ -19,12 +19,13 @@ mod embedded;
 mod error;
 pub mod remote;
 
+use std::collections::HashMap;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use oxigraph::io::{RdfFormat, RdfParser};
-use oxigraph::model::{GraphName, NamedNode, NamedNodeRef, Quad};
+use oxigraph::model::{GraphName, NamedNode, NamedNodeRef, Quad, Triple};
 use oxigraph::store::Store;
 use tosm::Place;
 
@@ -55,6 +56,23 @@ struct Derived {
     /// [`KnowledgeStore::bump_generation`]).
     generation: AtomicU64,
     places: Mutex<Option<(CacheKey, Arc<Vec<Place>>)>>,
+    closures: Mutex<Option<Closures>>,
+}
+
+/// A subject's closure as the on-demand databases read it: its asserted triples and those of
+/// the individuals it owns, and every node visited.
+pub(crate) type Closure = Arc<(Vec<Triple>, Vec<NamedNode>)>;
+
+/// The most triples the closures of one state keep: past it they are dropped and read again
+/// (about 300 bytes each: a few dozen MB at most).
+const MAX_CACHED_TRIPLES: usize = 200_000;
+
+/// The closures read for one state of the graph, by subject IRI and whether robot parts are
+/// followed.
+struct Closures {
+    key: CacheKey,
+    triples: usize,
+    map: HashMap<(String, bool), Closure>,
 }
 
 impl Default for Derived {
@@ -64,6 +82,7 @@ impl Default for Derived {
             id: STORES.fetch_add(1, Ordering::Relaxed),
             generation: AtomicU64::new(0),
             places: Mutex::new(None),
+            closures: Mutex::new(None),
         }
     }
 }
@@ -180,6 +199,11 @@ impl KnowledgeStore {
             .places
             .lock()
             .unwrap_or_else(PoisonError::into_inner) = None;
+        *self
+            .derived
+            .closures
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = None;
     }
 
     /// Names the graph's current state: equal tags mean equal content. It changes with every
@@ -227,6 +251,59 @@ impl KnowledgeStore {
                 .places
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner) = Some((key, places));
+        }
+    }
+
+    /// The closure of `subject` read for state `key` (with robot parts when `parts`), if it
+    /// is cached.
+    pub(crate) fn cached_closure(
+        &self,
+        key: CacheKey,
+        subject: &str,
+        parts: bool,
+    ) -> Option<Closure> {
+        let slot = self
+            .derived
+            .closures
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        slot.as_ref()
+            .filter(|c| c.key == key)
+            .and_then(|c| c.map.get(&(subject.to_owned(), parts)).cloned())
+    }
+
+    /// Keeps the closure of `subject` read for state `key`, unless a write happened meanwhile;
+    /// past [`MAX_CACHED_TRIPLES`] the state's closures are dropped first.
+    pub(crate) fn cache_closure(
+        &self,
+        key: CacheKey,
+        subject: &str,
+        parts: bool,
+        closure: Closure,
+    ) {
+        if self.cache_key() != key {
+            return;
+        }
+        let mut slot = self
+            .derived
+            .closures
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let n = closure.0.len();
+        let fresh = slot
+            .as_ref()
+            .is_none_or(|c| c.key != key || c.triples + n > MAX_CACHED_TRIPLES);
+        if fresh {
+            *slot = Some(Closures {
+                key,
+                triples: 0,
+                map: HashMap::new(),
+            });
+        }
+        if let Some(c) = slot.as_mut()
+            && c.map.insert((subject.to_owned(), parts), closure).is_none()
+        {
+            c.triples += n;
         }
     }
 
