@@ -179,24 +179,38 @@ impl OccupancyGrid {
         }
         let has_alpha = decoded.color().has_alpha();
         let colour = decoded.color().has_color();
-        let rgba = decoded.to_rgba8();
         let (width, height) = (w as usize, h as usize);
         let mut cells = vec![Occupancy::Unknown; width * height];
-        for (img_row, pixels) in rgba.rows().enumerate() {
+        let mut put = |i: usize, value: f64, transparent: bool| {
             // Image row 0 is the top of the map; grid row 0 is the bottom.
-            let grid_row = height - 1 - img_row;
-            for (col, px) in pixels.enumerate() {
-                let [r, g, b, a] = px.0;
-                let mut value = if colour {
-                    (f64::from(r) + f64::from(g) + f64::from(b)) / 3.0
-                } else {
-                    f64::from(r)
-                };
-                if meta.negate {
-                    value = 255.0 - value;
+            let (img_row, col) = (i / width, i % width);
+            let value = if meta.negate { 255.0 - value } else { value };
+            cells[(height - 1 - img_row) * width + col] = classify(meta, value, transparent);
+        };
+        match &decoded {
+            // Maps are grey: read the bytes as they are (a conversion to RGBA through the
+            // colour-space machinery was most of a map's decoding time).
+            image::DynamicImage::ImageLuma8(grey) => {
+                for (i, &v) in grey.as_raw().iter().enumerate() {
+                    put(i, f64::from(v), false);
                 }
-                let transparent = has_alpha && a == 0;
-                cells[grid_row * width + col] = classify(meta, value, transparent);
+            }
+            image::DynamicImage::ImageLumaA8(grey) => {
+                for (i, px) in grey.as_raw().chunks_exact(2).enumerate() {
+                    put(i, f64::from(px[0]), px[1] == 0);
+                }
+            }
+            _ => {
+                let rgba = decoded.to_rgba8();
+                for (i, px) in rgba.pixels().enumerate() {
+                    let [r, g, b, a] = px.0;
+                    let value = if colour {
+                        (f64::from(r) + f64::from(g) + f64::from(b)) / 3.0
+                    } else {
+                        f64::from(r)
+                    };
+                    put(i, value, has_alpha && a == 0);
+                }
             }
         }
         Ok(OccupancyGrid {

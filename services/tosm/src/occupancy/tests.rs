@@ -442,3 +442,54 @@ fn a_grid_written_as_pgm_reads_back_the_same() {
     let empty = OccupancyGrid::filled(0, 3, 0.05, Pose2::new(0.0, 0.0, 0.0), Occupancy::Free);
     assert!(empty.to_pgm().is_empty());
 }
+
+/// Grey maps are read from their bytes, other layouts through RGBA: the same pixels as grey,
+/// grey with alpha, RGB and RGBA give the same grid, rows and negation included; in `scale`
+/// mode a transparent grey pixel is unknown.
+#[test]
+fn every_pixel_layout_reads_alike() {
+    use image::{ExtendedColorType, ImageEncoder};
+    let grey: [u8; 6] = [254, 205, 0, 255, 100, 128];
+    let png = |data: &[u8], layout: ExtendedColorType| {
+        let mut out = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(data, 3, 2, layout)
+            .expect("encode");
+        out
+    };
+    let with = |channels: usize, alpha: bool| -> Vec<u8> {
+        grey.iter()
+            .flat_map(|&v| {
+                let mut px = vec![v; channels];
+                if alpha {
+                    px.push(255);
+                }
+                px
+            })
+            .collect()
+    };
+    let images = [
+        png(&grey, ExtendedColorType::L8),
+        png(&with(1, true), ExtendedColorType::La8),
+        png(&with(3, false), ExtendedColorType::Rgb8),
+        png(&with(3, true), ExtendedColorType::Rgba8),
+    ];
+    for negate in [false, true] {
+        let mut m = meta();
+        m.negate = negate;
+        let expected = OccupancyGrid::from_ros_map_server(&m, &pgm_p5(3, 2, &grey)).expect("pgm");
+        for img in &images {
+            let grid = OccupancyGrid::from_ros_map_server(&m, img).expect("png");
+            assert_eq!(grid, expected, "negate {negate}");
+        }
+    }
+    let mut m = meta();
+    m.mode = "scale".to_owned();
+    let mut la = with(1, true);
+    la[1] = 0; // the first pixel (free, 254) fully transparent
+    let grid =
+        OccupancyGrid::from_ros_map_server(&m, &png(&la, ExtendedColorType::La8)).expect("png");
+    assert_eq!(grid.cells[3], Occupancy::Unknown, "{:?}", grid.cells);
+    assert_eq!(grid.cells[4], Occupancy::Unknown, "205 is unknown anyway");
+    assert_eq!(grid.cells[5], Occupancy::Occupied);
+}
