@@ -19,6 +19,7 @@ pub mod controllers;
 pub mod fleet;
 pub mod floor;
 pub mod policies;
+mod replay;
 pub mod roadmaps;
 
 use std::collections::HashMap;
@@ -29,6 +30,8 @@ use std::time::SystemTime;
 
 use rehearsal::{ControllerChoice, PlanError, PlanRequest, RoadmapCache, RoadmapChoice};
 use sim::World;
+
+use replay::Replay;
 
 pub use controllers::{ControllerPick, ControllerTrial};
 pub use fleet::{FleetOptions, FleetOutcome, FleetSchedule, NoFit};
@@ -808,76 +811,6 @@ type Rehearsed = (
     ControllerPick,
     Arc<Replay>,
 );
-
-/// What a validated plan needs to be driven again (among the fleet): the request as
-/// rehearsed (its people resolved), the policy and the controller picked.
-#[derive(Debug)]
-struct Replay {
-    request: PlanRequest,
-    policy: Option<Arc<learning::Policy>>,
-    choice: ControllerChoice,
-}
-
-impl Replay {
-    /// [`Self::among`] on the validating attempts' people and noise, then, while the drive
-    /// did not arrive and no other robot was involved (none touched, none within a metre of
-    /// where it ended: people or noise stopped it), among up to [`fleet::FRESH_DRAWS`] fresh
-    /// draws, as the rehearsal re-samples. The first drive that arrives, else the last. Blocks.
-    fn among_fresh_draws(
-        &self,
-        world: &Arc<World>,
-        report: &rehearsal::PlanReport,
-        others: &sim::OtherRobots,
-        holds: &[f64],
-        radius_m: f64,
-    ) -> Result<rehearsal::AmongReport, PlanFailure> {
-        let mut among = self.among(world, report, others, holds, 0)?;
-        for draw in 1..=fleet::FRESH_DRAWS {
-            let robots_involved = among.met_robot().is_some()
-                || !fleet::robots_near_the_end(others, &among, radius_m).is_empty();
-            if among.outcome == rehearsal::AttemptOutcome::Reached || robots_involved {
-                break;
-            }
-            among = self.among(world, report, others, holds, draw)?;
-        }
-        Ok(among)
-    }
-
-    /// Drives `report` again among `others` with `holds` ([`rehearsal::drive_among`]), with
-    /// the controller picked and the follower behind it, as the rehearsal did, among the
-    /// people and noise of `draw` (0: the validating attempts'). Blocks.
-    fn among(
-        &self,
-        world: &Arc<World>,
-        report: &rehearsal::PlanReport,
-        others: &sim::OtherRobots,
-        holds: &[f64],
-        draw: u32,
-    ) -> Result<rehearsal::AmongReport, PlanFailure> {
-        let mut primary = self
-            .choice
-            .build(self.policy.as_ref(), self.request.options.seed)
-            .ok_or_else(|| PlanFailure::Internal("the picked controller needs a policy".into()))?;
-        let mut follower = (!matches!(
-            self.choice,
-            ControllerChoice::Follower | ControllerChoice::ShieldedFollower
-        ))
-        .then(|| rehearsal::follower_for(&self.request.options));
-        rehearsal::drive_among(
-            world,
-            &self.request,
-            report,
-            &mut *primary,
-            follower
-                .as_deref_mut()
-                .map(|f| f as &mut dyn rehearsal::Controller),
-            others,
-            holds,
-            draw,
-        )
-        .map_err(PlanFailure::Plan)
-    }
-}
 
 impl Rehearsal {
     /// The world, the people, the roadmap, and the executor. Blocks.
