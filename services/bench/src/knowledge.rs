@@ -884,29 +884,30 @@ pub fn run_knowledge_bench(
         "on-demand database: {writes} requests, each after a write"
     ));
     let mut after_write = Vec::with_capacity(writes);
-    for k in 0..writes {
+    let update = |body: String, what: &str| {
         checked(
             client
                 .post(format!("{}/sparql", ours.url))
                 .bearer_auth(&token)
                 .header("content-type", "application/sparql-update")
-                .body(format!(
-                    "INSERT DATA {{ GRAPH <urn:x-bench:writes> {{ <urn:x-bench:write> <urn:x-bench:k> {k} }} }}"
-                ))
+                .body(body)
                 .send(),
+            what,
+        )
+    };
+    for k in 0..writes {
+        update(
+            format!(
+                "INSERT DATA {{ GRAPH <urn:x-bench:writes> {{ <urn:x-bench:write> <urn:x-bench:k> {k} }} }}"
+            ),
             "a write between on-demand requests (SPARQL update)",
         )?;
         after_write.push(on_demand()?.0);
     }
     after_write.sort_by(f64::total_cmp);
     // The dataset as it was, for the comparison with oxigraph serve.
-    checked(
-        client
-            .post(format!("{}/sparql", ours.url))
-            .bearer_auth(&token)
-            .header("content-type", "application/sparql-update")
-            .body("DROP GRAPH <urn:x-bench:writes>")
-            .send(),
+    update(
+        "DROP GRAPH <urn:x-bench:writes>".to_owned(),
         "dropping the writes' graph",
     )?;
 

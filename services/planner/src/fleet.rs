@@ -158,8 +158,6 @@ pub struct FleetOutcome {
     /// The plan driven again with its waits among the other robots' committed plans (`None`
     /// when there were none).
     pub among: Option<rehearsal::AmongReport>,
-    /// The draw of people and noise of the drive committed ([`rehearsal::AmongReport::people_draw`]).
-    pub people_draw: u32,
     /// Other robots' itineraries it was checked against.
     pub others: usize,
     /// The floor's version after the commit; `None` when not committed.

@@ -157,7 +157,8 @@ impl PlanOutcome {
                     f.itinerary.start_unix_ms,
                     self.report.waypoints.len(),
                 ),
-                f.people_draw,
+                // Alone on the floor a plan is never driven among a fresh draw.
+                f.among.as_ref().map_or(0, |a| a.people_draw),
             ),
             None => (now_ms(), Vec::new(), 0),
         };
@@ -697,7 +698,6 @@ impl Planner {
                     .map(|&k| start + (k as f64 * among.control_period_s * 1000.0).round() as i64)
                     .collect();
             }
-            let people_draw = among.people_draw;
             let among = (!others.is_empty()).then_some(among);
             let version = if options.commit {
                 match schedule
@@ -719,7 +719,6 @@ impl Planner {
                 itinerary,
                 waypoint_times_unix_ms,
                 among,
-                people_draw,
                 waits,
                 others: others.len(),
                 version,

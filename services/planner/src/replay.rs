@@ -22,7 +22,9 @@ impl Replay {
     /// [`Self::among`] on the validating attempts' people and noise, then, while the drive
     /// did not arrive and no other robot was involved (none touched, none within a metre of
     /// where it ended: people or noise stopped it), among up to [`fleet::FRESH_DRAWS`] fresh
-    /// draws, as the rehearsal re-samples. The first drive that arrives, else the last. Blocks.
+    /// draws, as the rehearsal re-samples. The first drive that arrives, else the last. With no
+    /// other robot on the floor there is no schedule to check and no fresh draw (the planner
+    /// commits the validated plan). Blocks.
     pub(crate) fn among_fresh_draws(
         &self,
         world: &Arc<World>,
@@ -32,7 +34,12 @@ impl Replay {
         radius_m: f64,
     ) -> Result<rehearsal::AmongReport, PlanFailure> {
         let mut among = self.among(world, report, others, holds, 0)?;
-        for draw in 1..=fleet::FRESH_DRAWS {
+        let draws = if others.robots().is_empty() {
+            0
+        } else {
+            fleet::FRESH_DRAWS
+        };
+        for draw in 1..=draws {
             let robots_involved = among.met_robot().is_some()
                 || !fleet::robots_near_the_end(others, &among, radius_m).is_empty();
             if among.outcome == rehearsal::AttemptOutcome::Reached || robots_involved {
