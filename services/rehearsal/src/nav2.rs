@@ -92,9 +92,10 @@ impl SmoothedPath {
                     .iter()
                     .enumerate()
                     .min_by(|a, b| {
-                        let da = (a.1.0 - w.x).hypot(a.1.1 - w.y);
-                        let db = (b.1.0 - w.x).hypot(b.1.1 - w.y);
-                        da.total_cmp(&db)
+                        // Squared distances: the same order, without a root per point of the
+                        // rest of the path for every waypoint.
+                        let d2 = |p: &(f64, f64)| (p.0 - w.x).powi(2) + (p.1 - w.y).powi(2);
+                        d2(a.1).total_cmp(&d2(b.1))
                     })
                     .map_or(0, |(i, _)| i);
             marks.push((*w, i));
@@ -285,7 +286,7 @@ impl RppController {
             let seen = self.tracker.laser.as_ref().map_or(f64::INFINITY, |l| {
                 l.returns(obs)
                     .iter()
-                    .map(|p| p.0.hypot(p.1))
+                    .map(|p| sim::norm(p.0, p.1))
                     .fold(f64::INFINITY, f64::min)
             });
             map.min(seen)
@@ -466,7 +467,7 @@ impl Controller for MppiController {
             .map(|l| {
                 l.world_returns(obs, pose)
                     .into_iter()
-                    .filter(|p| world.clearance(p.0, p.1) + radius > UNKNOWN_M)
+                    .filter(|p| !world.knows_within(p.0, p.1, UNKNOWN_M))
                     .collect()
             })
             .unwrap_or_default();

@@ -36,6 +36,9 @@ pub const WALL_GUARD_S: f64 = 0.3;
 /// A return farther than this from every wall and object the map knows is something the map
 /// does not know (a person, most likely), metres: a few grid cells plus the laser's noise.
 const UNKNOWN_M: f64 = 0.15;
+/// A return whose room beyond its margin exceeds what the look-ahead can eat of it by more
+/// than this is left out of the look-ahead, metres (more than the 1 mm the test allows).
+const FAR_SLACK_M: f64 = 0.01;
 /// Closest the shield lets the footprint come to a return the map does not know, metres: a
 /// person may step or turn between two scans, and the laser samples a body's curve only at
 /// its beams.
@@ -138,13 +141,12 @@ impl Shield {
         let unknown: Vec<bool> = match map {
             Some((pose, world)) => {
                 let (sy, cy) = pose.yaw.sin_cos();
-                let robot_radius = world.spec().robot.footprint_radius;
                 points
                     .iter()
                     .map(|p| {
                         p.is_some_and(|(x, y)| {
                             let (wx, wy) = (pose.x + cy * x - sy * y, pose.y + sy * x + cy * y);
-                            world.clearance(wx, wy) + robot_radius > UNKNOWN_M
+                            !world.knows_within(wx, wy, UNKNOWN_M)
                         })
                     })
                     .collect()
@@ -330,14 +332,29 @@ impl Shield {
     /// [`Shield::keeps`] over `horizon_s` seconds.
     fn keeps_for(&self, command: Action, points: &[Return], margin: f64, horizon_s: f64) -> bool {
         let person_margin = margin.max(PERSON_MARGIN_M);
+        let keep = |p: &Return| if p.unknown { person_margin } else { margin };
+        // Over the horizon the footprint moves at most |linear| t and a return's stretch grows
+        // by |velocity| t, so a return whose room now exceeds what both can eat by more than
+        // `FAR_SLACK_M` never comes within a margin: it cannot decide below (it only ever adds
+        // a positive room, and the test is for a negative one smaller than the room now).
+        // Leaving such returns out is exact and spares most of them the look-ahead.
+        let travel = command.linear.abs() * horizon_s;
+        let near: Vec<&Return> = points
+            .iter()
+            .filter(|p| {
+                let reach = travel + crate::norm(p.velocity.0, p.velocity.1) * horizon_s;
+                crate::norm(p.at.0, p.at.1) - keep(p) - self.radius - reach <= FAR_SLACK_M
+            })
+            .collect();
+        if near.is_empty() {
+            return true;
+        }
         // Room beyond the margins at (x, y) after t seconds: negative inside one.
         let excess_at = |x: f64, y: f64, t: f64| {
-            points
-                .iter()
+            near.iter()
                 .map(|p| {
                     let ahead = (p.at.0 + p.velocity.0 * t, p.at.1 + p.velocity.1 * t);
-                    let keep = if p.unknown { person_margin } else { margin };
-                    segment_distance((x, y), p.at, ahead) - keep - self.radius
+                    segment_distance((x, y), p.at, ahead) - keep(p) - self.radius
                 })
                 .fold(f64::INFINITY, f64::min)
         };

@@ -77,6 +77,40 @@ pub fn densify(path: &[(f64, f64)], spacing: f64) -> Vec<(f64, f64)> {
 /// The smoothed, densified path through `path` in `world` (see the module docs). Paths of
 /// fewer than three points after densifying come back densified only.
 pub fn smooth_path(world: &World, path: &[(f64, f64)], p: &SmootherParams) -> Vec<(f64, f64)> {
+    match prepare(world, path, p) {
+        Err(short) => short,
+        Ok((original, bound, floor)) => match solve_direct(world, &original, &floor, p) {
+            Some(solved) => solved,
+            None => descend(world, original, bound, &floor, p),
+        },
+    }
+}
+
+/// [`smooth_path`] by the gradient descent alone, never solved directly: what it falls back to
+/// where a point's clearance stops the smoothing (public so tests and benchmarks can compare).
+pub fn smooth_path_by_descent(
+    world: &World,
+    path: &[(f64, f64)],
+    p: &SmootherParams,
+) -> Vec<(f64, f64)> {
+    match prepare(world, path, p) {
+        Err(short) => short,
+        Ok((original, bound, floor)) => descend(world, original, bound, &floor, p),
+    }
+}
+
+/// A smoothed path's inputs: the densified path, a lower bound on each point's clearance where
+/// it stands (see `smooth_pass`), and what each point may not go below (the margin, or what
+/// the original point had). `Err` with the densified path when it has fewer than three points.
+#[allow(
+    clippy::type_complexity,
+    reason = "a private triple, named in the docs"
+)]
+fn prepare(
+    world: &World,
+    path: &[(f64, f64)],
+    p: &SmootherParams,
+) -> Result<(Vec<(f64, f64)>, Vec<f64>, Vec<f64>), Vec<(f64, f64)>> {
     let spacing = if p.spacing_m > 0.0 {
         p.spacing_m
     } else {
@@ -84,27 +118,103 @@ pub fn smooth_path(world: &World, path: &[(f64, f64)], p: &SmootherParams) -> Ve
     };
     let original = densify(path, spacing);
     if original.len() < 3 {
-        return original;
+        return Err(original);
     }
-    // A lower bound on each point's clearance where it stands (see `smooth_pass`), and what
-    // each point may not go below: the margin, or what the original point had.
-    let mut bound: Vec<f64> = original.iter().map(|q| world.clearance(q.0, q.1)).collect();
+    let bound: Vec<f64> = original.iter().map(|q| world.clearance(q.0, q.1)).collect();
     let floor: Vec<f64> = bound.iter().map(|c| c.min(p.min_clearance_m)).collect();
-    let mut current = original.clone();
+    Ok((original, bound, floor))
+}
+
+/// The descent's passes from the densified `original`.
+fn descend(
+    world: &World,
+    original: Vec<(f64, f64)>,
+    mut bound: Vec<f64>,
+    floor: &[f64],
+    p: &SmootherParams,
+) -> Vec<(f64, f64)> {
+    let mut current = original;
     let slack = world.resolution();
     for _ in 0..=p.refinement_num {
         let reference = current.clone();
-        smooth_pass(
-            world,
-            &reference,
-            &mut current,
-            &floor,
-            &mut bound,
-            slack,
-            p,
-        );
+        smooth_pass(world, &reference, &mut current, floor, &mut bound, slack, p);
     }
     current
+}
+
+/// Where the descent converges, solved directly, when no point's clearance stops it.
+///
+/// Without the clearance check, a pass of the descent converges to the solution of a
+/// tridiagonal system (each interior point where the pull back to the reference and the pull to
+/// its neighbours' midpoint cancel: `w_data (o_i - x_i) + w_smooth (x_{i-1} + x_{i+1} - 2 x_i)
+/// = 0`, the end points fixed), which the Thomas algorithm solves in one sweep each way instead
+/// of a hundred or so descent iterations. When every point of the result keeps its clearance
+/// floor, that is the smoothed path (it differs from the descent's by less than the descent's
+/// tolerance); otherwise `None`, and the descent with its per-point refusals runs. Only for
+/// weights with which the descent converges (`w_data > 0`, `w_data + 2 w_smooth <= 1`) and
+/// enough iterations to get there (`max_its >= 100`).
+fn solve_direct(
+    world: &World,
+    original: &[(f64, f64)],
+    floor: &[f64],
+    p: &SmootherParams,
+) -> Option<Vec<(f64, f64)>> {
+    let (d, s) = (p.w_data, p.w_smooth);
+    if !(d > 0.0 && s >= 0.0 && d + 2.0 * s <= 1.0 && p.max_its >= 100) {
+        return None;
+    }
+    let n = original.len();
+    // The matrix is the same for every pass and both coordinates: factorise once.
+    // Interior unknowns 1..n-1: sub- and super-diagonal -s, diagonal d + 2s.
+    let diag = d + 2.0 * s;
+    let mut c_prime = vec![0.0; n];
+    let mut m_inv = vec![0.0; n];
+    let mut prev_c = 0.0;
+    for i in 1..n - 1 {
+        let m = diag + s * prev_c;
+        m_inv[i] = 1.0 / m;
+        prev_c = -s * m_inv[i];
+        c_prime[i] = prev_c;
+    }
+    let mut current = original.to_vec();
+    let mut rhs = vec![(0.0, 0.0); n];
+    for _ in 0..=p.refinement_num {
+        let (first, last) = (current[0], current[n - 1]);
+        // Forward sweep: rhs holds d'_i.
+        let mut prev = (0.0, 0.0);
+        for i in 1..n - 1 {
+            let mut r = (d * current[i].0, d * current[i].1);
+            if i == 1 {
+                r = (r.0 + s * first.0, r.1 + s * first.1);
+            }
+            if i == n - 2 {
+                r = (r.0 + s * last.0, r.1 + s * last.1);
+            }
+            prev = ((r.0 + s * prev.0) * m_inv[i], (r.1 + s * prev.1) * m_inv[i]);
+            rhs[i] = prev;
+        }
+        // Back substitution.
+        let mut next = (0.0, 0.0);
+        for i in (1..n - 1).rev() {
+            let x = if i == n - 2 {
+                rhs[i]
+            } else {
+                (
+                    rhs[i].0 - c_prime[i] * next.0,
+                    rhs[i].1 - c_prime[i] * next.1,
+                )
+            };
+            current[i] = x;
+            next = x;
+        }
+    }
+    let keeps = current
+        .iter()
+        .zip(floor)
+        .skip(1)
+        .take(n - 2)
+        .all(|(q, f)| world.clearance(q.0, q.1) >= *f);
+    keeps.then_some(current)
 }
 
 /// One pass of the gradient descent of `current` towards `reference` and towards smoothness.

@@ -51,6 +51,47 @@ fn the_smoother_keeps_the_ends_and_the_clearance_and_rounds_corners() {
 }
 
 #[test]
+fn the_direct_smoother_lands_where_the_descent_converges() {
+    let w = world();
+    let p = SmootherParams::default();
+    // Far from every wall: nothing stops the descent, and the direct solve is its limit.
+    let open = [(2.0, 2.0), (5.0, 2.5), (6.0, 6.0), (3.0, 7.5), (8.0, 8.0)];
+    let direct = smooth_path(&w, &open, &p);
+    let descent = sim::smoother::smooth_path_by_descent(&w, &open, &p);
+    assert_eq!(direct.len(), descent.len());
+    let worst = direct
+        .iter()
+        .zip(&descent)
+        .map(|(a, b)| (a.0 - b.0).hypot(a.1 - b.1))
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-6, "{worst}");
+    // The corners are really smoothed (the solve did not return the input).
+    let dense = sim::smoother::densify(&open, w.resolution());
+    assert!(max_turning(&direct) < 0.5 * max_turning(&dense));
+    // Where the clearance stops points (here: no point may come closer to a wall than it
+    // was, and rounding the apex of this V moves it towards the bottom wall), the answer is
+    // the descent's, exactly, and no point lost clearance.
+    let keep_all = SmootherParams {
+        min_clearance_m: 100.0,
+        ..p
+    };
+    let v = [(1.0, 0.6), (5.0, 3.0), (9.0, 0.6)];
+    let stopped = smooth_path(&w, &v, &keep_all);
+    assert_eq!(
+        stopped,
+        sim::smoother::smooth_path_by_descent(&w, &v, &keep_all)
+    );
+    let dense = sim::smoother::densify(&v, w.resolution());
+    for (q, o) in stopped.iter().zip(&dense) {
+        assert!(
+            w.clearance(q.0, q.1) >= w.clearance(o.0, o.1) - 1e-9,
+            "{q:?}"
+        );
+    }
+    assert_ne!(stopped, smooth_path(&w, &v, &p));
+}
+
+#[test]
 fn mppi_reaches_the_goal_round_an_obstacle_on_its_path() {
     let w = world();
     let path = sim::smoother::densify(&[(1.0, 5.0), (8.0, 5.0)], 0.05);

@@ -154,6 +154,43 @@ fn clearance_to_walls_is_exact() {
 }
 
 #[test]
+fn knows_within_answers_as_the_clearance_does() {
+    let mut spec = room(10.0, 6.0);
+    spec.objects.push(object(
+        "pillar",
+        Some("Pillar"),
+        Shape::Cylinder,
+        Size3::new(0.6, 0.6, 2.0),
+        Pose3::new(5.0, 3.0, 1.0, 0.0),
+    ));
+    let world = World::build(spec).expect("builds");
+    let radius = world.spec().robot.footprint_radius;
+    let mut checked = 0;
+    // A grid of points over the room and beyond it, near walls, near the pillar, in the open.
+    for i in -10..=210 {
+        for j in -10..=130 {
+            let (x, y) = (f64::from(i) * 0.0497, f64::from(j) * 0.0503);
+            let seen = world.clearance(x, y) + radius;
+            for d in [0.0, 0.05, 0.15, 0.5] {
+                if (seen - d).abs() < 1e-9 {
+                    continue;
+                }
+                assert_eq!(
+                    world.knows_within(x, y, d),
+                    seen <= d,
+                    "({x}, {y}) within {d}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 100_000, "{checked}");
+    // The pillar counts: 0.1 m off its side, nothing the walls explain.
+    assert!(world.knows_within(5.4, 3.0, 0.15));
+    assert!(!world.knows_within(5.6, 3.0, 0.15));
+}
+
+#[test]
 fn cylinders_spheres_and_rotated_boxes_are_hit_exactly() {
     let mut spec = room(10.0, 10.0);
     spec.objects.push(object(
