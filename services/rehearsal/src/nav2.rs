@@ -137,7 +137,7 @@ impl Laser {
     }
 
     /// The returns of `obs` in the robot frame.
-    fn returns(&self, obs: &Observation) -> Vec<(f64, f64)> {
+    fn returns<'a>(&'a self, obs: &'a Observation) -> impl Iterator<Item = (f64, f64)> + 'a {
         obs.ranges
             .iter()
             .zip(&self.dirs)
@@ -146,14 +146,20 @@ impl Laser {
                 let r = f64::from(*r);
                 (self.origin.0 + r * c, self.origin.1 + r * s)
             })
-            .collect()
+    }
+
+    /// Distance from the robot's centre to the nearest return of `obs`, metres (infinite for
+    /// none).
+    fn nearest(&self, obs: &Observation) -> f64 {
+        self.returns(obs)
+            .map(|p| sim::norm(p.0, p.1))
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// The returns of `obs` for a robot at `pose`, in the world frame.
     fn world_returns(&self, obs: &Observation, pose: Pose2) -> Vec<(f64, f64)> {
         let (s, c) = pose.yaw.sin_cos();
         self.returns(obs)
-            .into_iter()
             .map(|(x, y)| (pose.x + c * x - s * y, pose.y + s * x + c * y))
             .collect()
     }
@@ -283,12 +289,11 @@ impl RppController {
             let map = self.tracker.world.as_ref().map_or(f64::INFINITY, |w| {
                 w.clearance(pose.x, pose.y) + self.tracker.radius()
             });
-            let seen = self.tracker.laser.as_ref().map_or(f64::INFINITY, |l| {
-                l.returns(obs)
-                    .iter()
-                    .map(|p| sim::norm(p.0, p.1))
-                    .fold(f64::INFINITY, f64::min)
-            });
+            let seen = self
+                .tracker
+                .laser
+                .as_ref()
+                .map_or(f64::INFINITY, |l| l.nearest(obs));
             map.min(seen)
         };
         let speed = f64::from(obs.velocity[0]);

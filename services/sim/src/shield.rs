@@ -60,6 +60,8 @@ pub struct Shield {
     dirs: Vec<(f64, f64)>,
     /// Returns at or beyond this range hit nothing.
     range_max: f64,
+    /// The widest angle between neighbouring beams, radians (clustering's gap grows with it).
+    spacing: f64,
     /// The footprint's radius, metres.
     radius: f64,
     /// What moves, from consecutive scans ([`Shield::observe`]); empty for a shield that only
@@ -95,13 +97,14 @@ impl Shield {
     pub fn new(world: &World, beams: usize) -> Option<Self> {
         let robot = &world.spec().robot;
         let laser = &robot.laser;
-        let dirs = laser
+        let dirs: Vec<(f64, f64)> = laser
             .beam_angles(beams)?
             .into_iter()
             .map(|a| ((a + laser.mount.yaw).cos(), (a + laser.mount.yaw).sin()))
             .collect();
         Some(Self {
             origin: (laser.mount.x, laser.mount.y),
+            spacing: beam_spacing(&dirs),
             dirs,
             range_max: laser.range_max,
             radius: robot.footprint_radius,
@@ -155,14 +158,10 @@ impl Shield {
         };
         // Clusters: runs of returns with no gap between neighbours. Far away, neighbouring beams
         // hit one surface further apart than a gap near by: the gap allowed grows with the
-        // spacing of the beams there, so a wall stays one (wide) thing.
-        let spacing = self
-            .dirs
-            .windows(2)
-            .map(|w| (w[0].0 * w[1].0 + w[0].1 * w[1].1).clamp(-1.0, 1.0).acos())
-            .fold(0.0, f64::max);
-        // Each cluster with the beam index of its first return.
-        let mut clusters: Vec<(usize, Vec<(f64, f64)>)> = Vec::new();
+        // spacing of the beams there, so a wall stays one (wide) thing. A cluster is a run of
+        // consecutive beams (a beam without a return ends it): its first beam and its length.
+        let spacing = self.spacing;
+        let mut clusters: Vec<(usize, usize)> = Vec::new();
         let mut last: Option<(f64, f64)> = None;
         for (i, p) in points.iter().enumerate() {
             let gap_allowed = |p: (f64, f64)| {
@@ -176,22 +175,23 @@ impl Shield {
                     if (map.is_none() || same_kind)
                         && crate::norm(p.0 - q.0, p.1 - q.1) <= gap_allowed(*p) =>
                 {
-                    if let Some((_, c)) = clusters.last_mut() {
-                        c.push(*p);
+                    if let Some((_, len)) = clusters.last_mut() {
+                        *len += 1;
                     }
                 }
-                (Some(p), _) => clusters.push((i, vec![*p])),
+                (Some(_), _) => clusters.push((i, 1)),
                 (None, _) => {}
             }
             last = *p;
         }
+        // The returns of a cluster (all present: a missing one ends a cluster).
+        let members = |start: usize, len: usize| points[start..start + len].iter().flatten();
         let range_of = |p: (f64, f64)| crate::norm(p.0 - self.origin.0, p.1 - self.origin.1);
         // A thing in front of what is behind it: the beams either side of it reach farther
         // (or nothing). The end of a wall seen at a grazing angle is not: the wall goes on
         // nearer on one side.
-        let in_front = |first: usize, len: usize, cluster: &[(f64, f64)]| {
-            let near = cluster
-                .iter()
+        let in_front = |first: usize, len: usize| {
+            let near = members(first, len)
                 .map(|p| range_of(*p))
                 .fold(f64::INFINITY, f64::min);
             let beyond = |j: Option<usize>| {
@@ -219,18 +219,20 @@ impl Shield {
             .collect();
         let mut now_small = Vec::new();
         let mut velocities = Vec::new();
-        for (start, cluster) in &clusters {
-            let (first, end) = (cluster[0], cluster[cluster.len() - 1]);
+        for &(start, len) in &clusters {
+            let (Some(first), Some(end)) = (points[start], points[start + len - 1]) else {
+                continue;
+            };
             let small = if map.is_some() {
-                unknown[*start]
+                unknown[start]
             } else {
                 crate::norm(first.0 - end.0, first.1 - end.1) <= MOVER_MAX_WIDTH_M
-                    && in_front(*start, cluster.len(), cluster)
+                    && in_front(start, len)
             };
-            let n = cluster.len() as f64;
+            let n = len as f64;
             let centroid = (
-                cluster.iter().map(|p| p.0).sum::<f64>() / n,
-                cluster.iter().map(|p| p.1).sum::<f64>() / n,
+                members(start, len).map(|p| p.0).sum::<f64>() / n,
+                members(start, len).map(|p| p.1).sum::<f64>() / n,
             );
             let mut velocity = (0.0, 0.0);
             if small && dt > 0.0 {
@@ -257,7 +259,7 @@ impl Shield {
             let moving = crate::norm(velocity.0, velocity.1) >= MOVER_MIN_SPEED;
             velocities.extend(std::iter::repeat_n(
                 if moving { velocity } else { (0.0, 0.0) },
-                cluster.len(),
+                len,
             ));
         }
         self.motion = Motion {
@@ -471,6 +473,13 @@ impl Shield {
     }
 }
 
+/// The widest angle between neighbouring beam directions, radians.
+fn beam_spacing(dirs: &[(f64, f64)]) -> f64 {
+    dirs.windows(2)
+        .map(|w| (w[0].0 * w[1].0 + w[0].1 * w[1].1).clamp(-1.0, 1.0).acos())
+        .fold(0.0, f64::max)
+}
+
 /// Distance from `p` to the segment from `a` to `b`.
 fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
     let (dx, dy) = (b.0 - a.0, b.1 - a.1);
@@ -500,14 +509,16 @@ mod tests {
 
     /// A shield for a 0.2 m robot with 23 beams over the front half, laser at the centre.
     fn shield() -> Shield {
+        let dirs: Vec<(f64, f64)> = (0..23)
+            .map(|i| {
+                let a = -PI / 2.0 + PI * f64::from(i) / 22.0;
+                (a.cos(), a.sin())
+            })
+            .collect();
         Shield {
             origin: (0.0, 0.0),
-            dirs: (0..23)
-                .map(|i| {
-                    let a = -PI / 2.0 + PI * f64::from(i) / 22.0;
-                    (a.cos(), a.sin())
-                })
-                .collect(),
+            spacing: beam_spacing(&dirs),
+            dirs,
             range_max: 10.0,
             radius: 0.2,
             motion: Motion::default(),
