@@ -67,6 +67,17 @@ pub struct Shield {
     /// What moves, from consecutive scans ([`Shield::observe`]); empty for a shield that only
     /// ever sees single scans.
     motion: Motion,
+    /// Buffers [`Shield::observe`] reuses from scan to scan (it runs every control step).
+    scratch: Scratch,
+}
+
+/// Working buffers of one [`Shield::observe`]: kept between scans, so a scan allocates nothing.
+#[derive(Clone, Debug, Default)]
+struct Scratch {
+    points: Vec<Option<(f64, f64)>>,
+    unknown: Vec<bool>,
+    clusters: Vec<(usize, usize)>,
+    previous: Vec<((f64, f64), (f64, f64))>,
 }
 
 /// Things the laser sees move, from consecutive scans.
@@ -109,6 +120,7 @@ impl Shield {
             range_max: laser.range_max,
             radius: robot.footprint_radius,
             motion: Motion::default(),
+            scratch: Scratch::default(),
         })
     }
 
@@ -131,37 +143,37 @@ impl Shield {
     }
 
     fn observe_with(&mut self, obs: &Observation, dt: f64, map: Option<(Pose2, &World)>) {
-        let points: Vec<Option<(f64, f64)>> = obs
-            .ranges
-            .iter()
-            .zip(&self.dirs)
-            .map(|(r, (c, s))| {
-                let r = f64::from(*r);
-                (r < self.range_max - 1e-3).then(|| (self.origin.0 + r * c, self.origin.1 + r * s))
-            })
-            .collect();
+        let Scratch {
+            mut points,
+            mut unknown,
+            mut clusters,
+            mut previous,
+        } = std::mem::take(&mut self.scratch);
+        points.clear();
+        points.extend(obs.ranges.iter().zip(&self.dirs).map(|(r, (c, s))| {
+            let r = f64::from(*r);
+            (r < self.range_max - 1e-3).then(|| (self.origin.0 + r * c, self.origin.1 + r * s))
+        }));
         // Which returns the map does not explain.
-        let unknown: Vec<bool> = match map {
+        unknown.clear();
+        match map {
             Some((pose, world)) => {
                 let (sy, cy) = pose.yaw.sin_cos();
-                points
-                    .iter()
-                    .map(|p| {
-                        p.is_some_and(|(x, y)| {
-                            let (wx, wy) = (pose.x + cy * x - sy * y, pose.y + sy * x + cy * y);
-                            !world.knows_within(wx, wy, UNKNOWN_M)
-                        })
+                unknown.extend(points.iter().map(|p| {
+                    p.is_some_and(|(x, y)| {
+                        let (wx, wy) = (pose.x + cy * x - sy * y, pose.y + sy * x + cy * y);
+                        !world.knows_within(wx, wy, UNKNOWN_M)
                     })
-                    .collect()
+                }));
             }
-            None => vec![false; points.len()],
-        };
+            None => unknown.resize(points.len(), false),
+        }
         // Clusters: runs of returns with no gap between neighbours. Far away, neighbouring beams
         // hit one surface further apart than a gap near by: the gap allowed grows with the
         // spacing of the beams there, so a wall stays one (wide) thing. A cluster is a run of
         // consecutive beams (a beam without a return ends it): its first beam and its length.
         let spacing = self.spacing;
-        let mut clusters: Vec<(usize, usize)> = Vec::new();
+        clusters.clear();
         let mut last: Option<(f64, f64)> = None;
         for (i, p) in points.iter().enumerate() {
             let gap_allowed = |p: (f64, f64)| {
@@ -211,14 +223,16 @@ impl Shield {
             (c * x - s * y, s * x + c * y)
         };
         let rotate = |u: (f64, f64)| (c * u.0 - s * u.1, s * u.0 + c * u.1);
-        let previous: Vec<((f64, f64), (f64, f64))> = self
-            .motion
-            .last
-            .iter()
-            .map(|(p, u)| (to_now(*p), rotate(*u)))
-            .collect();
-        let mut now_small = Vec::new();
-        let mut velocities = Vec::new();
+        // The last scan's buffers are refilled with this one's.
+        let Motion {
+            last: mut now_small,
+            mut velocities,
+            unknown: mut unknown_returns,
+        } = std::mem::take(&mut self.motion);
+        previous.clear();
+        previous.extend(now_small.iter().map(|(p, u)| (to_now(*p), rotate(*u))));
+        now_small.clear();
+        velocities.clear();
         for &(start, len) in &clusters {
             let (Some(first), Some(end)) = (points[start], points[start + len - 1]) else {
                 continue;
@@ -262,15 +276,24 @@ impl Shield {
                 len,
             ));
         }
-        self.motion = Motion {
-            last: now_small,
-            velocities,
-            unknown: unknown
+        unknown_returns.clear();
+        unknown_returns.extend(
+            unknown
                 .iter()
                 .zip(&points)
                 .filter(|(_, p)| p.is_some())
-                .map(|(u, _)| *u)
-                .collect(),
+                .map(|(u, _)| *u),
+        );
+        self.scratch = Scratch {
+            points,
+            unknown,
+            clusters,
+            previous,
+        };
+        self.motion = Motion {
+            last: now_small,
+            velocities,
+            unknown: unknown_returns,
         };
     }
 
@@ -522,6 +545,7 @@ mod tests {
             range_max: 10.0,
             radius: 0.2,
             motion: Motion::default(),
+            scratch: Scratch::default(),
         }
     }
 
