@@ -205,16 +205,43 @@ impl World {
     }
 
     /// Clearance of the footprint to walls only.
+    pub fn wall_clearance(&self, x: f64, y: f64) -> f64 {
+        match self.wall_distance2(x, y, -1.0) {
+            Some(d2) => d2.sqrt() * self.frame.res - self.robot_radius,
+            None => -self.robot_radius,
+        }
+    }
+
+    /// Whether a wall or object the map knows lies within `d` metres of the point `(x, y)`:
+    /// `self.clearance(x, y) + footprint radius <= d` (so always outside the map), with an
+    /// early answer from the first nearby wall cell close enough. Laser returns ask it once
+    /// per beam and step, and most of them lie on a wall.
+    pub fn knows_within(&self, x: f64, y: f64, d: f64) -> bool {
+        let reach = d * self.frame.inv_res;
+        let reach2 = if reach > 0.0 { reach * reach } else { -1.0 };
+        match self.wall_distance2(x, y, reach2) {
+            None => d >= 0.0,
+            Some(d2) if d2 <= reach2 => true,
+            Some(d2) => {
+                let wall = d2.sqrt() * self.frame.res - self.robot_radius;
+                self.object_clearance(x, y, wall) + self.robot_radius <= d
+            }
+        }
+    }
+
+    /// Squared distance in cells from `(x, y)` to its nearest wall, `None` outside the map;
+    /// it returns the first distance at or below `enough` as soon as it finds one (`-1`: never).
     #[allow(
         clippy::cast_possible_truncation,
         clippy::cast_sign_loss,
-        reason = "positions are checked to lie inside the padded grid before the cast"
+        reason = "positions are checked to lie inside the padded grid before the lookup"
     )]
-    pub fn wall_clearance(&self, x: f64, y: f64) -> f64 {
+    #[inline]
+    fn wall_distance2(&self, x: f64, y: f64, enough: f64) -> Option<f64> {
         let f = &self.frame;
         let (gx, gy) = f.to_grid(x, y);
         if !(gx >= 0.5 && gy >= 0.5 && gx < f.pw as f64 - 0.5 && gy < f.ph as f64 - 0.5) {
-            return -self.robot_radius;
+            return None;
         }
         // The four cells whose centres surround the point: their nearest walls include the
         // point's nearest wall in all but contrived cases.
@@ -230,47 +257,13 @@ impl World {
             let (fx, fy) = ((feat as usize % f.pw) as f64, (feat as usize / f.pw) as f64);
             let ddx = (fx - gx).max(gx - (fx + 1.0)).max(0.0);
             let ddy = (fy - gy).max(gy - (fy + 1.0)).max(0.0);
-            best = best.min(ddx * ddx + ddy * ddy);
-        }
-        best.sqrt() * f.res - self.robot_radius
-    }
-
-    /// Whether a wall or object the map knows lies within `d` metres of the point `(x, y)`:
-    /// `self.clearance(x, y) + footprint radius <= d` (so always outside the map), with an
-    /// early answer from the first nearby wall cell close enough. Laser returns ask it once
-    /// per beam and step, and most of them lie on a wall.
-    #[allow(
-        clippy::cast_possible_truncation,
-        clippy::cast_sign_loss,
-        reason = "positions are checked to lie inside the padded grid before the lookup"
-    )]
-    pub fn knows_within(&self, x: f64, y: f64, d: f64) -> bool {
-        let f = &self.frame;
-        let (gx, gy) = f.to_grid(x, y);
-        if !(gx >= 0.5 && gy >= 0.5 && gx < f.pw as f64 - 0.5 && gy < f.ph as f64 - 0.5) {
-            return d >= 0.0;
-        }
-        // As `wall_clearance`, but any one of the four cells' walls close enough settles it.
-        let reach = d * f.inv_res;
-        let reach2 = if reach > 0.0 { reach * reach } else { -1.0 };
-        let (x0, y0) = ((gx - 0.5) as usize, (gy - 0.5) as usize);
-        let mut best = f64::INFINITY;
-        for (cx, cy) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
-            let feat = self.wall_feature[cy * f.pw + cx];
-            if feat == NO_FEATURE {
-                continue;
-            }
-            let (fx, fy) = ((feat as usize % f.pw) as f64, (feat as usize / f.pw) as f64);
-            let ddx = (fx - gx).max(gx - (fx + 1.0)).max(0.0);
-            let ddy = (fy - gy).max(gy - (fy + 1.0)).max(0.0);
             let d2 = ddx * ddx + ddy * ddy;
-            if d2 <= reach2 {
-                return true;
+            if d2 <= enough {
+                return Some(d2);
             }
             best = best.min(d2);
         }
-        let wall = best.sqrt() * f.res - self.robot_radius;
-        self.object_clearance(x, y, wall) + self.robot_radius <= d
+        Some(best)
     }
 
     /// `min(bound, clearance to object parts within reach)`.
