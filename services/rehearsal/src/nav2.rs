@@ -157,11 +157,14 @@ impl Laser {
     }
 
     /// The returns of `obs` for a robot at `pose`, in the world frame.
-    fn world_returns(&self, obs: &Observation, pose: Pose2) -> Vec<(f64, f64)> {
+    fn world_returns<'a>(
+        &'a self,
+        obs: &'a Observation,
+        pose: Pose2,
+    ) -> impl Iterator<Item = (f64, f64)> + 'a {
         let (s, c) = pose.yaw.sin_cos();
         self.returns(obs)
-            .map(|(x, y)| (pose.x + c * x - s * y, pose.y + s * x + c * y))
-            .collect()
+            .map(move |(x, y)| (pose.x + c * x - s * y, pose.y + s * x + c * y))
     }
 }
 
@@ -471,7 +474,6 @@ impl Controller for MppiController {
             .as_ref()
             .map(|l| {
                 l.world_returns(obs, pose)
-                    .into_iter()
                     .filter(|p| !world.knows_within(p.0, p.1, UNKNOWN_M))
                     .collect()
             })

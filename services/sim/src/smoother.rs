@@ -193,19 +193,14 @@ fn solve_direct(
             prev = ((r.0 + s * prev.0) * m_inv[i], (r.1 + s * prev.1) * m_inv[i]);
             rhs[i] = prev;
         }
-        // Back substitution.
+        // Back substitution (the last interior point has no successor: `next` starts at 0).
         let mut next = (0.0, 0.0);
         for i in (1..n - 1).rev() {
-            let x = if i == n - 2 {
-                rhs[i]
-            } else {
-                (
-                    rhs[i].0 - c_prime[i] * next.0,
-                    rhs[i].1 - c_prime[i] * next.1,
-                )
-            };
-            current[i] = x;
-            next = x;
+            next = (
+                rhs[i].0 - c_prime[i] * next.0,
+                rhs[i].1 - c_prime[i] * next.1,
+            );
+            current[i] = next;
         }
     }
     let keeps = current
