@@ -280,6 +280,11 @@ pub enum BenchCommand {
         /// Rollouts per edge direction.
         #[arg(long, default_value_t = 10)]
         rollouts: u32,
+        /// At most this many roadmap edges per map (both directions each), a sample drawn with
+        /// the seed: a quick look (MPPI drives a few hundred edges in half a minute). Default:
+        /// every edge.
+        #[arg(long)]
+        edges: Option<usize>,
         /// Seed of the roadmaps and rollouts.
         #[arg(long, default_value_t = 7)]
         seed: u64,
@@ -819,6 +824,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             maps,
             policies,
             rollouts,
+            edges,
             seed,
             out,
             people,
@@ -828,6 +834,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 maps: maps.clone(),
                 policies,
                 rollouts,
+                edges,
                 seed,
                 out: out.clone(),
                 people,

@@ -168,10 +168,20 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
     );
 
     // The same policy in `bench edges`: as plans drive it, behind the shield alone, and the
-    // follower, on every edge of every map under the directory; tables and edge maps.
+    // follower, on every edge of every map under the directory; tables and edge maps. A
+    // sample of the edges: MPPI's sampled rollouts (about 4 ms a control step) make the map's
+    // few hundred edges half a minute.
     let bench = dir.path().join("bench-edges");
     let output = mentalsim()
-        .args(["bench", "edges", "--rollouts", "1", "--maps"])
+        .args([
+            "bench",
+            "edges",
+            "--rollouts",
+            "1",
+            "--edges",
+            "40",
+            "--maps",
+        ])
         .arg(other.parent().unwrap())
         .arg("--policy")
         .arg(&out)
@@ -202,9 +212,18 @@ fn train_writes_policy_curves_and_eval_and_eval_runs_it_on_another_map() {
         ],
         "{csv}"
     );
+    // Every row drove the same 40 edges, both directions.
+    assert!(
+        csv.lines()
+            .skip(1)
+            .all(|l| l.split(',').nth(2) == Some("80")),
+        "{csv}"
+    );
     let md = std::fs::read_to_string(bench.join("edges.md")).unwrap();
     assert!(
-        md.contains("| handover |") && md.contains("## Pooled"),
+        md.contains("| handover |")
+            && md.contains("## Pooled")
+            && md.contains("A sample of at most 40 roadmap edges per map"),
         "{md}"
     );
     for name in ["run", "run-shield-only", "follower"] {
@@ -328,7 +347,7 @@ fn train_spreads_over_a_directory_of_maps_and_generated_floors() {
 #[test]
 fn train_and_eval_refuse_bad_input_naming_it() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 10] = [
         (
             &["train", "--learners", "0", "--map", "x.yaml", "--out"],
             "--learners must be between 1 and 16, got 0",
@@ -380,6 +399,10 @@ fn train_and_eval_refuse_bad_input_naming_it() {
                 "--policy",
             ],
             "--rollouts",
+        ),
+        (
+            &["bench", "edges", "--edges", "0", "--maps", "x", "--out"],
+            "--edges must be at least 1",
         ),
     ];
     for (args, expected) in cases {

@@ -20,6 +20,8 @@ pub struct EdgeBenchOptions {
     pub policies: Vec<PathBuf>,
     /// Rollouts per edge direction.
     pub rollouts: u32,
+    /// At most this many edges per map (both directions each), a seeded sample; `None`: all.
+    pub edges: Option<usize>,
     /// Seed of the roadmaps and rollouts.
     pub seed: u64,
     /// Where `edges.csv`, `edges.md` and the edge maps go.
@@ -32,6 +34,26 @@ pub struct EdgeBenchOptions {
     pub robot_ttl: Vec<u8>,
     /// The robot's IRI in it.
     pub robot_iri: String,
+}
+
+/// The undirected edges of `roadmap` to drive: all, or `at_most` of them drawn with `seed`
+/// (in the roadmap's order).
+fn edge_sample(
+    roadmap: &planning::Roadmap,
+    at_most: Option<usize>,
+    seed: u64,
+) -> Vec<(usize, usize)> {
+    use rand::SeedableRng;
+    let all: Vec<(usize, usize)> = roadmap.edges().collect();
+    match at_most {
+        Some(n) if n < all.len() => {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let mut picked = rand::seq::index::sample(&mut rng, all.len(), n).into_vec();
+            picked.sort_unstable();
+            picked.into_iter().map(|i| all[i]).collect()
+        }
+        _ => all,
+    }
 }
 
 /// The map with every roadmap edge in the colour of what the controller made of it: green
@@ -114,6 +136,7 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
         maps,
         policies,
         rollouts,
+        edges,
         seed,
         out,
         people,
@@ -135,15 +158,17 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
     fn drive_with(
         world: &Arc<World>,
         roadmap: &planning::Roadmap,
+        some: &[(usize, usize)],
         which: Which,
         policy: Option<&Arc<Policy>>,
         params: &rehearsal::EdgeRolloutParams,
     ) -> Result<(rehearsal::EdgeReport, f64), BenchError> {
         let t = std::time::Instant::now();
         let report = match (which, policy) {
-            (Which::ShieldOnly, Some(p)) => rehearsal::drive_edges(
+            (Which::ShieldOnly, Some(p)) => rehearsal::drive_some_edges(
                 world,
                 roadmap,
+                some,
                 || rehearsal::PolicyController::without_handover(Arc::clone(p)),
                 params,
             ),
@@ -158,9 +183,10 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
                     )));
                 }
                 let seed = params.seed;
-                rehearsal::drive_edges(
+                rehearsal::drive_some_edges(
                     world,
                     roadmap,
+                    some,
                     || -> Box<dyn rehearsal::Controller + Send> {
                         c.build(p, seed)
                             .unwrap_or_else(|| Box::new(rehearsal::ClassicalFollower::default()))
@@ -180,6 +206,9 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
         return Err(BenchError::BadOption(
             "--rollouts must be at least 1".into(),
         ));
+    }
+    if *edges == Some(0) {
+        return Err(BenchError::BadOption("--edges must be at least 1".into()));
     }
     if let Some(d) = people
         .iter()
@@ -271,6 +300,7 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
                 source,
             }
         })?;
+        let some = edge_sample(&roadmap, *edges, seed);
         std::fs::create_dir_all(out).map_err(io_err(out))?;
         for &density in &densities {
             for (name, which, policy) in &drivers {
@@ -280,7 +310,8 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
                     people_density: density,
                     ..rehearsal::EdgeRolloutParams::default()
                 };
-                let (report, wall_s) = drive_with(&world, &roadmap, *which, *policy, &params)?;
+                let (report, wall_s) =
+                    drive_with(&world, &roadmap, &some, *which, *policy, &params)?;
                 let name = label(name, density);
                 let slug = name
                     .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
@@ -353,8 +384,12 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
         .flat_map(|&d| drivers.iter().map(move |(n, _, _)| (n, d)))
         .map(|(n, d)| label(n, d))
         .collect();
+    let which = match edges {
+        Some(n) => format!("A sample of at most {n} roadmap edges per map (seed {seed})"),
+        None => "Every roadmap edge".to_owned(),
+    };
     let mut md = format!(
-        "# Every roadmap edge, both directions, {rollouts} rollouts each (seed {seed})\n\nA policy drives behind the collision shield with the classical follower taking over within {} m of what the laser sees, as plans drive it; `(shield only)` is the same policy without that handover, `(RPP handover)` with Nav2's Regulated Pure Pursuit taking over instead of the follower; `rpp` and `mppi` are Nav2's Regulated Pure Pursuit and MPPI on the smoothed edge behind the same shield (Nav2's defaults scaled to the robot); `handover` is the share of control steps the follower drove. `@ d people/100 m²`: among people (each rollout its own draw; the executor's recoveries on).\n\n| map | controller | edge directions | success | collided | kept (≥ 90%) | mean edge time (s) | near misses (< 10 cm) | handover |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "# {which}, both directions, {rollouts} rollouts each (seed {seed})\n\nA policy drives behind the collision shield with the classical follower taking over within {} m of what the laser sees, as plans drive it; `(shield only)` is the same policy without that handover, `(RPP handover)` with Nav2's Regulated Pure Pursuit taking over instead of the follower; `rpp` and `mppi` are Nav2's Regulated Pure Pursuit and MPPI on the smoothed edge behind the same shield (Nav2's defaults scaled to the robot); `handover` is the share of control steps the follower drove. `@ d people/100 m²`: among people (each rollout its own draw; the executor's recoveries on).\n\n| map | controller | edge directions | success | collided | kept (≥ 90%) | mean edge time (s) | near misses (< 10 cm) | handover |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
         rehearsal::HANDOVER_MARGIN_M
     );
     for r in &rows {

@@ -266,18 +266,42 @@ where
     C: Controller,
     F: Fn() -> C + Sync + Send,
 {
+    let all: Vec<(usize, usize)> = roadmap.edges().collect();
+    drive_some_edges(world, roadmap, &all, make, params)
+}
+
+/// As [`drive_edges`] for the undirected edges `some` of `roadmap` only (both directions each,
+/// in that order): a sample for a quick look. A report of a sample is not a policy-aware
+/// roadmap's measurement; [`policy_roadmap`] drives every edge.
+pub fn drive_some_edges<C, F>(
+    world: &Arc<World>,
+    roadmap: &Roadmap,
+    some: &[(usize, usize)],
+    make: F,
+    params: &EdgeRolloutParams,
+) -> Result<EdgeReport, PlanError>
+where
+    C: Controller,
+    F: Fn() -> C + Sync + Send,
+{
     params.validate()?;
     let nodes: Vec<Point2> = roadmap.nodes().collect();
     let undirected: Vec<(usize, usize)> = roadmap.edges().collect();
+    if let Some(&(a, b)) = some
+        .iter()
+        .find(|&&(a, b)| !undirected.contains(&(a, b)) && !undirected.contains(&(b, a)))
+    {
+        return Err(invalid(
+            "edges",
+            format!("({a}, {b}) is not an edge of the roadmap"),
+        ));
+    }
     let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
     for &(a, b) in &undirected {
         neighbours[a].push(b);
         neighbours[b].push(a);
     }
-    let directed: Vec<(usize, usize)> = undirected
-        .iter()
-        .flat_map(|&(a, b)| [(a, b), (b, a)])
-        .collect();
+    let directed: Vec<(usize, usize)> = some.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect();
     let probe = make();
     let beams = probe.beams().unwrap_or(sim::EnvConfig::default().beams);
     if world.spec().robot.laser.beam_angles(beams).is_none() {

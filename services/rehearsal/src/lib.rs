@@ -51,7 +51,7 @@ pub use controller::{
 };
 pub use edges::{
     EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, UNKEPT_PENALTY_M, drive_edges,
-    first_attempt_roadmap, policy_roadmap, reweight, reweight_with_unkept,
+    drive_some_edges, first_attempt_roadmap, policy_roadmap, reweight, reweight_with_unkept,
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
