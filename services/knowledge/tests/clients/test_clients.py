@@ -1,6 +1,6 @@
 """Real SPARQL clients against a running knowledge service, used exactly as their users do.
 
-Run by `cargo test -p knowledge --test clients`, which starts the service and sets:
+Run by `cargo test -p knowledge --test knowledge clients`, which starts the service and sets:
   MENTALSIM_SPARQL_URL  the service's base URL (e.g. http://127.0.0.1:4321)
   MENTALSIM_TOKEN       an engineer's bearer token
 

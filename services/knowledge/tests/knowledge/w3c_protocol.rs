@@ -9,17 +9,15 @@
 
 #![allow(clippy::unwrap_used, clippy::print_stdout)] // reason: a test reports and panics
 
-mod support;
-
 use std::path::{Path, PathBuf};
 
+use crate::support::{Options, spawn_app};
 use oxigraph::io::{RdfFormat, RdfParser};
 use oxigraph::model::dataset::CanonicalizationAlgorithm;
 use oxigraph::model::{Graph, NamedNode, NamedNodeRef, NamedOrBlankNodeRef, TermRef};
 use oxigraph::sparql::results::{
     QueryResultsFormat, QueryResultsParser, SliceQueryResultsParserOutput,
 };
-use support::{Options, spawn_app};
 
 const MF: &str = "http://www.w3.org/2001/sw/DataAccess/tests/test-manifest#";
 const HT: &str = "http://www.w3.org/2011/http#";

@@ -3,14 +3,14 @@
 
 #![allow(clippy::unwrap_used)] // reason: tests
 
-mod support;
-
 use std::time::{Duration, Instant};
 
+use crate::support::{
+    ENGINEER_TOKEN, Options, ROBOT_TOKEN, TestApp, engineer_and_robot, spawn_app,
+};
 use knowledge::QueryLimits;
 use reqwest::StatusCode;
 use reqwest::header::{ACCEPT, ALLOW, AUTHORIZATION, CONTENT_TYPE, LOCATION};
-use support::{ENGINEER_TOKEN, Options, ROBOT_TOKEN, TestApp, engineer_and_robot, spawn_app};
 
 const DATA: &str = r#"
     @prefix ex: <http://example.org/> .

@@ -1,5 +1,5 @@
 //! The committed OpenAPI document (`openapi/knowledge.json`) must match the code. Refresh it
-//! with `UPDATE_OPENAPI=1 cargo test --release -p knowledge --test openapi`.
+//! with `UPDATE_OPENAPI=1 cargo test --release -p knowledge --test knowledge openapi`.
 
 use utoipa::OpenApi;
 
@@ -21,6 +21,6 @@ fn committed_openapi_document_matches_the_code() {
     assert!(
         committed.trim_end() == generated.trim_end(),
         "openapi/knowledge.json is out of date with the code: run \
-         `UPDATE_OPENAPI=1 cargo test --release -p knowledge --test openapi` and commit the result"
+         `UPDATE_OPENAPI=1 cargo test --release -p knowledge --test knowledge openapi` and commit the result"
     );
 }

@@ -1,6 +1,6 @@
 //! The plan endpoint's side of the executor: requests and reports in the wire types (serde),
 //! and each refusal of `rehearsal` with its own API code, `reason` and details. The executor's
-//! own behaviour is tested in `rehearsal`'s `tests/executor.rs`.
+//! own behaviour is tested in `rehearsal`'s `tests/rehearsal/executor.rs`.
 
 use std::sync::Arc;
 

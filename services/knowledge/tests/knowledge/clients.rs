@@ -4,15 +4,13 @@
 
 #![allow(clippy::unwrap_used, clippy::print_stdout)] // reason: a test reports and panics
 
-mod support;
-
 use std::process::Command;
 
-use support::{ENGINEER_TOKEN, Options, engineer_and_robot, spawn_app};
+use crate::support::{ENGINEER_TOKEN, Options, engineer_and_robot, spawn_app};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sparqlwrapper_and_rdflib_work_unchanged() {
-    let python = support::repository_root().join(".venv/bin/python");
+    let python = crate::support::repository_root().join(".venv/bin/python");
     let script = std::path::PathBuf::from(
         std::env::var("CARGO_MANIFEST_DIR")
             .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),

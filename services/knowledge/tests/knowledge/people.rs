@@ -5,14 +5,12 @@
 
 #![allow(clippy::unwrap_used)] // reason: tests
 
-mod support;
-
 use std::sync::Arc;
 use std::time::Duration;
 
+use crate::support::{ENGINEER_TOKEN, ROBOT_TOKEN, engineer_and_robot};
 use knowledge::{Knowledge, KnowledgeStore, QueryLimits};
 use sim::{AttractorSpec, PeoplePlaceSpec};
-use support::{ENGINEER_TOKEN, ROBOT_TOKEN, engineer_and_robot};
 
 const FLOOR0: &str = "https://mentalsim.dev/data/buildings/sample-building/floors/0";
 const ROBOT: &str = "https://mentalsim.dev/data/robots/differential-robot";

@@ -349,7 +349,7 @@ fn bad_settings_are_named() {
 
 /// Learning, not just running: in an open room the success rate on held-out missions must beat
 /// the untrained policy's by a wide margin. Minutes of CPU in release; run by hand:
-/// `cargo test --release -p learning --test td3 learns_an_open_room -- --ignored --nocapture`.
+/// `cargo test --release -p learning --test learning learns_an_open_room -- --ignored --nocapture`.
 #[test]
 #[ignore = "minutes of training; run in release by hand"]
 fn learns_an_open_room() {

@@ -3,14 +3,12 @@
 
 #![allow(clippy::unwrap_used)] // reason: tests panic on failure
 
-mod common;
-
 use std::collections::HashMap;
 use std::future::Future;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use common::{Fixture, START_MS};
+use crate::common::{Fixture, START_MS};
 use queue::{
     Backoff, Checkpoint, FailOutcome, JobContext, JobError, JobState, NewJob, Queue, QueueError,
     StopReason, Worker, WorkerConfig, handler_fn,

@@ -7,8 +7,6 @@
 
 #![allow(clippy::unwrap_used)] // reason: tests panic on failure
 
-mod common;
-
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
@@ -46,7 +44,7 @@ async fn sqlite_url() -> Option<(String, Option<tempfile::TempDir>)> {
 }
 
 async fn postgres_url() -> Option<(String, Option<tempfile::TempDir>)> {
-    Some((common::postgres_url().await?, None))
+    Some((crate::common::postgres_url().await?, None))
 }
 
 backend!(sqlite, super::sqlite_url);
@@ -131,7 +129,7 @@ fn spawn_child(url: &str, job: Uuid) -> Child {
     Command::new(std::env::current_exe().unwrap())
         .args([
             "--exact",
-            "crash_child",
+            "crash::crash_child",
             "--ignored",
             "--nocapture",
             "--test-threads=1",

@@ -6,9 +6,7 @@
 
 #![allow(clippy::unwrap_used)] // reason: tests panic on failure
 
-mod common;
-
-use common::Fixture;
+use crate::common::Fixture;
 use queue::bench::{BenchOptions, ThroughputReport, queue_throughput, run};
 use queue::{JobState, Queue};
 
@@ -56,13 +54,13 @@ async fn each_job_is_claimed_and_completed_once(f: Fixture) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sqlite_each_job_is_claimed_and_completed_once() {
-    let f = common::sqlite().await.unwrap();
+    let f = crate::common::sqlite().await.unwrap();
     each_job_is_claimed_and_completed_once(f).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn postgres_each_job_is_claimed_and_completed_once() {
-    let Some(f) = common::postgres().await else {
+    let Some(f) = crate::common::postgres().await else {
         return;
     };
     each_job_is_claimed_and_completed_once(f).await;

@@ -1,5 +1,5 @@
 //! The committed OpenAPI document (`openapi/worker.json`) must match the code. Refresh it with
-//! `UPDATE_OPENAPI=1 cargo test --release -p api --test openapi` (after a workspace build).
+//! `UPDATE_OPENAPI=1 cargo test --release -p api --test api openapi` (after a workspace build).
 
 use utoipa::OpenApi;
 
@@ -21,6 +21,6 @@ fn committed_openapi_document_matches_the_code() {
     assert!(
         committed.trim_end() == generated.trim_end(),
         "openapi/worker.json is out of date with the code: run \
-         `UPDATE_OPENAPI=1 cargo test --release -p api --test openapi` and commit the result"
+         `UPDATE_OPENAPI=1 cargo test --release -p api --test api openapi` and commit the result"
     );
 }

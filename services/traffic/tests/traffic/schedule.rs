@@ -4,12 +4,10 @@
 
 #![allow(clippy::unwrap_used)] // reason: tests panic on failure
 
-mod common;
-
 use std::sync::Arc;
 use std::time::Duration;
 
-use common::{Fixture, START_MS, at, straight};
+use crate::common::{Fixture, START_MS, at, straight};
 use traffic::{Change, Itinerary, Removal, Schedule, TimedPose, TrafficError};
 
 macro_rules! backend {

@@ -1,6 +1,6 @@
 //! The plan executor with real components: worlds built by `sim`, roadmaps by `planning`, the
 //! pure-Rust policy runtime of `learning`. What the plan endpoint makes of the results (wire
-//! types, error reasons and codes) is tested in `worker`'s `tests/plan.rs`.
+//! types, error reasons and codes) is tested in `api`'s `tests/api/plan.rs`.
 
 use std::path::Path;
 use std::sync::Arc;

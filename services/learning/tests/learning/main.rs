@@ -1,0 +1,7 @@
+//! The `learning` crate's integration tests in one binary (one build and link, one copy of
+//! what they share); each module's docs say what it covers.
+
+#![allow(clippy::unwrap_used)] // reason: tests panic on failure
+
+mod gradient_step;
+mod td3;

@@ -1,0 +1,9 @@
+//! The `queue` crate's integration tests in one binary (one build and link, one copy of
+//! what they share); each module's docs say what it covers.
+
+#![allow(clippy::unwrap_used)] // reason: tests panic on failure
+
+mod bench;
+mod common;
+mod conformance;
+mod crash;

@@ -1,0 +1,10 @@
+//! The `rehearsal` crate's integration tests in one binary (one build and link, one copy of
+//! what they share); each module's docs say what it covers.
+
+#![allow(clippy::unwrap_used)] // reason: tests panic on failure
+
+mod among;
+mod edges;
+mod executor;
+mod handover;
+mod nav2;
