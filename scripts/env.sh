@@ -31,6 +31,13 @@ export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$_ms_cache/target}"
 if command -v clang >/dev/null 2>&1 && command -v clang++ >/dev/null 2>&1; then
   export CC="${CC:-clang}" CXX="${CXX:-clang++}"
 fi
+# - The workspace's own crates compile through clippy's driver (rustc that also runs clippy's
+#   lints), so the build that serves and tests is the lint pass too: scripts/test fails on any
+#   warning it reports, where `cargo clippy` would check every dependency a second time (about
+#   100 s on a fresh machine). Every script sets it alike, so their builds share all units.
+if command -v clippy-driver >/dev/null 2>&1; then
+  export RUSTC_WORKSPACE_WRAPPER="${RUSTC_WORKSPACE_WRAPPER:-clippy-driver}"
+fi
 # CI builds each clone once: incremental caches would only grow the shared target directory.
 if [ "${CI:-}" = "true" ]; then export CARGO_INCREMENTAL=0; fi
 unset _ms_root _ms_cache
