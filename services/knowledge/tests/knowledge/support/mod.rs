@@ -1,7 +1,7 @@
 //! Test fixture: the protocol router over a fresh in-memory store, wrapped in the shared
 //! middleware stack and served over real HTTP on a port of its own.
 
-#![allow(dead_code, clippy::unwrap_used)] // reason: each test binary uses part of the fixture
+#![allow(dead_code, clippy::unwrap_used)] // reason: each module uses part of the fixture
 
 use std::net::SocketAddr;
 use std::path::PathBuf;

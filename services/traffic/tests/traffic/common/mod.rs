@@ -5,7 +5,7 @@
 //! are missing, [`fixtures::missing`] decides: under CI (`CI=true`) or with
 //! `MENTALSIM_REQUIRE_ALL=1` the PostgreSQL tests fail, as they do with
 //! `MENTALSIM_REQUIRE_POSTGRES=1`; in a clone of one's own they print why and return.
-#![allow(dead_code, clippy::unwrap_used)] // reason: shared by several test binaries; tests panic on failure
+#![allow(dead_code, clippy::unwrap_used)] // reason: shared by several modules, each using part; tests panic on failure
 
 use std::sync::Arc;
 
