@@ -286,20 +286,19 @@ where
 {
     params.validate()?;
     let nodes: Vec<Point2> = roadmap.nodes().collect();
-    let undirected: Vec<(usize, usize)> = roadmap.edges().collect();
+    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+    for (a, b) in roadmap.edges() {
+        neighbours[a].push(b);
+        neighbours[b].push(a);
+    }
     if let Some(&(a, b)) = some
         .iter()
-        .find(|&&(a, b)| !undirected.contains(&(a, b)) && !undirected.contains(&(b, a)))
+        .find(|&&(a, b)| !neighbours.get(a).is_some_and(|n| n.contains(&b)))
     {
         return Err(invalid(
             "edges",
             format!("({a}, {b}) is not an edge of the roadmap"),
         ));
-    }
-    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
-    for &(a, b) in &undirected {
-        neighbours[a].push(b);
-        neighbours[b].push(a);
     }
     let directed: Vec<(usize, usize)> = some.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect();
     let probe = make();

@@ -1,12 +1,42 @@
 //! The navigation benchmark end to end on a small generated ROS map, with a hand-made policy.
 
+use std::path::Path;
+
 use bench::navigation::{NavigationBenchOptions, run_navigation_bench};
 use learning::policy::write_goal_seeking_policy;
+
+/// A 12 m x 6 m room at 0.05 m/px with an inner wall at x = 6 open at the top, as map_server
+/// files (PGM rows top first).
+fn write_map(dir: &Path) {
+    let (w, h) = (240usize, 120usize);
+    let mut pixels = vec![254u8; w * h];
+    for row in 0..h {
+        // Image row 0 is the top of the map: y = (h - 1 - row) * 0.05.
+        let y = (h - 1 - row) as f64 * 0.05;
+        for col in 0..w {
+            let x = col as f64 * 0.05;
+            let border = col < 2 || row < 2 || col >= w - 2 || row >= h - 2;
+            let inner = (5.9..6.1).contains(&x) && y < 4.2;
+            if border || inner {
+                pixels[row * w + col] = 0;
+            }
+        }
+    }
+    let mut pgm = format!("P5\n{w} {h}\n255\n").into_bytes();
+    pgm.extend_from_slice(&pixels);
+    std::fs::create_dir_all(dir.join("room")).expect("dir");
+    std::fs::write(dir.join("room/room.pgm"), pgm).expect("pgm");
+    std::fs::write(
+        dir.join("room/room.yaml"),
+        "image: room.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    )
+    .expect("yaml");
+}
 
 /// A scratch directory with a map under `maps/` and a goal-seeking policy in `policy/`.
 fn map_and_policy() -> tempfile::TempDir {
     let tmp = tempfile::tempdir().expect("tmp");
-    fixtures::worlds::write_room_map(&tmp.path().join("maps"), (12.0, 6.0)).expect("map");
+    write_map(&tmp.path().join("maps"));
     write_goal_seeking_policy(
         &tmp.path().join("policy"),
         23,
