@@ -400,7 +400,19 @@ impl World {
     /// over the free region, with their path fields; made on first use, then shared.
     pub fn people_targets(&self) -> &Arc<crate::crowd::Targets> {
         self.people_targets
-            .get_or_init(|| Arc::new(crate::crowd::Targets::new(self)))
+            .get_or_init(|| crate::crowd::Targets::shared(self))
+    }
+
+    /// What a world's people targets depend on besides the knowledge of people: its geometry
+    /// ([`World::geometry_key`]) and its free region (which also depends on the build's
+    /// sampling margin). Worlds alike in these share their targets and path fields.
+    pub(crate) fn region_key(&self) -> (String, u64) {
+        let mut h = grid::hash::Fnv1a::new();
+        h.write(&(self.region.cells.len() as u64).to_le_bytes());
+        for word in &self.region.member {
+            h.write(&word.to_le_bytes());
+        }
+        (self.geometry_key().to_owned(), h.finish())
     }
 
     /// Origin and heading of the laser of a robot at `pose`: (x, y, yaw).

@@ -397,3 +397,49 @@ fn the_shield_lets_a_walker_stop_anywhere_on_their_way() {
     assert!(s.sees_motion());
     assert_eq!(s.filter_follower(go, &obs, pose, &world), go);
 }
+
+/// The worlds of robots of one model on one floor (the service builds one per robot) share
+/// where people walk and the path fields to there; a world that differs in its geometry or in
+/// its knowledge of people has its own, and a crowd walks the same either way.
+#[test]
+fn worlds_alike_share_their_people_targets() {
+    let a = World::build(room(12.0, 8.0)).expect("builds");
+    let b = World::build(room(12.0, 8.0)).expect("builds");
+    assert!(Arc::ptr_eq(a.people_targets(), b.people_targets()));
+    let mut routed = room(12.0, 8.0);
+    routed.people = PeopleSpec {
+        routes: vec![RouteSpec {
+            id: "along".into(),
+            points: vec![[1.0, 4.0], [11.0, 4.0]],
+        }],
+        ..PeopleSpec::default()
+    };
+    let c = World::build(routed).expect("builds");
+    assert!(!Arc::ptr_eq(a.people_targets(), c.people_targets()));
+    assert!(c.people_targets().points().len() > a.people_targets().points().len());
+    let mut wider = room(12.0, 8.0);
+    wider.robot.footprint_radius += 0.1;
+    let d = World::build(wider).expect("builds");
+    assert!(!Arc::ptr_eq(a.people_targets(), d.people_targets()));
+    // Shared or not, a seed walks the same crowd.
+    let walk = |world: Arc<World>| {
+        let config = EnvConfig {
+            noise: NoiseConfig::none(),
+            max_steps: 100_000,
+            people: people(4),
+            ..EnvConfig::default()
+        };
+        let mut env = NavEnv::new(world, config, 3).expect("valid");
+        env.reset(Pose2::new(1.0, 1.0, 0.0), (10.0, 6.0)).expect("resets");
+        (0..100)
+            .map(|_| {
+                env.step(Action::new(0.0, 0.0));
+                positions(&env)
+            })
+            .collect::<Vec<_>>()
+    };
+    let first = walk(Arc::clone(&a));
+    drop((a, b));
+    // With every world alike gone, the next one makes its targets afresh.
+    assert_eq!(first, walk(World::build(room(12.0, 8.0)).expect("builds")));
+}
