@@ -430,7 +430,8 @@ fn worlds_alike_share_their_people_targets() {
             ..EnvConfig::default()
         };
         let mut env = NavEnv::new(world, config, 3).expect("valid");
-        env.reset(Pose2::new(1.0, 1.0, 0.0), (10.0, 6.0)).expect("resets");
+        env.reset(Pose2::new(1.0, 1.0, 0.0), (10.0, 6.0))
+            .expect("resets");
         (0..100)
             .map(|_| {
                 env.step(Action::new(0.0, 0.0));
