@@ -19,14 +19,17 @@ fn people(count: usize) -> PeopleConfig {
 }
 
 fn env_in(spec: WorldSpec, people: PeopleConfig, seed: u64) -> NavEnv {
+    env_on(World::build(spec).expect("the room builds"), people, seed)
+}
+
+fn env_on(world: Arc<World>, people: PeopleConfig, seed: u64) -> NavEnv {
     let config = EnvConfig {
         noise: NoiseConfig::none(),
         max_steps: 100_000,
         people,
         ..EnvConfig::default()
     };
-    NavEnv::new(World::build(spec).expect("the room builds"), config, seed)
-        .expect("the environment is valid")
+    NavEnv::new(world, config, seed).expect("the environment is valid")
 }
 
 fn positions(env: &NavEnv) -> Vec<(f64, f64)> {
@@ -423,13 +426,7 @@ fn worlds_alike_share_their_people_targets() {
     assert!(!Arc::ptr_eq(a.people_targets(), d.people_targets()));
     // Shared or not, a seed walks the same crowd.
     let walk = |world: Arc<World>| {
-        let config = EnvConfig {
-            noise: NoiseConfig::none(),
-            max_steps: 100_000,
-            people: people(4),
-            ..EnvConfig::default()
-        };
-        let mut env = NavEnv::new(world, config, 3).expect("valid");
+        let mut env = env_on(world, people(4), 3);
         env.reset(Pose2::new(1.0, 1.0, 0.0), (10.0, 6.0))
             .expect("resets");
         (0..100)
