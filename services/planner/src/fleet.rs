@@ -18,7 +18,14 @@
 //! laser sees, moving along their schedules, as they do not react to this robot); a plan that
 //! touches another robot there, or does not arrive among them (blocked), is fitted again from a
 //! later start, and refused (409, naming the robots) where no start within `max_wait_s` helps.
-//! Nothing is committed that was not driven through.
+//! Nothing is committed that was not driven through among the plans it was fitted against.
+//!
+//! Plans on one floor are fitted and driven side by side, each against the schedule it read,
+//! and committed one at a time against that version. Where plans were committed meanwhile, a
+//! plan whose drive keeps the margin from each of them is committed without driving it again
+//! ([`committed_since`]); one that does not is fitted and driven again against the new
+//! schedule (after a few such losses, holding the floor's lock from its snapshot to its
+//! commit, so that a busy floor still takes it).
 //!
 //! What is guaranteed: the committed itineraries keep the robots apart by the margin as long as
 //! each stays within its tolerance of its schedule (progress reports shift a late robot's
@@ -104,6 +111,11 @@ pub const ROBOT_MARGIN_M: f64 = 0.6 - sim::rpp::NAV2_DEFAULT_ROBOT_RADIUS_M;
 /// not arrive and no other robot was involved (people or noise stopped it): as the rehearsal
 /// re-samples, a person who happened to stand in the way is not a conflict of the schedule.
 pub const FRESH_DRAWS: u32 = 2;
+/// Time the fit adds to a plan's tolerance, seconds: the drive among the fleet deviates from
+/// the fitted draft by about this much (braking before a wait and setting off after it take
+/// about a second at the sample robot's limits; people slow it), and a fit that cleared another
+/// robot by less would have its drive refused and fitted again from a later start.
+pub const FIT_SLACK_S: f64 = 1.0;
 /// Steps of waiting tried, seconds.
 const WAIT_STEP_S: f64 = 1.0;
 
@@ -374,6 +386,37 @@ impl Draft<'_> {
         self.waits.iter().map(|(_, s)| s).sum()
     }
 
+    /// The robot standing at step `k` while it waits there, as an itinerary of its own.
+    fn standing(&self, k: usize, template: &Itinerary) -> Itinerary {
+        let p = self
+            .steps
+            .get(k)
+            .or(self.steps.last())
+            .copied()
+            .unwrap_or(Pose2::new(0.0, 0.0, 0.0));
+        let (from, to) = (self.time_of(k), self.time_of(k) + self.wait_at(k));
+        let pose = |t_s: f64| TimedPose {
+            t_s,
+            x: p.x,
+            y: p.y,
+            yaw: p.yaw,
+        };
+        Itinerary {
+            trajectory: vec![pose(from), pose(to)],
+            expires_unix_ms: template.start_unix_ms + (to * 1000.0).ceil() as i64,
+            ..template.clone()
+        }
+    }
+
+    /// Seconds waited at step `at`.
+    fn wait_at(&self, at: usize) -> f64 {
+        self.waits
+            .iter()
+            .filter(|(i, _)| *i == at)
+            .map(|(_, s)| s)
+            .sum()
+    }
+
     fn add_wait(&mut self, at: usize, s: f64) {
         match self.waits.iter_mut().find(|(i, _)| *i == at) {
             Some(w) => w.1 += s,
@@ -389,6 +432,19 @@ impl Draft<'_> {
 /// [`ROBOT_MARGIN_M`], each robot anywhere within its tolerance of its schedule).
 pub fn first_conflict(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
     first(itinerary, &Reserved::new(others, itinerary.start_unix_ms))
+}
+
+/// The itineraries of `now` that are not in `checked` (committed, replaced or moved by a
+/// progress report since `checked` was read): what a plan driven among `checked` has not met.
+/// A plan whose drive keeps [`ROBOT_MARGIN_M`] from all of them ([`first_conflict`]) is
+/// committed among `now` without driving it again: the margin is where a controller starts
+/// reacting to another robot, so they are at most seen by its laser, and people do not react to
+/// other robots. `bench fleet`'s joint run drives every committed plan among all the others.
+pub fn committed_since(checked: &[Itinerary], now: &[Itinerary]) -> Vec<Itinerary> {
+    now.iter()
+        .filter(|i| !checked.contains(i))
+        .cloned()
+        .collect()
 }
 
 /// `fitted` with the trajectory the robot drove (`steps` every `dt` seconds from
@@ -451,7 +507,9 @@ pub fn fit(
     };
     // The others are cut into pieces once for every candidate checked below.
     let committed = Reserved::new(others, template.start_unix_ms);
-    let mut ceiling = stops.len();
+    // Waits go to stops[floor..ceiling]: the floor rises past a stop the robot must leave
+    // early, the ceiling falls below one it must not stand at.
+    let (mut floor, mut ceiling) = (0, stops.len());
     let mut blockers: Vec<(usize, Vec<String>)> = Vec::new();
     let mut in_the_way: Vec<String> = Vec::new();
     loop {
@@ -504,14 +562,34 @@ pub fn fit(
             return Err(refused);
         }
         let t_c = (c.at_unix_ms - template.start_unix_ms) as f64 / 1000.0;
+        // The conflict happens while the robot waits at the first stop it may wait at (the
+        // start first of all: another robot's plan passes through it): waiting there longer
+        // does not help, and there is no stop before it. The robot leaves it as it would have
+        // without that wait and waits at the next stop instead.
+        let k = stops[floor];
+        let extra = draft.wait_at(k);
+        if extra > 1e-9
+            && floor + 1 < ceiling
+            && first(&draft.standing(k, template), &committed).is_some()
+        {
+            draft.waits.retain(|(i, _)| *i != k);
+            floor += 1;
+            draft.add_wait(stops[floor], extra.max(WAIT_STEP_S));
+            blockers.push((stops[floor], vec![c.b_robot.clone()]));
+            continue;
+        }
         // Waiting at a stop the conflict happens at (or while standing there) does not help:
         // the wait moves to the stop before.
         // The last stop is the goal, where the robot stays until its itinerary expires.
         let last = steps.len().saturating_sub(1);
-        let standing = stops[..ceiling].iter().position(|&k| {
+        let standing = stops[..ceiling].iter().enumerate().position(|(i, &k)| {
             let (from, to) = (draft.time_of(k), draft.time_of(k + 1));
             let until = if k == last { f64::INFINITY } else { to };
-            t_c >= from - 1e-9 && t_c <= until + template.tolerance_s && k > 0
+            t_c >= from - 1e-9
+                && t_c <= until + template.tolerance_s
+                && i > floor
+                // Passing the stop within the tolerance is not standing in the way there.
+                && (k == last || first(&draft.standing(k, template), &committed).is_some())
         });
         if let Some(i) = standing {
             let moved: f64 = draft
@@ -527,13 +605,13 @@ pub fn fit(
             blockers.push((before, vec![c.b_robot.clone()]));
             continue;
         }
-        // The last stop reached before the conflict, within the ceiling.
-        let at = stops[..ceiling]
+        // The last stop reached before the conflict, within the floor and the ceiling.
+        let at = stops[floor..ceiling]
             .iter()
             .rev()
             .copied()
             .find(|&k| draft.time_of(k) < t_c - template.tolerance_s)
-            .unwrap_or(0);
+            .unwrap_or(stops[floor]);
         draft.add_wait(at, WAIT_STEP_S);
         blockers.push((at, vec![c.b_robot.clone()]));
     }
@@ -701,6 +779,40 @@ mod tests {
         // The corridor's end is in A's way (A arrives there): B waits at its start instead.
         assert_eq!(waits.len(), 1, "{waits:?}");
         assert_eq!(waits[0].0, 0, "a later start: {waits:?}");
+    }
+
+    /// B must let C cross its way ahead; waiting at its start it would stand in A's way, who
+    /// passes through B's start meanwhile. So B leaves at once and lets C pass at its first
+    /// waypoint.
+    #[test]
+    fn a_robot_waits_ahead_rather_than_at_a_start_another_robot_passes_through() {
+        let dt = 0.1;
+        let b_steps = straight((0.0, 0.0), (10.0, 0.0), 1.0, dt);
+        let waypoints = [Point2::new(4.0, 0.0), Point2::new(10.0, 0.0)];
+        let c = committed("C", &straight((6.0, -5.0), (6.0, 5.0), 1.0, dt), dt, 0);
+        let a = committed("A", &straight((0.0, -3.5), (0.0, 5.0), 1.0, dt), dt, 0);
+        // C alone: B waits at its start.
+        let (_, _, waits) = fit(
+            &template("B", 0),
+            &b_steps,
+            dt,
+            &waypoints,
+            std::slice::from_ref(&c),
+            120.0,
+        )
+        .unwrap();
+        assert_eq!(waits.first().map(|w| w.0), Some(0), "{waits:?}");
+        // With A through its start: B waits at the first waypoint, and nowhere else.
+        let others = [c.clone(), a.clone()];
+        let (it, at, waits) =
+            fit(&template("B", 0), &b_steps, dt, &waypoints, &others, 120.0).unwrap();
+        assert!(first_conflict(&it, &others).is_none());
+        assert_eq!(
+            waits.iter().map(|w| w.0).collect::<Vec<_>>(),
+            vec![at[0]],
+            "{waits:?}"
+        );
+        assert!(waits[0].2.contains(&"C".to_owned()), "{waits:?}");
     }
 
     #[test]

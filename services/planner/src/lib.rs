@@ -240,6 +240,9 @@ pub trait RoadmapBuilds: Send + Sync {
 /// fitted again against the new schedule) before it answers 503. Fitting it again from a later
 /// start is bounded by `options.max_wait_s` instead.
 const COMMIT_ATTEMPTS: usize = 16;
+/// Commits a plan may lose while fitted and driven beside the floor's other plans; after
+/// that it holds the floor's lock from its snapshot to its commit.
+const OPTIMISTIC_COMMITS: usize = 3;
 
 /// Policies kept loaded at most.
 const LOADED_POLICIES: usize = 16;
@@ -522,10 +525,18 @@ impl Planner {
         let mut in_the_way: Vec<String> = Vec::new();
         let robot_lock = self.fleet_lock(format!("robot {}", db.robot));
         let _one_plan_per_robot = robot_lock.lock().await;
+        // Plans on one floor are fitted and driven side by side, each against the schedule as
+        // it was (optimistically), and committed one at a time under the floor's lock. A plan
+        // that lost its commit OPTIMISTIC_COMMITS times holds the lock from its snapshot to its
+        // commit, so a busy floor still takes it.
         let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
-        let _one_commit_per_floor = floor_lock.lock().await;
-        let mut lost_commits = 0;
-        while lost_commits < COMMIT_ATTEMPTS {
+        let (mut lost_commits, mut rechecks) = (0, 0);
+        'attempts: while lost_commits < COMMIT_ATTEMPTS {
+            let _whole_attempt = if lost_commits >= OPTIMISTIC_COMMITS {
+                Some(floor_lock.lock().await)
+            } else {
+                None
+            };
             let start = requested + (later_s * 1000.0).round() as i64;
             let template = traffic::Itinerary {
                 plan_id: plan_id.clone(),
@@ -534,7 +545,10 @@ impl Planner {
                 start_unix_ms: start,
                 trajectory: Vec::new(),
                 radius_m: world.spec().robot.footprint_radius,
-                tolerance_s: options.tolerance_s,
+                // The fit leaves the drive room to deviate from the draft (braking before a
+                // wait, setting off after it, people in the way): what is committed is the
+                // drive, checked with the plan's own tolerance.
+                tolerance_s: options.tolerance_s + fleet::FIT_SLACK_S,
                 expires_unix_ms: start + (options.hold_s * 1000.0).round() as i64,
                 delay_s: 0.0,
             };
@@ -649,7 +663,10 @@ impl Planner {
                 );
                 (itinerary, Some(refused(robot.to_owned(), why)))
             } else if among.outcome == rehearsal::AttemptOutcome::Reached {
-                let driven = fleet::driven(&itinerary, start, &among.steps, among.control_period_s);
+                let driven = traffic::Itinerary {
+                    tolerance_s: options.tolerance_s,
+                    ..fleet::driven(&itinerary, start, &among.steps, among.control_period_s)
+                };
                 match fleet::first_conflict(&driven, &others) {
                     Some(c) => {
                         let why = format!(
@@ -671,6 +688,10 @@ impl Planner {
                 let radius = world.spec().robot.footprint_radius;
                 let no_fit = fleet::did_not_arrive(&robots, &among, radius);
                 (itinerary, Some(PlanFailure::FleetConflict(no_fit)))
+            };
+            let itinerary = traffic::Itinerary {
+                tolerance_s: options.tolerance_s,
+                ..itinerary
             };
             if let Some(PlanFailure::FleetConflict(no_fit)) = refusal {
                 let next = if later_s == 0.0 { 2.0 } else { 2.0 * later_s };
@@ -700,17 +721,49 @@ impl Planner {
             }
             let among = (!others.is_empty()).then_some(among);
             let version = if options.commit {
-                match schedule
-                    .commit(itinerary.clone(), version)
-                    .await
-                    .map_err(PlanFailure::Unavailable)?
-                {
-                    fleet::Committed::Yes(v) => Some(v),
-                    fleet::Committed::VersionChanged => {
-                        lost_commits += 1;
-                        continue;
+                let _one_commit_per_floor = if _whole_attempt.is_none() {
+                    Some(floor_lock.lock().await)
+                } else {
+                    None
+                };
+                let (mut version, mut checked) = (version, others.clone());
+                loop {
+                    match schedule
+                        .commit(itinerary.clone(), version)
+                        .await
+                        .map_err(PlanFailure::Unavailable)?
+                    {
+                        fleet::Committed::Yes(v) => break Some(v),
+                        fleet::Committed::Refused(m) => {
+                            return Err(PlanFailure::Unprocessable(m));
+                        }
+                        fleet::Committed::VersionChanged => {}
                     }
-                    fleet::Committed::Refused(m) => return Err(PlanFailure::Unprocessable(m)),
+                    // Plans were committed since the snapshot (here, or by another process):
+                    // where this one's drive keeps the margin from all of them, it is committed
+                    // among them (`fleet::committed_since`); otherwise it is fitted and driven
+                    // again.
+                    rechecks += 1;
+                    if rechecks >= COMMIT_ATTEMPTS {
+                        break 'attempts;
+                    }
+                    let (now_version, now) = schedule
+                        .snapshot(&db.floor)
+                        .await
+                        .map_err(PlanFailure::Unavailable)?;
+                    let now: Vec<traffic::Itinerary> =
+                        now.into_iter().filter(|i| i.robot != db.robot).collect();
+                    if now.len() >= fleet::MAX_ROBOTS_PER_FLOOR
+                        || fleet::first_conflict(
+                            &itinerary,
+                            &fleet::committed_since(&checked, &now),
+                        )
+                        .is_some()
+                    {
+                        lost_commits += 1;
+                        continue 'attempts;
+                    }
+                    (version, checked) = (now_version, now);
                 }
             } else {
                 None
