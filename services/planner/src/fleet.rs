@@ -40,6 +40,8 @@ use planning::Point2;
 use sim::Pose2;
 use traffic::{Conflict, Itinerary, Reserved, TimedPose};
 
+use crate::PlanFailure;
+
 /// A boxed future of a [`FleetSchedule`] call.
 pub type FleetFuture<'a, T> = Pin<Box<dyn Future<Output = Result<T, String>> + Send + 'a>>;
 
@@ -445,6 +447,60 @@ pub fn committed_since(checked: &[Itinerary], now: &[Itinerary]) -> Vec<Itinerar
         .filter(|i| !checked.contains(i))
         .cloned()
         .collect()
+}
+
+/// How [`commit_among`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum CommitEnd {
+    /// Committed; the floor's new version.
+    Yes(i64),
+    /// A plan committed since conflicts with it: fit and drive it again.
+    Refit,
+    /// The floor kept changing: `max_rechecks` used up.
+    Exhausted,
+}
+
+/// Commits `itinerary`, driven among `checked` (the floor at `version`). Where the floor changed
+/// meanwhile, it is committed against the new version when it keeps the margin from every plan
+/// committed since ([`committed_since`]), and sent back to be fitted again otherwise. Each such
+/// check counts in `rechecks`, up to `max_rechecks`.
+pub(crate) async fn commit_among(
+    schedule: &dyn FleetSchedule,
+    itinerary: &Itinerary,
+    mut version: i64,
+    mut checked: Vec<Itinerary>,
+    rechecks: &mut usize,
+    max_rechecks: usize,
+) -> Result<CommitEnd, PlanFailure> {
+    loop {
+        match schedule
+            .commit(itinerary.clone(), version)
+            .await
+            .map_err(PlanFailure::Unavailable)?
+        {
+            Committed::Yes(v) => return Ok(CommitEnd::Yes(v)),
+            Committed::Refused(m) => return Err(PlanFailure::Unprocessable(m)),
+            Committed::VersionChanged => {}
+        }
+        *rechecks += 1;
+        if *rechecks >= max_rechecks {
+            return Ok(CommitEnd::Exhausted);
+        }
+        let (now_version, now) = schedule
+            .snapshot(&itinerary.floor)
+            .await
+            .map_err(PlanFailure::Unavailable)?;
+        let now: Vec<Itinerary> = now
+            .into_iter()
+            .filter(|i| i.robot != itinerary.robot)
+            .collect();
+        if now.len() >= MAX_ROBOTS_PER_FLOOR
+            || first_conflict(itinerary, &committed_since(&checked, &now)).is_some()
+        {
+            return Ok(CommitEnd::Refit);
+        }
+        (version, checked) = (now_version, now);
+    }
 }
 
 /// `fitted` with the trajectory the robot drove (`steps` every `dt` seconds from

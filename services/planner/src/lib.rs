@@ -726,44 +726,24 @@ impl Planner {
                 } else {
                     None
                 };
-                let (mut version, mut checked) = (version, others.clone());
-                loop {
-                    match schedule
-                        .commit(itinerary.clone(), version)
-                        .await
-                        .map_err(PlanFailure::Unavailable)?
-                    {
-                        fleet::Committed::Yes(v) => break Some(v),
-                        fleet::Committed::Refused(m) => {
-                            return Err(PlanFailure::Unprocessable(m));
-                        }
-                        fleet::Committed::VersionChanged => {}
-                    }
-                    // Plans were committed since the snapshot (here, or by another process):
-                    // where this one's drive keeps the margin from all of them, it is committed
-                    // among them (`fleet::committed_since`); otherwise it is fitted and driven
-                    // again.
-                    rechecks += 1;
-                    if rechecks >= COMMIT_ATTEMPTS {
-                        break 'attempts;
-                    }
-                    let (now_version, now) = schedule
-                        .snapshot(&db.floor)
-                        .await
-                        .map_err(PlanFailure::Unavailable)?;
-                    let now: Vec<traffic::Itinerary> =
-                        now.into_iter().filter(|i| i.robot != db.robot).collect();
-                    if now.len() >= fleet::MAX_ROBOTS_PER_FLOOR
-                        || fleet::first_conflict(
-                            &itinerary,
-                            &fleet::committed_since(&checked, &now),
-                        )
-                        .is_some()
-                    {
+                // Plans committed since the snapshot (here, or by another process) that this
+                // drive keeps the margin from do not send it back to be fitted and driven again.
+                match fleet::commit_among(
+                    schedule,
+                    &itinerary,
+                    version,
+                    others.clone(),
+                    &mut rechecks,
+                    COMMIT_ATTEMPTS,
+                )
+                .await?
+                {
+                    fleet::CommitEnd::Yes(v) => Some(v),
+                    fleet::CommitEnd::Refit => {
                         lost_commits += 1;
                         continue 'attempts;
                     }
-                    (version, checked) = (now_version, now);
+                    fleet::CommitEnd::Exhausted => break 'attempts,
                 }
             } else {
                 None
