@@ -71,6 +71,7 @@ fn two_robots_swap_through_a_corridor_one_robot_wide() {
         "robots",
         "people",
         "joint_success_rate",
+        "joint_success_starts_held_rate",
         "robot_collisions",
         "deadlocks",
         "makespan_ratio",
