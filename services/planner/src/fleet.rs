@@ -10,8 +10,10 @@
 //! the waypoint before it, down to the start (a conflict at the goal, where the robot is held
 //! after arriving, moves the wait before the goal). So two robots sent down one corridor from its
 //! two ends never meet in it: the second one waits before the corridor, or where the first
-//! one's path leaves room. Where the waits would exceed `max_wait_s`, the plan is refused,
-//! naming the robots in the way and the earliest later start that fits with no wait.
+//! one's path leaves room. Where the robot, waiting at its start (or the first stop it may
+//! still wait at), would stand in another robot's way, it leaves at once and waits at the next
+//! stop instead. Where the waits would exceed `max_wait_s`, the plan is refused, naming the
+//! robots in the way and the earliest later start that fits with no wait.
 //!
 //! Then the plan is driven again in the simulation with its waits, while every other robot
 //! drives its committed itinerary in the same simulation ([`simulated_robots`]: footprints the
