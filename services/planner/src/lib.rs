@@ -534,7 +534,7 @@ impl Planner {
         let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
         let (mut lost_commits, mut rechecks) = (0, 0);
         'attempts: while lost_commits < COMMIT_ATTEMPTS {
-            let _whole_attempt = if lost_commits >= OPTIMISTIC_COMMITS {
+            let held_throughout = if lost_commits >= OPTIMISTIC_COMMITS {
                 Some(floor_lock.lock().await)
             } else {
                 None
@@ -723,7 +723,7 @@ impl Planner {
             }
             let among = (!others.is_empty()).then_some(among);
             let version = if options.commit {
-                let _one_commit_per_floor = if _whole_attempt.is_none() {
+                let _one_commit_per_floor = if held_throughout.is_none() {
                     Some(floor_lock.lock().await)
                 } else {
                     None
