@@ -140,9 +140,10 @@ async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() 
     assert_eq!(poses[0]["header"]["stamp"]["sec"], start / 1000, "{first}");
     assert!(poses.iter().all(|p| p["header"]["stamp"].is_object()));
 
-    // The second robot takes the same route 10 s later: the first is held at the goal when
+    // The second robot takes the same route 15 s later, from where the first has left by
+    // then (both robots' tolerances past): the first is held at the goal when
     // it would arrive.
-    let later = start + 10_000;
+    let later = start + 15_000;
     let (status, second) = plan(&app, &route("R-002", from, to, later, json!({}))).await;
     assert_eq!(status, 200, "{second}");
     let s2 = &second["schedule"];
@@ -392,21 +393,41 @@ async fn the_floor_traffic_streams_every_change_with_its_version() {
     let (status, first) = plan(&app, &route("R-001", from, to, start, json!({}))).await;
     assert_eq!(status, 200, "{first}");
     let id1 = first["schedule"]["plan_id"].as_str().unwrap().to_owned();
+    // First the robot standing at its start while its plan was made, then the plan, under
+    // one plan id (no removal between them).
+    let standing = events.next(deadline(30)).await.unwrap();
+    assert_eq!((standing.event.as_str(), standing.id), ("committed", 1));
+    let trajectory = standing.data["itinerary"]["trajectory"].as_array().unwrap();
+    assert_eq!(trajectory.len(), 1, "{standing:?}");
+    assert_eq!(
+        (trajectory[0]["x"].as_f64(), trajectory[0]["y"].as_f64()),
+        (Some(from.0), Some(from.1))
+    );
     let committed = events.next(deadline(30)).await.unwrap();
-    assert_eq!((committed.event.as_str(), committed.id), ("committed", 1));
+    assert_eq!((committed.event.as_str(), committed.id), ("committed", 2));
     assert_eq!(committed.data["kind"], "committed");
-    assert_eq!(committed.data["itinerary"]["plan_id"], id1.as_str());
-    assert_eq!(committed.data["itinerary"]["robot"], FIRST);
-    assert_eq!(committed.data["itinerary"]["floor"], floor.as_str());
+    for e in [&standing, &committed] {
+        assert_eq!(e.data["itinerary"]["plan_id"], id1.as_str());
+        assert_eq!(e.data["itinerary"]["robot"], FIRST);
+        assert_eq!(e.data["itinerary"]["floor"], floor.as_str());
+    }
+    assert!(
+        committed.data["itinerary"]["trajectory"]
+            .as_array()
+            .unwrap()
+            .len()
+            > 1
+    );
 
-    // A new plan for the same robot replaces its first: both changes carry version 2.
+    // A new plan for the same robot replaces its first (the schedule holds the robot already,
+    // so nothing is recorded while it is made): both changes carry version 3.
     let (status, second) = plan(&app, &route("R-001", to, from, start, json!({}))).await;
     assert_eq!(status, 200, "{second}");
     let id2 = second["schedule"]["plan_id"].as_str().unwrap().to_owned();
     let mut seen = Vec::new();
     for _ in 0..2 {
         let e = events.next(deadline(30)).await.unwrap();
-        assert_eq!(e.id, 2, "{e:?}");
+        assert_eq!(e.id, 3, "{e:?}");
         seen.push(e);
     }
     seen.sort_by_key(|e| e.event.clone());
@@ -428,7 +449,7 @@ async fn the_floor_traffic_streams_every_change_with_its_version() {
     let progressed = events.next(deadline(30)).await.unwrap();
     assert_eq!(
         (progressed.event.as_str(), progressed.id),
-        ("progressed", 3)
+        ("progressed", 4)
     );
     assert!(progressed.data["itinerary"]["delay_s"].as_f64().unwrap() > 0.0);
 
@@ -441,7 +462,7 @@ async fn the_floor_traffic_streams_every_change_with_its_version() {
         .unwrap();
     assert_eq!(r.status(), 200);
     let removed = events.next(deadline(30)).await.unwrap();
-    assert_eq!((removed.event.as_str(), removed.id), ("removed", 4));
+    assert_eq!((removed.event.as_str(), removed.id), ("removed", 5));
     assert_eq!(removed.data["reason"], "cancelled");
     assert!(
         traffic(&app, FIRST_ROBOT).await["plans"]
@@ -453,7 +474,7 @@ async fn the_floor_traffic_streams_every_change_with_its_version() {
 }
 
 /// Two service processes on one job database, each asked at the same moment to send a robot
-/// the same way (the second 10 s later): whatever order their commits land in, the committed
+/// the same way (the second 15 s later, from where the first has left by then): whatever order their commits land in, the committed
 /// plans keep the robots apart — the floor's version makes the later commit check again, and
 /// it then waits, or is refused (409) when no wait fits; never both committed in conflict.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -469,7 +490,7 @@ async fn two_processes_sharing_the_job_database_never_commit_conflicting_plans()
     assert_eq!(live.next(deadline(30)).await.unwrap().event, "snapshot");
     let (ask_first, ask_second) = (
         route("R-001", from, to, start, json!({})),
-        route("R-002", from, to, start + 10_000, json!({})),
+        route("R-002", from, to, start + 15_000, json!({})),
     );
     let (first, second) = tokio::join!(plan(&a, &ask_first), plan(&b, &ask_second));
     let answered: Vec<&Value> = [&first, &second]
@@ -485,18 +506,32 @@ async fn two_processes_sharing_the_job_database_never_commit_conflicting_plans()
         answered.iter().all(|p| p["schedule"]["committed"] == true),
         "{answered:?}"
     );
+    // Each robot answered is there with its plan; a robot refused stands at its start (its
+    // plan never moved it).
+    let mut want = std::collections::BTreeSet::new();
     for app in [&a, &b] {
         let committed = traffic(app, FIRST_ROBOT).await;
         let plans = committed["plans"].as_array().unwrap();
-        assert_eq!(plans.len(), answered.len(), "{committed}");
+        assert_eq!(plans.len(), 2, "{committed}");
+        let moving = |p: &&Value| p["trajectory"].as_array().unwrap().len() > 1;
+        assert_eq!(
+            plans.iter().filter(moving).count(),
+            answered.len(),
+            "{committed}"
+        );
         assert_apart(plans);
+        want = plans
+            .iter()
+            .map(|p| p["plan_id"].as_str().unwrap().to_owned())
+            .collect();
     }
+    assert!(
+        answered
+            .iter()
+            .all(|p| want.contains(p["schedule"]["plan_id"].as_str().unwrap()))
+    );
     // What the live view on `a` holds converges to what is committed, within the stream's
     // poll of the floor's version (another process's commit arrives as a new snapshot).
-    let want: std::collections::BTreeSet<String> = answered
-        .iter()
-        .map(|p| p["schedule"]["plan_id"].as_str().unwrap().to_owned())
-        .collect();
     let mut held = std::collections::BTreeSet::new();
     let until = deadline(30);
     while held != want {

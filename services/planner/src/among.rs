@@ -20,34 +20,203 @@ const COMMIT_ATTEMPTS: usize = 16;
 /// 1 (plans queue for the lock sooner), 2.2–2.7 s with 16 (plans redriven more often).
 const OPTIMISTIC_COMMITS: usize = 3;
 
+/// How often the floor's schedule is read while waiting for it to change, milliseconds.
+const POLL_MS: u64 = 25;
+
+/// A plan's place in its floor's schedule before it is rehearsed: its id and the start asked
+/// for, the robot standing there in the schedule meanwhile ([`Planner::enter_the_fleet`]).
+#[derive(Debug, Clone)]
+pub(crate) struct FleetEntry {
+    plan_id: String,
+    requested_unix_ms: i64,
+    options: FleetOptions,
+}
+
 impl Planner {
+    /// Checks the start asked for and, for a plan to be committed by a robot the floor's
+    /// schedule does not hold yet, puts it there standing at `start` from that time until its
+    /// plan replaces it, at the latest `max_wait_s` later: so the plans of other robots, checked
+    /// meanwhile, keep clear of where it stands. A robot whose plan is refused still stands
+    /// there until then: it has not moved. A robot the schedule holds keeps its itinerary until
+    /// its new plan is committed.
+    /// Nothing is recorded for a start the robot does not fit at (`fits_there`: the rehearsal
+    /// refuses it).
+    pub(crate) async fn enter_the_fleet(
+        &self,
+        schedule: &dyn FleetSchedule,
+        db: &FloorDatabase,
+        radius_m: f64,
+        start: sim::Pose2,
+        options: &FleetOptions,
+        fits_there: bool,
+    ) -> Result<FleetEntry, PlanFailure> {
+        let now = schedule.now_ms();
+        let requested = options.start_unix_ms.unwrap_or(now);
+        let slack_ms = (options.tolerance_s * 1000.0).round() as i64;
+        if requested < now - slack_ms {
+            return Err(PlanFailure::Unprocessable(format!(
+                "`options.start_time_ms` {requested} is {:.1} s in the past, beyond the plan's tolerance of {} s: a schedule cannot start before it is made",
+                (now - requested) as f64 / 1000.0,
+                options.tolerance_s
+            )));
+        }
+        let entry = FleetEntry {
+            plan_id: fleet::plan_id(&db.robot, now),
+            requested_unix_ms: requested,
+            options: *options,
+        };
+        // A start the robot does not fit at is the rehearsal's to refuse (422).
+        if !options.commit || !fits_there {
+            return Ok(entry);
+        }
+        let standing = standing_at(
+            &entry.plan_id,
+            db,
+            radius_m,
+            start,
+            requested,
+            // Until it sets off at the latest, late by its tolerance.
+            options.max_wait_s + options.tolerance_s + 1.0,
+        );
+        // A robot with an itinerary on the floor keeps it until its new plan is committed (a
+        // refused plan changes nothing).
+        // A full floor is refused with the plan.
+        record_standing(schedule, &standing, false).await?;
+        Ok(entry)
+    }
+
+    /// Records that `robot` stands at `at` on the floor of `place` with no plan, from `from_ms`
+    /// (default now) for `for_s` seconds, replacing its itinerary: plans keep clear of it (as a
+    /// fleet adapter reports an idle robot). Refused (422) where the robot does not fit or the
+    /// values are out of range, (409) inside the footprint another robot's schedule reserves
+    /// there then.
+    pub async fn stand(
+        &self,
+        robot: &str,
+        place: &str,
+        at: sim::Pose2,
+        from_ms: Option<i64>,
+        for_s: f64,
+    ) -> Result<traffic::Itinerary, PlanFailure> {
+        let Some(schedule) = &self.fleet else {
+            return Err(PlanFailure::Unavailable(
+                "this service keeps no traffic schedule".to_owned(),
+            ));
+        };
+        if !(for_s.is_finite() && for_s > 0.0 && for_s <= fleet::MAX_FLEET_S) {
+            return Err(PlanFailure::Unprocessable(format!(
+                "`for_s` must lie in (0, {}] seconds, got {for_s}",
+                fleet::MAX_FLEET_S
+            )));
+        }
+        if !(at.x.is_finite() && at.y.is_finite() && at.yaw.is_finite()) {
+            return Err(PlanFailure::Unprocessable(
+                "`x`, `y` and `yaw` must be finite numbers".to_owned(),
+            ));
+        }
+        let now = schedule.now_ms();
+        let from = from_ms.unwrap_or(now);
+        if !(0..=fleet::MAX_START_UNIX_MS).contains(&from) {
+            return Err(PlanFailure::Unprocessable(format!(
+                "`time_ms` must lie in [0, {}], got {from}",
+                fleet::MAX_START_UNIX_MS
+            )));
+        }
+        let db = self.knowledge.floor_database(place, robot).await?;
+        let db2 = Arc::clone(&db);
+        let world = self
+            .blocking(move || db2.world())
+            .await?
+            .map_err(PlanFailure::Unprocessable)?;
+        if world.clearance(at.x, at.y) <= 0.0 {
+            return Err(PlanFailure::Unprocessable(format!(
+                "the robot does not fit at ({:.2}, {:.2}): it would touch a wall or an object",
+                at.x, at.y
+            )));
+        }
+        let radius = world.spec().robot.footprint_radius;
+        let standing = standing_at(
+            &fleet::plan_id(&db.robot, now),
+            &db,
+            radius,
+            at,
+            from,
+            for_s,
+        );
+        let (_, all) = schedule
+            .snapshot(&db.floor)
+            .await
+            .map_err(PlanFailure::Unavailable)?;
+        if let Some(other) = all.iter().find(|o| {
+            o.robot != db.robot
+                && o.pose_at(from)
+                    .is_some_and(|(x, y)| (x - at.x).hypot(y - at.y) < o.radius_m + radius)
+        }) {
+            return Err(PlanFailure::FleetConflict(NoFit {
+                robots: vec![other.robot.clone()],
+                earliest_start_unix_ms: None,
+                message: format!(
+                    "({:.2}, {:.2}) lies in the footprint the schedule reserves for {} at that time",
+                    at.x, at.y, other.robot
+                ),
+            }));
+        }
+        if !record_standing(schedule.as_ref(), &standing, true).await? {
+            return Err(PlanFailure::Unprocessable(format!(
+                "the floor's traffic schedule holds the most robots it takes ({}); cancel some plans or wait for them to expire",
+                fleet::MAX_ROBOTS_PER_FLOOR
+            )));
+        }
+        Ok(standing)
+    }
+
+    /// The other robots standing on `floor` with no plan yet ([`fleet::stands_only`]).
+    pub(crate) async fn standing_others(
+        &self,
+        schedule: &dyn FleetSchedule,
+        db: &FloorDatabase,
+    ) -> Result<Vec<traffic::Itinerary>, PlanFailure> {
+        let (_, all) = schedule
+            .snapshot(&db.floor)
+            .await
+            .map_err(PlanFailure::Unavailable)?;
+        Ok(all
+            .into_iter()
+            .filter(|i| i.robot != db.robot && fleet::stands_only(i))
+            .collect())
+    }
+
     /// The validated plan among the other robots' committed plans on its floor: fitted with
     /// waits ([`fleet::fit`]) and committed against the version it was checked against (a
-    /// commit that lost the race is checked again, a few times).
+    /// commit that lost the race is checked again, a few times). `avoided`: the robots standing
+    /// with no plan that the rehearsed route keeps clear of (`None`: it did not try); another
+    /// one in its way sends it back to be rehearsed again ([`Among::Reroute`]).
     pub(crate) async fn among_the_fleet(
         &self,
         schedule: &dyn FleetSchedule,
         db: &FloorDatabase,
-        world: &Arc<World>,
-        report: &rehearsal::PlanReport,
-        replay: &Arc<Replay>,
-        options: &FleetOptions,
-    ) -> Result<FleetOutcome, PlanFailure> {
-        let now = schedule.now_ms();
-        let start = options.start_unix_ms.unwrap_or(now);
-        let slack_ms = (options.tolerance_s * 1000.0).round() as i64;
-        if start < now - slack_ms {
-            return Err(PlanFailure::Unprocessable(format!(
-                "`options.start_time_ms` {start} is {:.1} s in the past, beyond the plan's tolerance of {} s: a schedule cannot start before it is made",
-                (now - start) as f64 / 1000.0,
-                options.tolerance_s
-            )));
-        }
-        let plan_id = fleet::plan_id(&db.robot, now);
+        (world, report, replay): (&Arc<World>, &rehearsal::PlanReport, &Arc<Replay>),
+        entry: &FleetEntry,
+        avoided: Option<&[String]>,
+    ) -> Result<Among, PlanFailure> {
+        let (plan_id, start, options) = (&entry.plan_id, entry.requested_unix_ms, &entry.options);
         let requested = start;
-        // A plan the drive among the fleet refuses is fitted again from a later start: 2 s,
-        // then twice as late each time, within `max_wait_s`.
+        // A plan the drive among the fleet refuses is fitted again from a later start (the
+        // robot standing at its start until then): 2 s, then twice as late each time, within
+        // `max_wait_s`.
         let mut later_s = 0.0f64;
+        // A plan refused because a robot with no plan yet stands in its way waits for the
+        // floor's schedule to change (that robot's plan), up to `options.standing_wait_s`.
+        let waiting_since = std::time::Instant::now();
+        let in_view = |version: i64, others: &'_ [traffic::Itinerary]| View {
+            schedule,
+            floor: &db.floor,
+            version,
+            others: others.to_vec(),
+            since: waiting_since,
+            standing_wait_s: options.standing_wait_s,
+            avoided,
+        };
         let mut in_the_way: Vec<String> = Vec::new();
         let robot_lock = self.fleet_lock(format!("robot {}", db.robot));
         let _one_plan_per_robot = robot_lock.lock().await;
@@ -63,7 +232,6 @@ impl Planner {
             } else {
                 None
             };
-            let start = requested + (later_s * 1000.0).round() as i64;
             let template = traffic::Itinerary {
                 plan_id: plan_id.clone(),
                 robot: db.robot.clone(),
@@ -112,15 +280,25 @@ impl Planner {
                     fleet::MAX_ROBOTS_PER_FLOOR
                 )));
             }
-            let (itinerary, at_steps, waits) = fleet::fit(
+            let fitted = fleet::fit(
                 &template,
                 &report.steps,
                 report.control_period_s,
                 &report.waypoints,
                 &others,
                 options.max_wait_s,
-            )
-            .map_err(PlanFailure::FleetConflict)?;
+                later_s,
+            );
+            let (itinerary, at_steps, waits) = match fitted {
+                Ok(f) => f,
+                Err(e) => match self
+                    .wait_for_standing(&in_view(version, &others), e)
+                    .await?
+                {
+                    Standing::Changed => continue 'attempts,
+                    Standing::Reroute => return Ok(Among::Reroute),
+                },
+            };
             let time_at = |k: usize| {
                 let waited: f64 = waits
                     .iter()
@@ -129,26 +307,19 @@ impl Planner {
                     .sum();
                 start + ((k as f64 * report.control_period_s + waited) * 1000.0).round() as i64
             };
-            let mut waits: Vec<fleet::Wait> = waits
+            let waits: Vec<fleet::Wait> = waits
                 .iter()
                 .map(|(k, s, robots)| fleet::Wait {
                     waypoint: at_steps.iter().position(|a| a == k).filter(|_| *k > 0),
                     wait_s: *s,
                     not_before_unix_ms: time_at(*k) + (s * 1000.0).round() as i64,
-                    for_robots: robots.clone(),
+                    for_robots: if *k == 0 && later_s > 0.0 {
+                        dedup_names(in_the_way.iter().chain(robots).cloned())
+                    } else {
+                        robots.clone()
+                    },
                 })
                 .collect();
-            if later_s > 0.0 {
-                waits.insert(
-                    0,
-                    fleet::Wait {
-                        waypoint: None,
-                        wait_s: later_s,
-                        not_before_unix_ms: start,
-                        for_robots: in_the_way.clone(),
-                    },
-                );
-            }
             let mut waypoint_times_unix_ms: Vec<i64> =
                 at_steps.iter().map(|&k| time_at(k)).collect();
             // Driven again with its waits while the others drive theirs: a plan that meets
@@ -196,9 +367,10 @@ impl Planner {
                 match fleet::first_conflict(&driven, &others) {
                     Some(c) => {
                         let why = format!(
-                            "driven with its waits, the robot would come within {} m of {} {:.1} s after its start",
+                            "driven with its waits, the robot would come within {} m of {} (moving; {} m standing still) {:.1} s after its start",
                             fleet::ROBOT_MARGIN_M,
                             c.b_robot,
+                            fleet::STILL_MARGIN_M,
                             (c.at_unix_ms - start) as f64 / 1000.0
                         );
                         (driven, Some(refused(c.b_robot.clone(), why)))
@@ -220,6 +392,20 @@ impl Planner {
                 ..itinerary
             };
             if let Some(PlanFailure::FleetConflict(no_fit)) = refusal {
+                // A robot with no plan yet in the way: no later start helps until it has one.
+                let no_fit = match self
+                    .wait_for_standing(&in_view(version, &others), no_fit)
+                    .await
+                {
+                    Ok(Standing::Changed) => continue 'attempts,
+                    Ok(Standing::Reroute) => return Ok(Among::Reroute),
+                    Err(PlanFailure::FleetConflict(n))
+                        if n.robots.iter().all(|r| !stands(&others, r)) =>
+                    {
+                        n
+                    }
+                    Err(e) => return Err(e),
+                };
                 let next = if later_s == 0.0 { 2.0 } else { 2.0 * later_s };
                 for r in &no_fit.robots {
                     if !in_the_way.contains(r) {
@@ -274,18 +460,184 @@ impl Planner {
             } else {
                 None
             };
-            return Ok(FleetOutcome {
+            return Ok(Among::Fitted(Box::new(FleetOutcome {
                 itinerary,
                 waypoint_times_unix_ms,
                 among,
                 waits,
                 others: others.len(),
                 version,
-            });
+            })));
         }
         Err(PlanFailure::Unavailable(
             "the floor's traffic schedule kept changing while this plan was committed; retry"
                 .to_owned(),
         ))
     }
+
+    /// Where one of the robots `refused` names stands in the way with no plan yet (in
+    /// `others`, read at `version`), waits until the floor's schedule changes (and answers
+    /// `Ok`: fit again), up to `standing_wait_s` after `since`; else the refusal, saying who
+    /// stands where.
+    async fn wait_for_standing(
+        &self,
+        view: &View<'_>,
+        refused: NoFit,
+    ) -> Result<Standing, PlanFailure> {
+        let standing: Vec<&traffic::Itinerary> = view
+            .others
+            .iter()
+            .filter(|o| refused.robots.contains(&o.robot) && fleet::stands_only(o))
+            .collect();
+        if standing.is_empty() {
+            return Err(PlanFailure::FleetConflict(refused));
+        }
+        // A robot the route did not keep clear of: its plan is waited for a little (it may
+        // be planning now, and leave), then the route goes around it.
+        let reroute = view
+            .avoided
+            .is_some_and(|avoided| standing.iter().any(|o| !avoided.contains(&o.robot)));
+        let limit = if reroute {
+            fleet::REROUTE_AFTER_S.min(view.standing_wait_s)
+        } else {
+            view.standing_wait_s
+        };
+        let deadline = view.since + std::time::Duration::from_secs_f64(limit);
+        while std::time::Instant::now() < deadline {
+            let (now, _) = view
+                .schedule
+                .snapshot(view.floor)
+                .await
+                .map_err(PlanFailure::Unavailable)?;
+            if now != view.version {
+                return Ok(Standing::Changed);
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(POLL_MS)).await;
+        }
+        if reroute {
+            return Ok(Standing::Reroute);
+        }
+        let at = standing
+            .iter()
+            .filter_map(|o| {
+                let p = o.trajectory.first()?;
+                Some(format!("{} at ({:.2}, {:.2})", o.robot, p.x, p.y))
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        Err(PlanFailure::FleetConflict(NoFit {
+            message: format!(
+                "{}; {at} stands in the way with no plan, and none came within {} s",
+                refused.message, view.standing_wait_s
+            ),
+            ..refused
+        }))
+    }
+}
+
+/// `db`'s robot standing at `at` from `from_ms` for `for_s` seconds, as an itinerary.
+fn standing_at(
+    plan_id: &str,
+    db: &FloorDatabase,
+    radius_m: f64,
+    at: sim::Pose2,
+    from_ms: i64,
+    for_s: f64,
+) -> traffic::Itinerary {
+    traffic::Itinerary {
+        plan_id: plan_id.to_owned(),
+        robot: db.robot.clone(),
+        floor: db.floor.clone(),
+        start_unix_ms: from_ms,
+        trajectory: vec![traffic::TimedPose {
+            t_s: 0.0,
+            x: at.x,
+            y: at.y,
+            yaw: at.yaw,
+        }],
+        radius_m,
+        tolerance_s: 0.0,
+        expires_unix_ms: from_ms + (for_s * 1000.0).round() as i64,
+        delay_s: 0.0,
+    }
+}
+
+/// Commits `standing` (a robot with no plan), replacing its robot's itinerary only where
+/// `replace` (else a robot the floor's schedule holds already keeps its itinerary). Whether it
+/// was recorded: not on a floor holding [`fleet::MAX_ROBOTS_PER_FLOOR`] other robots.
+async fn record_standing(
+    schedule: &dyn FleetSchedule,
+    standing: &traffic::Itinerary,
+    replace: bool,
+) -> Result<bool, PlanFailure> {
+    for _ in 0..COMMIT_ATTEMPTS {
+        let (version, all) = schedule
+            .snapshot(&standing.floor)
+            .await
+            .map_err(PlanFailure::Unavailable)?;
+        let known = all.iter().any(|i| i.robot == standing.robot);
+        if (known && !replace) || all.len() >= fleet::MAX_ROBOTS_PER_FLOOR + usize::from(known) {
+            return Ok(false);
+        }
+        match schedule
+            .commit(standing.clone(), version)
+            .await
+            .map_err(PlanFailure::Unavailable)?
+        {
+            fleet::Committed::Yes(_) => return Ok(true),
+            fleet::Committed::Refused(m) => return Err(PlanFailure::Unprocessable(m)),
+            fleet::Committed::VersionChanged => {}
+        }
+    }
+    Err(PlanFailure::Unavailable(
+        "the floor's traffic schedule kept changing while the robot's place on it was recorded; retry"
+            .to_owned(),
+    ))
+}
+
+/// What a plan among the fleet came to.
+pub(crate) enum Among {
+    /// Fitted (and committed, unless only checked).
+    Fitted(Box<FleetOutcome>),
+    /// A robot with no plan yet stands in its route, and the route was not planned around it:
+    /// rehearse again, keeping clear of every robot standing now.
+    Reroute,
+}
+
+/// What a plan refused by a robot standing in its way does.
+enum Standing {
+    /// The floor's schedule changed: fit again.
+    Changed,
+    /// The robot was not avoided by the route: rehearse around it.
+    Reroute,
+}
+
+/// The floor as a plan saw it when it was refused.
+struct View<'a> {
+    schedule: &'a dyn FleetSchedule,
+    floor: &'a str,
+    version: i64,
+    others: Vec<traffic::Itinerary>,
+    since: std::time::Instant,
+    standing_wait_s: f64,
+    /// The standing robots the route keeps clear of; `None`: it did not try.
+    avoided: Option<&'a [String]>,
+}
+
+/// Whether `robot` stands with no plan in `others`.
+fn stands(others: &[traffic::Itinerary], robot: &str) -> bool {
+    others
+        .iter()
+        .any(|o| o.robot == robot && fleet::stands_only(o))
+}
+
+/// `names` without repeats, in order.
+fn dedup_names(names: impl Iterator<Item = String>) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for n in names {
+        if !out.contains(&n) {
+            out.push(n);
+        }
+    }
+    out
 }

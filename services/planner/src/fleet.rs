@@ -40,7 +40,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use planning::Point2;
 use sim::Pose2;
-use traffic::{Conflict, Itinerary, Reserved, TimedPose};
+use traffic::{Conflict, Itinerary, Margins, Reserved, TimedPose};
 
 use crate::PlanFailure;
 
@@ -83,6 +83,11 @@ pub struct FleetOptions {
     pub max_wait_s: f64,
     /// How long the robot is held at its last goal after arriving, seconds (default 30).
     pub hold_s: f64,
+    /// How long, at most, the plan waits (wall-clock) for robots standing in its way with no
+    /// plan yet to get theirs, seconds (default [`STANDING_WAIT_S`]; 0: refuse
+    /// at once, naming them, as a client asking one plan at a time and asking again later
+    /// wants).
+    pub standing_wait_s: f64,
 }
 
 impl Default for FleetOptions {
@@ -93,6 +98,7 @@ impl Default for FleetOptions {
             tolerance_s: 2.0,
             max_wait_s: 120.0,
             hold_s: 30.0,
+            standing_wait_s: STANDING_WAIT_S,
         }
     }
 }
@@ -111,6 +117,17 @@ pub const MAX_ROBOTS_PER_FLOOR: usize = 100;
 /// Nav2's 0.22 m default robot: 0.38 m beyond its footprint, `sim::rpp`); a robot that slows for
 /// another leaves its schedule, and the schedule holds only where nobody has to react.
 pub const ROBOT_MARGIN_M: f64 = 0.6 - sim::rpp::NAV2_DEFAULT_ROBOT_RADIUS_M;
+/// Gap kept from a robot standing still (waiting, parked at its goal, at its start before it
+/// sets off), metres: the safety margin a plan keeps from any obstacle
+/// (`PlanOptions::safety_margin_m`'s default). A robot standing still does not react, and the
+/// one passing it does so in its drive among the fleet, which is what is committed.
+pub const STILL_MARGIN_M: f64 = 0.1;
+/// The margins between two robots' schedules: [`ROBOT_MARGIN_M`] while both move,
+/// [`STILL_MARGIN_M`] where either stands still.
+pub const MARGINS: Margins = Margins {
+    moving: ROBOT_MARGIN_M,
+    still: STILL_MARGIN_M,
+};
 /// Fresh draws of people and noise a plan's drive among the fleet is tried with when it did
 /// not arrive and no other robot was involved (people or noise stopped it): as the rehearsal
 /// re-samples, a person who happened to stand in the way is not a conflict of the schedule.
@@ -120,6 +137,15 @@ pub const FRESH_DRAWS: u32 = 2;
 /// about a second at the sample robot's limits; people slow it), and a fit that cleared another
 /// robot by less would have its drive refused and fitted again from a later start.
 pub const FIT_SLACK_S: f64 = 1.0;
+/// How long, at most, a plan waits for a robot standing in its way with no plan yet (that
+/// robot may be planning now; once its plan is committed, the schedule says when it leaves),
+/// seconds of wall-clock time. Two robots each standing in the other's way wait this long, then
+/// are refused.
+pub const STANDING_WAIT_S: f64 = 10.0;
+/// How long a plan waits for the plan of a robot standing in its route before its route is
+/// rehearsed again around it, seconds of wall-clock time: a detour costs every robot that takes
+/// it, while a robot asking for a plan at the same moment usually has one within this time.
+pub const REROUTE_AFTER_S: f64 = 2.0;
 /// Steps of waiting tried, seconds.
 const WAIT_STEP_S: f64 = 1.0;
 
@@ -130,6 +156,7 @@ impl FleetOptions {
             ("tolerance_s", self.tolerance_s),
             ("max_wait_s", self.max_wait_s),
             ("hold_s", self.hold_s),
+            ("standing_wait_s", self.standing_wait_s),
         ] {
             if !(v.is_finite() && (0.0..=MAX_FLEET_S).contains(&v)) {
                 return Err(format!(
@@ -292,6 +319,18 @@ pub struct NoFit {
     pub message: String,
 }
 
+/// Whether `it` never moves: a robot standing where it is with no plan (yet), as a robot
+/// asking for a plan is recorded until its plan is committed. When it sets off is not known, so
+/// no wait resolves a conflict with it: its plan, once committed, will say.
+pub fn stands_only(it: &Itinerary) -> bool {
+    let Some(first) = it.trajectory.first() else {
+        return true;
+    };
+    it.trajectory
+        .iter()
+        .all(|p| (p.x - first.x).hypot(p.y - first.y) < 0.01)
+}
+
 /// A plan id: unique in practice (time, a process counter and the robot, mixed).
 pub fn plan_id(robot: &str, now_ms: i64) -> String {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
@@ -421,6 +460,14 @@ impl Draft<'_> {
             .sum()
     }
 
+    /// Waits exactly `s` seconds at step `at` (none when `s` is 0).
+    fn set_wait(&mut self, at: usize, s: f64) {
+        self.waits.retain(|(i, _)| *i != at);
+        if s > 0.0 {
+            self.add_wait(at, s);
+        }
+    }
+
     fn add_wait(&mut self, at: usize, s: f64) {
         match self.waits.iter_mut().find(|(i, _)| *i == at) {
             Some(w) => w.1 += s,
@@ -534,7 +581,7 @@ pub fn driven(fitted: &Itinerary, start_unix_ms: i64, steps: &[Pose2], dt: f64) 
 }
 
 fn first(itinerary: &Itinerary, others: &Reserved<'_>) -> Option<Conflict> {
-    others.first(itinerary, ROBOT_MARGIN_M)
+    others.first_with(itinerary, MARGINS)
 }
 
 /// A fitted plan: its itinerary, the step each waypoint is reached at, and each wait (the step
@@ -542,9 +589,11 @@ fn first(itinerary: &Itinerary, others: &Reserved<'_>) -> Option<Conflict> {
 pub type Fitted = (Itinerary, Vec<usize>, Vec<(usize, f64, Vec<String>)>);
 
 /// Fits a rehearsed plan (`steps` every `dt` seconds from the start, reaching `waypoints`)
-/// among `others`, as the module docs describe. `template` carries the robot, floor, plan id,
-/// radius, tolerance and start; its `expires_unix_ms - start_unix_ms` is the hold after the
-/// last goal.
+/// among `others`, as the module docs describe, the robot standing at its start for at least
+/// `start_wait_s`. `template` carries the robot, floor, plan id, radius, tolerance and start;
+/// its `expires_unix_ms - start_unix_ms` is the hold after the last goal. A robot that sets
+/// off later is at its start meanwhile, and the itinerary says so: another robot's plan
+/// through its start while it stands there is a conflict that no later start resolves.
 pub fn fit(
     template: &Itinerary,
     steps: &[Pose2],
@@ -552,6 +601,7 @@ pub fn fit(
     waypoints: &[Point2],
     others: &[Itinerary],
     max_wait_s: f64,
+    start_wait_s: f64,
 ) -> Result<Fitted, NoFit> {
     let at_waypoint = waypoint_steps(steps, waypoints);
     // Where the robot may wait: the start, then each waypoint's step.
@@ -563,6 +613,7 @@ pub fn fit(
         dt,
         waits: Vec::new(),
     };
+    draft.set_wait(0, start_wait_s);
     // The others are cut into pieces once for every candidate checked below.
     let committed = Reserved::new(others, template.start_unix_ms);
     // Waits go to stops[floor..ceiling]: the floor rises past a stop the robot must leave
@@ -587,6 +638,19 @@ pub fn fit(
                 .collect();
             return Ok((itinerary, at_waypoint, waits));
         };
+        if let Some(b) = others
+            .iter()
+            .find(|o| o.robot == c.b_robot && stands_only(o))
+        {
+            return Err(NoFit {
+                robots: vec![b.robot.clone()],
+                earliest_start_unix_ms: None,
+                message: format!(
+                    "{} stands in the plan's way at ({:.2}, {:.2}) with no plan of its own yet",
+                    b.robot, c.b_xy[0], c.b_xy[1]
+                ),
+            });
+        }
         if !in_the_way.contains(&c.b_robot) {
             in_the_way.push(c.b_robot.clone());
         }
@@ -599,20 +663,16 @@ pub fn fit(
                 in_the_way.clone(),
                 max_wait_s,
             );
-            // Waits along the way did not fit in the budget; a later start within it does.
+            // Waits along the way did not fit in the budget; standing at the start until a
+            // later start within it may (the robot is there meanwhile: the schedule holds it).
             if let Some(t) = refused.earliest_start_unix_ms {
-                // Off at `t`, as the earliest start was found: the robot takes its place in
-                // the schedule then.
-                let wait = (t - template.start_unix_ms) as f64 / 1000.0;
-                let mut shifted = template.clone();
-                shifted.start_unix_ms = t;
-                shifted.expires_unix_ms += t - template.start_unix_ms;
+                let wait = ((t - template.start_unix_ms) as f64 / 1000.0).max(start_wait_s);
                 let itinerary = Draft {
                     steps,
                     dt,
-                    waits: Vec::new(),
+                    waits: vec![(0, wait)],
                 }
-                .itinerary(&shifted);
+                .itinerary(template);
                 if wait <= max_wait_s + 1e-9 && first(&itinerary, &committed).is_none() {
                     return Ok((itinerary, at_waypoint, vec![(0, wait, dedup(in_the_way))]));
                 }
@@ -625,12 +685,13 @@ pub fn fit(
         // does not help, and there is no stop before it. The robot leaves it as it would have
         // without that wait and waits at the next stop instead.
         let k = stops[floor];
-        let extra = draft.wait_at(k);
+        let required = if k == 0 { start_wait_s } else { 0.0 };
+        let extra = draft.wait_at(k) - required;
         if extra > 1e-9
             && floor + 1 < ceiling
             && first(&draft.standing(k, template), &committed).is_some()
         {
-            draft.waits.retain(|(i, _)| *i != k);
+            draft.set_wait(k, required);
             floor += 1;
             draft.add_wait(stops[floor], extra.max(WAIT_STEP_S));
             blockers.push((stops[floor], vec![c.b_robot.clone()]));
@@ -704,22 +765,21 @@ fn no_fit(
         .max()
         .unwrap_or(template.start_unix_ms)
         + (template.tolerance_s * 1000.0).ceil() as i64;
-    let plain = Draft {
-        steps: draft.steps,
-        dt: draft.dt,
-        waits: Vec::new(),
-    }
-    .itinerary(template);
+    // A later start: standing at the start until then, then off without waits.
     let mut earliest = None;
     let mut delay_ms = 1000_i64;
     while template.start_unix_ms + delay_ms <= horizon + 1000 {
-        let shifted = Itinerary {
-            start_unix_ms: plain.start_unix_ms + delay_ms,
-            expires_unix_ms: plain.expires_unix_ms + delay_ms,
-            ..plain.clone()
+        let later = Draft {
+            steps: draft.steps,
+            dt: draft.dt,
+            waits: vec![(0, delay_ms as f64 / 1000.0)],
         };
-        if first(&shifted, committed).is_none() {
-            earliest = Some(shifted.start_unix_ms);
+        if first(&later.itinerary(template), committed).is_none() {
+            earliest = Some(template.start_unix_ms + delay_ms);
+            break;
+        }
+        // Standing at the start already meets another robot: no later start helps.
+        if first(&later.standing(0, template), committed).is_some() {
             break;
         }
         delay_ms += 1000;
@@ -800,6 +860,7 @@ mod tests {
             &waypoints,
             std::slice::from_ref(&a),
             120.0,
+            0.0,
         )
         .unwrap();
         assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
@@ -831,6 +892,7 @@ mod tests {
             &waypoints,
             std::slice::from_ref(&a),
             120.0,
+            0.0,
         )
         .unwrap();
         assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
@@ -857,13 +919,22 @@ mod tests {
             &waypoints,
             std::slice::from_ref(&c),
             120.0,
+            0.0,
         )
         .unwrap();
         assert_eq!(waits.first().map(|w| w.0), Some(0), "{waits:?}");
         // With A through its start: B waits at the first waypoint, and nowhere else.
         let others = [c.clone(), a.clone()];
-        let (it, at, waits) =
-            fit(&template("B", 0), &b_steps, dt, &waypoints, &others, 120.0).unwrap();
+        let (it, at, waits) = fit(
+            &template("B", 0),
+            &b_steps,
+            dt,
+            &waypoints,
+            &others,
+            120.0,
+            0.0,
+        )
+        .unwrap();
         assert!(first_conflict(&it, &others).is_none());
         assert_eq!(
             waits.iter().map(|w| w.0).collect::<Vec<_>>(),
@@ -871,6 +942,35 @@ mod tests {
             "{waits:?}"
         );
         assert!(waits[0].2.contains(&"C".to_owned()), "{waits:?}");
+        // Told to stand at its start until A has passed through it, B has no fit: the
+        // schedule holds a robot at its start while it waits there, and A meets it.
+        let e = fit(
+            &template("B", 0),
+            &b_steps,
+            dt,
+            &waypoints,
+            &others,
+            120.0,
+            3.0,
+        )
+        .unwrap_err();
+        assert!(e.robots.contains(&"A".to_owned()), "{e:?}");
+        assert_eq!(e.earliest_start_unix_ms, None, "{e:?}");
+        // Among C alone, a start 6 s later is standing at the start from the plan's start.
+        let (it, _, waits) = fit(
+            &template("B", 0),
+            &b_steps,
+            dt,
+            &waypoints,
+            std::slice::from_ref(&c),
+            120.0,
+            6.0,
+        )
+        .unwrap();
+        assert!(waits[0].0 == 0 && waits[0].1 >= 6.0, "{waits:?}");
+        assert_eq!(it.start_unix_ms, 0);
+        assert_eq!(it.pose_at(5_000), Some((0.0, 0.0)));
+        assert!(first_conflict(&it, std::slice::from_ref(&c)).is_none());
     }
 
     #[test]
@@ -884,6 +984,7 @@ mod tests {
             dt,
             &[Point2::new(0.0, 5.0)],
             std::slice::from_ref(&a),
+            0.0,
             0.0,
         )
         .unwrap_err();
@@ -908,6 +1009,7 @@ mod tests {
             &waypoints,
             std::slice::from_ref(&a),
             120.0,
+            0.0,
         )
         .unwrap();
         assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
@@ -919,7 +1021,7 @@ mod tests {
     }
 
     #[test]
-    fn a_start_inside_a_robot_held_there_is_refused_naming_it() {
+    fn a_start_inside_a_robot_held_there_is_refused_naming_it_with_no_later_start() {
         let dt = 0.1;
         // A ends at (0, 0) and is held there; B would set off from (0, 0) meanwhile.
         let a = committed("A", &straight((-5.0, 0.0), (0.0, 0.0), 1.0, dt), dt, 0);
@@ -931,15 +1033,58 @@ mod tests {
             &[Point2::new(0.0, 5.0)],
             std::slice::from_ref(&a),
             3.0,
+            0.0,
         )
         .unwrap_err();
         assert_eq!(e.robots, vec!["A".to_owned()]);
-        // A's hold ends at 5 s + 1 s tolerance + 5 s: B fits once it has expired.
-        let t = e.earliest_start_unix_ms.unwrap();
-        assert!(
-            t > a.expires_unix_ms - 6_000 && t <= a.expires_unix_ms + 2_000,
-            "{t}"
-        );
+        // B stands at its start until it sets off, where A is held: no later start helps.
+        assert_eq!(e.earliest_start_unix_ms, None, "{e:?}");
+    }
+
+    /// A robot standing with no plan is not waited out (when it leaves is not known): the fit
+    /// names it at once. One standing beside the way is passed with the still margin.
+    #[test]
+    fn a_robot_standing_in_the_way_with_no_plan_is_named_at_once() {
+        let dt = 0.1;
+        let steps = straight((0.0, 0.0), (10.0, 0.0), 1.0, dt);
+        let standing = |y: f64| Itinerary {
+            trajectory: vec![TimedPose {
+                t_s: 0.0,
+                x: 5.0,
+                y,
+                yaw: 0.0,
+            }],
+            expires_unix_ms: 30_000,
+            ..template("S", 0)
+        };
+        assert!(stands_only(&standing(0.3)));
+        let e = fit(
+            &template("B", 0),
+            &steps,
+            dt,
+            &[Point2::new(10.0, 0.0)],
+            &[standing(0.3)],
+            120.0,
+            0.0,
+        )
+        .unwrap_err();
+        assert_eq!(e.robots, vec!["S".to_owned()]);
+        assert_eq!(e.earliest_start_unix_ms, None);
+        assert!(e.message.contains("no plan of its own"), "{}", e.message);
+        // 0.6 m between centres of 0.2 m robots: a 0.2 m gap, more than STILL_MARGIN_M and
+        // less than ROBOT_MARGIN_M.
+        let (it, _, waits) = fit(
+            &template("B", 0),
+            &steps,
+            dt,
+            &[Point2::new(10.0, 0.0)],
+            &[standing(0.6)],
+            120.0,
+            0.0,
+        )
+        .unwrap();
+        assert!(waits.is_empty(), "{waits:?}");
+        assert!(first_conflict(&it, &[standing(0.6)]).is_none());
     }
 
     #[test]

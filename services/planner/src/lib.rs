@@ -238,6 +238,10 @@ pub trait RoadmapBuilds: Send + Sync {
     ) -> BuildFuture<'a>;
 }
 
+/// Times a plan among the fleet is rehearsed again to keep clear of robots standing in its
+/// route that its route did not know of; after that it waits for their plans.
+const MAX_REROUTES: usize = 3;
+
 /// Policies kept loaded at most.
 const LOADED_POLICIES: usize = 16;
 /// Policy-aware roadmaps kept applied in memory at most.
@@ -433,6 +437,35 @@ impl Planner {
             }
         }
 
+        // On a floor with a schedule, the robot stands at its start in it from now on (for
+        // a request the rehearsal takes), so plans checked meanwhile keep clear of it.
+        let entry = match &self.fleet {
+            Some(schedule) => {
+                let (db2, roadmaps, request2) =
+                    (Arc::clone(&db), Arc::clone(&self.roadmaps), request.clone());
+                let (radius, fits) = self
+                    .blocking(move || {
+                        let world = db2.world()?;
+                        let key = world.geometry_key();
+                        let fits = rehearsal::check_endpoints(&world, &roadmaps, key, &request2);
+                        Ok::<_, String>((world.spec().robot.footprint_radius, fits.is_ok()))
+                    })
+                    .await?
+                    .map_err(PlanFailure::Unprocessable)?;
+                Some(
+                    self.enter_the_fleet(
+                        schedule.as_ref(),
+                        &db,
+                        radius,
+                        request.start,
+                        &fleet,
+                        fits,
+                    )
+                    .await?,
+                )
+            }
+            None => None,
+        };
         let rehearsal = Rehearsal {
             db: Arc::clone(&db),
             roadmaps: Arc::clone(&self.roadmaps),
@@ -443,16 +476,53 @@ impl Planner {
             people,
             controller,
         };
-        let (report, world, people, pick, replay) =
-            self.blocking(move || rehearsal.run(request)).await??;
-        let note = note(policy_id.is_some(), &pick, &report);
-        let fleet = match &self.fleet {
-            Some(schedule) => Some(
-                self.among_the_fleet(schedule.as_ref(), &db, &world, &report, &replay, &fleet)
-                    .await?,
-            ),
-            None => None,
+        // Among the fleet, the route keeps clear of the robots standing on the floor with no
+        // plan yet (no wait resolves a conflict with them), rehearsed again where one stands in
+        // it that was not there before; where no route keeps clear of them, it goes through and
+        // waits for their plans.
+        let mut avoiding = entry.is_some();
+        let mut reroutes = 0;
+        let (report, world, people, pick, replay, fleet) = loop {
+            let mut request = request.clone();
+            let mut avoided: Vec<String> = Vec::new();
+            if let (Some(schedule), true) = (&self.fleet, avoiding) {
+                for o in self.standing_others(schedule.as_ref(), &db).await? {
+                    if let Some(p) = o.trajectory.first() {
+                        let at = planning::Point2::new(p.x, p.y);
+                        request.options.standing.push((at, o.radius_m));
+                        avoided.push(o.robot);
+                    }
+                }
+            }
+            let with_standing = !request.options.standing.is_empty();
+            let run = rehearsal.clone();
+            let (report, world, people, pick, replay) =
+                match self.blocking(move || run.run(request)).await? {
+                    Err(PlanFailure::Plan(PlanError::Unreachable { .. })) if with_standing => {
+                        avoiding = false;
+                        continue;
+                    }
+                    r => r?,
+                };
+            let (Some(schedule), Some(entry)) = (&self.fleet, &entry) else {
+                break (report, world, people, pick, replay, None);
+            };
+            let avoided = (avoiding && reroutes < MAX_REROUTES).then_some(avoided.as_slice());
+            match self
+                .among_the_fleet(
+                    schedule.as_ref(),
+                    &db,
+                    (&world, &report, &replay),
+                    entry,
+                    avoided,
+                )
+                .await?
+            {
+                among::Among::Fitted(o) => break (report, world, people, pick, replay, Some(*o)),
+                among::Among::Reroute => reroutes += 1,
+            }
         };
+        let note = note(policy_id.is_some(), &pick, &report);
         Ok(PlanOutcome {
             fleet,
             robot: db.robot.clone(),
@@ -549,6 +619,7 @@ fn check_bounds(query: &PlanQuery) -> Result<(), PlanFailure> {
 }
 
 /// What the blocking part of a plan needs.
+#[derive(Clone)]
 struct Rehearsal {
     db: Arc<FloorDatabase>,
     roadmaps: Arc<RoadmapCache>,

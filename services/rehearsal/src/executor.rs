@@ -300,6 +300,7 @@ fn validate_inner(
                         (r, cached, seed, RoadmapKind::Geometric)
                     }
                 };
+                let roadmap = clear_of_standing(roadmap, opts, world)?;
                 let legs = plan_leg(
                     &roadmap,
                     opts,
@@ -755,6 +756,56 @@ fn plan_leg(
         waypoints: subdivide(q.from.unwrap_or(s), leg, max_segment_m),
         length_m,
     })
+}
+
+/// The checks a rehearsal of `request` makes before it drives, alone: the robot fits at its
+/// start (or escapes to free space nearby), every goal is free and reachable from the one
+/// before. Cheap once the floor's configuration space is in `roadmaps`. The error is the one the
+/// rehearsal would answer.
+pub fn check_endpoints(
+    world: &World,
+    roadmaps: &RoadmapCache,
+    map_version: &str,
+    request: &PlanRequest,
+) -> Result<(), PlanError> {
+    let inflation = planning::Inflation {
+        robot_radius_m: world.spec().robot.footprint_radius,
+        safety_margin_m: request.options.safety_margin_m,
+    };
+    let space = roadmaps.config_space(map_version, world, inflation)?;
+    let cs = &*space.cspace;
+    let start = request.start;
+    let clearance = EnvConfig::default().collision_clearance;
+    let entry = start_entry(world, cs, start, clearance)?;
+    check_goals(
+        cs,
+        entry.unwrap_or(Point2::new(start.x, start.y)),
+        &request.goals,
+    )
+}
+
+/// `roadmap` without the edges passing a robot standing still (`opts.standing`) closer than its
+/// radius plus this robot's plus the safety margin.
+fn clear_of_standing(
+    roadmap: Arc<Roadmap>,
+    opts: &PlanOptions,
+    world: &World,
+) -> Result<Arc<Roadmap>, PlanError> {
+    if opts.standing.is_empty() {
+        return Ok(roadmap);
+    }
+    let reach = world.spec().robot.footprint_radius + opts.safety_margin_m;
+    let nodes: Vec<Point2> = roadmap.nodes().collect();
+    let kept = roadmap
+        .reweighted(|u, v, w| {
+            let passes = opts
+                .standing
+                .iter()
+                .any(|&(c, r)| point_segment_distance(c, nodes[u], nodes[v]) < r + reach);
+            (!passes).then_some(w)
+        })
+        .map_err(|e| PlanError::Map(format!("keeping clear of standing robots: {e}")))?;
+    Ok(Arc::new(kept))
 }
 
 /// Metres a re-route recovery adds to the roadmap edges passing the blocked spot: the search

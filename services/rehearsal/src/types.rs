@@ -40,6 +40,11 @@ pub struct PlanOptions {
     /// robust the plan is across crowds ([`PlanReport::people_draws`]); 0 (default) for none,
     /// at most [`crate::MAX_PEOPLE_DRAWS`]. Ignored without people.
     pub people_draws: u32,
+    /// Other robots standing still on the floor for as long as is known (the fleet's robots
+    /// with no plan yet), each a centre and a footprint radius: the roadmap route keeps clear
+    /// of them (no edge passes closer than their radius plus the robot's plus
+    /// `safety_margin_m`). Default none.
+    pub standing: Vec<(Point2, f64)>,
 }
 
 /// Which roadmap the policy plans on.
@@ -71,6 +76,7 @@ impl Default for PlanOptions {
             trace: false,
             people: sim::PeopleConfig::default(),
             people_draws: 0,
+            standing: Vec::new(),
         }
     }
 }

@@ -70,7 +70,7 @@ pub fn first_conflict(a: &Itinerary, b: &Itinerary, margin_m: f64) -> Option<Con
     earliest(
         &Occupancy::of(a, origin),
         &Occupancy::of(b, origin),
-        margin_m,
+        Margins::same(margin_m),
         &mut work,
     )
 }
@@ -101,6 +101,12 @@ impl<'a> Reserved<'a> {
 
     /// [`conflicts`] of `new` with these itineraries.
     pub fn conflicts(&self, new: &Itinerary, margin_m: f64) -> Vec<Conflict> {
+        self.conflicts_with(new, Margins::same(margin_m))
+    }
+
+    /// [`Reserved::conflicts`] with the margin depending on whether either robot stands still
+    /// ([`Margins`]).
+    pub fn conflicts_with(&self, new: &Itinerary, margins: Margins) -> Vec<Conflict> {
         let mine = Occupancy::of(new, self.origin_ms);
         let mut work = Work::default();
         let mut found: Vec<Conflict> = self
@@ -109,7 +115,7 @@ impl<'a> Reserved<'a> {
             .filter(|other| {
                 other.itinerary.robot != new.robot && other.itinerary.floor == new.floor
             })
-            .filter_map(|other| earliest(&mine, other, margin_m, &mut work))
+            .filter_map(|other| earliest(&mine, other, margins, &mut work))
             .collect();
         found.sort_by(|x, y| {
             x.at_unix_ms
@@ -122,6 +128,34 @@ impl<'a> Reserved<'a> {
     /// The earliest of [`Reserved::conflicts`].
     pub fn first(&self, new: &Itinerary, margin_m: f64) -> Option<Conflict> {
         self.conflicts(new, margin_m).into_iter().next()
+    }
+
+    /// The earliest of [`Reserved::conflicts_with`].
+    pub fn first_with(&self, new: &Itinerary, margins: Margins) -> Option<Conflict> {
+        self.conflicts_with(new, margins).into_iter().next()
+    }
+}
+
+/// The gaps kept between two robots' footprints beyond their radii, metres: `moving` between
+/// two robots both moving, `still` where either stands still (a piece of its trajectory that
+/// does not move: waiting, parked at its goal, standing at its start). A robot standing still
+/// reacts to nobody, so the other may pass it as it passes any obstacle. Non-finite counts as
+/// 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Margins {
+    /// Both robots moving.
+    pub moving: f64,
+    /// Either standing still.
+    pub still: f64,
+}
+
+impl Margins {
+    /// One margin whether the robots move or not.
+    pub fn same(margin_m: f64) -> Self {
+        Self {
+            moving: margin_m,
+            still: margin_m,
+        }
     }
 }
 
@@ -302,11 +336,17 @@ fn pieces_for(duration: f64, length: f64, cap: usize) -> usize {
 fn earliest(
     a: &Occupancy<'_>,
     b: &Occupancy<'_>,
-    margin_m: f64,
+    margins: Margins,
     work: &mut Work,
 ) -> Option<Conflict> {
-    let margin = if margin_m.is_finite() { margin_m } else { 0.0 };
-    let clearance = a.itinerary.radius_m + b.itinerary.radius_m + margin;
+    let finite = |m: f64| if m.is_finite() { m } else { 0.0 };
+    let radii = a.itinerary.radius_m + b.itinerary.radius_m;
+    let (moving, still) = (
+        radii + finite(margins.moving),
+        radii + finite(margins.still),
+    );
+    // Chunks are skipped by the larger clearance: either may hold still pieces.
+    let clearance = moving.max(still);
     // (time, distance, a's point, b's point)
     let mut best: Option<(f64, f64, [f64; 2], [f64; 2])> = None;
     let mut lo = 0;
@@ -336,7 +376,12 @@ fn earliest(
                         continue;
                     }
                     let (distance, xa, xb) = segment_distance(pa.p, pa.q, pb.p, pb.q);
-                    if distance < clearance {
+                    let keep = if pa.p == pa.q || pb.p == pb.q {
+                        still
+                    } else {
+                        moving
+                    };
+                    if distance < keep {
                         best = Some((t, distance, xa, xb));
                     }
                 }
@@ -455,7 +500,7 @@ mod tests {
         let found = earliest(
             &Occupancy::of(a, a.start_unix_ms),
             &Occupancy::of(b, a.start_unix_ms),
-            0.1,
+            Margins::same(0.1),
             &mut work,
         );
         (found, work)
@@ -494,6 +539,39 @@ mod tests {
         assert!(
             ratio < 2.2,
             "twice the poses cost {ratio}× the work: {small:?} → {large:?}"
+        );
+    }
+
+    /// A robot standing still (its trajectory one pose) is passed with the `still` margin, two
+    /// robots driving past each other keep the `moving` one: 0.9 m between centres of 0.3 m
+    /// robots is a 0.3 m gap.
+    #[test]
+    fn a_robot_standing_still_is_passed_closer_than_one_driving() {
+        let margins = Margins {
+            moving: 0.38,
+            still: 0.1,
+        };
+        let passing = drive("a", [0.0, 0.0], [10.0, 0.0], 1.0, 0.1, 0.0);
+        let mut standing = drive("b", [5.0, 0.9], [5.0, 0.9], 1.0, 0.1, 0.0);
+        standing.trajectory.truncate(1);
+        standing.expires_unix_ms = add_seconds(START, 60.0);
+        let others = [standing.clone()];
+        let reserved = Reserved::new(&others, passing.start_unix_ms);
+        assert!(reserved.first_with(&passing, margins).is_none());
+        // The same margin for both: the standing robot is too close.
+        assert!(reserved.first(&passing, 0.38).is_some());
+        // Driving the other way 0.9 m beside it: both move, the moving margin holds.
+        let oncoming = [drive("c", [10.0, 0.9], [0.0, 0.9], 1.0, 0.1, 0.0)];
+        let found = Reserved::new(&oncoming, passing.start_unix_ms).first_with(&passing, margins);
+        assert!(found.as_ref().is_some_and(|c| c.b_robot == "c"), "{found:?}");
+        // Closer than the still margin: a conflict still.
+        let mut near = standing;
+        near.trajectory[0].y = 0.65;
+        let others = [near];
+        assert!(
+            Reserved::new(&others, passing.start_unix_ms)
+                .first_with(&passing, margins)
+                .is_some()
         );
     }
 

@@ -31,7 +31,7 @@ mod schedule;
 
 #[cfg(feature = "store")]
 pub use change::{Change, Removal};
-pub use conflict::{Conflict, Reserved, conflicts, first_conflict};
+pub use conflict::{Conflict, Margins, Reserved, conflicts, first_conflict};
 pub use error::TrafficError;
 pub use itinerary::{Itinerary, MAX_HORIZON_S, MAX_NAME_BYTES, MAX_POSES, TimedPose};
 #[cfg(feature = "store")]

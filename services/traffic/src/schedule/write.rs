@@ -58,8 +58,9 @@ impl Schedule {
     /// the snapshot it was planned against); returns the floor's new version.
     ///
     /// In one transaction: the floor's version is checked and bumped, the robot's previous
-    /// itinerary (on any floor) is removed (its floor's version bumped too), the new one
-    /// inserted, and what expired purged. Errors: [`TrafficError::Invalid`] (see
+    /// itinerary (on any floor) is removed (its floor's version bumped too; a removal reported
+    /// unless it is the same plan on the same floor, committed again), the new one inserted, and
+    /// what expired purged. Errors: [`TrafficError::Invalid`] (see
     /// [`Itinerary::check`]; also an itinerary already expired, or a negative version),
     /// [`TrafficError::VersionChanged`], [`TrafficError::PlanIdTaken`] (the plan id is another
     /// robot's).
@@ -129,7 +130,12 @@ impl Schedule {
             .await
             .map_err(err)?;
             let mut replaced = Vec::with_capacity(previous.len());
-            for (plan_id, floor) in previous {
+            // The same plan committed again (where its robot stood while it was planned, then
+            // the plan): its `committed` change says all.
+            for (plan_id, floor) in previous
+                .into_iter()
+                .filter(|(id, floor)| !(*id == it.plan_id && *floor == it.floor))
+            {
                 let floor_version = if floor == it.floor {
                     version
                 } else {

@@ -292,6 +292,7 @@ impl PlanOptions {
             tolerance_s: self.tolerance_s,
             max_wait_s: self.max_wait_s,
             hold_s: self.hold_s,
+            ..planner::FleetOptions::default()
         }
     }
 }
@@ -429,6 +430,8 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             trace,
             people,
             people_draws,
+            // The fleet's standing robots are the planner's to read from the schedule.
+            standing: _,
         } = o;
         Self {
             max_attempts,
@@ -498,6 +501,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             trace,
             people: people.config(),
             people_draws,
+            standing: Vec::new(),
         }
     }
 }
