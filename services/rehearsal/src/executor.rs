@@ -278,8 +278,10 @@ fn validate_inner(
             // never densifies; `auto` densifies where they join no route (a start or goal that
             // no node within reach sees in a straight line, a gap the build left), as the
             // start and goal links, which no rollout drove either.
+            // Nor where robots stand on the floor: new edges would not know to keep clear of them.
             let query = QueryOptions {
-                no_densify: on_policy_roadmap && opts.roadmap == RoadmapChoice::Policy,
+                no_densify: (on_policy_roadmap && opts.roadmap == RoadmapChoice::Policy)
+                    || !opts.standing.is_empty(),
                 ..QueryOptions::default()
             };
             for attempt in 1..=opts.max_attempts {

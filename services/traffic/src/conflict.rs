@@ -563,7 +563,10 @@ mod tests {
         // Driving the other way 0.9 m beside it: both move, the moving margin holds.
         let oncoming = [drive("c", [10.0, 0.9], [0.0, 0.9], 1.0, 0.1, 0.0)];
         let found = Reserved::new(&oncoming, passing.start_unix_ms).first_with(&passing, margins);
-        assert!(found.as_ref().is_some_and(|c| c.b_robot == "c"), "{found:?}");
+        assert!(
+            found.as_ref().is_some_and(|c| c.b_robot == "c"),
+            "{found:?}"
+        );
         // Closer than the still margin: a conflict still.
         let mut near = standing;
         near.trajectory[0].y = 0.65;
