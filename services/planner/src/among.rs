@@ -202,8 +202,7 @@ impl Planner {
         let (plan_id, start, options) = (&entry.plan_id, entry.requested_unix_ms, &entry.options);
         let requested = start;
         // A plan the drive among the fleet refuses is fitted again from a later start (the
-        // robot standing at its start until then): 2 s, then twice as late each time, within
-        // `max_wait_s`.
+        // robot standing at its start until then, `later_start_after`), within `max_wait_s`.
         let mut later_s = 0.0f64;
         // A plan refused because a robot with no plan yet stands in its way waits for the
         // floor's schedule to change (that robot's plan), up to `options.standing_wait_s`.
@@ -406,7 +405,7 @@ impl Planner {
                     }
                     Err(e) => return Err(e),
                 };
-                let next = if later_s == 0.0 { 2.0 } else { 2.0 * later_s };
+                let next = later_start_after(later_s);
                 for r in &no_fit.robots {
                     if !in_the_way.contains(r) {
                         in_the_way.push(r.clone());
@@ -594,6 +593,21 @@ async fn record_standing(
             .to_owned(),
     ))
 }
+
+/// The next later start tried after a drive among the fleet refused one `later_s` seconds late:
+/// 2 s, then twice as late up to [`LATER_STEP_S`], then that much later each time (doubling
+/// further overshoots: every second a robot stands at its start is a second of its makespan,
+/// and of every robot that waits for it).
+fn later_start_after(later_s: f64) -> f64 {
+    if later_s <= 0.0 {
+        2.0
+    } else {
+        (2.0 * later_s).min(later_s + LATER_STEP_S)
+    }
+}
+
+/// The largest step between two later starts tried, seconds.
+const LATER_STEP_S: f64 = 16.0;
 
 /// What a plan among the fleet came to.
 pub(crate) enum Among {
