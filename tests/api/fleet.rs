@@ -564,3 +564,111 @@ async fn two_processes_sharing_the_job_database_never_commit_conflicting_plans()
     a.stop().await;
     b.stop().await;
 }
+
+/// A robot says where it stands idle (`POST /v1/places/{id}/traffic/standing`): the schedule
+/// holds it there, another robot's plan keeps clear of it (routed around it, or refused naming
+/// it), and the route takes it in again once its standing is cancelled. Only the robot itself
+/// (or an engineer) may say so; where it does not fit, or inside another robot's footprint,
+/// it is refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_robot_standing_idle_is_kept_clear_of_and_only_it_says_where_it_stands() {
+    let app = fleet_app(None).await;
+    let from = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let to = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let stand = |token: &'static str, body: Value| {
+        let app = &app;
+        async move {
+            app.json_as(
+                token,
+                Method::POST,
+                "/v1/places/F0/traffic/standing",
+                Some(&body),
+            )
+            .await
+        }
+    };
+    // Where the second robot's route alone passes, midway.
+    let start = now_ms() + 5_000;
+    let (status, alone) = plan(
+        &app,
+        &route("R-002", from, to, start, json!({"commit": false})),
+    )
+    .await;
+    assert_eq!(status, 200, "{alone}");
+    let waypoints = alone["waypoints"].as_array().unwrap();
+    let mid = &waypoints[waypoints.len() / 2];
+    let (mx, my) = (mid["x"].as_f64().unwrap(), mid["y"].as_f64().unwrap());
+
+    let (status, body) = stand(SECOND_ROBOT, json!({"robot": "R-001", "x": mx, "y": my})).await;
+    assert_eq!(status, 403, "another robot: {body}");
+    let (status, body) = stand(
+        FIRST_ROBOT,
+        json!({"robot": "R-001", "x": -1000.0, "y": 0.0}),
+    )
+    .await;
+    assert_eq!(status, 422, "off the map: {body}");
+    let (status, body) = stand(
+        FIRST_ROBOT,
+        json!({"robot": "R-001", "x": mx, "y": my, "for_s": 0}),
+    )
+    .await;
+    assert_eq!(status, 422, "{body}");
+    assert!(
+        body["error"]["message"].as_str().unwrap().contains("for_s"),
+        "{body}"
+    );
+    let (status, body) = stand(FIRST_ROBOT, json!({"robot": "R-001", "x": mx})).await;
+    assert!(status == 400 || status == 422, "{status} {body}");
+
+    let (status, standing) = stand(
+        FIRST_ROBOT,
+        json!({"robot": "R-001", "x": mx, "y": my, "for_s": 120}),
+    )
+    .await;
+    assert_eq!(status, 200, "{standing}");
+    assert_eq!(standing["robot"], FIRST);
+    assert_eq!(standing["trajectory"].as_array().unwrap().len(), 1);
+    let plans = traffic(&app, FIRST_ROBOT).await["plans"].clone();
+    assert_eq!(plans.as_array().unwrap().len(), 1, "{plans}");
+
+    // The second robot may not stand where the first one does.
+    let (status, body) = stand(SECOND_ROBOT, json!({"robot": "R-002", "x": mx, "y": my})).await;
+    assert_eq!(status, 409, "{body}");
+    assert_eq!(body["error"]["details"]["robots"], json!([FIRST]), "{body}");
+
+    // Its plan now keeps clear of the first robot: routed around it, or refused naming it.
+    let (status, around) = plan(&app, &route("R-002", from, to, start, json!({}))).await;
+    if status == 200 {
+        let committed = traffic(&app, SECOND_ROBOT).await;
+        let plans = committed["plans"].as_array().unwrap();
+        assert_eq!(plans.len(), 2, "{committed}");
+        assert_apart(plans);
+        assert_ne!(around["waypoints"], alone["waypoints"], "{around}");
+    } else {
+        assert_eq!(status, 409, "{around}");
+        assert_eq!(
+            around["error"]["details"]["robots"],
+            json!([FIRST]),
+            "{around}"
+        );
+    }
+
+    // Cancelled, the first robot no longer stands there.
+    let id = standing["plan_id"].as_str().unwrap();
+    let r = app
+        .client
+        .delete(format!("{}/v1/plans/{id}", app.address))
+        .bearer_auth(FIRST_ROBOT)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    assert!(
+        traffic(&app, FIRST_ROBOT).await["plans"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|p| p["robot"] != FIRST)
+    );
+    app.stop().await;
+}

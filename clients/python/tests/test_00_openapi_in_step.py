@@ -142,6 +142,7 @@ def calls(tmp: Path) -> dict[str, Callable[[Client], Any]]:
         "traffic_events": lambda c: list(c.traffic_events("F0", "R-001", reconnect=False)),
         "cancel_plan": lambda c: c.cancel_plan("plan-1"),
         "report_progress": lambda c: c.report_progress("plan-1", 1.0, 2.0, time_ms=5),
+        "stand": lambda c: c.stand("F0", "R-001", 1.0, 2.0, yaw=0.5, time_ms=5, for_s=60.0),
         "submit_job": lambda c: c.submit_job("train", {"robot": "R-001", "place": "F0", "minutes": 1}, priority=3, max_attempts=2),
         "submit_training": lambda c: c.submit_training("R-001", "F0", 0.5, config=config, seed=3, priority=1, max_attempts=1),
         "submit_evaluation": lambda c: c.submit_evaluation("p-1", "F0", episodes=4, seed=2, robot="R-001", goals_in_view=False, priority=1, max_attempts=1),

@@ -210,3 +210,12 @@ def test_a_plan_takes_its_place_in_the_floors_traffic(robot: Client, engineer: C
     with pytest.raises(MentalsimError) as gone:
         engineer.cancel_plan(s.plan_id)
     assert gone.value.status == 404
+    # Standing idle at its start: the schedule holds it there (one pose) until cancelled.
+    standing = robot.stand(kitchen, "R-001", start.x, start.y, for_s=60.0)
+    assert len(standing.trajectory) == 1 and standing.robot.endswith("differential-robot")
+    assert (standing.trajectory[0]["x"], standing.trajectory[0]["y"]) == (start.x, start.y)
+    assert any(p.plan_id == standing.plan_id for p in robot.traffic(kitchen, "R-001").plans)
+    with pytest.raises(MentalsimError) as inside:
+        robot.stand(kitchen, "R-001", -1000.0, -1000.0)
+    assert inside.value.status == 422
+    assert engineer.cancel_plan(standing.plan_id).plan_id == standing.plan_id

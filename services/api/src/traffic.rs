@@ -24,6 +24,7 @@ pub fn router(state: Arc<JobsApi>) -> Router {
     Router::new()
         .route("/v1/places/{id}/traffic", get(floor_traffic))
         .route("/v1/places/{id}/traffic/events", get(floor_traffic_events))
+        .route("/v1/places/{id}/traffic/standing", post(stand))
         .route("/v1/plans/{id}", delete(cancel_plan))
         .route("/v1/plans/{id}/progress", post(report_progress))
         .with_state(state)
@@ -60,6 +61,31 @@ pub struct Progress {
     /// When the robot was there, ms since the Unix epoch [default: now].
     #[serde(default)]
     pub time_ms: Option<i64>,
+}
+
+/// Where a robot stands with no plan (an idle robot, as a fleet adapter reports it).
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Standing {
+    /// The robot (identifier or IRI).
+    pub robot: String,
+    /// Position x in the floor's map frame, metres.
+    pub x: f64,
+    /// Position y, metres.
+    pub y: f64,
+    /// Heading, radians [default: 0].
+    #[serde(default)]
+    pub yaw: f64,
+    /// From when, ms since the Unix epoch [default: now].
+    #[serde(default)]
+    pub time_ms: Option<i64>,
+    /// For how long, seconds, in (0, 3600] [default: 300]; its next plan replaces it sooner.
+    #[serde(default = "default_stand_s")]
+    pub for_s: f64,
+}
+
+fn default_stand_s() -> f64 {
+    300.0
 }
 
 fn traffic_error(e: TrafficError) -> ApiError {
@@ -311,6 +337,56 @@ fn traffic_stream(
             }
         }
     })
+}
+
+/// Records where a robot stands with no plan (replacing its itinerary on the schedule), so the
+/// plans of other robots keep clear of it: routed around it, or waiting for its next plan.
+#[utoipa::path(
+    post,
+    path = "/v1/places/{id}/traffic/standing",
+    params(("id" = String, Path, description = "The robot's floor, or a place on it (identifier or IRI)")),
+    request_body = Standing,
+    responses(
+        (status = 200, description = "Recorded: the robot standing, as the schedule holds it (one pose, until `expires_unix_ms`)", body = Itinerary),
+        (status = 400, description = "Malformed body", body = edge::ErrorBody),
+        (status = 401, response = edge::error::responses::Unauthorized),
+        (status = 403, description = "Another robot (a robot's token acts only for itself)", body = edge::ErrorBody),
+        (status = 404, description = "Unknown robot or place", body = edge::ErrorBody),
+        (status = 409, description = "Inside the footprint another robot's schedule reserves there at that time (details: `robots`)", body = edge::ErrorBody),
+        (status = 413, response = edge::error::responses::PayloadTooLarge),
+        (status = 415, response = edge::error::responses::UnsupportedMediaType),
+        (status = 422, description = "The robot does not fit there (a wall or an object), a value out of range, or the floor's schedule is full", body = edge::ErrorBody),
+        (status = 503, response = edge::error::responses::ServiceUnavailable),
+    ),
+    security(("bearer" = []))
+)]
+async fn stand(
+    State(api): State<Arc<JobsApi>>,
+    RobotCaller(caller): RobotCaller,
+    Path(id): Path<String>,
+    Json(standing): Json<Standing>,
+) -> Result<Json<Itinerary>, ApiError> {
+    let planner = &api.env.planner;
+    let floor = planner
+        .floor(&id, &standing.robot)
+        .await
+        .map_err(crate::plan::plan_failure)?;
+    if !acts_for(&caller, &floor.robot) {
+        return Err(ApiError::new(
+            ErrorCode::Forbidden,
+            format!(
+                "only {} (a token named after it) or an engineer may say where it stands",
+                floor.robot
+            ),
+        ));
+    }
+    let at = sim::Pose2::new(standing.x, standing.y, standing.yaw);
+    let recorded = planner
+        .stand(&standing.robot, &id, at, standing.time_ms, standing.for_s)
+        .await
+        .map_err(crate::plan::plan_failure)?;
+    tracing::info!(robot = %recorded.robot, plan = %recorded.plan_id, "robot standing recorded");
+    Ok(Json(recorded))
 }
 
 /// Cancels a committed plan: its robot's place in the schedule is freed at once.

@@ -86,6 +86,7 @@ OPERATIONS: Final[dict[str, Operation]] = dict(
         _op("route_graph", "GET", "/v1/places/{id}/route-graph.geojson", "worker", query=("robot", "policy"), accept=("application/geo+json",)),
         _op("floor_traffic", "GET", "/v1/places/{id}/traffic", "worker", query=("robot",)),
         _op("floor_traffic_events", "GET", "/v1/places/{id}/traffic/events", "worker", query=("robot",), accept=("text/event-stream",)),
+        _op("stand", "POST", "/v1/places/{id}/traffic/standing", "worker", body="Standing", body_type=JSON),
         _op("cancel_plan", "DELETE", "/v1/plans/{id}", "worker"),
         _op("report_progress", "POST", "/v1/plans/{id}/progress", "worker", body="Progress", body_type=JSON),
         _op("create_job", "POST", "/v1/jobs", "worker", body="NewJobRequest", body_type=JSON),

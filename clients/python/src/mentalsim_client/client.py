@@ -606,6 +606,28 @@ class Client:
                 raise MentalsimError(None, "unreachable", "the traffic stream keeps ending", operation="floor_traffic_events")
             time.sleep(min(retry_delay_s * 2 ** (failures - 1), 10.0))
 
+    def stand(
+        self,
+        place: str,
+        robot: str,
+        x: float,
+        y: float,
+        *,
+        yaw: float = 0.0,
+        time_ms: int | None = None,
+        for_s: float | None = None,
+    ) -> Itinerary:
+        """Records where ``robot`` stands with no plan (from ``time_ms``, default now, for
+        ``for_s`` seconds, default 300), replacing its itinerary: other robots' plans keep
+        clear of it, routed around it or waiting for its next plan. Answers the robot standing
+        as the schedule holds it (its ``plan_id`` cancels it)."""
+        body: JsonObject = {"robot": robot, "x": x, "y": y, "yaw": yaw}
+        if time_ms is not None:
+            body["time_ms"] = time_ms
+        if for_s is not None:
+            body["for_s"] = for_s
+        return Itinerary.from_json(self._object("stand", path={"id": place}, json_body=body))
+
     def cancel_plan(self, plan_id: str) -> Itinerary:
         """Cancels a committed plan (its robot's token, or an engineer's): the robot's place in
         the schedule is freed at once. Answers the plan as it was committed."""

@@ -353,6 +353,25 @@ async fn plan_at_once(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> Vec<An
     out
 }
 
+/// [`plan_at_once`], then the robots refused asked again, all at once (as robots told that
+/// others stand in their way ask again once those have their plans); a robot's latency the
+/// time of both its requests.
+async fn plan_at_once_again(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> Vec<Answer> {
+    let mut answers = plan_at_once(planner, queries.clone()).await;
+    let refused: Vec<usize> = (0..answers.len())
+        .filter(|&k| answers[k].1.is_err())
+        .collect();
+    let again = plan_at_once(
+        planner,
+        refused.iter().map(|&k| queries[k].clone()).collect(),
+    )
+    .await;
+    for (k, (ms, r)) in refused.into_iter().zip(again) {
+        answers[k] = (answers[k].0 + ms, r);
+    }
+    answers
+}
+
 /// The queries asked one after another in an order shuffled by `seed` (Fisher–Yates), each
 /// one refused asked again once after all the others (as a robot told that another stands in
 /// its way asks again later); answers in the queries' order, a robot's latency the time of
@@ -549,7 +568,7 @@ fn run_floor(
             })?;
     }
     let answers = match opts.order_seed {
-        None => runtime.block_on(plan_at_once(&planner, queries)),
+        None => runtime.block_on(plan_at_once_again(&planner, queries)),
         Some(seed) => runtime.block_on(plan_in_turn(&planner, queries, seed)),
     };
     // The same missions planned alone (no schedule: nobody else on the floor), after the
