@@ -255,9 +255,16 @@ fn validate_inner(
     let entry = start_entry(world, cs, start, clearance)?;
     let goals = &request.goals;
     check_goals(cs, entry.unwrap_or(Point2::new(start.x, start.y)), goals)?;
+    // Around robots standing on the floor the roadmap loses the edges that pass them and may
+    // not densify: a denser one keeps the ways between them.
     let samples = opts
         .samples
-        .unwrap_or_else(|| planning::optimal_samples(space.free_area_m2));
+        .unwrap_or_else(|| planning::optimal_samples(space.free_area_m2))
+        * if opts.standing.is_empty() {
+            1
+        } else {
+            STANDING_DENSITY
+        };
 
     let n_drivers = drivers.len();
     let mut attempts = Vec::new();
@@ -785,6 +792,10 @@ pub fn check_endpoints(
         &request.goals,
     )
 }
+
+/// How many times the roadmap's samples a route keeping clear of standing robots is planned
+/// on.
+pub const STANDING_DENSITY: usize = 4;
 
 /// `roadmap` without the edges passing a robot standing still (`opts.standing`) closer than its
 /// radius plus this robot's plus the safety margin.
