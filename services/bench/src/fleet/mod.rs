@@ -501,7 +501,7 @@ fn run_floor(
     );
     // The floor's configuration space, once, before the clock runs: every robot's world has
     // the same geometry, so all of them plan on it (as robots of one model do in the service).
-    rehearsal::config_space(
+    let space = rehearsal::config_space(
         &world,
         planner.roadmaps(),
         world.geometry_key(),
@@ -573,7 +573,17 @@ fn run_floor(
     };
     // The same missions planned alone (no schedule: nobody else on the floor), after the
     // clock: the baseline of the makespan and the sum of times. A plan among the fleet may
-    // take a detour around robots standing in its way; alone it does not.
+    // take a detour around robots standing in its way; alone it does not. Both on the same
+    // roadmap: among robots standing the planner samples a denser one.
+    let dense =
+        Some(planning::optimal_samples(space.free_area_m2) * rehearsal::executor::STANDING_DENSITY);
+    let asked: Vec<PlanQuery> = asked
+        .into_iter()
+        .map(|mut q| {
+            q.request.options.samples = dense;
+            q
+        })
+        .collect();
     let alone_planner = Arc::new(Planner::new(
         Arc::new(Floor(dbs.iter().cloned().collect())),
         PolicyStore::new(policies.path()),
