@@ -147,20 +147,8 @@ impl Planner {
             .snapshot(&db.floor)
             .await
             .map_err(PlanFailure::Unavailable)?;
-        if let Some(other) = all.iter().find(|o| {
-            o.robot != db.robot
-                && o.pose_at(from)
-                    .is_some_and(|(x, y)| (x - at.x).hypot(y - at.y) < o.radius_m + radius)
-        }) {
-            return Err(PlanFailure::FleetConflict(NoFit {
-                robots: vec![other.robot.clone()],
-                earliest_start_unix_ms: None,
-                message: format!(
-                    "({:.2}, {:.2}) lies in the footprint the schedule reserves for {} at that time",
-                    at.x, at.y, other.robot
-                ),
-            }));
-        }
+        let others: Vec<&traffic::Itinerary> = all.iter().filter(|o| o.robot != db.robot).collect();
+        outside_others(&others, (at.x, at.y), radius, from, "")?;
         if !record_standing(schedule.as_ref(), &standing, true).await? {
             return Err(PlanFailure::Unprocessable(format!(
                 "the floor's traffic schedule holds the most robots it takes ({}); cancel some plans or wait for them to expire",
@@ -255,22 +243,14 @@ impl Planner {
                 .collect();
             // A start inside another robot's reserved footprint cannot be waited out: the
             // robot is already there.
-            if let Some(here) = report.steps.first()
-                && let Some(other) = others.iter().find(|o| {
-                    o.pose_at(requested).is_some_and(|(x, y)| {
-                        (x - here.x).hypot(y - here.y)
-                            < o.radius_m + world.spec().robot.footprint_radius
-                    })
-                })
-            {
-                return Err(PlanFailure::FleetConflict(NoFit {
-                    robots: vec![other.robot.clone()],
-                    earliest_start_unix_ms: None,
-                    message: format!(
-                        "the start ({:.2}, {:.2}) lies in the footprint the schedule reserves for {} at that time",
-                        here.x, here.y, other.robot
-                    ),
-                }));
+            if let Some(here) = report.steps.first() {
+                outside_others(
+                    &others.iter().collect::<Vec<_>>(),
+                    (here.x, here.y),
+                    world.spec().robot.footprint_radius,
+                    requested,
+                    "the start ",
+                )?;
             }
             if others.len() >= fleet::MAX_ROBOTS_PER_FLOOR {
                 return Err(PlanFailure::Unprocessable(format!(
@@ -531,6 +511,32 @@ impl Planner {
             ),
             ..refused
         }))
+    }
+}
+
+/// `Ok` unless a robot of `radius_m` at `xy` at `at_ms` is inside the footprint the schedule
+/// reserves for one of `others` then (409, naming it; the message starts with `what`).
+fn outside_others(
+    others: &[&traffic::Itinerary],
+    xy: (f64, f64),
+    radius_m: f64,
+    at_ms: i64,
+    what: &str,
+) -> Result<(), PlanFailure> {
+    let inside = others.iter().find(|o| {
+        o.pose_at(at_ms)
+            .is_some_and(|(x, y)| (x - xy.0).hypot(y - xy.1) < o.radius_m + radius_m)
+    });
+    match inside {
+        None => Ok(()),
+        Some(other) => Err(PlanFailure::FleetConflict(NoFit {
+            robots: vec![other.robot.clone()],
+            earliest_start_unix_ms: None,
+            message: format!(
+                "{what}({:.2}, {:.2}) lies in the footprint the schedule reserves for {} at that time",
+                xy.0, xy.1, other.robot
+            ),
+        })),
     }
 }
 
