@@ -293,7 +293,7 @@ impl Planner {
                     wait_s: *s,
                     not_before_unix_ms: time_at(*k) + (s * 1000.0).round() as i64,
                     for_robots: if *k == 0 && later_s > 0.0 {
-                        dedup_names(in_the_way.iter().chain(robots).cloned())
+                        fleet::dedup(in_the_way.iter().chain(robots).cloned().collect())
                     } else {
                         robots.clone()
                     },
@@ -483,9 +483,9 @@ impl Planner {
         };
         let deadline = view.since + std::time::Duration::from_secs_f64(limit);
         while std::time::Instant::now() < deadline {
-            let (now, _) = view
+            let now = view
                 .schedule
-                .snapshot(view.floor)
+                .version(view.floor)
                 .await
                 .map_err(PlanFailure::Unavailable)?;
             if now != view.version {
@@ -649,15 +649,4 @@ fn stands(others: &[traffic::Itinerary], robot: &str) -> bool {
     others
         .iter()
         .any(|o| o.robot == robot && fleet::stands_only(o))
-}
-
-/// `names` without repeats, in order.
-fn dedup_names(names: impl Iterator<Item = String>) -> Vec<String> {
-    let mut out: Vec<String> = Vec::new();
-    for n in names {
-        if !out.contains(&n) {
-            out.push(n);
-        }
-    }
-    out
 }

@@ -62,6 +62,8 @@ pub enum Committed {
 pub trait FleetSchedule: Send + Sync {
     /// The floor's version and every unexpired itinerary on it.
     fn snapshot<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, (i64, Vec<Itinerary>)>;
+    /// The floor's version alone (what a plan waiting for the floor to change reads).
+    fn version<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, i64>;
     /// Commits `itinerary` (replacing its robot's previous one) if the floor is still at
     /// `expected_version`.
     fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed>;
@@ -736,7 +738,8 @@ pub fn fit(
     }
 }
 
-fn dedup(mut v: Vec<String>) -> Vec<String> {
+/// `v` without repeats, in order.
+pub(crate) fn dedup(mut v: Vec<String>) -> Vec<String> {
     let mut seen = Vec::new();
     v.retain(|r| {
         let new = !seen.contains(r);

@@ -214,6 +214,11 @@ impl FleetSchedule for MemorySchedule {
         Box::pin(async move { Ok((version, found)) })
     }
 
+    fn version<'a>(&'a self, _floor: &'a str) -> FleetFuture<'a, i64> {
+        let version = self.0.lock().unwrap_or_else(PoisonError::into_inner).0;
+        Box::pin(async move { Ok(version) })
+    }
+
     fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed> {
         let mut g = self.0.lock().unwrap_or_else(PoisonError::into_inner);
         let answer = if g.0 == expected_version {

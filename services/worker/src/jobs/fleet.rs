@@ -58,6 +58,16 @@ impl FleetSchedule for QueueFleet {
         })
     }
 
+    fn version<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, i64> {
+        Box::pin(async move {
+            let schedule = self.schedule().await?.clone();
+            let floor = floor.to_owned();
+            on_own_thread(move || futures_block_on(schedule.version(&floor)))
+                .await?
+                .map_err(|e| e.to_string())
+        })
+    }
+
     fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed> {
         Box::pin(async move {
             let schedule = self.schedule().await?.clone();
