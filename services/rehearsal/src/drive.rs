@@ -110,7 +110,10 @@ pub struct DriveRun {
     pub min_clearance_m: f64,
     /// Timer expiries that led to a replan.
     pub replans: u32,
-    /// Waypoints reached, in order.
+    /// Waypoints reached, in order, with where the robot stood when a replan or a re-route
+    /// took over (the junction of the two routes): driven again, or by the robot the plan is
+    /// for, consecutive ones are joined by the route that was driven, never across a corner
+    /// the replan went round.
     pub reached: Vec<Point2>,
     /// Index into `reached` of each goal reached.
     pub goal_indices: Vec<usize>,
@@ -409,6 +412,8 @@ pub fn drive(
                             (Some(replan), Some((goal, goal_index))) => {
                                 match replan(Point2::new(p.x, p.y), goal, Some(blocked)) {
                                     Ok(fresh) => {
+                                        // The junction: the route goes on from here.
+                                        reached.push(Point2::new(p.x, p.y));
                                         drop_rest_of_leg(&mut current, &mut queue);
                                         push_path(&mut queue, &fresh, goal_index);
                                         if let Some(next) = queue.pop_front() {
@@ -461,6 +466,7 @@ pub fn drive(
                     Ok(w) => w,
                     Err(why) => break (AttemptOutcome::Stalled, format!("{late}; {why}")),
                 };
+                reached.push(Point2::new(p.x, p.y));
                 drop_rest_of_leg(&mut current, &mut queue);
                 push_path(&mut queue, &fresh, goal_index);
                 let Some(next) = queue.pop_front() else {

@@ -46,6 +46,26 @@ fn assert_sound(world: &World, report: &PlanReport, goals: &[Point2]) {
             p.y
         );
     }
+    // The waypoints answered, from the start, are joined by straight stretches the robot's
+    // body fits along: a robot driving them meets no wall.
+    let start = report.trajectory.first().expect("a trajectory");
+    let mut from = (start.x, start.y);
+    for w in &report.waypoints {
+        let n = ((w.x - from.0).hypot(w.y - from.1) / 0.02).ceil().max(1.0) as usize;
+        for k in 0..=n {
+            let t = k as f64 / n as f64;
+            let (x, y) = (from.0 + (w.x - from.0) * t, from.1 + (w.y - from.1) * t);
+            assert!(
+                world.clearance(x, y) > 0.0,
+                "the stretch ({:.2}, {:.2}) → ({:.2}, {:.2}) runs into a wall at ({x:.2}, {y:.2})",
+                from.0,
+                from.1,
+                w.x,
+                w.y
+            );
+        }
+        from = (w.x, w.y);
+    }
     let end = report.trajectory.last().expect("a trajectory");
     let last = goals.last().expect("a goal");
     assert!(
@@ -387,6 +407,13 @@ fn the_waypoint_timer_replans_from_where_the_robot_is() {
     );
     assert_eq!(report.replans, 1);
     assert!(report.simulated_time_s > 15.0);
+    // The robot goes on from where it stood when the timer replanned (here its start): that
+    // junction is a waypoint, so the route answered is the one driven.
+    let first = report.waypoints[0];
+    assert!(
+        first.distance(Point2::new(2.0, 2.0)) < 0.1,
+        "the first waypoint {first:?} is not where the replan took over"
+    );
     assert_sound(&world, &report, &req.goals);
 }
 
