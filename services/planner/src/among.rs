@@ -30,6 +30,8 @@ pub(crate) struct FleetEntry {
     plan_id: String,
     requested_unix_ms: i64,
     options: FleetOptions,
+    /// The plan's place in line for the cores ([`crate::gate::CpuGate`]); the caller's to set.
+    pub(crate) ticket: u64,
 }
 
 impl Planner {
@@ -64,6 +66,7 @@ impl Planner {
             plan_id: fleet::plan_id(&db.robot, now),
             requested_unix_ms: requested,
             options: *options,
+            ticket: 0,
         };
         // A start the robot does not fit at is the rehearsal's to refuse (422).
         if !options.commit || !fits_there {
@@ -233,6 +236,9 @@ impl Planner {
                 expires_unix_ms: start + (options.hold_s * 1000.0).round() as i64,
                 delay_s: 0.0,
             };
+            // The core first, then the schedule: the plan is fitted and driven against the
+            // schedule as it is when it runs, not as it was when it began to wait.
+            let mut core = Some(self.cpu.acquire(entry.ticket).await);
             let (version, committed) = schedule
                 .snapshot(&db.floor)
                 .await
@@ -270,13 +276,16 @@ impl Planner {
             );
             let (itinerary, at_steps, waits) = match fitted {
                 Ok(f) => f,
-                Err(e) => match self
-                    .wait_for_standing(&in_view(version, &others), e)
-                    .await?
-                {
-                    Standing::Changed => continue 'attempts,
-                    Standing::Reroute => return Ok(Among::Reroute),
-                },
+                Err(e) => {
+                    drop(core.take());
+                    match self
+                        .wait_for_standing(&in_view(version, &others), e)
+                        .await?
+                    {
+                        Standing::Changed => continue 'attempts,
+                        Standing::Reroute => return Ok(Among::Reroute),
+                    }
+                }
             };
             let time_at = |k: usize| {
                 let waited: f64 = waits
@@ -320,11 +329,13 @@ impl Planner {
                     Arc::clone(&robots),
                 );
                 let radius = world.spec().robot.footprint_radius;
-                self.blocking(move || {
+                self.simulating(entry.ticket, core.take(), move || {
                     replay2.among_fresh_draws(&world2, &report2, &robots2, &holds, radius)
                 })
                 .await??
             };
+            // Waiting for others, or for the floor's lock to commit, holds no core.
+            drop(core);
             let refused = |robot: String, message: String| {
                 PlanFailure::FleetConflict(NoFit {
                     robots: vec![robot],

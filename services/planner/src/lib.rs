@@ -20,6 +20,7 @@ mod among;
 pub mod controllers;
 pub mod fleet;
 pub mod floor;
+mod gate;
 pub mod policies;
 mod replay;
 pub mod roadmaps;
@@ -278,6 +279,8 @@ pub struct Planner {
     /// plans at once spent most of their seconds so). Other processes still race through the
     /// floor's version.
     fleet_locks: Mutex<HashMap<String, Arc<tokio::sync::Mutex<()>>>>,
+    /// The cores the plans' simulation work shares, oldest plan first.
+    cpu: Arc<gate::CpuGate>,
 }
 
 impl std::fmt::Debug for Planner {
@@ -309,6 +312,7 @@ impl Planner {
             loaded: Mutex::new(HashMap::new()),
             applied: Arc::default(),
             fleet_locks: Mutex::new(HashMap::new()),
+            cpu: gate::CpuGate::of_this_machine(),
         }
     }
 
@@ -378,6 +382,8 @@ impl Planner {
     ) -> Result<PlanOutcome, PlanFailure> {
         // Whether a named policy exists is the loader's to say (404), below.
         check_bounds(&query)?;
+        // The plan's place in line for the cores: asked earlier, served earlier.
+        let ticket = self.cpu.ticket();
         let PlanQuery {
             robot,
             place,
@@ -452,17 +458,12 @@ impl Planner {
                     })
                     .await?
                     .map_err(PlanFailure::Unprocessable)?;
-                Some(
-                    self.enter_the_fleet(
-                        schedule.as_ref(),
-                        &db,
-                        radius,
-                        request.start,
-                        &fleet,
-                        fits,
-                    )
-                    .await?,
-                )
+                let entry = self
+                    .enter_the_fleet(schedule.as_ref(), &db, radius, request.start, &fleet, fits)
+                    .await?;
+                let mut entry = entry;
+                entry.ticket = ticket;
+                Some(entry)
             }
             None => None,
         };
@@ -496,14 +497,16 @@ impl Planner {
             }
             let with_standing = !request.options.standing.is_empty();
             let run = rehearsal.clone();
-            let (report, world, people, pick, replay) =
-                match self.blocking(move || run.run(request)).await? {
-                    Err(PlanFailure::Plan(PlanError::Unreachable { .. })) if with_standing => {
-                        avoiding = false;
-                        continue;
-                    }
-                    r => r?,
-                };
+            let (report, world, people, pick, replay) = match self
+                .simulating(ticket, None, move || run.run(request))
+                .await?
+            {
+                Err(PlanFailure::Plan(PlanError::Unreachable { .. })) if with_standing => {
+                    avoiding = false;
+                    continue;
+                }
+                r => r?,
+            };
             let (Some(schedule), Some(entry)) = (&self.fleet, &entry) else {
                 break (report, world, people, pick, replay, None);
             };
@@ -537,8 +540,7 @@ impl Planner {
         })
     }
 
-    /// Runs the blocking `work` on the blocking pool. (Holding plans back to one per core
-    /// was measured slower than leaving them all to the pool, on 2 cores.)
+    /// Runs the blocking `work` on the blocking pool.
     async fn blocking<T: Send + 'static>(
         &self,
         work: impl FnOnce() -> T + Send + 'static,
@@ -546,6 +548,25 @@ impl Planner {
         tokio::task::spawn_blocking(work)
             .await
             .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))
+    }
+
+    /// Runs the blocking simulation `work` of the plan holding `ticket` on the blocking pool
+    /// once it has a core ([`gate::CpuGate`]), or with `held`, the core its caller took.
+    async fn simulating<T: Send + 'static>(
+        &self,
+        ticket: u64,
+        held: Option<gate::Permit>,
+        work: impl FnOnce() -> T + Send + 'static,
+    ) -> Result<T, PlanFailure> {
+        let core = match held {
+            Some(p) => p,
+            None => self.cpu.acquire(ticket).await,
+        };
+        self.blocking(move || {
+            let _core = core;
+            work()
+        })
+        .await
     }
 
     /// The lock serialising the fleet commits of `key` (a robot or a floor) in this process.
