@@ -402,6 +402,18 @@ impl Planner {
                         in_the_way.push(r.clone());
                     }
                 }
+                // Nobody was where the drive ended: people (or its noise) stopped it, which a
+                // later start changes little. A few are tried, not `max_wait_s` worth of drives
+                // that take the cores from every other plan.
+                if in_the_way.is_empty() && later_s >= LATER_WITHOUT_ROBOTS_S {
+                    return Err(PlanFailure::FleetConflict(NoFit {
+                        message: format!(
+                            "{}; no robot was where it stopped, and starting up to {later_s} s later did not help",
+                            no_fit.message
+                        ),
+                        ..no_fit
+                    }));
+                }
                 if next > options.max_wait_s {
                     return Err(PlanFailure::FleetConflict(NoFit {
                         message: format!(
@@ -625,6 +637,10 @@ fn later_start_after(later_s: f64) -> f64 {
 
 /// The largest step between two later starts tried, seconds.
 const LATER_STEP_S: f64 = 16.0;
+
+/// The latest start tried for a plan whose drives among the fleet end with no robot near
+/// (2, 4 and 8 s later).
+const LATER_WITHOUT_ROBOTS_S: f64 = 8.0;
 
 /// What a plan among the fleet came to.
 pub(crate) enum Among {
