@@ -147,7 +147,9 @@ pub struct PlanOutcome {
 impl PlanOutcome {
     /// The plan driven again with its waits while the robots of `others` drive their
     /// itineraries in the same simulation ([`rehearsal::drive_among`]), on the clock of the
-    /// plan's start (now, without a schedule). Blocks: seconds for long plans.
+    /// plan's start (now, without a schedule), each stopping where it would come too close to
+    /// this robot, as its own shield would ([`sim::OtherRobots::shielded`]; the checks of a
+    /// plan among the fleet keep them to their tracks). Blocks: seconds for long plans.
     pub fn rehearse_among(
         &self,
         others: &[traffic::Itinerary],
@@ -165,7 +167,9 @@ impl PlanOutcome {
             ),
             None => (now_ms(), Vec::new(), 0),
         };
-        let robots = fleet::simulated_robots(others, start).map_err(PlanFailure::Internal)?;
+        let robots = fleet::simulated_robots(others, start)
+            .map_err(PlanFailure::Internal)?
+            .shielded();
         self.replay
             .among(&self.world, &self.report, &robots, &holds, draw)
     }

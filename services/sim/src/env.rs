@@ -351,6 +351,8 @@ pub struct NavEnv {
     others: Option<Arc<OtherRobots>>,
     /// Smallest gap to another robot in the last step, and which.
     robot_clearance: (f64, Option<usize>),
+    /// How late each other robot is on its track, seconds: shielded ones stop for this one.
+    others_late: Vec<f64>,
 }
 
 /// Mixed into an environment's seed for its people's own generator, so that people leave the
@@ -384,6 +386,7 @@ impl NavEnv {
             person_clearance: f64::INFINITY,
             others: None,
             robot_clearance: (f64::INFINITY, None),
+            others_late: Vec::new(),
             drive,
             dirs,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -447,6 +450,7 @@ impl NavEnv {
     /// one is a collision.
     pub fn set_other_robots(&mut self, others: Option<Arc<OtherRobots>>) {
         self.others = others.filter(|o| !o.is_empty());
+        self.others_late.clear();
     }
 
     /// The other robots, when set.
@@ -644,6 +648,7 @@ impl NavEnv {
         self.goal_from = (start.x, start.y);
         self.executed = Action::default();
         self.steps = 0;
+        self.others_late.clear();
         self.distance = (goal.0 - start.x).hypot(goal.1 - start.y);
         self.outcome = Outcome::Running;
         self.started = true;
@@ -741,12 +746,16 @@ impl NavEnv {
         let mut collided = false;
         self.person_clearance = f64::INFINITY;
         self.robot_clearance = (f64::INFINITY, None);
-        // The other robots where they are at the end of the step.
-        let robots_at = self
-            .others
-            .as_ref()
-            .map(|o| o.at(f64::from(self.steps + 1) * dt))
-            .unwrap_or_default();
+        // The other robots where they are at the end of the step (shielded ones holding
+        // where they would come too close to this one).
+        let robots_at = match &self.others {
+            Some(o) => {
+                let now = f64::from(self.steps) * dt;
+                o.hold_for(&mut self.others_late, now, dt, (start.x, start.y), radius);
+                o.at_late(now + dt, &self.others_late)
+            }
+            None => Vec::new(),
+        };
         for k in 1..=n {
             let p = integrate(start, exec, dt * k as f64 / n as f64);
             let mut c = self.world.clearance(p.x, p.y);
@@ -901,7 +910,10 @@ impl NavEnv {
                 crowd.occlude((lx, ly), dirs.clone(), &mut self.ranges);
             }
             if let Some(others) = &self.others {
-                let at = others.at(f64::from(self.steps) * self.config.control_period);
+                let at = others.at_late(
+                    f64::from(self.steps) * self.config.control_period,
+                    &self.others_late,
+                );
                 crate::others::occlude(&at, (lx, ly), dirs, &mut self.ranges);
             }
         }

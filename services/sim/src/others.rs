@@ -1,7 +1,10 @@
 //! Other robots in one simulation: discs moving along timed tracks (the plans the fleet's
 //! schedule already gave them), seen by the laser and touched by the footprint. They keep to
 //! their tracks and do not react to the simulated robot: a conflict shows as a contact however
-//! polite the other robot would have been, which is the safe side for a check.
+//! polite the other robot would have been, which is the safe side for a check. Made
+//! [`OtherRobots::shielded`], each holds where its next step would bring it within
+//! [`SHIELD_GAP_M`] of the simulated robot, closing in, as its own collision monitor would stop
+//! it (late on its track from then on): a joint run of robots that all have shields.
 
 /// One other robot.
 #[derive(Clone, Debug, PartialEq)]
@@ -39,7 +42,12 @@ impl OtherRobot {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct OtherRobots {
     robots: Vec<OtherRobot>,
+    shielded: bool,
 }
+
+/// The gap to the simulated robot at which a shielded other robot stops, metres: the plans'
+/// safety margin (`rehearsal::PlanOptions::safety_margin_m`'s default).
+pub const SHIELD_GAP_M: f64 = 0.1;
 
 impl OtherRobots {
     /// The robots, or what is wrong with one (a radius that is not positive, a sample that is
@@ -62,7 +70,24 @@ impl OtherRobots {
                 return Err(format!("{}: track times must not go back", r.name));
             }
         }
-        Ok(OtherRobots { robots })
+        Ok(OtherRobots {
+            robots,
+            shielded: false,
+        })
+    }
+
+    /// The same robots, each stopping for the simulated robot as its shield would (see the
+    /// module).
+    pub fn shielded(self) -> OtherRobots {
+        OtherRobots {
+            shielded: true,
+            ..self
+        }
+    }
+
+    /// Whether they stop for the simulated robot.
+    pub fn is_shielded(&self) -> bool {
+        self.shielded
     }
 
     /// The robots.
@@ -87,16 +112,45 @@ impl OtherRobots {
                     track: r.track.iter().map(|&(t, x, y)| (t + dt, x, y)).collect(),
                 })
                 .collect(),
+            shielded: self.shielded,
         }
     }
 
     /// Every robot on the floor at `t`: (its index, position, radius).
     pub fn at(&self, t: f64) -> Vec<(usize, (f64, f64), f64)> {
+        self.at_late(t, &[])
+    }
+
+    /// [`OtherRobots::at`] with robot `i` `late[i]` seconds behind its track (0 past the end).
+    pub fn at_late(&self, t: f64, late: &[f64]) -> Vec<(usize, (f64, f64), f64)> {
         self.robots
             .iter()
             .enumerate()
-            .filter_map(|(i, r)| r.position_at(t).map(|p| (i, p, r.radius)))
+            .filter_map(|(i, r)| {
+                let late = late.get(i).copied().unwrap_or(0.0);
+                r.position_at(t - late).map(|p| (i, p, r.radius))
+            })
             .collect()
+    }
+
+    /// How late each robot is after the step from `t` to `t + dt`, given how late each was
+    /// (`late`, updated): a shielded robot whose step would bring it within [`SHIELD_GAP_M`]
+    /// of the disc at `xy` of `radius`, closing in, holds (one more `dt` late).
+    pub fn hold_for(&self, late: &mut Vec<f64>, t: f64, dt: f64, xy: (f64, f64), radius: f64) {
+        late.resize(self.robots.len(), 0.0);
+        if !self.shielded {
+            return;
+        }
+        for (r, late) in self.robots.iter().zip(late.iter_mut()) {
+            let gap = |p: (f64, f64)| crate::norm(p.0 - xy.0, p.1 - xy.1) - r.radius - radius;
+            if let (Some(now), Some(next)) =
+                (r.position_at(t - *late), r.position_at(t + dt - *late))
+                && gap(next) < SHIELD_GAP_M
+                && gap(next) < gap(now)
+            {
+                *late += dt;
+            }
+        }
     }
 }
 
@@ -156,6 +210,34 @@ mod tests {
         assert_eq!(r.position_at(2.0), Some((1.0, 0.0)));
         assert_eq!(r.position_at(3.0), Some((2.0, 0.0)));
         assert_eq!(r.position_at(3.1), None);
+    }
+
+    #[test]
+    fn a_shielded_robot_holds_before_it_touches_one_standing_in_its_track() {
+        // The walker drives along y = 0 through a robot of radius 0.3 standing at (1.5, 0).
+        let drive = |others: &OtherRobots| {
+            let mut late = Vec::new();
+            let mut closest = f64::INFINITY;
+            let dt = 0.1;
+            for k in 10..40 {
+                let t = f64::from(k) * dt;
+                others.hold_for(&mut late, t, dt, (1.5, 0.0), 0.3);
+                for (_, (x, y), r) in others.at_late(t + dt, &late) {
+                    closest = closest.min(crate::norm(x - 1.5, y) - r - 0.3);
+                }
+            }
+            (closest, late[0])
+        };
+        let scripted = OtherRobots::new(vec![walker()]).unwrap();
+        let (closest, late) = drive(&scripted);
+        assert!(closest < 0.0, "it drives through: {closest}");
+        assert_eq!(late, 0.0);
+        let (closest, late) = drive(&scripted.clone().shielded());
+        assert!(
+            (0.0..SHIELD_GAP_M).contains(&closest),
+            "it stops short: {closest}"
+        );
+        assert!(late > 1.5, "and is late on its track from then on: {late}");
     }
 
     #[test]
