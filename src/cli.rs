@@ -329,6 +329,10 @@ pub enum BenchCommand {
         /// once, so that a run whose outcome depends on the plan order can be repeated.
         #[arg(long, value_name = "SEED")]
         order_seed: Option<u64>,
+        /// Every robot asks with the same `options.seed`, as robots sending the default options
+        /// do (one roadmap and the same draws for all), instead of one seed each.
+        #[arg(long)]
+        same_seed: bool,
         /// Writes the rows as JSON (one object per map and scenario).
         #[arg(long)]
         json: Option<PathBuf>,
@@ -858,6 +862,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             seed,
             max_wait_s,
             order_seed,
+            same_seed,
             json,
             replay,
         } => {
@@ -872,6 +877,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 robot_iri: crate::train::ROBOT_IRI.to_owned(),
                 max_wait_s,
                 order_seed,
+                same_seed,
             })?;
             println!("{}", bench::fleet::markdown(&rows));
             for r in &rows {

@@ -104,6 +104,9 @@ pub struct FleetBenchOptions {
     /// one after another, in an order shuffled by `seed`, so a run that depends on the order
     /// can be repeated.
     pub order_seed: Option<u64>,
+    /// Every robot asks with the same `options.seed` (as robots sending the default options
+    /// do: one roadmap, the same draws), not one seed each.
+    pub same_seed: bool,
 }
 
 /// One map and scenario.
@@ -532,7 +535,13 @@ fn run_floor(
                 start: *start,
                 goals: vec![*goal],
                 options: PlanOptions {
-                    seed: opts.seed.wrapping_add(k as u64),
+                    // Each robot its own roadmap and draws, unless every robot asks as a fleet
+                    // sending the default options does: one seed, one roadmap for all.
+                    seed: if opts.same_seed {
+                        opts.seed
+                    } else {
+                        opts.seed.wrapping_add(k as u64)
+                    },
                     people: people.clone(),
                     ..PlanOptions::default()
                 },

@@ -26,6 +26,7 @@ fn scenario(scenario: Scenario, robots: usize) -> FleetBenchOptions {
         robot_iri: ROBOT_IRI.to_owned(),
         max_wait_s: 600.0,
         order_seed: None,
+        same_seed: false,
     }
 }
 
@@ -114,6 +115,7 @@ fn all_through(scenario: Scenario, robots: usize) {
 fn all_through_in(scenario: Scenario, robots: usize, order_seed: Option<u64>) {
     let opts = FleetBenchOptions {
         order_seed,
+        same_seed: false,
         ..self::scenario(scenario, robots)
     };
     let rows = run_fleet_bench(&opts).expect("runs");
