@@ -621,6 +621,8 @@ fn run_map(
     for run in 0..opts.runs {
         // Seeds far apart so the re-samples of one run never reuse another run's roadmap.
         let seed = opts.seed.wrapping_add(1000 * (run as u64 + 1));
+        // The roadmap `POST /v1/plan` gives this robot (its salt), for every method alike.
+        let salt = planner::roadmap_salt(&opts.robot_iri);
         let request = PlanRequest {
             start,
             goals: vec![mission.goal],
@@ -629,6 +631,7 @@ fn run_map(
                 waypoint_timeout_s: opts.waypoint_timeout_s,
                 safety_margin_m: opts.safety_margin_m,
                 seed,
+                roadmap_salt: salt,
                 trajectory_stride: 0,
                 people: people.clone(),
                 ..PlanOptions::default()
@@ -640,7 +643,7 @@ fn run_map(
         let t = Instant::now();
         let params = PrmParams {
             samples: planning::optimal_samples(space.free_area_m2),
-            seed,
+            seed: seed ^ salt,
             ..PrmParams::default()
         };
         cache

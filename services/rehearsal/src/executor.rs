@@ -298,7 +298,8 @@ fn validate_inner(
                 let (roadmap, cached, seed, kind) = match policy_roadmap.filter(|_| d == 0) {
                     Some(r) => (Arc::clone(r), true, r.params().seed, RoadmapKind::Policy),
                     None => {
-                        let seed = opts.seed.wrapping_add(u64::from(attempt - 1));
+                        let seed =
+                            opts.seed.wrapping_add(u64::from(attempt - 1)) ^ opts.roadmap_salt;
                         let params = PrmParams {
                             samples,
                             seed,

@@ -45,6 +45,10 @@ pub struct PlanOptions {
     /// of them (no edge passes closer than their radius plus the robot's plus
     /// `safety_margin_m`). Default none.
     pub standing: Vec<(Point2, f64)>,
+    /// Mixed into the roadmap's seed (not the simulation's): the planner gives each robot of a
+    /// fleet its own, so robots sent the same way do not all queue in the same roadmap lanes.
+    /// Default 0.
+    pub roadmap_salt: u64,
 }
 
 /// Which roadmap the policy plans on.
@@ -77,6 +81,7 @@ impl Default for PlanOptions {
             people: sim::PeopleConfig::default(),
             people_draws: 0,
             standing: Vec::new(),
+            roadmap_salt: 0,
         }
     }
 }

@@ -432,6 +432,7 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             people_draws,
             // The fleet's standing robots are the planner's to read from the schedule.
             standing: _,
+            roadmap_salt: _,
         } = o;
         Self {
             max_attempts,
@@ -502,6 +503,7 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             people: people.config(),
             people_draws,
             standing: Vec::new(),
+            roadmap_salt: 0,
         }
     }
 }
