@@ -474,10 +474,9 @@ impl Planner {
                     })
                     .await?
                     .map_err(PlanFailure::Unprocessable)?;
-                let entry = self
+                let mut entry = self
                     .enter_the_fleet(schedule.as_ref(), &db, radius, request.start, &fleet, fits)
                     .await?;
-                let mut entry = entry;
                 entry.ticket = ticket;
                 Some(entry)
             }

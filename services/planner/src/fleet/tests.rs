@@ -41,6 +41,35 @@ fn committed(robot: &str, steps: &[Pose2], dt: f64, start_ms: i64) -> Itinerary 
     .itinerary(&template(robot, start_ms))
 }
 
+/// Robot B's [`fit`] from `start_ms` along `steps` (one every 0.1 s) past `waypoints` among
+/// `others`, waiting up to `max_wait_s`, set off `start_wait_s` late.
+fn fit_b(
+    start_ms: i64,
+    steps: &[Pose2],
+    waypoints: &[Point2],
+    others: &[Itinerary],
+    max_wait_s: f64,
+    start_wait_s: f64,
+) -> Result<Fitted, NoFit> {
+    fit(
+        &template("B", start_ms),
+        steps,
+        0.1,
+        waypoints,
+        others,
+        max_wait_s,
+        start_wait_s,
+    )
+}
+
+/// [`fit_b`] with up to 120 s of waits, set off on time: it fits, and keeps the margins from
+/// every one of `others`.
+fn fits_b(start_ms: i64, steps: &[Pose2], waypoints: &[Point2], others: &[Itinerary]) -> Fitted {
+    let fitted = fit_b(start_ms, steps, waypoints, others, 120.0, 0.0).expect("a fit");
+    assert!(first_conflict(&fitted.0, others).is_none());
+    fitted
+}
+
 #[test]
 fn a_robot_crossing_anothers_path_waits_before_the_crossing() {
     let dt = 0.1;
@@ -49,17 +78,7 @@ fn a_robot_crossing_anothers_path_waits_before_the_crossing() {
     let a = committed("A", &straight((-5.0, 0.0), (5.0, 0.0), 1.0, dt), dt, 0);
     let b_steps = straight((0.0, -5.0), (0.0, 5.0), 1.0, dt);
     let waypoints = [Point2::new(0.0, -3.0), Point2::new(0.0, 5.0)];
-    let (it, at, waits) = fit(
-        &template("B", 0),
-        &b_steps,
-        dt,
-        &waypoints,
-        std::slice::from_ref(&a),
-        120.0,
-        0.0,
-    )
-    .unwrap();
-    assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
+    let (_, at, waits) = fits_b(0, &b_steps, &waypoints, std::slice::from_ref(&a));
     assert_eq!(at.len(), 2);
     assert_eq!(waits.len(), 1, "{waits:?}");
     // At the waypoint 2 m before the crossing, for A.
@@ -81,17 +100,7 @@ fn robots_sent_down_one_corridor_from_both_ends_do_not_meet_in_it() {
             .skip(1),
     );
     let waypoints = [Point2::new(10.0, 0.0), Point2::new(0.0, 0.0)];
-    let (it, _, waits) = fit(
-        &template("B", 0),
-        &b_steps,
-        dt,
-        &waypoints,
-        std::slice::from_ref(&a),
-        120.0,
-        0.0,
-    )
-    .unwrap();
-    assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
+    let (_, _, waits) = fits_b(0, &b_steps, &waypoints, std::slice::from_ref(&a));
     // The corridor's end is in A's way (A arrives there): B waits at its start instead.
     assert_eq!(waits.len(), 1, "{waits:?}");
     assert_eq!(waits[0].0, 0, "a later start: {waits:?}");
@@ -108,10 +117,9 @@ fn a_robot_waits_ahead_rather_than_at_a_start_another_robot_passes_through() {
     let c = committed("C", &straight((6.0, -5.0), (6.0, 5.0), 1.0, dt), dt, 0);
     let a = committed("A", &straight((0.0, -3.5), (0.0, 5.0), 1.0, dt), dt, 0);
     // C alone: B waits at its start.
-    let (_, _, waits) = fit(
-        &template("B", 0),
+    let (_, _, waits) = fit_b(
+        0,
         &b_steps,
-        dt,
         &waypoints,
         std::slice::from_ref(&c),
         120.0,
@@ -121,17 +129,7 @@ fn a_robot_waits_ahead_rather_than_at_a_start_another_robot_passes_through() {
     assert_eq!(waits.first().map(|w| w.0), Some(0), "{waits:?}");
     // With A through its start: B waits at the first waypoint, and nowhere else.
     let others = [c.clone(), a.clone()];
-    let (it, at, waits) = fit(
-        &template("B", 0),
-        &b_steps,
-        dt,
-        &waypoints,
-        &others,
-        120.0,
-        0.0,
-    )
-    .unwrap();
-    assert!(first_conflict(&it, &others).is_none());
+    let (_, at, waits) = fits_b(0, &b_steps, &waypoints, &others);
     assert_eq!(
         waits.iter().map(|w| w.0).collect::<Vec<_>>(),
         vec![at[0]],
@@ -140,23 +138,13 @@ fn a_robot_waits_ahead_rather_than_at_a_start_another_robot_passes_through() {
     assert!(waits[0].2.contains(&"C".to_owned()), "{waits:?}");
     // Told to stand at its start until A has passed through it, B has no fit: the
     // schedule holds a robot at its start while it waits there, and A meets it.
-    let e = fit(
-        &template("B", 0),
-        &b_steps,
-        dt,
-        &waypoints,
-        &others,
-        120.0,
-        3.0,
-    )
-    .unwrap_err();
+    let e = fit_b(0, &b_steps, &waypoints, &others, 120.0, 3.0).unwrap_err();
     assert!(e.robots.contains(&"A".to_owned()), "{e:?}");
     assert_eq!(e.earliest_start_unix_ms, None, "{e:?}");
     // Among C alone, a start 6 s later is standing at the start from the plan's start.
-    let (it, _, waits) = fit(
-        &template("B", 0),
+    let (it, _, waits) = fit_b(
+        0,
         &b_steps,
-        dt,
         &waypoints,
         std::slice::from_ref(&c),
         120.0,
@@ -174,10 +162,9 @@ fn without_enough_time_the_plan_is_refused_with_the_earliest_start_that_fits() {
     let dt = 0.1;
     let a = committed("A", &straight((-5.0, 0.0), (5.0, 0.0), 1.0, dt), dt, 0);
     let b_steps = straight((0.0, -5.0), (0.0, 5.0), 1.0, dt);
-    let e = fit(
-        &template("B", 0),
+    let e = fit_b(
+        0,
         &b_steps,
-        dt,
         &[Point2::new(0.0, 5.0)],
         std::slice::from_ref(&a),
         0.0,
@@ -198,17 +185,7 @@ fn a_robot_following_another_to_its_goal_waits_before_the_goal_until_it_is_free(
     let path = straight((0.0, 0.0), (10.0, 0.0), 1.0, dt);
     let a = committed("A", &path, dt, 0);
     let waypoints = [Point2::new(5.0, 0.0), Point2::new(10.0, 0.0)];
-    let (it, at, waits) = fit(
-        &template("B", 3_000),
-        &path,
-        dt,
-        &waypoints,
-        std::slice::from_ref(&a),
-        120.0,
-        0.0,
-    )
-    .unwrap();
-    assert!(first_conflict(&it, std::slice::from_ref(&a)).is_none());
+    let (_, at, waits) = fits_b(3_000, &path, &waypoints, std::slice::from_ref(&a));
     assert!(!waits.is_empty());
     assert!(
         waits.iter().all(|w| w.0 != at[1]),
@@ -222,10 +199,9 @@ fn a_start_inside_a_robot_held_there_is_refused_naming_it_with_no_later_start() 
     // A ends at (0, 0) and is held there; B would set off from (0, 0) meanwhile.
     let a = committed("A", &straight((-5.0, 0.0), (0.0, 0.0), 1.0, dt), dt, 0);
     let b_steps = straight((0.0, 0.0), (0.0, 5.0), 1.0, dt);
-    let e = fit(
-        &template("B", 6_000),
+    let e = fit_b(
+        6_000,
         &b_steps,
-        dt,
         &[Point2::new(0.0, 5.0)],
         std::slice::from_ref(&a),
         3.0,
@@ -254,10 +230,9 @@ fn a_robot_standing_in_the_way_with_no_plan_is_named_at_once() {
         ..template("S", 0)
     };
     assert!(stands_only(&standing(0.3)));
-    let e = fit(
-        &template("B", 0),
+    let e = fit_b(
+        0,
         &steps,
-        dt,
         &[Point2::new(10.0, 0.0)],
         &[standing(0.3)],
         120.0,
@@ -269,18 +244,8 @@ fn a_robot_standing_in_the_way_with_no_plan_is_named_at_once() {
     assert!(e.message.contains("no plan of its own"), "{}", e.message);
     // 0.6 m between centres of 0.2 m robots: a 0.2 m gap, more than STILL_MARGIN_M and
     // less than ROBOT_MARGIN_M.
-    let (it, _, waits) = fit(
-        &template("B", 0),
-        &steps,
-        dt,
-        &[Point2::new(10.0, 0.0)],
-        &[standing(0.6)],
-        120.0,
-        0.0,
-    )
-    .unwrap();
+    let (_, _, waits) = fits_b(0, &steps, &[Point2::new(10.0, 0.0)], &[standing(0.6)]);
     assert!(waits.is_empty(), "{waits:?}");
-    assert!(first_conflict(&it, &[standing(0.6)]).is_none());
 }
 
 #[test]
