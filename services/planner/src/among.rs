@@ -34,6 +34,27 @@ pub(crate) struct FleetEntry {
     pub(crate) ticket: u64,
 }
 
+/// Longest wait at one node a route timed among the fleet's plans takes, seconds: beyond it,
+/// the route goes another way (the fit may still make it wait longer).
+const ROUTE_NODE_WAIT_S: f64 = 60.0;
+
+impl FleetEntry {
+    /// The committed plans of `moving` as reservations a route is timed among, on the clock of
+    /// this plan's start (`None` where there are none, or their tracks are unusable).
+    pub(crate) fn reserved(&self, moving: &[traffic::Itinerary]) -> Option<rehearsal::Reserved> {
+        if moving.is_empty() {
+            return None;
+        }
+        let robots = fleet::simulated_robots(moving, self.requested_unix_ms).ok()?;
+        Some(rehearsal::Reserved {
+            robots,
+            gap_m: fleet::ROBOT_MARGIN_M,
+            slack_s: self.options.tolerance_s + fleet::FIT_SLACK_S,
+            max_wait_s: self.options.max_wait_s.min(ROUTE_NODE_WAIT_S),
+        })
+    }
+}
+
 impl Planner {
     /// Checks the start asked for and, for a plan to be committed by a robot the floor's
     /// schedule does not hold yet, puts it there standing at `start` from that time until its
@@ -161,20 +182,21 @@ impl Planner {
         Ok(standing)
     }
 
-    /// The other robots standing on `floor` with no plan yet ([`fleet::stands_only`]).
-    pub(crate) async fn standing_others(
+    /// The other robots on `floor`: those standing with no plan yet ([`fleet::stands_only`])
+    /// and those with one.
+    pub(crate) async fn others_on_the_floor(
         &self,
         schedule: &dyn FleetSchedule,
         db: &FloorDatabase,
-    ) -> Result<Vec<traffic::Itinerary>, PlanFailure> {
+    ) -> Result<(Vec<traffic::Itinerary>, Vec<traffic::Itinerary>), PlanFailure> {
         let (_, all) = schedule
             .snapshot(&db.floor)
             .await
             .map_err(PlanFailure::Unavailable)?;
         Ok(all
             .into_iter()
-            .filter(|i| i.robot != db.robot && fleet::stands_only(i))
-            .collect())
+            .filter(|i| i.robot != db.robot)
+            .partition(fleet::stands_only))
     }
 
     /// The validated plan among the other robots' committed plans on its floor: fitted with

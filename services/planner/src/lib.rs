@@ -252,6 +252,27 @@ pub trait RoadmapBuilds: Send + Sync {
     ) -> BuildFuture<'a>;
 }
 
+/// What passing a robot standing with no plan costs a plan's first route among the fleet,
+/// metres (about half a minute of the sample robot's driving): a detour longer than that
+/// passes it instead, and the plan waits for that robot's plan (it is usually asking for one
+/// at the same time) for [`fleet::REROUTE_AFTER_S`] before it is rehearsed around it.
+const PASS_STANDING_M: f64 = 20.0;
+
+/// Whether the route of `report` (its start, then its waypoints) passes within `reach` of `at`.
+fn route_passes(report: &rehearsal::PlanReport, at: planning::Point2, reach: f64) -> bool {
+    let start = report
+        .steps
+        .first()
+        .map(|p| planning::Point2::new(p.x, p.y));
+    let route: Vec<planning::Point2> = start
+        .into_iter()
+        .chain(report.waypoints.iter().copied())
+        .collect();
+    route
+        .windows(2)
+        .any(|w| at.distance_to_segment(w[0], w[1]) < reach)
+}
+
 /// Times a plan among the fleet is rehearsed again to keep clear of robots standing in its
 /// route that its route did not know of; after that it waits for their plans.
 const MAX_REROUTES: usize = 3;
@@ -500,17 +521,26 @@ impl Planner {
         let mut reroutes = 0;
         let (report, world, people, pick, replay, fleet) = loop {
             let mut request = request.clone();
-            let mut avoided: Vec<String> = Vec::new();
-            if let (Some(schedule), true) = (&self.fleet, avoiding) {
-                for o in self.standing_others(schedule.as_ref(), &db).await? {
+            let mut standing_robots: Vec<String> = Vec::new();
+            if let (Some(schedule), Some(entry)) = (&self.fleet, &entry) {
+                let (standing, moving) = self.others_on_the_floor(schedule.as_ref(), &db).await?;
+                for o in standing.into_iter().filter(|_| avoiding) {
                     if let Some(p) = o.trajectory.first() {
                         let at = planning::Point2::new(p.x, p.y);
                         request.options.standing.push((at, o.radius_m));
-                        avoided.push(o.robot);
+                        standing_robots.push(o.robot);
                     }
                 }
+                // The first route passes a standing robot rather than go far around it (it is
+                // likely asking for its plan now); once one was in its way, it keeps clear.
+                if reroutes == 0 {
+                    request.options.standing_pass_m = PASS_STANDING_M;
+                }
+                request.options.reserved = entry.reserved(&moving).map(Arc::new);
             }
             let with_standing = !request.options.standing.is_empty();
+            let standing_at = request.options.standing.clone();
+            let margin = request.options.safety_margin_m;
             let run = rehearsal.clone();
             let (report, world, people, pick, replay) = match self
                 .simulating(ticket, None, move || run.run(request))
@@ -525,6 +555,14 @@ impl Planner {
             let (Some(schedule), Some(entry)) = (&self.fleet, &entry) else {
                 break (report, world, people, pick, replay, None);
             };
+            // The standing robots the route keeps clear of (it may pass some).
+            let radius = world.spec().robot.footprint_radius;
+            let avoided: Vec<String> = standing_robots
+                .into_iter()
+                .zip(&standing_at)
+                .filter(|(_, (at, r))| !route_passes(&report, *at, r + radius + margin))
+                .map(|(name, _)| name)
+                .collect();
             let avoided = (avoiding && reroutes < MAX_REROUTES).then_some(avoided.as_slice());
             match self
                 .among_the_fleet(

@@ -15,7 +15,7 @@ pub use cspace::{ConfigSpace, Inflation, RegionId};
 pub use error::{BuildError, ConfigSpaceError, Endpoint, GridError, QueryError};
 pub use map::{PlanningGrid, Point2};
 pub use roadmap::{
-    BuildPhase, BuildStats, MAX_SAMPLES, Plan, PrmParams, QueryOptions, Roadmap, RoadmapKey,
-    optimal_samples,
+    BuildPhase, BuildStats, MAX_SAMPLES, Plan, PrmParams, QueryOptions, Reservations, Roadmap,
+    RoadmapKey, optimal_samples,
 };
 pub use search::SearchAlgorithm;

@@ -23,6 +23,23 @@ impl Point2 {
     pub fn distance(self, other: Point2) -> f64 {
         (self.x - other.x).hypot(self.y - other.y)
     }
+
+    /// The point `f` of the way from `self` to `b` (0: `self`, 1: `b`).
+    pub fn lerp(self, b: Point2, f: f64) -> Point2 {
+        Point2::new(self.x + f * (b.x - self.x), self.y + f * (b.y - self.y))
+    }
+
+    /// Distance to the segment `a`–`b`, in metres.
+    pub fn distance_to_segment(self, a: Point2, b: Point2) -> f64 {
+        let (dx, dy) = (b.x - a.x, b.y - a.y);
+        let len2 = dx * dx + dy * dy;
+        let f = if len2 > 0.0 {
+            (((self.x - a.x) * dx + (self.y - a.y) * dy) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.distance(a.lerp(b, f))
+    }
 }
 
 /// A metric grid map as the planner needs it: which cells a robot may not enter.

@@ -170,9 +170,16 @@ pub(crate) struct Search<'g, H> {
     prev: Vec<u32>,
     closed: Vec<bool>,
     heap: BinaryHeap<Entry>,
+    /// The extra cost of an edge for the label it leaves from: `delay(u, v, g_u)`, infinite
+    /// where the edge cannot be taken then (a route timed among others' reservations).
+    delay: Option<Delay<'g>>,
     /// Nodes expanded so far, over every resumption.
     pub expanded: usize,
 }
+
+/// What an edge `u → v` costs beyond its weight when `u` is reached at cost `g_u` (the start is
+/// node `n`, the goal `n + 1`): waiting there for the way to clear, as a cost.
+pub(crate) type Delay<'g> = &'g dyn Fn(u32, u32, f64) -> f64;
 
 impl<'g, H: Fn(u32) -> f64> Search<'g, H> {
     /// A search over `g`; `h(i)` is the heuristic of node i (ignored for Dijkstra), which must be
@@ -183,6 +190,20 @@ impl<'g, H: Fn(u32) -> f64> Search<'g, H> {
         goal_links: &[(u32, f64)],
         algorithm: SearchAlgorithm,
         h: H,
+    ) -> Self {
+        Self::timed(g, start_links, goal_links, algorithm, h, None)
+    }
+
+    /// [`Search::new`] with each edge's cost raised by `delay` for the label it leaves from.
+    /// The delays must not let a later label arrive sooner (waiting is allowed, so leaving
+    /// later never arrives earlier), and the result is the route that arrives first.
+    pub fn timed(
+        g: &'g Csr,
+        start_links: &[(u32, f64)],
+        goal_links: &[(u32, f64)],
+        algorithm: SearchAlgorithm,
+        h: H,
+        delay: Option<Delay<'g>>,
     ) -> Self {
         let n = g.node_count();
         let mut goal_cost = vec![f64::INFINITY; n];
@@ -204,6 +225,7 @@ impl<'g, H: Fn(u32) -> f64> Search<'g, H> {
             prev: vec![u32::MAX; n + 2],
             closed: vec![false; n + 2],
             heap: BinaryHeap::with_capacity(64),
+            delay,
             expanded: 0,
         };
         let start = n as u32;
@@ -242,7 +264,8 @@ impl<'g, H: Fn(u32) -> f64> Search<'g, H> {
     }
 
     fn relax(&mut self, u: u32, v: u32, w: f64) {
-        let nd = self.dist[u as usize] + w;
+        let from = self.dist[u as usize];
+        let nd = from + w + self.delay.map_or(0.0, |d| d(u, v, from));
         if nd < self.dist[v as usize] {
             self.dist[v as usize] = nd;
             self.prev[v as usize] = u;

@@ -695,3 +695,86 @@ fn build_work_per_sample_does_not_grow_with_n() {
         "n 600 -> 1200: {w2:.1} -> {w4:.1} per sample"
     );
 }
+
+/// A 10 m × 6 m hall with a pillar in its middle: a way round above it and one below.
+fn pillar_hall() -> PlanningGrid {
+    let (w, h) = (100usize, 60usize);
+    let mut blocked = vec![false; w * h];
+    for r in 15..45 {
+        for c in 45..55 {
+            blocked[r * w + c] = true;
+        }
+    }
+    PlanningGrid {
+        width: w,
+        height: h,
+        resolution: 0.1,
+        origin_x: 0.0,
+        origin_y: 0.0,
+        blocked,
+    }
+}
+
+/// Reservations over one side of the hall (above or below its middle): an edge entering it
+/// waits until `free_at_s` (`None`: never free).
+struct Side {
+    above: bool,
+    free_at_s: Option<f64>,
+}
+
+impl planning::Reservations for Side {
+    fn wait_before(&self, a: Point2, b: Point2, t_s: f64) -> Option<f64> {
+        let inside = |p: Point2| if self.above { p.y > 4.5 } else { p.y < 1.5 };
+        if !(inside(a) || inside(b)) || (a.x < 3.0 && b.x < 3.0) || (a.x > 7.0 && b.x > 7.0) {
+            return Some(0.0);
+        }
+        self.free_at_s.map(|f| (f - t_s).max(0.0))
+    }
+    fn speed_m_s(&self) -> f64 {
+        1.0
+    }
+}
+
+#[test]
+fn a_timed_route_goes_the_way_that_arrives_first_among_reservations() {
+    let rm = build(&pillar_hall(), point_robot(), &small_params(300));
+    let (s, g) = (Point2::new(1.0, 3.0), Point2::new(9.0, 3.0));
+    let opts = QueryOptions {
+        no_densify: true,
+        ..QueryOptions::default()
+    };
+    let side = |p: &planning::Plan| {
+        let mid = p
+            .waypoints
+            .iter()
+            .filter(|w| (4.0..6.0).contains(&w.x))
+            .map(|w| w.y)
+            .next()
+            .expect("a waypoint beside the pillar");
+        mid > 3.0
+    };
+    let shortest = rm.query(s, g, opts).expect("route");
+    for above in [true, false] {
+        // One side never free: the route goes the other way, whatever is shortest.
+        let blocked = Side {
+            above,
+            free_at_s: None,
+        };
+        let timed = rm.query_among(s, g, opts, Some(&blocked)).expect("route");
+        assert_eq!(side(&timed), !above, "blocked above: {above}");
+        // One side free only after a wait far longer than going round: the other way.
+        let late = Side {
+            above,
+            free_at_s: Some(1000.0),
+        };
+        let timed = rm.query_among(s, g, opts, Some(&late)).expect("route");
+        assert_eq!(side(&timed), !above, "late above: {above}");
+    }
+    // Nothing in the way for long: the shortest route.
+    let soon = Side {
+        above: side(&shortest),
+        free_at_s: Some(0.0),
+    };
+    let timed = rm.query_among(s, g, opts, Some(&soon)).expect("route");
+    assert!((timed.length_m - shortest.length_m).abs() < 1e-9);
+}

@@ -29,6 +29,7 @@ pub use crate::drive::{
 use crate::error::{Endpoint, PlanError, invalid};
 use crate::recovery::{RecoveryEvent, RecoveryParams};
 use crate::social::SocialMetrics;
+use crate::timed::TimedAmong;
 use crate::types::{
     AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, DrawsReport, LaserTrace,
     LegReport, PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,
@@ -311,9 +312,18 @@ fn validate_inner(
                     }
                 };
                 let roadmap = clear_of_standing(roadmap, opts, world)?;
+                // Among the fleet's plans, the route that arrives first, timed from when the
+                // leg sets off.
+                let timed = opts.reserved.as_deref().map(|reserved| TimedAmong {
+                    reserved,
+                    radius_m: world.spec().robot.footprint_radius,
+                    speed_m_s: ROUTE_SPEED_SHARE * driver.env.limits.linear_max.abs().max(0.1),
+                    t0_s: validated.iter().map(|v| v.run.time_s).sum(),
+                });
                 let legs = plan_leg(
                     &roadmap,
                     opts,
+                    timed.as_ref().map(|t| t as &dyn planning::Reservations),
                     LegQuery {
                         robot: pose,
                         from,
@@ -731,6 +741,7 @@ struct LegPath {
 fn plan_leg(
     roadmap: &Roadmap,
     opts: &PlanOptions,
+    reserved: Option<&dyn planning::Reservations>,
     q: LegQuery,
     max_segment_m: f64,
 ) -> Result<LegPath, PlanError> {
@@ -740,8 +751,16 @@ fn plan_leg(
         0 => Endpoint::Start,
         i => Endpoint::Goal(i - 1),
     };
+    // A route timed among the fleet's plans that finds no way through them (every way
+    // waits too long somewhere) is the shortest one: the fit makes it wait.
     let mut plan = roadmap
-        .query(origin, q.goal, q.query)
+        .query_among(origin, q.goal, q.query, reserved)
+        .or_else(|e| match (e, reserved) {
+            (QueryError::Unreachable { .. } | QueryError::NotConnected, Some(_)) => {
+                roadmap.query(origin, q.goal, q.query)
+            }
+            (e, _) => Err(e),
+        })
         .map_err(|e| match e {
             QueryError::Unreachable { .. } | QueryError::NotConnected => PlanError::Unreachable {
                 goal_index: q.goal_index,
@@ -794,12 +813,19 @@ pub fn check_endpoints(
     )
 }
 
+/// The share of its top speed a robot is taken to cover a roadmap route at, turns and
+/// accelerations included, when the route is timed among other robots' plans (the controllers
+/// slow for turns, near walls and at the goal). An estimate: the fit of the driven plan among
+/// the fleet sets the times that are committed.
+const ROUTE_SPEED_SHARE: f64 = 0.75;
+
 /// How many times the roadmap's samples a route keeping clear of standing robots is planned
 /// on.
 pub const STANDING_DENSITY: usize = 4;
 
 /// `roadmap` without the edges passing a robot standing still (`opts.standing`) closer than its
-/// radius plus this robot's plus the safety margin.
+/// radius plus this robot's plus the safety margin, or with them costing
+/// `opts.standing_pass_m` more.
 fn clear_of_standing(
     roadmap: Arc<Roadmap>,
     opts: &PlanOptions,
@@ -815,8 +841,12 @@ fn clear_of_standing(
             let passes = opts
                 .standing
                 .iter()
-                .any(|&(c, r)| point_segment_distance(c, nodes[u], nodes[v]) < r + reach);
-            (!passes).then_some(w)
+                .any(|&(c, r)| c.distance_to_segment(nodes[u], nodes[v]) < r + reach);
+            match (passes, opts.standing_pass_m) {
+                (false, _) => Some(w),
+                (true, pass) if pass.is_finite() => Some(w + pass),
+                (true, _) => None,
+            }
         })
         .map_err(|e| PlanError::Map(format!("keeping clear of standing robots: {e}")))?;
     Ok(Arc::new(kept))
@@ -853,7 +883,7 @@ fn replan(
             let radius = RecoveryParams::default().reroute_radius_m;
             avoiding = roadmap
                 .reweighted(|u, v, w| {
-                    let near = point_segment_distance(b, nodes[u], nodes[v]) < radius;
+                    let near = b.distance_to_segment(nodes[u], nodes[v]) < radius;
                     Some(if near { w + REROUTE_PENALTY_M } else { w })
                 })
                 .map_err(|e| format!("re-routing failed: {e}"))?;
@@ -888,18 +918,6 @@ fn replan(
         out.push(goal);
     }
     Ok(subdivide(from, out, max_segment_m))
-}
-
-/// Distance from `p` to the segment `a`–`b`.
-fn point_segment_distance(p: Point2, a: Point2, b: Point2) -> f64 {
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 {
-        (((p.x - a.x) * dx + (p.y - a.y) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a.x + t * dx - p.x).hypot(a.y + t * dy - p.y)
 }
 
 fn polyline_length(start: Pose2, points: &[Point2]) -> f64 {

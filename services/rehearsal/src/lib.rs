@@ -17,6 +17,7 @@
 //!   into people's space;
 //! - [`edges`]: every roadmap edge driven by a controller (PRM-RL): the per-edge success rate
 //!   and the costs of a policy-aware roadmap;
+//! - [`timed`]: a route timed among other robots' plans (waits at nodes, detours);
 //! - [`cache`]: roadmaps per (map version, robot inflation, parameters);
 //! - [`planning_grid`](mod@planning_grid): the planning grid of a built world.
 
@@ -41,6 +42,7 @@ pub mod nav2;
 pub mod planning_grid;
 pub mod recovery;
 pub mod social;
+pub mod timed;
 pub mod types;
 
 pub use among::{AmongReport, drive_among};
@@ -64,6 +66,7 @@ pub use nav2::{ControllerChoice, MppiController, MppiCycles, RppController};
 pub use planning_grid::planning_grid;
 pub use recovery::{RecoveryEvent, RecoveryKind, RecoveryParams};
 pub use social::SocialMetrics;
+pub use timed::Reserved;
 pub use types::{
     AttemptOutcome, AttemptReport, AttemptTrace, ControllerKind, DrawsReport, LaserTrace,
     LegReport, PlanOptions, PlanReport, PlanRequest, RoadmapChoice, RoadmapInfo, RoadmapKind,

@@ -43,8 +43,16 @@ pub struct PlanOptions {
     /// Other robots standing still on the floor for as long as is known (the fleet's robots
     /// with no plan yet), each a centre and a footprint radius: the roadmap route keeps clear
     /// of them (no edge passes closer than their radius plus the robot's plus
-    /// `safety_margin_m`). Default none.
+    /// `safety_margin_m`), or pays `standing_pass_m` to pass one. Default none.
     pub standing: Vec<(Point2, f64)>,
+    /// What passing a robot of `standing` costs a route, metres: infinite (the default) keeps
+    /// clear of them; a finite cost passes one where going around is longer by more (a robot
+    /// with no plan yet that is expected to get one and leave).
+    pub standing_pass_m: f64,
+    /// Other robots' plans on the floor (the fleet's schedule): the roadmap route is the one
+    /// that arrives first among them ([`crate::timed`]: waits at its nodes, detours), not
+    /// merely the shortest. Default none.
+    pub reserved: Option<std::sync::Arc<crate::Reserved>>,
     /// Mixed into the roadmap's seed (not the simulation's): the planner gives each robot of a
     /// fleet its own, so robots sent the same way do not all queue in the same roadmap lanes.
     /// Default 0.
@@ -81,6 +89,8 @@ impl Default for PlanOptions {
             people: sim::PeopleConfig::default(),
             people_draws: 0,
             standing: Vec::new(),
+            standing_pass_m: f64::INFINITY,
+            reserved: None,
             roadmap_salt: 0,
         }
     }

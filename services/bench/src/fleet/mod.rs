@@ -155,9 +155,29 @@ pub struct FleetRow {
     pub latency_p50_ms: f64,
     /// Plan latency under the concurrent requests, ms.
     pub latency_p95_ms: f64,
+    /// Each robot that was planned: how long it took alone and among the fleet, and why it
+    /// waited.
+    pub per_robot: Vec<FleetRobotRow>,
     /// The joint run as the console's Traffic page replays it (`--replay DIR`).
     #[serde(skip)]
     pub replay: crate::fleet_replay::JointReplay,
+}
+
+/// One robot of a [`FleetRow`].
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FleetRobotRow {
+    /// The robot's IRI.
+    pub robot: String,
+    /// Its mission planned alone, seconds (`None`: refused alone).
+    pub alone_s: Option<f64>,
+    /// Its time in the joint run, seconds, where it arrived.
+    pub joint_s: Option<f64>,
+    /// The path it drove alone, metres.
+    pub alone_path_m: Option<f64>,
+    /// The path it drove in the joint run, metres.
+    pub joint_path_m: f64,
+    /// Its plan's waits: (waypoint, `None` for the start; seconds; the robots it let pass).
+    pub waits: Vec<(Option<usize>, f64, Vec<String>)>,
 }
 
 /// The knowledge of one floor: one on-demand database per robot.
@@ -440,6 +460,14 @@ fn standing_from(it: &Itinerary, t0: i64) -> Itinerary {
     }
 }
 
+/// The length of a drive, metres.
+fn path_m(steps: &[Pose2]) -> f64 {
+    steps
+        .windows(2)
+        .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+        .sum()
+}
+
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
@@ -605,12 +633,16 @@ fn run_floor(
         RoadmapStore::new(policies.path().join("roadmaps")),
         Arc::new(NoBuilds),
     ));
-    let alone: HashMap<String, f64> = runtime
+    let alone_plans: HashMap<String, (f64, f64)> = runtime
         .block_on(plan_at_once(&alone_planner, asked))
         .into_iter()
         .filter_map(|(_, a)| a.ok())
-        .map(|o| (o.robot, o.report.simulated_time_s))
+        .map(|o| {
+            let path = path_m(&o.report.steps);
+            (o.robot, (o.report.simulated_time_s, path))
+        })
         .collect();
+    let alone: HashMap<String, f64> = alone_plans.iter().map(|(r, t)| (r.clone(), t.0)).collect();
     let mut latencies: Vec<f64> = answers
         .iter()
         .map(|a| a.0)
@@ -685,6 +717,29 @@ fn run_floor(
             joint_failures.push(format!("{}: {}", o.robot, r.reason));
         }
     }
+    let per_robot = planned
+        .iter()
+        .zip(&joint)
+        .map(|(o, j)| {
+            let reached = j
+                .as_ref()
+                .ok()
+                .filter(|r| r.outcome == AttemptOutcome::Reached);
+            FleetRobotRow {
+                robot: o.robot.clone(),
+                alone_s: alone.get(&o.robot).copied(),
+                joint_s: reached.map(|r| r.time_s),
+                alone_path_m: alone_plans.get(&o.robot).map(|a| a.1),
+                joint_path_m: j.as_ref().map_or(0.0, |r| path_m(&r.steps)),
+                waits: o.fleet.as_ref().map_or_else(Vec::new, |f| {
+                    f.waits
+                        .iter()
+                        .map(|w| (w.waypoint, w.wait_s, w.for_robots.clone()))
+                        .collect()
+                }),
+            }
+        })
+        .collect();
     let waits_s: f64 = planned
         .iter()
         .filter_map(|o| o.fleet.as_ref())
@@ -723,6 +778,7 @@ fn run_floor(
         waits_s,
         latency_p50_ms: percentile(&latencies, 0.5),
         latency_p95_ms: percentile(&latencies, 0.95),
+        per_robot,
     })
 }
 

@@ -25,6 +25,8 @@ mod query;
 mod shortcut;
 mod waves;
 
+pub use query::Reservations;
+
 /// The paper's optimal number of samples (Eq. 19): `ceil(0.05 · free area in m² + 84)`.
 pub fn optimal_samples(free_area_m2: f64) -> usize {
     let n = (0.05 * free_area_m2.max(0.0) + 84.0).ceil();

@@ -11,6 +11,16 @@ use crate::error::{Endpoint, QueryError};
 use crate::map::Point2;
 use crate::search::{Search, SearchAlgorithm};
 
+/// Other robots' reservations a route is timed among (their plans in a fleet's schedule).
+pub trait Reservations {
+    /// How long a robot that reached `a` `t_s` seconds after setting off must wait there
+    /// before it can drive straight to `b` without coming near any reservation, seconds;
+    /// `None` where no wait it may take there lets it (or waiting there is in the way).
+    fn wait_before(&self, a: Point2, b: Point2, t_s: f64) -> Option<f64>;
+    /// The speed the robot covers a route at, turns included, m/s (positive).
+    fn speed_m_s(&self) -> f64;
+}
+
 impl Roadmap {
     /// Shortest roadmap path from `start` to `goal`, densifying locally when the roadmap does
     /// not join them although free space does.
@@ -19,6 +29,20 @@ impl Roadmap {
         start: Point2,
         goal: Point2,
         opts: QueryOptions,
+    ) -> Result<Plan, QueryError> {
+        self.query_among(start, goal, opts, None)
+    }
+
+    /// [`Roadmap::query`] timed among `reserved`: the roadmap route that arrives first,
+    /// waiting at its nodes where a reservation is in the way (the plan's length is still its
+    /// length, not its time). Where the start and goal see each other, or the roadmap must be
+    /// densified to join them, the route is the shortest one.
+    pub fn query_among(
+        &self,
+        start: Point2,
+        goal: Point2,
+        opts: QueryOptions,
+        reserved: Option<&dyn Reservations>,
     ) -> Result<Plan, QueryError> {
         let cs = &*self.cspace;
         let gs = cs.check_endpoint(Endpoint::Start, start)?;
@@ -35,7 +59,7 @@ impl Roadmap {
         if direct <= dmax && cs.segment_free_grid(gs, gg) {
             return Ok(self.plan(&[gs, gg], &[f32::NAN], direct, 0, 0));
         }
-        if let Some(plan) = self.lazy_search(gs, gg, opts.algorithm) {
+        if let Some(plan) = self.lazy_search(gs, gg, opts.algorithm, reserved) {
             return Ok(plan);
         }
         if opts.no_densify {
@@ -53,7 +77,13 @@ impl Roadmap {
     /// only the one label derived from it. The answer is the same as checking all 2k links
     /// first (the final path is shortest in a graph that contains every valid link), with
     /// fewer segment checks, which dominate a query.
-    fn lazy_search(&self, gs: [f64; 2], gg: [f64; 2], algorithm: SearchAlgorithm) -> Option<Plan> {
+    fn lazy_search(
+        &self,
+        gs: [f64; 2],
+        gg: [f64; 2],
+        algorithm: SearchAlgorithm,
+        reserved: Option<&dyn Reservations>,
+    ) -> Option<Plan> {
         let k = self.params.neighbours;
         // Verdicts on start links (node, free), so that no link is checked twice; the eager
         // fallbacks' links are free by construction.
@@ -72,6 +102,22 @@ impl Roadmap {
             g_ok.extend(gl.iter().map(|l| l.0));
         }
         let h = |i: u32| dist(self.nodes[i as usize], gg);
+        // Costs are in cells: a second waited costs what the robot covers in it.
+        let n = self.nodes.len() as u32;
+        let res = self.cspace.resolution();
+        let at = |i: u32| match i {
+            i if i < n => self.cspace.to_world(self.nodes[i as usize]),
+            i if i == n => self.cspace.to_world(gs),
+            _ => self.cspace.to_world(gg),
+        };
+        let timing = reserved.map(|r| {
+            let cells_per_s = r.speed_m_s() / res;
+            move |u: u32, v: u32, g_u: f64| {
+                r.wait_before(at(u), at(v), g_u / cells_per_s)
+                    .map_or(f64::INFINITY, |w| w * cells_per_s)
+            }
+        });
+        let delay = timing.as_ref().map(|t| t as &dyn Fn(u32, u32, f64) -> f64);
         let mut start_free = |i: u32| {
             let known = start_known.borrow().iter().find(|v| v.0 == i).map(|v| v.1);
             known.unwrap_or_else(|| {
@@ -80,7 +126,7 @@ impl Roadmap {
                 free
             })
         };
-        let mut search = Search::new(&self.graph, &sl, &gl, algorithm, h);
+        let mut search = Search::timed(&self.graph, &sl, &gl, algorithm, h, delay);
         let mut found = search.run(&mut start_free);
         let mut expanded = 0;
         if found.is_none() && search.start_links_left() == 0 {
@@ -91,7 +137,7 @@ impl Roadmap {
                 start_known
                     .borrow_mut()
                     .extend(beyond.iter().map(|l| (l.0, true)));
-                search = Search::new(&self.graph, &beyond, &gl, algorithm, h);
+                search = Search::timed(&self.graph, &beyond, &gl, algorithm, h, delay);
                 found = search.run(&mut start_free);
             }
         }
@@ -113,7 +159,7 @@ impl Roadmap {
                 g_ok.extend(gl.iter().map(|l| l.0));
                 expanded += search.expanded;
                 let sl_now = search.start_links().to_vec();
-                search = Search::new(&self.graph, &sl_now, &gl, algorithm, h);
+                search = Search::timed(&self.graph, &sl_now, &gl, algorithm, h, delay);
             } else {
                 search.withdraw_goal(last);
             }

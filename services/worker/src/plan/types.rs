@@ -430,8 +430,10 @@ impl From<rehearsal::PlanOptions> for PlanOptions {
             trace,
             people,
             people_draws,
-            // The fleet's standing robots are the planner's to read from the schedule.
+            // The fleet's standing robots and plans are the planner's to read from the schedule.
             standing: _,
+            standing_pass_m: _,
+            reserved: _,
             roadmap_salt: _,
         } = o;
         Self {
@@ -503,6 +505,8 @@ impl From<PlanOptions> for rehearsal::PlanOptions {
             people: people.config(),
             people_draws,
             standing: Vec::new(),
+            standing_pass_m: f64::INFINITY,
+            reserved: None,
             roadmap_salt: 0,
         }
     }
