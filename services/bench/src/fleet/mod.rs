@@ -116,7 +116,8 @@ pub struct FleetRow {
     pub map: String,
     /// `random`, `corridor`, `crossing` or `doorway`.
     pub scenario: String,
-    /// Robots that asked.
+    /// Robots that asked: `--robots`, or fewer where the floor has room for fewer missions
+    /// (starts and goals a robot's width apart).
     pub robots: usize,
     /// People per 100 m².
     pub people: f64,
@@ -756,13 +757,13 @@ fn run_floor(
         replay,
         map: name.to_owned(),
         scenario: opts.scenario.as_str().to_owned(),
-        robots: opts.robots,
+        robots: missions.len(),
         people: opts.people,
         planned: planned.len(),
         refusals,
         joint_failures,
-        joint_success_rate: arrived as f64 / opts.robots as f64,
-        joint_success_starts_held_rate: arrived_with_starts_held as f64 / opts.robots as f64,
+        joint_success_rate: arrived as f64 / missions.len() as f64,
+        joint_success_starts_held_rate: arrived_with_starts_held as f64 / missions.len() as f64,
         robot_collisions: collisions,
         stalls,
         deadlocks,
