@@ -330,21 +330,11 @@ fn alone_a_plan_rpp_validated_is_driven_by_rpp_in_about_its_time() {
     );
 }
 
-/// The distance from `p` to the segment `a`–`b`.
-fn to_segment(p: Point2, a: Point2, b: Point2) -> f64 {
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    let len2 = dx * dx + dy * dy;
-    let u = if len2 > 0.0 {
-        (((p.x - a.x) * dx + (p.y - a.y) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p.x - (a.x + u * dx)).hypot(p.y - (a.y + u * dy))
-}
-
 /// Robots standing with no plan (`PlanOptions::standing`) are kept clear of by the roadmap
 /// route: one in the open beside the way is driven around, one filling the only gap in the
-/// inner wall leaves the goal unreachable.
+/// inner wall leaves the goal unreachable. With a price for passing one
+/// (`PlanOptions::standing_pass_m`), the short detour is still taken, and the gap is gone
+/// through.
 #[test]
 fn the_route_keeps_clear_of_robots_standing_on_the_floor() {
     let world = room();
@@ -359,25 +349,36 @@ fn the_route_keeps_clear_of_robots_standing_on_the_floor() {
         .expect("the route alone comes down from the gap towards the goal");
     let mut around = request.clone();
     around.options.standing = vec![(on_route, 0.2)];
-    let report = validate(&world, &RoadmapCache::default(), "room", &around, None).unwrap();
-    let route: Vec<Point2> = std::iter::once(Point2::new(2.0, 2.0))
-        .chain(report.waypoints.iter().copied())
-        .collect();
-    let closest = route
-        .windows(2)
-        .map(|w| to_segment(on_route, w[0], w[1]))
-        .fold(f64::INFINITY, f64::min);
-    assert!(
-        closest >= 0.2 + radius + request.options.safety_margin_m - 1e-9,
-        "the route passes {closest:.2} m from the standing robot: {:?}",
-        report.waypoints
-    );
+    let closest_to = |report: &rehearsal::PlanReport, at: Point2| {
+        std::iter::once(Point2::new(2.0, 2.0))
+            .chain(report.waypoints.iter().copied())
+            .collect::<Vec<_>>()
+            .windows(2)
+            .map(|w| at.distance_to_segment(w[0], w[1]))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let reach = 0.2 + radius + request.options.safety_margin_m - 1e-9;
+    for pass in [f64::INFINITY, 1000.0] {
+        around.options.standing_pass_m = pass;
+        let report = validate(&world, &RoadmapCache::default(), "room", &around, None).unwrap();
+        let closest = closest_to(&report, on_route);
+        assert!(
+            closest >= reach,
+            "the route passes {closest:.2} m from the standing robot: {:?}",
+            report.waypoints
+        );
+    }
     // The gap above the inner wall (x = 5, y in [6, 7.9]) held by a standing robot.
+    let gap = Point2::new(5.0, 6.95);
     let mut blocked = request.clone();
-    blocked.options.standing = vec![(Point2::new(5.0, 6.95), 0.2)];
+    blocked.options.standing = vec![(gap, 0.2)];
     let e = validate(&world, &RoadmapCache::default(), "room", &blocked, None).unwrap_err();
     assert!(
         matches!(e, rehearsal::PlanError::Unreachable { .. }),
         "{e:?}"
     );
+    // Priced, not forbidden: the route goes through the gap, past the robot standing there.
+    blocked.options.standing_pass_m = 1000.0;
+    let report = validate(&world, &RoadmapCache::default(), "room", &blocked, None).unwrap();
+    assert!(closest_to(&report, gap) < reach, "{:?}", report.waypoints);
 }
