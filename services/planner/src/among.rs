@@ -699,3 +699,57 @@ fn stands(others: &[traffic::Itinerary], robot: &str) -> bool {
         .iter()
         .any(|o| o.robot == robot && fleet::stands_only(o))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(start_ms: i64) -> FleetEntry {
+        FleetEntry {
+            plan_id: "p-a".to_owned(),
+            requested_unix_ms: start_ms,
+            options: FleetOptions::default(),
+            ticket: 0,
+        }
+    }
+
+    fn moving(robot: &str, start_ms: i64) -> traffic::Itinerary {
+        let pose = |t_s: f64, x: f64| traffic::TimedPose {
+            t_s,
+            x,
+            y: 0.0,
+            yaw: 0.0,
+        };
+        traffic::Itinerary {
+            plan_id: format!("p-{robot}"),
+            robot: robot.to_owned(),
+            floor: "F".to_owned(),
+            start_unix_ms: start_ms,
+            trajectory: vec![pose(0.0, 0.0), pose(10.0, 5.0)],
+            radius_m: 0.3,
+            tolerance_s: 2.0,
+            expires_unix_ms: start_ms + 40_000,
+            delay_s: 0.0,
+        }
+    }
+
+    /// The plans a route is timed among are the committed ones on the clock of the plan's
+    /// start, kept apart by the fleet's margin and the fit's slack, and none without them.
+    #[test]
+    fn a_route_is_timed_among_the_committed_plans_on_its_own_clock() {
+        let e = entry(100_000);
+        assert!(e.reserved(&[]).is_none());
+        // Committed 5 s after this plan starts: at its 5 s it sets off, at 15 s it is at x = 5,
+        // and it is held there until it expires.
+        let r = e.reserved(&[moving("b", 105_000)]).expect("reserved");
+        let b = &r.robots.robots()[0];
+        assert_eq!(b.position_at(4.9), None);
+        assert_eq!(b.position_at(5.0), Some((0.0, 0.0)));
+        assert_eq!(b.position_at(15.0), Some((5.0, 0.0)));
+        assert_eq!(b.position_at(44.0), Some((5.0, 0.0)));
+        assert_eq!(r.gap_m, fleet::ROBOT_MARGIN_M);
+        let o = FleetOptions::default();
+        assert_eq!(r.slack_s, o.tolerance_s + fleet::FIT_SLACK_S);
+        assert_eq!(r.max_wait_s, o.max_wait_s.min(ROUTE_NODE_WAIT_S));
+    }
+}
