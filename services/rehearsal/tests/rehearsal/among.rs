@@ -349,7 +349,7 @@ fn the_route_keeps_clear_of_robots_standing_on_the_floor() {
         .expect("the route alone comes down from the gap towards the goal");
     let mut around = request.clone();
     around.options.standing = vec![(on_route, 0.2)];
-    let closest_to = |report: &rehearsal::PlanReport, at: Point2| {
+    let closest_to = |report: &PlanReport, at: Point2| {
         std::iter::once(Point2::new(2.0, 2.0))
             .chain(report.waypoints.iter().copied())
             .collect::<Vec<_>>()
