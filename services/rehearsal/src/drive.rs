@@ -236,7 +236,13 @@ pub fn drive(
         let holding = (steps as f64) * dt + 1e-9 < hold_until;
         let mut action = holding.then(Action::default);
         if !holding && let (Some(active), Some(params)) = (&mut recovering, &limits.recoveries) {
-            match active.command(params, pose, world, angular_max, dt) {
+            match active.command(
+                params,
+                pose,
+                (world, &|x, y| env.moving_clearance_at(x, y)),
+                angular_max,
+                dt,
+            ) {
                 Ok(a) => action = Some(a),
                 Err(why) => {
                     if let Some(e) = recoveries.last_mut() {

@@ -119,7 +119,10 @@ pub(crate) struct Active {
     pub(crate) direction: f64,
 }
 
-/// The closest the footprint may come to a wall while backing up, metres (the shield's last-
+/// A footprint's clearance at a point, metres.
+type Clearance<'a> = dyn Fn(f64, f64) -> f64 + 'a;
+
+/// The closest the footprint may come to anything while backing up, metres (the shield's last-
 /// moment guard, [`sim::shield::WALL_GUARD_M`]).
 const BACKUP_GUARD_M: f64 = sim::shield::WALL_GUARD_M;
 
@@ -156,11 +159,14 @@ impl Active {
 
     /// The command for this step at `pose`, or why the recovery ends (`Err("done")` when it
     /// did what it set out to do).
+    /// `moving(x, y)`: the footprint's clearance there now to what moves (people, other
+    /// robots): backing up keeps clear of them as of the map, as Nav2's `BackUp` checks its
+    /// footprint against the costmap, which holds both.
     pub(crate) fn command(
         &mut self,
         p: &RecoveryParams,
         pose: Pose2,
-        world: &World,
+        (world, moving): (&World, &Clearance<'_>),
         angular_max: f64,
         dt: f64,
     ) -> Result<Action, &'static str> {
@@ -181,10 +187,16 @@ impl Active {
                 let command = Action::new(-p.backup_speed, 0.0);
                 // The map's last moment, as the shield's wall guard: a step and a half ahead.
                 let ahead = sim::kinematics::integrate(pose, command, 1.5 * dt);
-                let now = world.clearance(pose.x, pose.y);
-                let then = world.clearance(ahead.x, ahead.y);
-                if then < BACKUP_GUARD_M + 0.02 && then < now {
-                    return Err("stopped short of a wall behind");
+                let walls = |x: f64, y: f64| world.clearance(x, y);
+                let guards: [(&str, &Clearance<'_>); 2] = [
+                    ("stopped short of a wall behind", &walls),
+                    ("stopped short of a person or robot behind", moving),
+                ];
+                for (what, clearance) in guards {
+                    let (now, then) = (clearance(pose.x, pose.y), clearance(ahead.x, ahead.y));
+                    if then < BACKUP_GUARD_M + 0.02 && then < now {
+                        return Err(what);
+                    }
                 }
                 Ok(command)
             }

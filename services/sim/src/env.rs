@@ -458,6 +458,23 @@ impl NavEnv {
         self.others.as_ref()
     }
 
+    /// The robot's footprint clearance at `(x, y)` now to what moves: the people about and
+    /// the other robots where they are (metres, as [`crate::World::clearance`] is to walls and
+    /// objects; infinite with neither).
+    pub fn moving_clearance_at(&self, x: f64, y: f64) -> f64 {
+        let radius = self.world.spec().robot.footprint_radius;
+        let mut c = f64::INFINITY;
+        if let Some(crowd) = &self.crowd {
+            c = c.min(crowd.clearance(x, y, radius));
+        }
+        if let Some(others) = &self.others {
+            let now = f64::from(self.steps) * self.config.control_period;
+            let at = others.at_late(now, &self.others_late);
+            c = c.min(crate::others::clearance(&at, x, y, radius).0);
+        }
+        c
+    }
+
     /// The people about now (none without people in the configuration).
     pub fn people(&self) -> &[Person] {
         self.crowd.as_ref().map_or(&[], |c| c.people())

@@ -314,6 +314,52 @@ fn a_stalled_robot_waits_then_backs_up_and_reaches() {
         "{:?}",
         walled.recoveries
     );
+    // And short of another robot standing behind it (as Nav2's `BackUp` checks the costmap,
+    // which holds what the sensors see): 0.15 m behind, where backing up 0.3 m would hit it.
+    let radius = world.spec().robot.footprint_radius;
+    let behind = sim::OtherRobots::new(vec![sim::OtherRobot {
+        name: "behind".to_owned(),
+        radius: 0.3,
+        track: vec![
+            (0.0, 3.0 - radius - 0.3 - 0.15, 4.0),
+            (1000.0, 3.0 - radius - 0.45, 4.0),
+        ],
+    }])
+    .expect("a robot behind");
+    let mut controller = balker();
+    let mut env = env_config(23, false);
+    if let Some(t) = controller.goal_tolerance() {
+        env.goal_tolerance = t;
+    }
+    controller.attach(&world, 23);
+    controller.start_attempt(1);
+    let robot_behind = rehearsal::drive(
+        &world,
+        &env,
+        Pose2::new(3.0, 4.0, 0.0),
+        &[vec![Point2::new(8.0, 4.0)]],
+        &mut controller,
+        DriveLimits {
+            others: Some(Arc::new(behind)),
+            ..limits(Some(RecoveryParams {
+                sequence: vec![RecoveryKind::BackUp],
+                ..RecoveryParams::default()
+            }))
+        },
+        None,
+    )
+    .expect("drives");
+    assert_eq!(
+        robot_behind.recoveries[0].outcome, "stopped short of a person or robot behind",
+        "{}",
+        robot_behind.reason
+    );
+    assert_ne!(
+        robot_behind.outcome,
+        rehearsal::AttemptOutcome::Collision,
+        "{}",
+        robot_behind.reason
+    );
 }
 
 #[test]
