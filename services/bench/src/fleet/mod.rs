@@ -177,6 +177,9 @@ pub struct FleetRobotRow {
     pub alone_path_m: Option<f64>,
     /// The path it drove in the joint run, metres.
     pub joint_path_m: f64,
+    /// Its plan's latency under the concurrent requests, ms (both requests where it asked
+    /// twice).
+    pub latency_ms: f64,
     /// Its plan's waits: (waypoint, `None` for the start; seconds; the robots it let pass).
     pub waits: Vec<(Option<usize>, f64, Vec<String>)>,
 }
@@ -652,9 +655,13 @@ fn run_floor(
     latencies.sort_by(f64::total_cmp);
     let mut refusals = Vec::new();
     let mut planned = Vec::new();
-    for (_, a) in answers {
+    let mut latency_of = HashMap::new();
+    for (ms, a) in answers {
         match a {
-            Ok(o) => planned.push(o),
+            Ok(o) => {
+                latency_of.insert(o.robot.clone(), ms);
+                planned.push(o);
+            }
             Err(e) => refusals.push(e),
         }
     }
@@ -727,6 +734,7 @@ fn run_floor(
                 .ok()
                 .filter(|r| r.outcome == AttemptOutcome::Reached);
             FleetRobotRow {
+                latency_ms: latency_of.get(&o.robot).copied().unwrap_or(f64::NAN),
                 robot: o.robot.clone(),
                 alone_s: alone.get(&o.robot).copied(),
                 joint_s: reached.map(|r| r.time_s),
