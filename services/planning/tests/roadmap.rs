@@ -42,25 +42,25 @@ fn point_robot() -> Inflation {
     }
 }
 
-/// Two 3 m rooms joined by a door 0.5 m wide, and a closed room on the far right.
-fn two_rooms() -> PlanningGrid {
-    let (w, h) = (80usize, 30usize);
-    let mut blocked = vec![false; w * h];
-    for r in 0..h {
-        for c in 0..w {
-            let wall = c == 30 && !(12..17).contains(&r);
-            let closed = c == 60;
-            blocked[r * w + c] = wall || closed;
-        }
-    }
+/// A `w` × `h` grid of 0.1 m cells at the origin, `blocked(row, col)` where blocked.
+fn grid_of(w: usize, h: usize, blocked: impl Fn(usize, usize) -> bool) -> PlanningGrid {
     PlanningGrid {
         width: w,
         height: h,
         resolution: 0.1,
         origin_x: 0.0,
         origin_y: 0.0,
-        blocked,
+        blocked: (0..w * h).map(|i| blocked(i / w, i % w)).collect(),
     }
+}
+
+/// Two 3 m rooms joined by a door 0.5 m wide, and a closed room on the far right.
+fn two_rooms() -> PlanningGrid {
+    grid_of(80, 30, |r, c| {
+        let wall = c == 30 && !(12..17).contains(&r);
+        let closed = c == 60;
+        wall || closed
+    })
 }
 
 fn build(grid: &PlanningGrid, inflation: Inflation, params: &PrmParams) -> Roadmap {
@@ -698,21 +698,9 @@ fn build_work_per_sample_does_not_grow_with_n() {
 
 /// A 10 m × 6 m hall with a pillar in its middle: a way round above it and one below.
 fn pillar_hall() -> PlanningGrid {
-    let (w, h) = (100usize, 60usize);
-    let mut blocked = vec![false; w * h];
-    for r in 15..45 {
-        for c in 45..55 {
-            blocked[r * w + c] = true;
-        }
-    }
-    PlanningGrid {
-        width: w,
-        height: h,
-        resolution: 0.1,
-        origin_x: 0.0,
-        origin_y: 0.0,
-        blocked,
-    }
+    grid_of(100, 60, |r, c| {
+        (15..45).contains(&r) && (45..55).contains(&c)
+    })
 }
 
 /// Reservations over one side of the hall (above or below its middle): an edge entering it

@@ -61,6 +61,17 @@ fn run(
     leg: &[(f64, f64)],
     recoveries: Option<RecoveryParams>,
 ) -> DriveRun {
+    run_among(world, controller, start, leg, limits(recoveries))
+}
+
+/// [`run`] with its limits given (other robots, holds).
+fn run_among(
+    world: &Arc<World>,
+    controller: &mut dyn Controller,
+    start: Pose2,
+    leg: &[(f64, f64)],
+    limits: DriveLimits,
+) -> DriveRun {
     let mut env = env_config(23, false);
     if let Some(t) = controller.goal_tolerance() {
         env.goal_tolerance = t;
@@ -68,16 +79,7 @@ fn run(
     controller.attach(world, 23);
     controller.start_attempt(1);
     let leg: Vec<Point2> = leg.iter().map(|&(x, y)| Point2::new(x, y)).collect();
-    rehearsal::drive(
-        world,
-        &env,
-        start,
-        &[leg],
-        controller,
-        limits(recoveries),
-        None,
-    )
-    .expect("drives")
+    rehearsal::drive(world, &env, start, &[leg], controller, limits, None).expect("drives")
 }
 
 /// Speeds between consecutive poses of a drive, m/s, with where each was.
@@ -326,19 +328,11 @@ fn a_stalled_robot_waits_then_backs_up_and_reaches() {
         ],
     }])
     .expect("a robot behind");
-    let mut controller = balker();
-    let mut env = env_config(23, false);
-    if let Some(t) = controller.goal_tolerance() {
-        env.goal_tolerance = t;
-    }
-    controller.attach(&world, 23);
-    controller.start_attempt(1);
-    let robot_behind = rehearsal::drive(
+    let robot_behind = run_among(
         &world,
-        &env,
+        &mut balker(),
         Pose2::new(3.0, 4.0, 0.0),
-        &[vec![Point2::new(8.0, 4.0)]],
-        &mut controller,
+        &[(8.0, 4.0)],
         DriveLimits {
             others: Some(Arc::new(behind)),
             ..limits(Some(RecoveryParams {
@@ -346,9 +340,7 @@ fn a_stalled_robot_waits_then_backs_up_and_reaches() {
                 ..RecoveryParams::default()
             }))
         },
-        None,
-    )
-    .expect("drives");
+    );
     assert_eq!(
         robot_behind.recoveries[0].outcome, "stopped short of a person or robot behind",
         "{}",
