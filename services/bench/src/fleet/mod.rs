@@ -646,7 +646,6 @@ fn run_floor(
             (o.robot, (o.report.simulated_time_s, path))
         })
         .collect();
-    let alone: HashMap<String, f64> = alone_plans.iter().map(|(r, t)| (r.clone(), t.0)).collect();
     let mut latencies: Vec<f64> = answers
         .iter()
         .map(|a| a.0)
@@ -695,9 +694,9 @@ fn run_floor(
     let (mut makespan_alone, mut sum_alone) = (0.0f64, 0.0f64);
     let mut joint_failures = Vec::new();
     for (o, j) in planned.iter().zip(&joint) {
-        let alone = alone
+        let alone = alone_plans
             .get(&o.robot)
-            .copied()
+            .map(|a| a.0)
             .unwrap_or(o.report.simulated_time_s);
         makespan_alone = makespan_alone.max(alone);
         sum_alone += alone;
@@ -736,7 +735,7 @@ fn run_floor(
             FleetRobotRow {
                 latency_ms: latency_of.get(&o.robot).copied().unwrap_or(f64::NAN),
                 robot: o.robot.clone(),
-                alone_s: alone.get(&o.robot).copied(),
+                alone_s: alone_plans.get(&o.robot).map(|a| a.0),
                 joint_s: reached.map(|r| r.time_s),
                 alone_path_m: alone_plans.get(&o.robot).map(|a| a.1),
                 joint_path_m: j.as_ref().map_or(0.0, |r| path_m(&r.steps)),
