@@ -267,6 +267,9 @@ pub enum BenchCommand {
         /// missions and crowds.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Run only these methods (comma-separated names from the table; all by default).
+        #[arg(long, value_delimiter = ',')]
+        methods: Vec<String>,
     },
     /// Per-edge success of policies on every roadmap edge of every map under a directory (both
     /// directions, K rollouts each), the classical follower beside them with the same seeds
@@ -796,6 +799,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             safety_margin_m,
             people,
             seed,
+            methods,
         } => {
             if !(safety_margin_m.is_finite() && (0.0..=5.0).contains(&safety_margin_m)) {
                 anyhow::bail!("--safety-margin-m must lie in [0, 5] metres, got {safety_margin_m}");
@@ -813,6 +817,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 people,
                 seed,
                 verbose: true,
+                methods,
                 ..Default::default()
             };
             let report = bench::navigation::run_navigation_bench(options)?;

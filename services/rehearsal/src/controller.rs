@@ -150,6 +150,9 @@ pub struct PolicyController {
     handover: Option<Handover>,
     /// Whether the last command was the follower's.
     handed_over: bool,
+    /// Steering the policy to a point this far ahead on the smoothed roadmap path instead of
+    /// to the waypoint, metres ([`PolicyController::on_smoothed_path`]).
+    carrot_m: Option<f64>,
 }
 
 /// What the collision shield of both controllers does, in words.
@@ -187,6 +190,11 @@ pub const HANDOVER_MARGIN_M: f64 = 0.3;
 /// at the last moment).
 pub const POLICY_CONTROLLER_REVISION: u32 = 4;
 
+/// How far ahead on the smoothed path [`PolicyController::on_smoothed_path`] puts the policy's
+/// goal, metres: the distance the robot covers at its top speed (0.8 m/s) in Nav2 RPP's
+/// look-ahead time (1.5 s). Set once from those two, not measured on any map.
+pub const POLICY_CARROT_M: f64 = 1.2;
+
 /// The classical follower a [`PolicyController`] hands over to.
 #[derive(Clone, Debug)]
 struct Handover {
@@ -220,6 +228,19 @@ impl PolicyController {
                 until: None,
             }),
             handed_over: false,
+            carrot_m: None,
+        }
+    }
+
+    /// [`PolicyController::with_rpp_handover`] with the policy steering to the point
+    /// [`POLICY_CARROT_M`] ahead on the smoothed roadmap path (the carrot a path tracker
+    /// steers to) instead of to the next roadmap vertex: the policy never arrives at an
+    /// intermediate vertex, so it does not slow down or turn on the spot there, and a vertex
+    /// counts as reached once the robot's progress on the path passes it, as for RPP.
+    pub fn on_smoothed_path(policy: Arc<Policy>) -> Self {
+        Self {
+            carrot_m: Some(POLICY_CARROT_M),
+            ..Self::with_rpp_handover(policy)
         }
     }
 
@@ -282,6 +303,30 @@ impl Controller for PolicyController {
             }
             h.until = None;
         }
+        // On the smoothed path, the policy's goal is the carrot, not the vertex (the
+        // observation's goal is f32, as the environment's).
+        let carrot_obs;
+        let obs = match (
+            self.carrot_m,
+            self.handover.as_ref().and_then(|h| h.rpp.as_ref()),
+        ) {
+            (Some(l), Some(rpp)) => match rpp.carrot(pose, l) {
+                Some(c) => {
+                    carrot_obs = Observation {
+                        #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
+                        goal_distance: sim::norm(c.0 - pose.x, c.1 - pose.y) as f32,
+                        #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
+                        goal_angle: sim::kinematics::wrap_angle(
+                            (c.1 - pose.y).atan2(c.0 - pose.x) - pose.yaw,
+                        ) as f32,
+                        ..obs.clone()
+                    };
+                    &carrot_obs
+                }
+                None => obs,
+            },
+            _ => obs,
+        };
         let bearing = f64::from(obs.goal_angle);
         let turn = match self.aligning {
             Some(dir) if bearing.abs() > ALIGN_DONE_RAD => Some(dir),
@@ -350,7 +395,7 @@ impl Controller for PolicyController {
     }
 
     fn passed(&self, pose: Pose2, waypoint: Point2) -> bool {
-        self.handed_over
+        (self.handed_over || self.carrot_m.is_some())
             && self
                 .handover
                 .as_ref()

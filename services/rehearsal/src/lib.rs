@@ -48,8 +48,8 @@ pub mod types;
 pub use among::{AmongReport, drive_among};
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
 pub use controller::{
-    ClassicalFollower, Controller, FollowerParams, HANDOVER_MARGIN_M, POLICY_CONTROLLER_REVISION,
-    PolicyController, Shield, ShieldedFollower,
+    ClassicalFollower, Controller, FollowerParams, HANDOVER_MARGIN_M, POLICY_CARROT_M,
+    POLICY_CONTROLLER_REVISION, PolicyController, Shield, ShieldedFollower,
 };
 pub use edges::{
     EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, UNKEPT_PENALTY_M, drive_edges,

@@ -285,6 +285,12 @@ impl RppController {
         }
     }
 
+    /// The point `lookahead_m` ahead of the robot's progress on the smoothed path (its end
+    /// when nearer), once a path is known.
+    pub fn carrot(&self, pose: Pose2, lookahead_m: f64) -> Option<(f64, f64)> {
+        self.tracker.path.as_ref()?.track.carrot(pose, lookahead_m)
+    }
+
     /// RPP's own command, before any shield.
     pub fn wanted(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
         self.tracker.ensure_path(pose, waypoint);

@@ -239,7 +239,7 @@ pub(super) fn to_markdown(
     );
     let _ = write!(s, "{}", opts.max_attempts);
     s.push_str(
-        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers with `options.controller: auto`: the controller the map's trial picks (below; a hybrid on the policy-aware roadmap), re-sampled likewise, then the classical follower (re-sampled too) when no attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy behind the shield straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt; `classical_prm_shielded` = the same behind the shield; `classical_rpp_shielded` = Nav2's Regulated Pure Pursuit and `classical_mppi_shielded` = Nav2's MPPI, each on the roadmap path smoothed as Nav2's Simple Smoother does, passing through the vertices, behind the same shield, first attempt (Nav2's documented defaults scaled to the robot, never tuned on these maps); `hybrid_policy_roadmap_rpp` = `hybrid_policy_roadmap` with Regulated Pure Pursuit as the follower the policy hands over to. Among people every method tries Nav2's recovery behaviours (wait, back up, spin, re-route around the blocked edge) when it moves less than 0.5 m in 10 s; in the empty building the waypoint timer and replanning alone, as before. Social metrics (Francis et al. 2023, HuNavSim): entries into a person's intimate (0.45 m) and personal (1.2 m) space, counted once per approach, and the time the robot stands still, each per 100 m driven over all runs (failed ones too). Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
+        " roadmap re-samples after a collision or stall, success = a validated plan, distance and time of the validating drive; `plan_endpoint` = what `POST /v1/plan` answers with `options.controller: auto`: the controller the map's trial picks (below; a hybrid on the policy-aware roadmap), re-sampled likewise, then the classical follower (re-sampled too) when no attempt validated the mission, so it is never worse than `classical_prm`; `pure_rl` = the policy behind the shield straight at the final goal; `classical_prm` = rotate-then-go follower on the roadmap's waypoints, first attempt; `classical_prm_shielded` = the same behind the shield; `classical_rpp_shielded` = Nav2's Regulated Pure Pursuit and `classical_mppi_shielded` = Nav2's MPPI, each on the roadmap path smoothed as Nav2's Simple Smoother does, passing through the vertices, behind the same shield, first attempt (Nav2's documented defaults scaled to the robot, never tuned on these maps); `hybrid_policy_roadmap_rpp` = `hybrid_policy_roadmap` with Regulated Pure Pursuit as the follower the policy hands over to; `hybrid_policy_path` = the same with the policy steering to a carrot 1.2 m ahead on the smoothed path instead of to each vertex. Among people every method tries Nav2's recovery behaviours (wait, back up, spin, re-route around the blocked edge) when it moves less than 0.5 m in 10 s; in the empty building the waypoint timer and replanning alone, as before. Social metrics (Francis et al. 2023, HuNavSim): entries into a person's intimate (0.45 m) and personal (1.2 m) space, counted once per approach, and the time the robot stands still, each per 100 m driven over all runs (failed ones too). Distances are driven distances; failures count the distance driven before the collision or stall.\n\n",
     );
     s.push_str("The paper's Table 3 (Gazebo, one building, ~140 m): Move Base 141.04 m / 123.31 s / 100%; Constrained Move Base 140.21 m / 125.19 s, failure 26.87 m / 60%; Pure RL failure 14.7 m / 0%; Hybrid PRM-RL 149.71 m / 160.45 s, failure 102.4 m / 90%.\n\n");
 
@@ -251,9 +251,9 @@ pub(super) fn to_markdown(
     }
 
     verdict(&mut s, rows, opts.people);
-    if !mppi.is_empty() {
+    if mppi.iter().any(|m| m.cycles.cycles > 0) {
         s.push_str("\n## MPPI's cost per control cycle\n\nWall time of one MPPI control cycle (sampling, rollouts and critics, one thread) on this machine, and the mean critic cost of the optimal rollout.\n\n| Map | Cycles | Rollouts × steps | Mean (ms) | Max (ms) | Mean optimal cost |\n|---|---|---|---|---|---|\n");
-        for m in mppi {
+        for m in mppi.iter().filter(|m| m.cycles.cycles > 0) {
             let c = &m.cycles;
             let _ = writeln!(
                 s,
@@ -359,14 +359,10 @@ pub(super) fn to_markdown(
     s
 }
 
-/// The targets, checked on these runs: the hybrid on the policy-aware roadmap against
+/// The targets, checked on these runs: each hybrid on the policy-aware roadmap against
 /// the better of the shielded Regulated Pure Pursuit and MPPI (by mean time on success).
 fn verdict(s: &mut String, rows: &[NavigationRow], people: f64) {
     let st = |m: &str| Stats::of(rows.iter().filter(|r| r.method == m));
-    let hybrid = st("hybrid_policy_roadmap");
-    if hybrid.runs == 0 {
-        return;
-    }
     let classical = ["classical_rpp_shielded", "classical_mppi_shielded"]
         .into_iter()
         .map(|m| (m, st(m)))
@@ -381,51 +377,66 @@ fn verdict(s: &mut String, rows: &[NavigationRow], people: f64) {
     let Some((best, b)) = classical else {
         return;
     };
+    let hybrids: Vec<(&str, Stats)> = [
+        "hybrid_policy_roadmap",
+        "hybrid_policy_path",
+        "hybrid_policy_roadmap_rpp",
+    ]
+    .into_iter()
+    .map(|m| (m, st(m)))
+    .filter(|(_, h)| h.runs > 0)
+    .collect();
+    if hybrids.is_empty() {
+        return;
+    }
     let (rate_target, speed_target) = if people > 0.0 {
         (0.97, 0.15)
     } else {
         (0.99, 0.10)
     };
-    let faster = match (hybrid.success_time, b.success_time) {
-        (Some(h), Some(c)) if c > 0.0 => Some(1.0 - h / c),
-        _ => None,
-    };
     let yes = |ok: bool| if ok { "met" } else { "**not met**" };
     let _ = writeln!(
         s,
-        "\n## Who wins\n\n`hybrid_policy_roadmap` against the better of the shielded Nav2 controllers here, `{best}` (by success rate, then mean time on success):\n"
+        "\n## Who wins\n\nEach hybrid on the policy-aware roadmap against the better of the shielded Nav2 controllers here, `{best}` (by success rate, then mean time on success)."
     );
-    let _ = writeln!(
-        s,
-        "- first-attempt success {:.1}% (target ≥ {:.0}%): {}",
-        100.0 * hybrid.rate(),
-        100.0 * rate_target,
-        yes(hybrid.rate() >= rate_target)
-    );
-    let _ = writeln!(
-        s,
-        "- faster by {} (target ≥ {:.0}%): {}",
-        faster.map_or_else(|| "—".to_owned(), |f| format!("{:.1}%", 100.0 * f)),
-        100.0 * speed_target,
-        yes(faster.is_some_and(|f| f >= speed_target))
-    );
-    if people > 0.0 {
+    for (name, hybrid) in hybrids {
+        let faster = match (hybrid.success_time, b.success_time) {
+            (Some(h), Some(c)) if c > 0.0 => Some(1.0 - h / c),
+            _ => None,
+        };
+        let _ = writeln!(s, "\n`{name}`:\n");
         let _ = writeln!(
             s,
-            "- collisions with people: {} (target 0): {}",
-            hybrid.person_collisions,
-            yes(hybrid.person_collisions == 0)
-        );
-        let (h, c) = (
-            hybrid.per_100m(hybrid.personal as f64),
-            b.per_100m(b.personal as f64),
+            "- first-attempt success {:.1}% (target ≥ {:.0}%): {}",
+            100.0 * hybrid.rate(),
+            100.0 * rate_target,
+            yes(hybrid.rate() >= rate_target)
         );
         let _ = writeln!(
             s,
-            "- personal-space intrusions per 100 m: {} against {} (target: no more): {}",
-            cell(h),
-            cell(c),
-            yes(matches!((h, c), (Some(h), Some(c)) if h <= c))
+            "- faster by {} (target ≥ {:.0}%): {}",
+            faster.map_or_else(|| "—".to_owned(), |f| format!("{:.1}%", 100.0 * f)),
+            100.0 * speed_target,
+            yes(faster.is_some_and(|f| f >= speed_target))
         );
+        if people > 0.0 {
+            let _ = writeln!(
+                s,
+                "- collisions with people: {} (target 0): {}",
+                hybrid.person_collisions,
+                yes(hybrid.person_collisions == 0)
+            );
+            let (h, c) = (
+                hybrid.per_100m(hybrid.personal as f64),
+                b.per_100m(b.personal as f64),
+            );
+            let _ = writeln!(
+                s,
+                "- personal-space intrusions per 100 m: {} against {} (target: no more): {}",
+                cell(h),
+                cell(c),
+                yes(matches!((h, c), (Some(h), Some(c)) if h <= c))
+            );
+        }
     }
 }

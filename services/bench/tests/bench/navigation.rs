@@ -61,11 +61,12 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.missions.len(), 1, "{:?}", report.skipped);
     let m = &report.missions[0];
     assert!(!m.full_length && m.prm_length_m > 5.0, "{m:?}");
-    // Fourteen methods (the policy-aware roadmap, the shielded and unshielded hybrids, each
-    // first attempt and re-tried; the policy-aware roadmap with RPP as the handover follower;
-    // the shielded hybrid without the handover; the plan endpoint; pure RL; classical, bare and
-    // shielded; Nav2's RPP and MPPI, shielded), two runs each.
-    assert_eq!(report.rows.len(), 28);
+    // Fifteen methods (the policy-aware roadmap, the shielded and unshielded hybrids, each
+    // first attempt and re-tried; the policy-aware roadmap with RPP as the handover follower,
+    // and with the policy on the smoothed path; the shielded hybrid without the handover; the
+    // plan endpoint; pure RL; classical, bare and shielded; Nav2's RPP and MPPI, shielded), two
+    // runs each.
+    assert_eq!(report.rows.len(), 30);
     for method in bench::navigation::METHODS {
         assert_eq!(
             report.rows.iter().filter(|r| r.method == method).count(),
@@ -100,7 +101,7 @@ fn the_benchmark_writes_table_3_for_every_method() {
              intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries"
         )
     );
-    assert_eq!(lines.count(), 28);
+    assert_eq!(lines.count(), 30);
     // Nav2's controllers reach the goal of this small room, behind the shield, and MPPI says
     // what a control cycle cost.
     for method in ["classical_rpp_shielded", "classical_mppi_shielded"] {
@@ -165,6 +166,29 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(report.rows.len(), 4);
     assert!(report.markdown.contains("No policy given"));
     assert!(report.summary().contains("no policy given"));
+
+    // `--methods` runs only those named, and names the methods when one is unknown.
+    let only = |methods: &[&str]| NavigationBenchOptions {
+        maps_dir: tmp.path().join("maps"),
+        runs: 1,
+        policy: Some(tmp.path().join("policy")),
+        out_dir: tmp.path().join("out3"),
+        candidates: 6,
+        methods: methods.iter().map(|m| (*m).to_owned()).collect(),
+        ..NavigationBenchOptions::default()
+    };
+    let report = run_navigation_bench(only(&["hybrid_policy_path", "classical_rpp_shielded"]))
+        .expect("runs");
+    let mut ran: Vec<&str> = report.rows.iter().map(|r| r.method).collect();
+    ran.sort_unstable();
+    assert_eq!(ran, ["classical_rpp_shielded", "hybrid_policy_path"]);
+    assert!(report.markdown.contains("`hybrid_policy_path`:"));
+    assert!(!report.markdown.contains("MPPI's cost per control cycle"));
+    let e = run_navigation_bench(only(&["hybrid", "rpp"])).expect_err("unknown");
+    assert!(
+        e.to_string().contains("\"hybrid\"") && e.to_string().contains("hybrid_policy_path"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -6,11 +6,12 @@
 use std::sync::Arc;
 
 use learning::Policy;
-use planning::PrmParams;
+use planning::{Point2, PrmParams};
 use rehearsal::{
-    ClassicalFollower, Controller, EdgeRolloutParams, PolicyController, RoadmapCache, drive_edges,
+    AttemptOutcome, ClassicalFollower, Controller, DriveLimits, EdgeRolloutParams,
+    PolicyController, RoadmapCache, drive, drive_edges,
 };
-use sim::{Observation, Pose2};
+use sim::{Action, Observation, Pose2};
 
 /// A policy whose network ignores its input: full speed ahead (sigmoid(8) ≈ 1), no turning.
 fn straight_ahead(dir: &std::path::Path) -> Arc<Policy> {
@@ -125,4 +126,107 @@ fn the_handover_lasts_until_the_next_waypoint() {
     alone.attach(&world, beams);
     alone.command(&wall, here, (4.0, 1.0));
     assert!(!alone.handed_over());
+}
+
+/// The goal-seeking hand-made policy: it turns towards its goal and drives once facing it.
+fn goal_seeking(dir: &std::path::Path) -> Arc<Policy> {
+    let beams = learning::Scaling::default().beams;
+    learning::policy::write_goal_seeking_policy(dir, beams, serde_json::json!({})).expect("ok");
+    Arc::new(Policy::load(dir).expect("loads"))
+}
+
+#[test]
+fn on_the_smoothed_path_the_policy_turns_before_a_vertex_and_passes_it() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let policy = goal_seeking(tmp.path());
+    let world = fixtures::worlds::walled_room();
+    let beams = policy.scaling().beams;
+    // An L: east 2 m, then north 3.5 m.
+    let start = Pose2::new(1.5, 1.5, 0.0);
+    let corner = Point2::new(3.5, 1.5);
+    let path = [corner, Point2::new(3.5, 5.0)];
+    let at = |x: f64, y: f64, yaw: f64, goal: Point2| {
+        let (dx, dy) = (goal.x - x, goal.y - y);
+        Observation {
+            ranges: vec![5.0; beams],
+            goal_distance: sim::norm(dx, dy) as f32,
+            goal_angle: sim::kinematics::wrap_angle(dy.atan2(dx) - yaw) as f32,
+            velocity: [0.8, 0.0],
+        }
+    };
+    let mut vertex = PolicyController::with_rpp_handover(Arc::clone(&policy));
+    let mut carrot = PolicyController::on_smoothed_path(Arc::clone(&policy));
+    let mut last = [Action::default(); 2];
+    for (i, c) in [&mut vertex, &mut carrot].into_iter().enumerate() {
+        c.attach(&world, beams);
+        c.start_attempt(1);
+        c.start_path(start, &path);
+        // Driving east towards the corner, 0.6 m before it.
+        for x in [1.5, 2.0, 2.5, 2.9] {
+            last[i] = c.command(
+                &at(x, 1.5, 0.0, corner),
+                Pose2::new(x, 1.5, 0.0),
+                (3.5, 1.5),
+            );
+        }
+        assert!(!c.handed_over(), "open space: the policy drives");
+    }
+    // Towards the vertex, the vertex straight ahead; towards the carrot, already turning left.
+    assert!(last[0].angular.abs() < 0.05, "{:?}", last[0]);
+    assert!(last[1].angular > 0.2, "{:?}", last[1]);
+    // Past the corner, 0.4 m from the vertex and heading north: only the carrot's controller
+    // counts the vertex as passed (the other's policy has not reached it).
+    let past = Pose2::new(3.5, 1.9, std::f64::consts::FRAC_PI_2);
+    for (i, c) in [&mut vertex, &mut carrot].into_iter().enumerate() {
+        c.command(&at(3.5, 1.9, past.yaw, corner), past, (3.5, 1.5));
+        assert_eq!(c.passed(past, corner), i == 1);
+    }
+}
+
+#[test]
+fn on_the_smoothed_path_the_policy_drives_an_l_sooner() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let policy = goal_seeking(tmp.path());
+    let world = fixtures::worlds::walled_room();
+    let env = rehearsal::env_config(policy.scaling().beams, true);
+    let legs = [vec![
+        Point2::new(3.5, 1.5),
+        Point2::new(3.5, 4.5),
+        Point2::new(1.5, 4.5),
+    ]];
+    let times: Vec<f64> = [
+        PolicyController::with_rpp_handover(Arc::clone(&policy)),
+        PolicyController::on_smoothed_path(Arc::clone(&policy)),
+    ]
+    .into_iter()
+    .map(|mut c| {
+        c.attach(&world, policy.scaling().beams);
+        c.start_attempt(1);
+        let limits = DriveLimits {
+            waypoint_timeout_s: 15.0,
+            max_replans: 0,
+            sim_seed: 11,
+            initial_velocity: Action::default(),
+            stop: rehearsal::Stop::default(),
+            trace: false,
+            recoveries: None,
+            others: None,
+            holds: Vec::new(),
+        };
+        let run = drive(
+            &world,
+            &env,
+            Pose2::new(1.5, 1.5, 0.0),
+            &legs,
+            &mut c,
+            limits,
+            None,
+        )
+        .expect("driven");
+        assert_eq!(run.outcome, AttemptOutcome::Reached, "{}", run.reason);
+        run.time_s
+    })
+    .collect();
+    // Two right-angle turns: stopping to turn at each vertex costs seconds.
+    assert!(times[1] < times[0] - 1.0, "{times:?}");
 }
