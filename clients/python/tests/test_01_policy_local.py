@@ -14,11 +14,23 @@ import numpy as np
 import pytest
 from safetensors.numpy import save
 
-from mentalsim_client import Action, Observation, Policy, PolicyError, Residual, Scaling, load_policy
+from mentalsim_client import Action, Observation, Policy, PolicyError, Residual, RppResidual, Scaling, load_policy, residual_from_json
 from mentalsim_client import _libm
 from mentalsim_client.policy import _Dense
 
 FOLLOWER = {"linear_max": 0.8, "angular_max": 0.5, "rotate_threshold": 0.35, "heading_gain": 2.0, "linear_min": 0.1, "slow_down_m": 0.8}
+#: ``learning::Residual::rpp(&sim::RppParams::default())``: Nav2's defaults for the paper's robot.
+RPP = {
+    "desired_linear_vel": 0.8,
+    "angular_max": 0.5,
+    "lookahead_dist": 0.9,
+    "rotate_to_heading_angular_vel": 0.5,
+    "rotate_to_heading_min_angle": 0.785,
+    "regulated_linear_scaling_min_radius": 0.9,
+    "regulated_linear_scaling_min_speed": 0.25,
+    "approach_velocity_scaling_dist": 0.6,
+    "min_approach_linear_velocity": 0.05,
+}
 
 
 def scaling_json(beams: int = 23, layout: str = "extended") -> dict[str, Any]:
@@ -150,10 +162,10 @@ def test_the_goal_seeking_policy_turns_to_the_goal_and_drives(tmp_path: Path, an
     assert abs(act.angular - 0.5 * math.tanh(20 * a)) < 1e-6
 
 
-def silent_residual(directory: Path, layout: str) -> Policy:
-    """A residual policy whose network outputs zero: it drives as the classical follower."""
+def silent_residual(directory: Path, layout: str, base: dict[str, float] = FOLLOWER) -> Policy:
+    """A residual policy whose network outputs zero: it drives as its base (the follower)."""
     n = 23 + (5 if layout == "extended" else 2)
-    meta = metadata(scaling_json(23, layout), [4], FOLLOWER)
+    meta = metadata(scaling_json(23, layout), [4], base)
     layers = [(np.zeros((4, n)), np.zeros(4)), (np.zeros((2, 4)), np.zeros(2))]
     return load_policy(write_policy(directory, meta, layers))
 
@@ -192,6 +204,32 @@ def test_a_residual_policy_with_a_silent_network_is_the_follower(tmp_path: Path,
     # observation.rs: goal ahead and far, the pre-activation's sigmoid is the margin's 0.98.
     pre = p.residual.preactivation(p.scaling, p.encode(Observation([5.0] * 23, 5.0, 0.0)))
     assert abs(sigmoid(float(pre[0])) - 0.98) < 1e-4 and abs(float(pre[1])) < 1e-6
+
+
+@pytest.mark.parametrize("layout", ["extended", "paper"])
+def test_a_silent_rpp_residual_policy_drives_arcs(tmp_path: Path, layout: str) -> None:
+    """observation.rs `an_untrained_rpp_residual_policy_drives_arcs_where_the_follower_turns_on_the_spot`,
+    Regulated Pure Pursuit's law worked out by hand (sim/src/rpp.rs)."""
+    p = silent_residual(tmp_path / layout, layout, RPP)
+    assert p.residual == RppResidual(**RPP)
+    k = 2 * 0.9 * math.sin(0.5) / 0.81
+    cases = {
+        # Ahead, far: full speed.
+        (5.0, 0.0): (1.0, 0.0),
+        # 0.5 rad left: an arc through the carrot 0.9 m away, as fast as the angular limit allows.
+        (5.0, 0.5): (0.5 / k / 0.8, 1.0),
+        # Beyond 0.785 rad: on the spot.
+        (3.0, -1.0): (0.0, -1.0),
+        # 0.3 m ahead: the approach, 0.8 * 0.3 / 0.6 m/s.
+        (0.3, 0.0): (0.5, 0.0),
+    }
+    for (d, angle), (lin, ang) in cases.items():
+        base = p.residual.output(p.scaling, p.encode(Observation([5.0] * 23, d, angle)))
+        assert abs(float(base[0]) - lin) < 1e-4 and abs(float(base[1]) - ang) < 1e-4, (d, angle, base)
+    with pytest.raises(PolicyError, match="lookahead_dist"):
+        residual_from_json({key: v for key, v in RPP.items() if key != "lookahead_dist"})
+    with pytest.raises(PolicyError, match="unknown"):
+        residual_from_json({**RPP, "linear_max": 0.8})
 
 
 def test_inputs_are_bounded_whatever_the_sensor_says() -> None:

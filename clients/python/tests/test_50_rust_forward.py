@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import Training
-from test_01_policy_local import FOLLOWER, goal_seeking, metadata, random_observations, scaling_json, write_policy
+from test_01_policy_local import FOLLOWER, RPP, goal_seeking, metadata, random_observations, scaling_json, write_policy
 
 from mentalsim_client import Client, Observation, Policy, load_policy
 
@@ -112,12 +112,14 @@ def test_the_trained_policy_computes_what_rust_computes(policy_act: list[str], r
     compare(policy_act, robot.download_policy(training.job.result["policy_id"], tmp_path / "trained"))
 
 
+@pytest.mark.parametrize("base", ["follower", "rpp"])
 @pytest.mark.parametrize("layout", ["extended", "paper"])
-def test_a_random_residual_policy_computes_what_rust_computes(policy_act: list[str], tmp_path: Path, layout: str) -> None:
+def test_a_random_residual_policy_computes_what_rust_computes(policy_act: list[str], tmp_path: Path, layout: str, base: str) -> None:
     rng = np.random.default_rng(len(layout))
     widths = [scaling_json(23, layout)["beams"] + (5 if layout == "extended" else 2), 64, 13, 2]
     layers = [(rng.standard_normal((o, i)) / math.sqrt(i), rng.standard_normal(o) * 0.2) for i, o in zip(widths, widths[1:])]
-    compare(policy_act, write_policy(tmp_path / layout, metadata(scaling_json(23, layout), [64, 13], FOLLOWER), layers))
+    residual = FOLLOWER if base == "follower" else RPP
+    compare(policy_act, write_policy(tmp_path / f"{layout}-{base}", metadata(scaling_json(23, layout), [64, 13], residual), layers))
 
 
 def test_the_goal_seeking_policy_computes_what_rust_computes(policy_act: list[str], tmp_path: Path) -> None:

@@ -142,15 +142,17 @@ impl Default for NavigationBenchOptions {
 /// strongest classical baselines; `hybrid_policy_roadmap_rpp` is `hybrid_policy_roadmap` with
 /// Regulated Pure Pursuit as the follower the policy hands over to, and `hybrid_policy_path` the
 /// same with the policy steering to a carrot on the smoothed path instead of to each vertex
-/// (`rehearsal::PolicyController::on_smoothed_path`).
+/// (`rehearsal::PolicyController::on_smoothed_path`); `hybrid_prm_rl_path` is that on the map's
+/// geometric roadmap, the one the classical methods drive, first attempt.
 /// With people the ablations (`hybrid_prm_rl_no_handover`, `hybrid_unshielded*`) do not run.
-pub const METHODS: [&str; 15] = [
+pub const METHODS: [&str; 16] = [
     "hybrid_policy_roadmap",
     "hybrid_policy_roadmap_rpp",
     "hybrid_policy_path",
     "hybrid_policy_roadmap_resampled",
     "hybrid_prm_rl",
     "hybrid_prm_rl_resampled",
+    "hybrid_prm_rl_path",
     "hybrid_prm_rl_no_handover",
     "plan_endpoint",
     "hybrid_unshielded",

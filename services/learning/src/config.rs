@@ -74,6 +74,32 @@ pub struct Td3Config {
     /// ([`crate::observation::Residual`]) rather than the whole command: it starts as the
     /// follower drives, and the exported policy carries the base in its metadata.
     pub residual: bool,
+    /// The classical controller a residual actor corrects: the follower (rotate-then-go), or
+    /// Regulated Pure Pursuit steering at the goal (arcs instead of turns on the spot).
+    pub residual_base: ResidualBase,
+}
+
+/// The base of a residual actor ([`Td3Config::residual_base`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ResidualBase {
+    /// [`crate::observation::Residual::follower`] of the follower's defaults.
+    #[default]
+    Follower,
+    /// [`crate::observation::Residual::rpp`] of Nav2's defaults for the paper's robot.
+    Rpp,
+}
+
+impl ResidualBase {
+    /// The base.
+    pub fn residual(self) -> crate::observation::Residual {
+        match self {
+            ResidualBase::Follower => {
+                crate::observation::Residual::follower(&sim::follower::FollowerParams::default())
+            }
+            ResidualBase::Rpp => crate::observation::Residual::rpp(&sim::RppParams::default()),
+        }
+    }
 }
 
 impl Default for Td3Config {
@@ -94,6 +120,7 @@ impl Default for Td3Config {
             reward_scale: 0.1,
             bc_alpha: 0.0,
             residual: false,
+            residual_base: ResidualBase::Follower,
         }
     }
 }

@@ -193,15 +193,26 @@ impl Scaling {
     }
 }
 
-/// A residual policy's base: the classical follower steering straight at the goal. The
+/// A residual policy's base: a classical controller steering straight at the goal. The
 /// network's two raw outputs are added to this base's command written as pre-activations
 /// (the logit of the linear output, the inverse tanh of the angular one), so a network whose
-/// last layer is near zero drives as the follower does, and learning only has to find where
-/// to do better (residual policy learning: Silver et al. 2018; Johannink et al. 2019). It
-/// reads only the network's input, so every runtime can compute it.
+/// last layer is near zero drives as the base does, and learning only has to find where to do
+/// better (residual policy learning: Silver et al. 2018; Johannink et al. 2019). It reads only
+/// the network's input, so every runtime can compute it. A policy file names its base by its
+/// fields: the follower's, or Regulated Pure Pursuit's (Nav2's names).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Residual {
+    /// The classical follower: rotate-then-go, slowing down near the goal.
+    Follower(FollowerBase),
+    /// Nav2's Regulated Pure Pursuit on the straight line to the goal.
+    Rpp(RppBase),
+}
+
+/// [`Residual::Follower`]: the classical follower's settings ([`sim::follower::follow`]).
 #[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Residual {
+pub struct FollowerBase {
     /// The follower's top linear speed, m/s.
     pub linear_max: f64,
     /// Its top angular speed, rad/s.
@@ -216,6 +227,32 @@ pub struct Residual {
     pub slow_down_m: f64,
 }
 
+/// [`Residual::Rpp`]: Regulated Pure Pursuit's settings ([`sim::rpp_command`]), its look-ahead
+/// the one it uses at cruise speed. It drives arcs instead of turning on the spot below
+/// `rotate_to_heading_min_angle`, and slows only on tight arcs and near the goal.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RppBase {
+    /// Cruise speed, m/s.
+    pub desired_linear_vel: f64,
+    /// The robot's angular limit, rad/s.
+    pub angular_max: f64,
+    /// Look-ahead distance, m.
+    pub lookahead_dist: f64,
+    /// Turn-in-place speed, rad/s.
+    pub rotate_to_heading_angular_vel: f64,
+    /// Heading error beyond which it turns on the spot, rad.
+    pub rotate_to_heading_min_angle: f64,
+    /// Radius below which curvature regulation slows the robot, m.
+    pub regulated_linear_scaling_min_radius: f64,
+    /// Slowest regulated speed, m/s.
+    pub regulated_linear_scaling_min_speed: f64,
+    /// Distance to the goal under which the robot slows to arrive, m.
+    pub approach_velocity_scaling_dist: f64,
+    /// Slowest approach speed, m/s.
+    pub min_approach_linear_velocity: f64,
+}
+
 /// How far from 0 and 1 (linear) or ±1 (angular) the base is kept, so that its
 /// pre-activation is finite and the network can still move it both ways.
 const RESIDUAL_MARGIN: f32 = 0.02;
@@ -223,19 +260,77 @@ const RESIDUAL_MARGIN: f32 = 0.02;
 impl Residual {
     /// The base of the classical follower's settings.
     pub fn follower(p: &sim::follower::FollowerParams) -> Self {
-        Self {
+        Self::Follower(FollowerBase {
             linear_max: p.linear_max,
             angular_max: p.angular_max,
             rotate_threshold: p.rotate_threshold,
             heading_gain: p.heading_gain,
             linear_min: p.linear_min,
             slow_down_m: p.slow_down_m,
+        })
+    }
+
+    /// The base of Regulated Pure Pursuit's settings, at its look-ahead for cruise speed.
+    pub fn rpp(p: &sim::RppParams) -> Self {
+        Self::Rpp(RppBase {
+            desired_linear_vel: p.desired_linear_vel,
+            angular_max: p.angular_max,
+            lookahead_dist: (p.desired_linear_vel * p.lookahead_time)
+                .clamp(p.min_lookahead_dist, p.max_lookahead_dist),
+            rotate_to_heading_angular_vel: p.rotate_to_heading_angular_vel,
+            rotate_to_heading_min_angle: p.rotate_to_heading_min_angle,
+            regulated_linear_scaling_min_radius: p.regulated_linear_scaling_min_radius,
+            regulated_linear_scaling_min_speed: p.regulated_linear_scaling_min_speed,
+            approach_velocity_scaling_dist: p.approach_velocity_scaling_dist,
+            min_approach_linear_velocity: p.min_approach_linear_velocity,
+        })
+    }
+
+    /// The base's command for a goal at `goal` in the robot frame (x ahead, y left).
+    pub fn command(&self, goal: (f64, f64)) -> Action {
+        match self {
+            Residual::Follower(b) => {
+                let params = sim::follower::FollowerParams {
+                    linear_max: b.linear_max,
+                    angular_max: b.angular_max,
+                    rotate_threshold: b.rotate_threshold,
+                    heading_gain: b.heading_gain,
+                    linear_min: b.linear_min,
+                    slow_down_m: b.slow_down_m,
+                    ..sim::follower::FollowerParams::default()
+                };
+                sim::follower::follow(&params, (0.0, 0.0), goal, sim::Pose2::new(0.0, 0.0, 0.0))
+            }
+            Residual::Rpp(b) => {
+                let params = sim::RppParams {
+                    desired_linear_vel: b.desired_linear_vel,
+                    angular_max: b.angular_max,
+                    rotate_to_heading_angular_vel: b.rotate_to_heading_angular_vel,
+                    rotate_to_heading_min_angle: b.rotate_to_heading_min_angle,
+                    regulated_linear_scaling_min_radius: b.regulated_linear_scaling_min_radius,
+                    regulated_linear_scaling_min_speed: b.regulated_linear_scaling_min_speed,
+                    approach_velocity_scaling_dist: b.approach_velocity_scaling_dist,
+                    min_approach_linear_velocity: b.min_approach_linear_velocity,
+                    // Obstacles are the shield's and the network's to see.
+                    cost_scaling_dist: 0.0,
+                    ..sim::RppParams::default()
+                };
+                // The carrot: on the straight line to the goal, the look-ahead away (the goal
+                // itself when nearer).
+                let d = goal.0.hypot(goal.1);
+                let carrot = if d > b.lookahead_dist {
+                    let k = b.lookahead_dist / d;
+                    (goal.0 * k, goal.1 * k)
+                } else {
+                    goal
+                };
+                sim::rpp_command(&params, carrot, d, f64::INFINITY).0
+            }
         }
     }
 
-    /// The follower's command for one network input row, in output units (linear in [0, 1],
+    /// The base's command for one network input row, in output units (linear in [0, 1],
     /// angular in [-1, 1]).
-    #[allow(clippy::cast_possible_truncation, reason = "network values are f32")]
     pub fn output(&self, scaling: &Scaling, input: &[f32]) -> [f32; ACTION_DIM] {
         let rest = &input[scaling.beams.min(input.len())..];
         let distance = f64::from(rest.first().copied().unwrap_or(0.0))
@@ -247,19 +342,8 @@ impl Residual {
             InputLayout::Extended => f64::from(rest.get(1).copied().unwrap_or(0.0))
                 .atan2(f64::from(rest.get(2).copied().unwrap_or(1.0))),
         };
-        let params = sim::follower::FollowerParams {
-            linear_max: self.linear_max,
-            angular_max: self.angular_max,
-            rotate_threshold: self.rotate_threshold,
-            heading_gain: self.heading_gain,
-            linear_min: self.linear_min,
-            slow_down_m: self.slow_down_m,
-            ..sim::follower::FollowerParams::default()
-        };
         let goal = (distance * angle.cos(), distance * angle.sin());
-        let action =
-            sim::follower::follow(&params, (0.0, 0.0), goal, sim::Pose2::new(0.0, 0.0, 0.0));
-        scaling.output_of(action)
+        scaling.output_of(self.command(goal))
     }
 
     /// [`Residual::output`] as the pre-activations the network's raw outputs are added to.
@@ -378,6 +462,49 @@ mod tests {
                 .len(),
             4
         );
+    }
+
+    #[test]
+    fn an_untrained_rpp_residual_policy_drives_arcs_where_the_follower_turns_on_the_spot() {
+        let s = Scaling::default();
+        let r = Residual::rpp(&sim::RppParams::default());
+        let out = |d: f32, angle: f32| {
+            let input = s
+                .encode(&Observation {
+                    ranges: vec![5.0; s.beams],
+                    goal_distance: d,
+                    goal_angle: angle,
+                    velocity: [0.0, 0.0],
+                })
+                .unwrap();
+            r.output(&s, &input)
+        };
+        // Ahead, far: full speed.
+        let [l, a] = out(5.0, 0.0);
+        assert!((l - 1.0).abs() < 1e-6 && a.abs() < 1e-6, "{l} {a}");
+        // 0.5 rad left, beyond the follower's 0.35 rad: an arc through the carrot 0.9 m away
+        // (curvature 2 · 0.9 sin 0.5 / 0.81 ≈ 1.065 /m) at the speed the angular limit
+        // allows, 0.5 / 1.065 ≈ 0.469 m/s.
+        let [l, a] = out(5.0, 0.5);
+        let k = 2.0 * 0.9 * 0.5f64.sin() / 0.81;
+        assert!(
+            (f64::from(l) * 0.8 - 0.5 / k).abs() < 1e-4 && (a - 1.0).abs() < 1e-6,
+            "{l} {a}"
+        );
+        // Beyond 0.785 rad: on the spot.
+        let [l, a] = out(3.0, -1.0);
+        assert!(l == 0.0 && (a + 1.0).abs() < 1e-6, "{l} {a}");
+        // 0.3 m ahead: the approach, 0.8 · 0.3 / 0.6 = 0.4 m/s.
+        let [l, _] = out(0.3, 0.0);
+        assert!((f64::from(l) * 0.8 - 0.4).abs() < 1e-4, "{l}");
+        // Files name the base by its fields.
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(json.contains("desired_linear_vel"), "{json}");
+        assert_eq!(serde_json::from_str::<Residual>(&json).unwrap(), r);
+        let f = Residual::follower(&sim::follower::FollowerParams::default());
+        let json = serde_json::to_string(&f).unwrap();
+        assert_eq!(serde_json::from_str::<Residual>(&json).unwrap(), f);
+        assert!(serde_json::from_str::<Residual>(&json.replace("}", r#","x":1}"#)).is_err());
     }
 
     #[test]

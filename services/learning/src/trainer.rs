@@ -373,10 +373,7 @@ impl Trainer {
         let dim = options.scaling.input_len();
         let mut learner = Learner::new(c.td3.clone(), dim, crate::training_device(), c.seed);
         if c.td3.residual {
-            learner.set_residual(
-                crate::observation::Residual::follower(&sim::follower::FollowerParams::default()),
-                options.scaling,
-            );
+            learner.set_residual(c.td3.residual_base.residual(), options.scaling);
         }
         let missions = mission_set(&world, &env_config, c.eval_episodes, c.eval_seed)?;
         let mut trainer = Trainer {
@@ -642,6 +639,10 @@ impl Trainer {
         let mut next = vec![0.0f32; dim];
         let mut experts = vec![0.0f32; n * ACTION_DIM];
         let follower = sim::FollowerParams::default();
+        let rpp_base = self
+            .learner
+            .residual()
+            .filter(|r| matches!(r, crate::observation::Residual::Rpp(_)));
         let mut batch = Batch::default();
         loop {
             self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
@@ -658,10 +659,19 @@ impl Trainer {
                     break;
                 }
             }
-            // The demonstrator's action in every environment's state: the classical follower
-            // on the straight segment to the goal (labels for the behaviour-cloning term).
-            for (e, env) in experts.chunks_exact_mut(ACTION_DIM).zip(&self.envs) {
-                e.copy_from_slice(&self.options.scaling.output_of(env.demonstration(&follower)));
+            // The demonstrator's action in every environment's state (labels for the
+            // behaviour-cloning term): the classical follower on the straight segment to the
+            // goal, or a Regulated Pure Pursuit base's command, so that the warm start begins
+            // where the residual actor's base is.
+            for (i, (e, env)) in experts
+                .chunks_exact_mut(ACTION_DIM)
+                .zip(&self.envs)
+                .enumerate()
+            {
+                e.copy_from_slice(&match &rpp_base {
+                    Some(r) => r.output(&self.options.scaling, &self.inputs[i * dim..][..dim]),
+                    None => self.options.scaling.output_of(env.demonstration(&follower)),
+                });
             }
             let demonstrating = self.counters.env_steps < c.demo_steps;
             // Algorithm 1, line 4: act (the noisy demonstrator first, when configured, then

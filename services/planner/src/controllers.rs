@@ -38,11 +38,12 @@ pub const TIME_MARGIN: f64 = 0.01;
 
 /// The controllers `auto` considers, in the order it prefers them at equal figures: the
 /// classical ones first.
-pub const AUTO_ORDER: [ControllerChoice; 4] = [
+pub const AUTO_ORDER: [ControllerChoice; 5] = [
     ControllerChoice::Rpp,
     ControllerChoice::Mppi,
     ControllerChoice::Hybrid,
     ControllerChoice::HybridRpp,
+    ControllerChoice::HybridPath,
 ];
 
 /// One candidate's run of one mission.

@@ -342,7 +342,10 @@ async fn auto_validates_with_the_controller_the_floors_trial_measured_best() {
         .iter()
         .map(|c| c.controller.as_str())
         .collect();
-    assert_eq!(names, ["rpp", "mppi", "hybrid", "hybrid_rpp"]);
+    assert_eq!(
+        names,
+        ["rpp", "mppi", "hybrid", "hybrid_rpp", "hybrid_path"]
+    );
     assert_eq!(trial.missions, 6);
     for c in &trial.candidates {
         // A challenger stops once it can no longer win; RPP, the first, drives every mission.

@@ -563,20 +563,25 @@ pub enum ControllerChoice {
     Hybrid,
     /// The policy behind the shield, Regulated Pure Pursuit taking over near obstacles.
     HybridRpp,
+    /// The same with the policy steering to a carrot on the smoothed path
+    /// ([`PolicyController::on_smoothed_path`]).
+    HybridPath,
 }
 
 impl ControllerChoice {
     /// Every choice.
-    pub const ALL: [ControllerChoice; 6] = [
+    pub const ALL: [ControllerChoice; 7] = [
         ControllerChoice::Follower,
         ControllerChoice::ShieldedFollower,
         ControllerChoice::Rpp,
         ControllerChoice::Mppi,
         ControllerChoice::Hybrid,
         ControllerChoice::HybridRpp,
+        ControllerChoice::HybridPath,
     ];
 
-    /// The name: `follower`, `shielded_follower`, `rpp`, `mppi`, `hybrid`, `hybrid_rpp`.
+    /// The name: `follower`, `shielded_follower`, `rpp`, `mppi`, `hybrid`, `hybrid_rpp`,
+    /// `hybrid_path`.
     pub fn as_str(self) -> &'static str {
         match self {
             ControllerChoice::Follower => "follower",
@@ -585,6 +590,7 @@ impl ControllerChoice {
             ControllerChoice::Mppi => "mppi",
             ControllerChoice::Hybrid => "hybrid",
             ControllerChoice::HybridRpp => "hybrid_rpp",
+            ControllerChoice::HybridPath => "hybrid_path",
         }
     }
 
@@ -595,7 +601,10 @@ impl ControllerChoice {
 
     /// Whether it drives a policy.
     pub fn needs_policy(self) -> bool {
-        matches!(self, ControllerChoice::Hybrid | ControllerChoice::HybridRpp)
+        matches!(
+            self,
+            ControllerChoice::Hybrid | ControllerChoice::HybridRpp | ControllerChoice::HybridPath
+        )
     }
 
     /// The controller, `None` when it needs a policy and none is given; `seed` seeds MPPI's
@@ -613,6 +622,9 @@ impl ControllerChoice {
             ControllerChoice::Hybrid => Box::new(PolicyController::new(Arc::clone(policy?))),
             ControllerChoice::HybridRpp => {
                 Box::new(PolicyController::with_rpp_handover(Arc::clone(policy?)))
+            }
+            ControllerChoice::HybridPath => {
+                Box::new(PolicyController::on_smoothed_path(Arc::clone(policy?)))
             }
         })
     }

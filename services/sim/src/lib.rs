@@ -60,7 +60,7 @@ pub use library::{LibraryModel, Model};
 pub use mppi::{Mppi, MppiParams, MppiWorld};
 pub use others::{OtherRobot, OtherRobots};
 pub use parse::{parse_floor, parse_on_demand, parse_robot};
-pub use rpp::{RppParams, RppStep, rpp_step};
+pub use rpp::{RppParams, RppStep, rpp_command, rpp_step};
 pub use smoother::{SmootherParams, smooth_path};
 pub use spec::{
     AttractorSpec, CameraSpec, Colour, DiffDriveSpec, FloorMap, LaserSpec, ObjectSpec, Occupancy,

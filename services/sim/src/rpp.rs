@@ -132,15 +132,38 @@ pub fn rpp_step(
     let carrot = track.carrot(pose, lookahead_m)?;
     let (dx, dy) = (carrot.0 - pose.x, carrot.1 - pose.y);
     let (s, c) = pose.yaw.sin_cos();
-    let (x, y) = (c * dx + s * dy, -s * dx + c * dy);
+    let remaining = track.remaining_from(track.progress());
+    let (action, rotating) = rpp_command(
+        p,
+        (c * dx + s * dy, -s * dx + c * dy),
+        remaining,
+        obstacle_m,
+    );
+    Some(RppStep {
+        action,
+        lookahead_m,
+        carrot,
+        rotating,
+    })
+}
+
+/// Regulated Pure Pursuit's command for a carrot at `(x, y)` in the robot frame (x ahead, y
+/// left), `remaining_m` of path left to its end and `obstacle_m` from the robot's centre to the
+/// nearest obstacle; and whether it turns on the spot. The arc through the carrot, with its
+/// speed regulated by curvature, proximity and the approach to the end, and kept within the
+/// angular limit.
+pub fn rpp_command(
+    p: &RppParams,
+    (x, y): (f64, f64),
+    remaining_m: f64,
+    obstacle_m: f64,
+) -> (Action, bool) {
     let angle = y.atan2(x);
     if angle.abs() > p.rotate_to_heading_min_angle {
-        return Some(RppStep {
-            action: Action::new(0.0, angle.signum() * p.rotate_to_heading_angular_vel),
-            lookahead_m,
-            carrot,
-            rotating: true,
-        });
+        return (
+            Action::new(0.0, angle.signum() * p.rotate_to_heading_angular_vel),
+            true,
+        );
     }
     let l2 = (x * x + y * y).max(1e-9);
     let curvature = 2.0 * y / l2;
@@ -160,24 +183,21 @@ pub fn rpp_step(
         .max(p.regulated_linear_scaling_min_speed)
         .min(p.desired_linear_vel);
     // Approach to the path's end.
-    let remaining = track.remaining_from(track.progress());
-    if remaining < p.approach_velocity_scaling_dist {
-        let approach = p.desired_linear_vel * remaining / p.approach_velocity_scaling_dist;
+    if remaining_m < p.approach_velocity_scaling_dist {
+        let approach = p.desired_linear_vel * remaining_m / p.approach_velocity_scaling_dist;
         linear = linear.min(approach.max(p.min_approach_linear_velocity));
     }
     // Keep the arc within the angular limit.
     if curvature.abs() > 1e-9 {
         linear = linear.min(p.angular_max / curvature.abs());
     }
-    Some(RppStep {
-        action: Action::new(
+    (
+        Action::new(
             linear,
             (linear * curvature).clamp(-p.angular_max, p.angular_max),
         ),
-        lookahead_m,
-        carrot,
-        rotating: false,
-    })
+        false,
+    )
 }
 
 #[cfg(test)]

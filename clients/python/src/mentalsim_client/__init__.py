@@ -54,7 +54,7 @@ from .models import (
     Sphere,
     WorldObject,
 )
-from .policy import Action, Observation, Policy, PolicyError, Residual, Scaling, load_policy
+from .policy import Action, Observation, Policy, PolicyError, Residual, RppResidual, Scaling, load_policy, residual_from_json
 
 __all__ = [
     "OPERATIONS",
@@ -107,6 +107,7 @@ __all__ = [
     "Robot",
     "RosPath",
     "RosPoseStamped",
+    "RppResidual",
     "Scaling",
     "Shape",
     "Sphere",
@@ -114,4 +115,5 @@ __all__ = [
     "WorldObject",
     "__version__",
     "load_policy",
+    "residual_from_json",
 ]

@@ -249,7 +249,7 @@ class RosPath:
 
 RoadmapChoice: TypeAlias = Literal["auto", "policy", "geometric"]
 #: A controller by name, or ``auto`` (schema ``ControllerOption``).
-ControllerOption: TypeAlias = Literal["auto", "hybrid", "hybrid_rpp", "rpp", "mppi", "follower", "shielded_follower"]
+ControllerOption: TypeAlias = Literal["auto", "hybrid", "hybrid_rpp", "hybrid_path", "rpp", "mppi", "follower", "shielded_follower"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -288,7 +288,7 @@ class PlanOptions:
     #: (default 0): how robust it is across crowds (``PeopleReport.draws``).
     people_draws: int | None = None
     #: The controller that drives the rehearsal: ``"auto"`` (default: the one measured best on
-    #: the floor state), ``"hybrid"``, ``"hybrid_rpp"``, ``"rpp"``, ``"mppi"``, ``"follower"``
+    #: the floor state), ``"hybrid"``, ``"hybrid_rpp"``, ``"hybrid_path"``, ``"rpp"``, ``"mppi"``, ``"follower"``
     #: or ``"shielded_follower"``; ``PlanResult.controller_choice`` says which drove and why.
     controller: ControllerOption | None = None
     #: Commit the plan to the floor's traffic schedule (default true); false only checks it.

@@ -1,12 +1,13 @@
 """Exported navigation policies, run locally with numpy: the forward pass of
 ``learning::Policy`` (services/learning/src/policy.rs), its observation scaling
-(``learning::Scaling``, observation.rs) and its residual base, the classical follower
-(``learning::Residual`` over ``sim::follower::follow``), operation for operation.
+(``learning::Scaling``, observation.rs) and its residual base, the classical follower or
+Regulated Pure Pursuit (``learning::Residual`` over ``sim::follower::follow`` or
+``sim::rpp_command``), operation for operation.
 
 A policy directory holds ``policy.safetensors`` (``layers.{i}.weight`` ``[out, in]`` and
 ``layers.{i}.bias`` ``[out]``, float32, input layer first) and ``policy.json`` (the metadata:
 scaling, hidden widths, output activations, the residual base). The network is
-``input -> (linear, ReLU) x hidden -> linear``; with a residual base the follower's command
+``input -> (linear, ReLU) x hidden -> linear``; with a residual base the base's command
 for the same input, written as pre-activations, is added to the two raw outputs; then
 ``sigmoid`` (linear speed in [0, 1]) and ``tanh`` (angular speed in [-1, 1]).
 
@@ -204,10 +205,73 @@ def _number(v: object, what: str) -> float:
     return float(v)
 
 
+def _fields(d: object, names: tuple[str, ...]) -> list[float]:
+    """The numbers of a residual base's JSON object, all of ``names`` and nothing else."""
+    if not isinstance(d, dict):
+        raise PolicyError("policy metadata: `residual` is not an object")
+    unknown = sorted(set(d) - set(names))
+    if unknown:
+        raise PolicyError(f"policy metadata: unknown field(s) {unknown} in `residual`")
+    missing = [n for n in names if n not in d]
+    if missing:
+        raise PolicyError(f"policy metadata: missing field(s) {missing} in `residual`")
+    return [_number(d[n], f"residual.{n}") for n in names]
+
+
+class _Base:
+    """What both residual bases share: the goal read back from an input row, and the command
+    written as pre-activations (``Residual::output``, ``Residual::preactivation``)."""
+
+    __slots__ = ()
+
+    def command(self, goal: tuple[float, float]) -> Action:
+        raise NotImplementedError
+
+    def output(self, scaling: Scaling, row: F32Array) -> tuple[np.float32, np.float32]:
+        """The base's command for one input row, in output units (``Residual::output``)."""
+        rest = row[min(scaling.beams, len(row)) :]
+
+        def at(i: int, default: float) -> float:
+            return float(rest[i]) if i < len(rest) else default
+
+        distance = at(0, 0.0) * float(np.float32(scaling.goal_distance_scale_m))
+        if scaling.layout == "paper":
+            angle = at(1, 0.0) * math.pi
+        else:
+            angle = _libm.atan2(at(1, 0.0), at(2, 1.0))
+        goal = (distance * _libm.cos(angle), distance * _libm.sin(angle))
+        return scaling.output_of(self.command(goal))
+
+    def preactivation(self, scaling: Scaling, row: F32Array) -> tuple[np.float32, np.float32]:
+        """:meth:`output` as the pre-activations the raw outputs are added to."""
+        linear, angular = self.output(scaling, row)
+        m = _RESIDUAL_MARGIN
+        linear = _clamp(linear, m, _ONE - m)
+        angular = _clamp(angular, -_ONE + m, _ONE - m)
+        logit = _f32(_libm.logf(float(linear / (_ONE - linear))))
+        # Rust's f32::atanh: 0.5 * ((2 x) / (1 - x)).ln_1p()
+        atanh = np.float32(0.5) * _f32(_libm.log1pf(float((np.float32(2.0) * angular) / (_ONE - angular))))
+        return logit, atanh
+
+
+_FOLLOWER_FIELDS: Final = ("linear_max", "angular_max", "rotate_threshold", "heading_gain", "linear_min", "slow_down_m")
+_RPP_FIELDS: Final = (
+    "desired_linear_vel",
+    "angular_max",
+    "lookahead_dist",
+    "rotate_to_heading_angular_vel",
+    "rotate_to_heading_min_angle",
+    "regulated_linear_scaling_min_radius",
+    "regulated_linear_scaling_min_speed",
+    "approach_velocity_scaling_dist",
+    "min_approach_linear_velocity",
+)
+
+
 @dataclass(frozen=True, slots=True)
-class Residual:
-    """``learning::Residual``: a residual policy's base, the classical follower steering straight
-    at the goal, computed from the network's input alone."""
+class Residual(_Base):
+    """``learning::Residual::Follower``: a residual policy's base, the classical follower
+    steering straight at the goal, computed from the network's input alone."""
 
     linear_max: float
     angular_max: float
@@ -218,17 +282,10 @@ class Residual:
 
     @classmethod
     def from_json(cls, d: object) -> Residual:
-        if not isinstance(d, dict):
-            raise PolicyError("policy metadata: `residual` is not an object")
-        names = ("linear_max", "angular_max", "rotate_threshold", "heading_gain", "linear_min", "slow_down_m")
-        unknown = sorted(set(d) - set(names))
-        if unknown:
-            raise PolicyError(f"policy metadata: unknown field(s) {unknown} in `residual`")
-        missing = [n for n in names if n not in d]
-        if missing:
-            raise PolicyError(f"policy metadata: missing field(s) {missing} in `residual`")
-        v = [_number(d[n], f"residual.{n}") for n in names]
-        return cls(v[0], v[1], v[2], v[3], v[4], v[5])
+        return cls(*_fields(d, _FOLLOWER_FIELDS))
+
+    def command(self, goal: tuple[float, float]) -> Action:
+        return self.follow(goal)
 
     def follow(self, goal: tuple[float, float]) -> Action:
         """``sim::follower::follow`` from the origin facing +x on the segment origin → ``goal``
@@ -257,31 +314,59 @@ class Residual:
         linear = (self.linear_min + (self.linear_max - self.linear_min) * share) * approach
         return Action(max(linear, min(self.linear_min, d)), angular)
 
-    def output(self, scaling: Scaling, row: F32Array) -> tuple[np.float32, np.float32]:
-        """The follower's command for one input row, in output units (``Residual::output``)."""
-        rest = row[min(scaling.beams, len(row)) :]
 
-        def at(i: int, default: float) -> float:
-            return float(rest[i]) if i < len(rest) else default
+@dataclass(frozen=True, slots=True)
+class RppResidual(_Base):
+    """``learning::Residual::Rpp``: a residual policy's base, Nav2's Regulated Pure Pursuit on
+    the straight line to the goal (``sim::rpp_command``), computed from the network's input
+    alone."""
 
-        distance = at(0, 0.0) * float(np.float32(scaling.goal_distance_scale_m))
-        if scaling.layout == "paper":
-            angle = at(1, 0.0) * math.pi
+    desired_linear_vel: float
+    angular_max: float
+    lookahead_dist: float
+    rotate_to_heading_angular_vel: float
+    rotate_to_heading_min_angle: float
+    regulated_linear_scaling_min_radius: float
+    regulated_linear_scaling_min_speed: float
+    approach_velocity_scaling_dist: float
+    min_approach_linear_velocity: float
+
+    @classmethod
+    def from_json(cls, d: object) -> RppResidual:
+        return cls(*_fields(d, _RPP_FIELDS))
+
+    def command(self, goal: tuple[float, float]) -> Action:
+        """The arc through the carrot on the line to ``goal`` (robot frame), regulated by its
+        curvature and the approach to the goal, within the angular limit."""
+        d = _libm.hypot(goal[0], goal[1])
+        if d > self.lookahead_dist:
+            k = self.lookahead_dist / d
+            x, y = goal[0] * k, goal[1] * k
         else:
-            angle = _libm.atan2(at(1, 0.0), at(2, 1.0))
-        goal = (distance * _libm.cos(angle), distance * _libm.sin(angle))
-        return scaling.output_of(self.follow(goal))
+            x, y = goal
+        angle = _libm.atan2(y, x)
+        if abs(angle) > self.rotate_to_heading_min_angle:
+            return Action(0.0, math.copysign(1.0, angle) * self.rotate_to_heading_angular_vel)
+        curvature = 2.0 * y / max(x * x + y * y, 1e-9)
+        desired = self.desired_linear_vel
+        curvature_vel = desired
+        radius = 1.0 / max(abs(curvature), 1e-9)
+        if radius < self.regulated_linear_scaling_min_radius:
+            curvature_vel *= radius / self.regulated_linear_scaling_min_radius
+        linear = min(max(min(curvature_vel, desired), self.regulated_linear_scaling_min_speed), desired)
+        if d < self.approach_velocity_scaling_dist:
+            approach = desired * d / self.approach_velocity_scaling_dist
+            linear = min(linear, max(approach, self.min_approach_linear_velocity))
+        if abs(curvature) > 1e-9:
+            linear = min(linear, self.angular_max / abs(curvature))
+        return Action(linear, _clamp64(linear * curvature, -self.angular_max, self.angular_max))
 
-    def preactivation(self, scaling: Scaling, row: F32Array) -> tuple[np.float32, np.float32]:
-        """:meth:`output` as the pre-activations the raw outputs are added to."""
-        linear, angular = self.output(scaling, row)
-        m = _RESIDUAL_MARGIN
-        linear = _clamp(linear, m, _ONE - m)
-        angular = _clamp(angular, -_ONE + m, _ONE - m)
-        logit = _f32(_libm.logf(float(linear / (_ONE - linear))))
-        # Rust's f32::atanh: 0.5 * ((2 x) / (1 - x)).ln_1p()
-        atanh = np.float32(0.5) * _f32(_libm.log1pf(float((np.float32(2.0) * angular) / (_ONE - angular))))
-        return logit, atanh
+
+def residual_from_json(d: object) -> Residual | RppResidual:
+    """The base a policy file names by its fields: Regulated Pure Pursuit's, or the follower's."""
+    if isinstance(d, dict) and "desired_linear_vel" in d:
+        return RppResidual.from_json(d)
+    return Residual.from_json(d)
 
 
 @dataclass(frozen=True, slots=True)
@@ -315,7 +400,7 @@ class Policy:
     metadata: dict[str, Any]
     scaling: Scaling
     hidden: tuple[int, ...]
-    residual: Residual | None
+    residual: Residual | RppResidual | None
     _layers: tuple[_Dense, ...] = field(repr=False)
 
     @classmethod
@@ -352,7 +437,7 @@ class Policy:
         hidden = tuple(int(h) for h in hidden_raw)
         if scaling.beams == 0 or 0 in hidden:
             raise PolicyError("policy metadata: beam count and hidden widths must be positive")
-        residual = Residual.from_json(meta["residual"]) if meta.get("residual") is not None else None
+        residual = residual_from_json(meta["residual"]) if meta.get("residual") is not None else None
         try:
             tensors = load_safetensors(safetensors)
         except Exception as e:  # the parser raises its own error types

@@ -191,6 +191,11 @@ pub(super) fn run_map(
                 Box::new(PolicyController::new(Arc::clone(p))),
                 Some(0),
             ));
+            plain.push((
+                &["hybrid_prm_rl_path"],
+                Box::new(PolicyController::on_smoothed_path(Arc::clone(p))),
+                None,
+            ));
             if !people.any() {
                 plain.push((
                     &["hybrid_prm_rl_no_handover"],

@@ -133,10 +133,20 @@ fn the_pure_rust_policy_matches_tch_within_1e_5() {
 
 #[test]
 fn a_residual_actor_starts_as_the_follower_and_the_runtime_matches_it() {
+    starts_as_its_base(Residual::follower(&sim::follower::FollowerParams::default()));
+}
+
+#[test]
+fn a_residual_actor_over_regulated_pure_pursuit_starts_as_it() {
+    starts_as_its_base(Residual::rpp(&sim::RppParams::default()));
+}
+
+/// An untrained residual actor drives as `residual`, and the exported policy, base included,
+/// acts as tch does.
+fn starts_as_its_base(residual: Residual) {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let scaling = Scaling::default();
     let dim = scaling.input_len();
-    let residual = Residual::follower(&sim::follower::FollowerParams::default());
     let config = Td3Config {
         hidden: vec![64, 64],
         residual: true,
@@ -169,7 +179,7 @@ fn a_residual_actor_starts_as_the_follower_and_the_runtime_matches_it() {
     }
     assert!(
         worst < 0.05,
-        "the untrained residual actor is {worst} from the follower"
+        "the untrained residual actor is {worst} from its base"
     );
     // After some updates the exported policy (with its base) still acts as tch does.
     let batch = random_batch(&mut rng, dim, 256);

@@ -136,7 +136,8 @@ pub struct PlanOptions {
     /// this floor state, never one measurably worse than another available; Regulated Pure
     /// Pursuit until the robot's policy has been measured there), `hybrid` (the policy, the
     /// classical follower taking over near obstacles), `hybrid_rpp` (the policy, Regulated
-    /// Pure Pursuit taking over), `rpp` (Nav2's Regulated Pure Pursuit), `mppi` (Nav2's MPPI),
+    /// Pure Pursuit taking over), `hybrid_path` (the same, the policy steering to a carrot on
+    /// the smoothed path instead of to each waypoint), `rpp` (Nav2's Regulated Pure Pursuit), `mppi` (Nav2's MPPI),
     /// `follower` (the thesis's rotate-then-go follower) or `shielded_follower`. The answer's
     /// `controller_choice` says which drove and why.
     pub controller: ControllerOption,
@@ -172,6 +173,8 @@ pub enum ControllerOption {
     Hybrid,
     /// The policy behind the shield, Regulated Pure Pursuit taking over near obstacles.
     HybridRpp,
+    /// The same with the policy steering to a carrot on the smoothed roadmap path.
+    HybridPath,
     /// Nav2's Regulated Pure Pursuit on the smoothed roadmap path, behind the shield.
     Rpp,
     /// Nav2's MPPI on the smoothed roadmap path, behind the shield.
@@ -190,6 +193,7 @@ impl ControllerOption {
             ControllerOption::Auto => return None,
             ControllerOption::Hybrid => C::Hybrid,
             ControllerOption::HybridRpp => C::HybridRpp,
+            ControllerOption::HybridPath => C::HybridPath,
             ControllerOption::Rpp => C::Rpp,
             ControllerOption::Mppi => C::Mppi,
             ControllerOption::Follower => C::Follower,
@@ -204,6 +208,7 @@ impl From<rehearsal::ControllerChoice> for ControllerOption {
         match c {
             C::Hybrid => ControllerOption::Hybrid,
             C::HybridRpp => ControllerOption::HybridRpp,
+            C::HybridPath => ControllerOption::HybridPath,
             C::Rpp => ControllerOption::Rpp,
             C::Mppi => ControllerOption::Mppi,
             C::Follower => ControllerOption::Follower,
