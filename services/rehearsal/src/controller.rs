@@ -187,8 +187,10 @@ pub const HANDOVER_MARGIN_M: f64 = 0.3;
 /// move forward with their velocity (from consecutive scans). 4: the shield tells what the map
 /// knows from what it does not (people), keeps further from the latter and lets them stop
 /// anywhere on their way, and the follower a policy hands over to stops for them (and for walls
-/// at the last moment).
-pub const POLICY_CONTROLLER_REVISION: u32 = 4;
+/// at the last moment). 5: Regulated Pure Pursuit, when it is the follower handed over to, is
+/// held by the shield as it is on its own (it turns away from a wall it was left facing), and
+/// the policy may steer to a carrot on the smoothed path.
+pub const POLICY_CONTROLLER_REVISION: u32 = 5;
 
 /// How far ahead on the smoothed path [`PolicyController::on_smoothed_path`] puts the policy's
 /// goal, metres: the distance the robot covers at its top speed (0.8 m/s) in Nav2 RPP's
@@ -293,38 +295,53 @@ impl Controller for PolicyController {
             }
         });
         self.handed_over = false;
+        let angular_max = f64::from(self.policy.scaling().angular_max);
+        // What holds the follower back: Regulated Pure Pursuit is held as it is behind the
+        // shield on its own (it may have to turn away from a wall it was left facing); the
+        // segment follower keeps to the roadmap, so only the last moment holds it.
+        let rpp = self.handover.as_ref().is_some_and(|h| h.rpp.is_some());
+        let hold = |shield: &Shield, world: Option<&World>, fc: Action| match world {
+            Some(w) if !rpp => shield.filter_follower(fc, obs, pose, w),
+            _ if rpp => shield.filter(fc, obs, angular_max),
+            _ => fc,
+        };
         if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
             if h.until == Some(waypoint) {
                 self.handed_over = true;
-                return match (&self.shield, &self.world) {
-                    (Some(s), Some(w)) => s.filter_follower(fc, obs, pose, w),
-                    _ => fc,
+                return match &self.shield {
+                    Some(s) => hold(s, self.world.as_deref(), fc),
+                    None => fc,
                 };
             }
             h.until = None;
         }
         // On the smoothed path, the policy's goal is the carrot, not the vertex (the
-        // observation's goal is f32, as the environment's).
+        // observation's goal is f32, as the environment's). Where the path doubles back
+        // within the look-ahead, the carrot lies behind the robot on the way back while the
+        // vertex is still ahead: the vertex is then the goal, as without the carrot.
         let carrot_obs;
-        let obs = match (
+        let carrot = match (
             self.carrot_m,
             self.handover.as_ref().and_then(|h| h.rpp.as_ref()),
         ) {
-            (Some(l), Some(rpp)) => match rpp.carrot(pose, l) {
-                Some(c) => {
-                    carrot_obs = Observation {
-                        #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
-                        goal_distance: sim::norm(c.0 - pose.x, c.1 - pose.y) as f32,
-                        #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
-                        goal_angle: sim::kinematics::wrap_angle(
-                            (c.1 - pose.y).atan2(c.0 - pose.x) - pose.yaw,
-                        ) as f32,
-                        ..obs.clone()
-                    };
-                    &carrot_obs
-                }
-                None => obs,
-            },
+            (Some(l), Some(rpp)) => rpp.carrot(pose, l),
+            _ => None,
+        };
+        let bearing = |p: (f64, f64)| (p.1 - pose.y).atan2(p.0 - pose.x);
+        let ahead = |p: (f64, f64)| {
+            sim::kinematics::wrap_angle(bearing(p) - pose.yaw).abs() < std::f64::consts::FRAC_PI_2
+        };
+        let obs = match carrot {
+            Some(c) if !ahead(waypoint) || ahead(c) => {
+                carrot_obs = Observation {
+                    #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
+                    goal_distance: sim::norm(c.0 - pose.x, c.1 - pose.y) as f32,
+                    #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
+                    goal_angle: sim::kinematics::wrap_angle(bearing(c) - pose.yaw) as f32,
+                    ..obs.clone()
+                };
+                &carrot_obs
+            }
             _ => obs,
         };
         let bearing = f64::from(obs.goal_angle);
@@ -347,16 +364,13 @@ impl Controller for PolicyController {
         let Some(shield) = &self.shield else {
             return wanted;
         };
-        let filtered = shield.filter(wanted, obs, f64::from(self.policy.scaling().angular_max));
+        let filtered = shield.filter(wanted, obs, angular_max);
         if let (Some(h), Some(fc)) = (&mut self.handover, follow)
             && (filtered != wanted || !shield.keeps_margin(wanted, obs, h.margin_m))
         {
             h.until = Some(waypoint);
             self.handed_over = true;
-            return match &self.world {
-                Some(w) => shield.filter_follower(fc, obs, pose, w),
-                None => fc,
-            };
+            return hold(shield, self.world.as_deref(), fc);
         }
         filtered
     }

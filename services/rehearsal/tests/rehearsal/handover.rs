@@ -184,6 +184,30 @@ fn on_the_smoothed_path_the_policy_turns_before_a_vertex_and_passes_it() {
 }
 
 #[test]
+fn where_the_path_doubles_back_the_policy_drives_to_the_vertex_ahead() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let policy = goal_seeking(tmp.path());
+    let world = fixtures::worlds::walled_room();
+    let beams = policy.scaling().beams;
+    // East 1.1 m, then back west past the start: the carrot 1.2 m on is behind the robot.
+    let start = Pose2::new(1.5, 1.5, 0.0);
+    let tip = Point2::new(2.6, 1.5);
+    let mut c = PolicyController::on_smoothed_path(Arc::clone(&policy));
+    c.attach(&world, beams);
+    c.start_attempt(1);
+    c.start_path(start, &[tip, Point2::new(0.6, 1.6)]);
+    let obs = Observation {
+        ranges: vec![5.0; beams],
+        goal_distance: 1.1,
+        goal_angle: 0.0,
+        velocity: [0.0, 0.0],
+    };
+    let a = c.command(&obs, start, (tip.x, tip.y));
+    // Towards the vertex ahead, not turning on the spot towards the carrot behind.
+    assert!(a.linear > 0.3 && a.angular.abs() < 0.2, "{a:?}");
+}
+
+#[test]
 fn on_the_smoothed_path_the_policy_drives_an_l_sooner() {
     let tmp = tempfile::tempdir().expect("tmp");
     let policy = goal_seeking(tmp.path());
