@@ -463,6 +463,22 @@ async fn a_policy_exported_again_replaces_the_loaded_one() {
         // Another modification time for the next export, whatever the file system's clock.
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
+    // The policy on the smoothed path, asked for by name.
+    let mut on_path = request.clone();
+    on_path["options"]["controller"] = json!("hybrid_path");
+    let (status, body) = plan(&app, &on_path).await;
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["controller"], "policy", "{body}");
+    assert_eq!(
+        body["controller_choice"]["controller"], "hybrid_path",
+        "{body}"
+    );
+    let description = body["controller_description"].as_str().unwrap();
+    assert!(
+        description.contains("m ahead on the smoothed roadmap path")
+            && description.contains("Regulated Pure Pursuit"),
+        "{description}"
+    );
     app.stop().await;
 }
 

@@ -449,8 +449,11 @@ impl Controller for PolicyController {
                 h.margin_m
             ));
         }
+        let goal = self.carrot_m.map_or_else(String::new, |l| {
+            format!(" steering to the point {l} m ahead on the smoothed roadmap path")
+        });
         format!(
-            "TD3 actor ({} beams, hidden {:?}{steps}){shield}",
+            "TD3 actor ({} beams, hidden {:?}{steps}){goal}{shield}",
             m.scaling.beams, m.hidden
         )
     }
