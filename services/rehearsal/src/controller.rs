@@ -153,7 +153,20 @@ pub struct PolicyController {
     /// Steering the policy to a point this far ahead on the smoothed roadmap path instead of
     /// to the waypoint, metres ([`PolicyController::on_smoothed_path`]).
     carrot_m: Option<f64>,
+    /// The policy's progress to its waypoint: the waypoint, the nearest it has come, and the
+    /// policy's steps since it came nearer by [`POLICY_PROGRESS_M`].
+    progress: Option<((f64, f64), f64, u32)>,
 }
+
+/// What the policy must gain on its waypoint within [`POLICY_STALL_STEPS`] steps, metres, or
+/// the follower takes over to that waypoint: a policy that dithers in place (turning left and
+/// right with no speed, as a reactive policy can where its goal is to one side) never comes
+/// near anything, so no other handover rule frees it.
+pub const POLICY_PROGRESS_M: f64 = 0.25;
+/// Control steps (0.1 s each) the policy has to gain [`POLICY_PROGRESS_M`]: 3 s, in which the
+/// robot at its top speed (0.8 m/s) covers 2.4 m. Set from the robot's speed, not measured on a
+/// map.
+pub const POLICY_STALL_STEPS: u32 = 30;
 
 /// What the collision shield of both controllers does, in words.
 pub(crate) fn shield_description() -> String {
@@ -231,6 +244,7 @@ impl PolicyController {
             }),
             handed_over: false,
             carrot_m: None,
+            progress: None,
         }
     }
 
@@ -358,6 +372,29 @@ impl Controller for PolicyController {
                 angular: dir * f64::from(self.policy.scaling().angular_max),
             };
         }
+        // Progress while the policy drives: none for too long, and the follower takes over.
+        let d = sim::norm(waypoint.0 - pose.x, waypoint.1 - pose.y);
+        let stalled = match &mut self.progress {
+            Some((w, best, steps)) if *w == waypoint => {
+                if d < *best - POLICY_PROGRESS_M {
+                    (*best, *steps) = (d, 0);
+                } else {
+                    *steps += 1;
+                }
+                *steps >= POLICY_STALL_STEPS
+            }
+            _ => {
+                self.progress = Some((waypoint, d, 0));
+                false
+            }
+        };
+        if stalled
+            && let (Some(h), Some(fc), Some(shield)) = (&mut self.handover, follow, &self.shield)
+        {
+            h.until = Some(waypoint);
+            self.handed_over = true;
+            return hold(shield, self.world.as_deref(), fc);
+        }
         // The executor checks the beam count before it starts, so this cannot fail; should it,
         // stopping is the safe command.
         let wanted = self.policy.act(obs).unwrap_or_default();
@@ -380,6 +417,7 @@ impl Controller for PolicyController {
     }
 
     fn start_attempt(&mut self, attempt: u32) {
+        self.progress = None;
         self.aligning = None;
         self.handed_over = false;
         if let Some(shield) = &mut self.shield {

@@ -15,15 +15,54 @@ use sim::{Action, Observation, Pose2};
 
 /// A policy whose network ignores its input: full speed ahead (sigmoid(8) ≈ 1), no turning.
 fn straight_ahead(dir: &std::path::Path) -> Arc<Policy> {
+    constant(dir, 8.0)
+}
+
+/// A policy whose network ignores its input: linear output sigmoid(`linear`), no turning.
+fn constant(dir: &std::path::Path, linear: f32) -> Arc<Policy> {
     let scaling = learning::Scaling::default();
     let inputs = scaling.input_len();
     let meta = learning::policy::PolicyMetadata::new(scaling, vec![2], serde_json::json!({}));
     let layers = [
         (vec![0.0f32; 2 * inputs], vec![0.0f32; 2]),
-        (vec![0.0f32; 4], vec![8.0f32, 0.0]),
+        (vec![0.0f32; 4], vec![linear, 0.0]),
     ];
     learning::policy::write_policy(dir, &meta, &layers).expect("written");
     Arc::new(Policy::load(dir).expect("loads"))
+}
+
+#[test]
+fn a_policy_that_makes_no_progress_hands_over_to_the_follower() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    // Standing still in open space: nothing near, so no other rule hands over.
+    let mut c = PolicyController::new(constant(tmp.path(), -12.0));
+    let world = fixtures::worlds::walled_room();
+    let beams = learning::Scaling::default().beams;
+    c.attach(&world, beams);
+    c.start_attempt(1);
+    let open = Observation {
+        ranges: vec![5.0; beams],
+        goal_distance: 3.0,
+        goal_angle: 0.0,
+        velocity: [0.0; 2],
+    };
+    let here = Pose2::new(1.0, 1.0, 0.0);
+    for _ in 0..rehearsal::POLICY_STALL_STEPS {
+        let a = c.command(&open, here, (4.0, 1.0));
+        assert!(!c.handed_over() && a.linear < 0.01, "{a:?}");
+    }
+    // No gain on the waypoint for 3 s: the follower drives to it.
+    let a = c.command(&open, here, (4.0, 1.0));
+    assert!(c.handed_over() && a.linear > 0.0, "{a:?}");
+    // A policy that gains on its waypoint keeps driving.
+    let mut c = PolicyController::new(straight_ahead(tmp.path()));
+    c.attach(&world, beams);
+    c.start_attempt(1);
+    for k in 0..(2 * rehearsal::POLICY_STALL_STEPS) {
+        let x = 1.0 + 0.03 * f64::from(k);
+        c.command(&open, Pose2::new(x, 1.0, 0.0), (4.0, 1.0));
+        assert!(!c.handed_over(), "step {k}");
+    }
 }
 
 #[test]
