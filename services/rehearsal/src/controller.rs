@@ -310,14 +310,15 @@ impl Controller for PolicyController {
         });
         self.handed_over = false;
         let angular_max = f64::from(self.policy.scaling().angular_max);
-        // What holds the follower back: Regulated Pure Pursuit is held as it is behind the
-        // shield on its own (it may have to turn away from a wall it was left facing); the
-        // segment follower keeps to the roadmap, so only the last moment holds it.
+        // What holds the follower back (seeing the waypoint, not the carrot): Regulated Pure
+        // Pursuit is held as it is behind the shield on its own (it may have to turn away from
+        // a wall it was left facing); the segment follower keeps to the roadmap, so only the
+        // last moment holds it.
         let rpp = self.handover.as_ref().is_some_and(|h| h.rpp.is_some());
-        let hold = |shield: &Shield, world: Option<&World>, fc: Action| match world {
-            Some(w) if !rpp => shield.filter_follower(fc, obs, pose, w),
-            _ if rpp => shield.filter(fc, obs, angular_max),
-            _ => fc,
+        let hold = |shield: &Shield, world: Option<&World>, fc: Action| match (rpp, world) {
+            (true, _) => shield.filter(fc, obs, angular_max),
+            (false, Some(w)) => shield.filter_follower(fc, obs, pose, w),
+            (false, None) => fc,
         };
         if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
             if h.until == Some(waypoint) {
@@ -341,9 +342,9 @@ impl Controller for PolicyController {
             (Some(l), Some(rpp)) => rpp.carrot(pose, l),
             _ => None,
         };
-        let bearing = |p: (f64, f64)| (p.1 - pose.y).atan2(p.0 - pose.x);
+        let towards = |p: (f64, f64)| (p.1 - pose.y).atan2(p.0 - pose.x);
         let ahead = |p: (f64, f64)| {
-            sim::kinematics::wrap_angle(bearing(p) - pose.yaw).abs() < std::f64::consts::FRAC_PI_2
+            sim::kinematics::wrap_angle(towards(p) - pose.yaw).abs() < std::f64::consts::FRAC_PI_2
         };
         let obs = match carrot {
             Some(c) if !ahead(waypoint) || ahead(c) => {
@@ -351,7 +352,7 @@ impl Controller for PolicyController {
                     #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
                     goal_distance: sim::norm(c.0 - pose.x, c.1 - pose.y) as f32,
                     #[allow(clippy::cast_possible_truncation, reason = "f32 observations")]
-                    goal_angle: sim::kinematics::wrap_angle(bearing(c) - pose.yaw) as f32,
+                    goal_angle: sim::kinematics::wrap_angle(towards(c) - pose.yaw) as f32,
                     ..obs.clone()
                 };
                 &carrot_obs
@@ -369,7 +370,7 @@ impl Controller for PolicyController {
         if let Some(dir) = turn {
             return Action {
                 linear: 0.0,
-                angular: dir * f64::from(self.policy.scaling().angular_max),
+                angular: dir * angular_max,
             };
         }
         // Progress while the policy drives: none for too long, and the follower takes over.
