@@ -217,19 +217,13 @@ pub(super) fn run_map(
             if let Some(i) = latency_of {
                 validate_ms[i].push(elapsed);
             }
-            rows.push(row(methods[0], name, run, &first));
-            if let Some(&m) = methods.get(1) {
-                rows.push(row(m, name, run, &last));
-            }
-            if opts.verbose {
-                eprintln!(
-                    "  run {run}: {} {} {:.1} m {:.1} s ({elapsed:.0} ms)",
-                    methods[0],
-                    first.0.outcome.as_str(),
-                    first.0.distance_m,
-                    first.0.simulated_time_s,
-                );
-            }
+            push_rows(
+                &mut rows,
+                methods,
+                (name, run),
+                (&first, &last),
+                opts.verbose,
+            );
         }
         if wants("classical_mppi_shielded") {
             let mut mppi = MppiController::new(seed);
@@ -313,18 +307,13 @@ pub(super) fn run_map(
                     }
                     Err(e) => return Err(plan_err(name, &e)),
                 };
-                rows.push(row(methods[0], name, run, &first));
-                if let Some(&m) = methods.get(1) {
-                    rows.push(row(m, name, run, &last));
-                }
-                if opts.verbose {
-                    eprintln!(
-                        "  run {run}: {} {} {:.1} s",
-                        methods[0],
-                        first.0.outcome.as_str(),
-                        first.0.simulated_time_s
-                    );
-                }
+                push_rows(
+                    &mut rows,
+                    methods,
+                    (name, run),
+                    (&first, &last),
+                    opts.verbose,
+                );
             }
         }
         if !wants("pure_rl") {
@@ -399,6 +388,30 @@ pub(super) fn run_map(
         edges: policy_map.map(|(_, e)| e),
         mppi: mppi_cycles,
     })
+}
+
+/// The rows of one validation: its first attempt as `methods[0]`, its last as `methods[1]`
+/// when the method has one.
+fn push_rows(
+    rows: &mut Vec<NavigationRow>,
+    methods: &[&'static str],
+    (name, run): (&str, usize),
+    (first, last): (&Attempt, &Attempt),
+    verbose: bool,
+) {
+    rows.push(row(methods[0], name, run, first));
+    if let Some(&m) = methods.get(1) {
+        rows.push(row(m, name, run, last));
+    }
+    if verbose {
+        eprintln!(
+            "  run {run}: {} {} {:.1} m {:.1} s",
+            methods[0],
+            first.0.outcome.as_str(),
+            first.0.distance_m,
+            first.0.simulated_time_s
+        );
+    }
 }
 
 fn plan_err(name: &str, e: &PlanError) -> BenchError {

@@ -31,21 +31,30 @@ fn constant(dir: &std::path::Path, linear: f32) -> Arc<Policy> {
     Arc::new(Policy::load(dir).expect("loads"))
 }
 
+/// `c` attached to `world` with the default beams, its first attempt begun.
+fn ready(mut c: PolicyController, world: &Arc<sim::World>) -> PolicyController {
+    c.attach(world, learning::Scaling::default().beams);
+    c.start_attempt(1);
+    c
+}
+
+/// Nothing within 5 m, the waypoint 3 m straight ahead, the robot at rest.
+fn open_space() -> Observation {
+    Observation {
+        ranges: vec![5.0; learning::Scaling::default().beams],
+        goal_distance: 3.0,
+        goal_angle: 0.0,
+        velocity: [0.0; 2],
+    }
+}
+
 #[test]
 fn a_policy_that_makes_no_progress_hands_over_to_the_follower() {
     let tmp = tempfile::tempdir().expect("tmp");
     // Standing still in open space: nothing near, so no other rule hands over.
-    let mut c = PolicyController::new(constant(tmp.path(), -12.0));
     let world = fixtures::worlds::walled_room();
-    let beams = learning::Scaling::default().beams;
-    c.attach(&world, beams);
-    c.start_attempt(1);
-    let open = Observation {
-        ranges: vec![5.0; beams],
-        goal_distance: 3.0,
-        goal_angle: 0.0,
-        velocity: [0.0; 2],
-    };
+    let mut c = ready(PolicyController::new(constant(tmp.path(), -12.0)), &world);
+    let open = open_space();
     let here = Pose2::new(1.0, 1.0, 0.0);
     for _ in 0..rehearsal::POLICY_STALL_STEPS {
         let a = c.command(&open, here, (4.0, 1.0));
@@ -55,9 +64,7 @@ fn a_policy_that_makes_no_progress_hands_over_to_the_follower() {
     let a = c.command(&open, here, (4.0, 1.0));
     assert!(c.handed_over() && a.linear > 0.0, "{a:?}");
     // A policy that gains on its waypoint keeps driving.
-    let mut c = PolicyController::new(straight_ahead(tmp.path()));
-    c.attach(&world, beams);
-    c.start_attempt(1);
+    let mut c = ready(PolicyController::new(straight_ahead(tmp.path())), &world);
     for k in 0..(2 * rehearsal::POLICY_STALL_STEPS) {
         let x = 1.0 + 0.03 * f64::from(k);
         c.command(&open, Pose2::new(x, 1.0, 0.0), (4.0, 1.0));
@@ -129,16 +136,9 @@ fn the_follower_takes_over_where_the_policy_would_press_on_a_wall() {
 fn the_handover_lasts_until_the_next_waypoint() {
     let tmp = tempfile::tempdir().expect("tmp");
     let world = fixtures::worlds::walled_room();
-    let mut c = PolicyController::new(straight_ahead(tmp.path()));
+    let mut c = ready(PolicyController::new(straight_ahead(tmp.path())), &world);
     let beams = learning::Scaling::default().beams;
-    c.attach(&world, beams);
-    c.start_attempt(1);
-    let open = Observation {
-        ranges: vec![5.0; beams],
-        goal_distance: 3.0,
-        goal_angle: 0.0,
-        velocity: [0.0; 2],
-    };
+    let open = open_space();
     let here = Pose2::new(1.0, 1.0, 0.0);
     // Open space: the policy's own command, full speed ahead.
     let a = c.command(&open, here, (4.0, 1.0));
