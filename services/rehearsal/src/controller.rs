@@ -202,8 +202,10 @@ pub const HANDOVER_MARGIN_M: f64 = 0.3;
 /// anywhere on their way, and the follower a policy hands over to stops for them (and for walls
 /// at the last moment). 5: Regulated Pure Pursuit, when it is the follower handed over to, is
 /// held by the shield as it is on its own (it turns away from a wall it was left facing), and
-/// the policy may steer to a carrot on the smoothed path.
-pub const POLICY_CONTROLLER_REVISION: u32 = 5;
+/// the policy may steer to a carrot on the smoothed path. 6: the policy drives again once its
+/// own command has kept the handover margin for [`HAND_BACK_STEPS`] (it waited for the next
+/// waypoint).
+pub const POLICY_CONTROLLER_REVISION: u32 = 6;
 
 /// How far ahead on the smoothed path [`PolicyController::on_smoothed_path`] puts the policy's
 /// goal, metres: the distance the robot covers at its top speed (0.8 m/s) in Nav2 RPP's
@@ -219,7 +221,19 @@ struct Handover {
     margin_m: f64,
     /// The waypoint the follower drives to since it took over.
     until: Option<(f64, f64)>,
+    /// Whether it took over because the policy came too near what the laser sees (rather
+    /// than because the policy made no progress), and for how many steps since then the
+    /// policy's own command has kept the margin ([`HAND_BACK_STEPS`]).
+    near: bool,
+    clear_steps: u32,
 }
+
+/// Control steps (0.1 s each) the policy's own command must keep the handover margin, while
+/// the follower drives after a handover near something, before the policy drives again: one
+/// second, so that the policy does not take back a wall it was just turned away from. Before,
+/// the follower kept the robot to the waypoint, so on a long roadmap edge down a corridor the
+/// follower drove most of the way.
+pub const HAND_BACK_STEPS: u32 = 10;
 
 impl PolicyController {
     /// A controller running `policy` behind the collision shield, the classical follower
@@ -241,6 +255,8 @@ impl PolicyController {
                 rpp: None,
                 margin_m,
                 until: None,
+                near: false,
+                clear_steps: 0,
             }),
             handed_over: false,
             carrot_m: None,
@@ -320,16 +336,6 @@ impl Controller for PolicyController {
             (false, Some(w)) => shield.filter_follower(fc, obs, pose, w),
             (false, None) => fc,
         };
-        if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
-            if h.until == Some(waypoint) {
-                self.handed_over = true;
-                return match &self.shield {
-                    Some(s) => hold(s, self.world.as_deref(), fc),
-                    None => fc,
-                };
-            }
-            h.until = None;
-        }
         // On the smoothed path, the policy's goal is the carrot, not the vertex (the
         // observation's goal is f32, as the environment's). Where the path doubles back
         // within the look-ahead, the carrot lies behind the robot on the way back while the
@@ -359,6 +365,28 @@ impl Controller for PolicyController {
             }
             _ => obs,
         };
+        if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
+            if h.until == Some(waypoint) {
+                // Taken over near something: the policy drives again once its own command has
+                // kept the margin for a second (it is not the policy's turn when it stalled).
+                let clear = h.near
+                    && self.shield.as_ref().is_some_and(|s| {
+                        let wanted = self.policy.act(obs).unwrap_or_default();
+                        s.filter(wanted, obs, angular_max) == wanted
+                            && s.keeps_margin(wanted, obs, h.margin_m)
+                    });
+                h.clear_steps = if clear { h.clear_steps + 1 } else { 0 };
+                if h.clear_steps < HAND_BACK_STEPS {
+                    self.handed_over = true;
+                    return match &self.shield {
+                        Some(s) => hold(s, self.world.as_deref(), fc),
+                        None => fc,
+                    };
+                }
+                self.aligning = None;
+            }
+            h.until = None;
+        }
         let bearing = f64::from(obs.goal_angle);
         let turn = match self.aligning {
             Some(dir) if bearing.abs() > ALIGN_DONE_RAD => Some(dir),
@@ -392,7 +420,7 @@ impl Controller for PolicyController {
         if stalled
             && let (Some(h), Some(fc), Some(shield)) = (&mut self.handover, follow, &self.shield)
         {
-            h.until = Some(waypoint);
+            (h.until, h.near, h.clear_steps) = (Some(waypoint), false, 0);
             self.handed_over = true;
             return hold(shield, self.world.as_deref(), fc);
         }
@@ -406,7 +434,7 @@ impl Controller for PolicyController {
         if let (Some(h), Some(fc)) = (&mut self.handover, follow)
             && (filtered != wanted || !shield.keeps_margin(wanted, obs, h.margin_m))
         {
-            h.until = Some(waypoint);
+            (h.until, h.near, h.clear_steps) = (Some(waypoint), true, 0);
             self.handed_over = true;
             return hold(shield, self.world.as_deref(), fc);
         }

@@ -48,9 +48,9 @@ pub mod types;
 pub use among::{AmongReport, drive_among};
 pub use cache::{CacheStats, RoadmapCache, SpaceEntry};
 pub use controller::{
-    ClassicalFollower, Controller, FollowerParams, HANDOVER_MARGIN_M, POLICY_CARROT_M,
-    POLICY_CONTROLLER_REVISION, POLICY_PROGRESS_M, POLICY_STALL_STEPS, PolicyController, Shield,
-    ShieldedFollower,
+    ClassicalFollower, Controller, FollowerParams, HAND_BACK_STEPS, HANDOVER_MARGIN_M,
+    POLICY_CARROT_M, POLICY_CONTROLLER_REVISION, POLICY_PROGRESS_M, POLICY_STALL_STEPS,
+    PolicyController, Shield, ShieldedFollower,
 };
 pub use edges::{
     EdgeReport, EdgeRolloutParams, EdgeStat, NEAR_MISS_M, UNKEPT_PENALTY_M, drive_edges,

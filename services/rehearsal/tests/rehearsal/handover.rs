@@ -60,9 +60,14 @@ fn a_policy_that_makes_no_progress_hands_over_to_the_follower() {
         let a = c.command(&open, here, (4.0, 1.0));
         assert!(!c.handed_over() && a.linear < 0.01, "{a:?}");
     }
-    // No gain on the waypoint for 3 s: the follower drives to it.
+    // No gain on the waypoint for 3 s: the follower drives to it, and keeps it however clear
+    // the way is (the policy, not the way, was the trouble).
     let a = c.command(&open, here, (4.0, 1.0));
     assert!(c.handed_over() && a.linear > 0.0, "{a:?}");
+    for _ in 0..(2 * rehearsal::HAND_BACK_STEPS) {
+        c.command(&open, here, (4.0, 1.0));
+        assert!(c.handed_over());
+    }
     // A policy that gains on its waypoint keeps driving.
     let mut c = ready(PolicyController::new(straight_ahead(tmp.path())), &world);
     for k in 0..(2 * rehearsal::POLICY_STALL_STEPS) {
@@ -133,7 +138,7 @@ fn the_follower_takes_over_where_the_policy_would_press_on_a_wall() {
 }
 
 #[test]
-fn the_handover_lasts_until_the_next_waypoint() {
+fn the_handover_lasts_until_the_policy_keeps_the_margin_or_the_next_waypoint() {
     let tmp = tempfile::tempdir().expect("tmp");
     let world = fixtures::worlds::walled_room();
     let mut c = ready(PolicyController::new(straight_ahead(tmp.path())), &world);
@@ -148,10 +153,25 @@ fn the_handover_lasts_until_the_next_waypoint() {
     wall.ranges[beams / 2] = 0.5;
     c.command(&wall, here, (4.0, 1.0));
     assert!(c.handed_over());
-    // It keeps driving to that waypoint even where the laser sees open space again...
-    c.command(&open, here, (4.0, 1.0));
+    // It keeps driving while the laser sees open space again, for a second...
+    for k in 1..rehearsal::HAND_BACK_STEPS {
+        c.command(&open, here, (4.0, 1.0));
+        assert!(c.handed_over(), "step {k}");
+    }
+    // ...after which the policy, its own command clear all that time, drives again.
+    let a = c.command(&open, here, (4.0, 1.0));
+    assert!(!c.handed_over() && a.linear > 0.7, "{a:?}");
+    // A wall seen again within that second starts the count afresh.
+    c.command(&wall, here, (4.0, 1.0));
+    for _ in 0..(rehearsal::HAND_BACK_STEPS - 1) {
+        c.command(&open, here, (4.0, 1.0));
+    }
+    c.command(&wall, here, (4.0, 1.0));
+    for _ in 0..(rehearsal::HAND_BACK_STEPS - 1) {
+        c.command(&open, here, (4.0, 1.0));
+    }
     assert!(c.handed_over());
-    // ...and the policy gets the next one.
+    // The next waypoint is the policy's at once.
     let a = c.command(&open, Pose2::new(4.0, 1.0, 0.0), (7.0, 1.0));
     assert!(!c.handed_over() && a.linear > 0.7, "{a:?}");
     // A new attempt starts with the policy.
