@@ -229,8 +229,8 @@ struct Handover {
 }
 
 /// Control steps (0.1 s each) the policy's own command must keep the handover margin, while
-/// the follower drives after a handover near something, before the policy drives again: one
-/// second, so that the policy does not take back a wall it was just turned away from. Before,
+/// the follower drives after a handover near something and no person is within personal space
+/// ([`crate::social::PERSONAL_M`]), before the policy drives again: one second, so that the policy does not take back a wall it was just turned away from. Before,
 /// the follower kept the robot to the waypoint, so on a long roadmap edge down a corridor the
 /// follower drove most of the way.
 pub const HAND_BACK_STEPS: u32 = 10;
@@ -368,9 +368,13 @@ impl Controller for PolicyController {
         if let (Some(h), Some(fc)) = (&mut self.handover, follow) {
             if h.until == Some(waypoint) {
                 // Taken over near something: the policy drives again once its own command has
-                // kept the margin for a second (it is not the policy's turn when it stalled).
+                // kept the margin for a second, with no person within personal space (it is
+                // not the policy's turn when it stalled).
                 let clear = h.near
                     && self.shield.as_ref().is_some_and(|s| {
+                        if s.sees_unknown_within(obs, crate::social::PERSONAL_M) {
+                            return false;
+                        }
                         let wanted = self.policy.act(obs).unwrap_or_default();
                         s.filter(wanted, obs, angular_max) == wanted
                             && s.keeps_margin(wanted, obs, h.margin_m)

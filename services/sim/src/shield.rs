@@ -329,6 +329,14 @@ impl Shield {
         out
     }
 
+    /// Whether the laser sees a return the map does not know (a person) within `gap` metres
+    /// of the footprint (as of the last [`Shield::observe_on_map`] of this scan).
+    pub fn sees_unknown_within(&self, obs: &Observation, gap: f64) -> bool {
+        self.returns(obs)
+            .iter()
+            .any(|p| p.unknown && crate::norm(p.at.0, p.at.1) - self.radius < gap)
+    }
+
     /// Whether anything the shield sees is moving.
     pub fn sees_motion(&self) -> bool {
         self.motion

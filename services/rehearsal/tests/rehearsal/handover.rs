@@ -171,6 +171,14 @@ fn the_handover_lasts_until_the_policy_keeps_the_margin_or_the_next_waypoint() {
         c.command(&open, here, (4.0, 1.0));
     }
     assert!(c.handed_over());
+    // A person within personal space (a return the map does not know, 1 m away ahead to the
+    // left, clear of the policy's way): the follower keeps the wheel.
+    let mut person = open.clone();
+    person.ranges[beams * 3 / 4] = 1.0;
+    for _ in 0..(2 * rehearsal::HAND_BACK_STEPS) {
+        c.command(&person, here, (4.0, 1.0));
+        assert!(c.handed_over());
+    }
     // The next waypoint is the policy's at once.
     let a = c.command(&open, Pose2::new(4.0, 1.0, 0.0), (7.0, 1.0));
     assert!(!c.handed_over() && a.linear > 0.7, "{a:?}");
