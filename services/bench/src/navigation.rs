@@ -121,8 +121,9 @@ impl Default for NavigationBenchOptions {
 }
 
 /// The methods, in table order. `hybrid_prm_rl` is what `POST /v1/plan` runs: the policy
-/// behind the collision shield (`rehearsal::Shield`), the classical follower taking over to the
-/// next waypoint near obstacles (`rehearsal::HANDOVER_MARGIN_M`);
+/// behind the collision shield (`rehearsal::Shield`), the classical follower taking over near
+/// obstacles (`rehearsal::HANDOVER_MARGIN_M`) until the policy keeps the margin again
+/// (`rehearsal::HAND_BACK_STEPS`) or the next waypoint;
 /// `hybrid_prm_rl_no_handover` is the same policy behind the shield alone (the ablation, first
 /// attempt); `hybrid_unshielded` is the paper's
 /// hybrid, the policy's commands sent to the wheels unchanged; `*_resampled` is the same with

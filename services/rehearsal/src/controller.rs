@@ -515,9 +515,12 @@ impl Controller for PolicyController {
                 "the classical follower"
             };
             shield.push_str(&format!(
-                ", {who} taking over to the waypoint where the policy would \
-                 come within {} m of what the laser sees",
-                h.margin_m
+                ", {who} taking over where the policy would come within {} m of \
+                 what the laser sees, until the policy's own command has kept that margin for \
+                 {} s with no person within {} m, or the next waypoint",
+                h.margin_m,
+                f64::from(HAND_BACK_STEPS) * CONTROL_PERIOD_S,
+                crate::social::PERSONAL_M
             ));
         }
         let goal = self.carrot_m.map_or_else(String::new, |l| {

@@ -235,7 +235,7 @@ pub(super) fn to_markdown(
         ),
     }
     s.push_str(
-        "Methods: `hybrid_prm_rl` = the policy through the roadmap's waypoints (15 s timer, replanning) behind the collision shield, the classical follower taking over to the next waypoint where the policy would come within 0.3 m of what the laser sees, first attempt only — the paper's measure; `hybrid_prm_rl_no_handover` = the same without the follower's handover (the shield alone); `hybrid_policy_roadmap` = the same controller on the policy-aware roadmap (PRM-RL, below), first attempt, and `_resampled` with re-tries; `hybrid_unshielded` = the paper's hybrid, the policy's commands unchanged; `hybrid_prm_rl_resampled` = the plan endpoint's behaviour, up to ",
+        "Methods: `hybrid_prm_rl` = the policy through the roadmap's waypoints (15 s timer, replanning) behind the collision shield, the classical follower taking over where the policy would come within 0.3 m of what the laser sees, until the policy's own command has kept that margin for 1 s with no person within 1.2 m or the next waypoint, first attempt only — the paper's measure; `hybrid_prm_rl_no_handover` = the same without the follower's handover (the shield alone); `hybrid_policy_roadmap` = the same controller on the policy-aware roadmap (PRM-RL, below), first attempt, and `_resampled` with re-tries; `hybrid_unshielded` = the paper's hybrid, the policy's commands unchanged; `hybrid_prm_rl_resampled` = the plan endpoint's behaviour, up to ",
     );
     let _ = write!(s, "{}", opts.max_attempts);
     s.push_str(
