@@ -10,8 +10,11 @@
 //!
 //! The pick ([`ControllerTrial::pick`]): candidates are compared in pairs, mission by mission
 //! (a candidate wins a mission when it reached the goal and the other did not, or both did and
-//! it was more than 1% faster), and one replaces the current pick only when it wins more
-//! missions and a one-sided sign test over the decisive missions gives p < 0.05. The classical
+//! it was more than 1% faster), and one replaces the current pick only when its wins outweigh
+//! its losses and a one-sided Wilcoxon signed-rank test over the decisive missions gives
+//! p < 0.05: the missions are ranked by how much the two differed (the ratio of their times; a
+//! mission only one of them reached ranks above all), so a consistent gain of a few percent
+//! counts, where a count of wins (a sign test) needs three in four missions won. The classical
 //! controllers come first, so where the policy does not do measurably better, a classical
 //! controller validates the plan: the learning has not earned its place on that floor yet.
 //! Without a trial (no policy, or its roadmap job has not finished), `auto` is Regulated Pure
@@ -30,7 +33,8 @@ use sim::{Pose2, World};
 pub const DEFAULT_TRIAL_MISSIONS: u32 = 16;
 /// Most missions a trial may drive.
 pub const MAX_TRIAL_MISSIONS: u32 = 200;
-/// Significance a candidate must reach to replace the current pick (one-sided sign test).
+/// Significance a candidate must reach to replace the current pick (one-sided Wilcoxon
+/// signed-rank test).
 pub const SIGNIFICANCE: f64 = 0.05;
 /// A candidate that reached in both runs wins a mission only when it was faster by more than
 /// this share of the other's time.
@@ -112,21 +116,84 @@ pub struct ControllerPick {
     pub why: String,
 }
 
-/// Upper tail of the binomial distribution with p = ½: P(X ≥ k) for X ~ B(n, ½).
-fn sign_test(n: usize, k: usize) -> f64 {
-    if k == 0 {
-        return 1.0;
+/// One-sided Wilcoxon signed-rank test of paired differences `d` (zeros left out; infinities
+/// rank above every finite difference): the sums of the ranks of the positive and of the
+/// negative differences (tied differences share their mean rank), and P(W⁺ ≥ observed) when
+/// each difference's sign is + or − with probability ½, computed exactly over the ranks.
+fn signed_rank(d: &[f64]) -> (f64, f64, f64) {
+    let mut nonzero: Vec<f64> = d.iter().copied().filter(|x| *x != 0.0).collect();
+    if nonzero.is_empty() {
+        return (0.0, 0.0, 1.0);
     }
-    // Computed in logs: n is a few hundred at most.
-    let ln_choose = |n: usize, k: usize| -> f64 {
-        (1..=k)
-            .map(|i| ((n - k + i) as f64).ln() - (i as f64).ln())
-            .sum()
-    };
-    (k..=n)
-        .map(|i| (ln_choose(n, i) - n as f64 * std::f64::consts::LN_2).exp())
-        .sum::<f64>()
-        .min(1.0)
+    nonzero.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
+    // Doubled ranks (tied groups share their mean, a multiple of ½): whole numbers.
+    let n = nonzero.len();
+    let mut doubled = vec![0usize; n];
+    let mut i = 0;
+    while i < n {
+        let mut j = i;
+        while j + 1 < n && nonzero[j + 1].abs() == nonzero[i].abs() {
+            j += 1;
+        }
+        // Ranks i+1 ..= j+1, their mean doubled.
+        for r in &mut doubled[i..=j] {
+            *r = i + j + 2;
+        }
+        i = j + 1;
+    }
+    let observed: usize = nonzero
+        .iter()
+        .zip(&doubled)
+        .filter(|(x, _)| **x > 0.0)
+        .map(|(_, r)| r)
+        .sum();
+    let total: usize = doubled.iter().sum();
+    // Distribution of the doubled W⁺ over the 2ⁿ sign patterns, as probabilities.
+    let mut dist = vec![0.0f64; total + 1];
+    dist[0] = 1.0;
+    let mut reach = 0;
+    for &r in &doubled {
+        for sum in (0..=reach).rev() {
+            let p = dist[sum] * 0.5;
+            dist[sum] = p;
+            dist[sum + r] += p;
+        }
+        reach += r;
+    }
+    let p = dist[observed..].iter().sum::<f64>().min(1.0);
+    (observed as f64 / 2.0, (total - observed) as f64 / 2.0, p)
+}
+
+/// How a challenger `x` did against the pick so far `y` on one mission: the log of the ratio
+/// of their times (positive: the challenger faster), ±∞ where only one reached, 0 where neither
+/// did or their times were within [`TIME_MARGIN`].
+fn difference(x: &MissionRun, y: &MissionRun) -> f64 {
+    match (x.time_s, y.time_s) {
+        (Some(tx), Some(ty)) if tx < ty * (1.0 - TIME_MARGIN) || ty < tx * (1.0 - TIME_MARGIN) => {
+            (ty / tx).ln()
+        }
+        (Some(_), None) => f64::INFINITY,
+        (None, Some(_)) => f64::NEG_INFINITY,
+        _ => 0.0,
+    }
+}
+
+/// The challenger's differences from the pick so far over the missions both ran, and `more`
+/// missions it would win by the most (the best it could still do).
+fn differences(a: &CandidateFigures, b: &CandidateFigures, more: usize) -> Vec<f64> {
+    a.runs
+        .iter()
+        .zip(&b.runs)
+        .map(|(x, y)| difference(x, y))
+        .chain(std::iter::repeat_n(f64::INFINITY, more))
+        .collect()
+}
+
+/// Whether differences `d` show the challenger measurably better: its ranks outweigh the
+/// pick's and the signed-rank test gives p < [`SIGNIFICANCE`]; with the test's p.
+fn measurably_better(d: &[f64]) -> (bool, f64) {
+    let (plus, minus, p) = signed_rank(d);
+    (plus > minus && p < SIGNIFICANCE, p)
 }
 
 /// How `a` and `b` compare over the missions both ran: the missions each won.
@@ -162,8 +229,8 @@ impl ControllerTrial {
         let mut decided = None;
         for challenger in order {
             let (w, l) = wins(challenger, best);
-            let p = sign_test(w + l, w);
-            if w > l && p < SIGNIFICANCE {
+            let (better, p) = measurably_better(&differences(challenger, best, 0));
+            if better {
                 decided = Some((
                     challenger.controller.clone(),
                     best.controller.clone(),
@@ -196,11 +263,11 @@ impl ControllerTrial {
             .join(", ");
         let verdict = match decided {
             Some((winner, loser, w, l, p)) if winner == best.controller => format!(
-                "{winner} beat {loser} on {w} of {} decisive missions (sign test p = {p:.3})",
+                "{winner} beat {loser} on {w} of {} decisive missions (Wilcoxon signed-rank p = {p:.3})",
                 w + l
             ),
             _ => format!(
-                "no controller did measurably better than {} (sign test, p < {SIGNIFICANCE})",
+                "no controller did measurably better than {} (Wilcoxon signed-rank test on the missions' times, p < {SIGNIFICANCE})",
                 best.controller
             ),
         };
@@ -302,13 +369,11 @@ pub struct TrialFloor<'a> {
 }
 
 /// Whether `challenger`, having run the first `runs.len()` of `missions` missions, can no
-/// longer replace `best` even by winning every remaining one (a curtailed sign test): then
-/// the rest are not driven.
+/// longer replace `best` even by winning every remaining one by the largest margin (reaching
+/// where `best` did not; a curtailed test): then the rest are not driven.
 fn futile(challenger: &CandidateFigures, best: &CandidateFigures, missions: usize) -> bool {
-    let (w, l) = wins(challenger, best);
     let remaining = missions.saturating_sub(challenger.runs.len());
-    let most = w + remaining;
-    !(most > l && sign_test(most + l, most) < SIGNIFICANCE)
+    !measurably_better(&differences(challenger, best, remaining)).0
 }
 
 /// Drives `missions` with every candidate of [`AUTO_ORDER`] that `floor` can drive, one attempt
@@ -444,11 +509,43 @@ mod tests {
     }
 
     #[test]
-    fn the_sign_test_matches_the_binomial_tail() {
-        assert!((sign_test(10, 10) - 1.0 / 1024.0).abs() < 1e-12);
-        assert!((sign_test(10, 9) - 11.0 / 1024.0).abs() < 1e-12);
-        assert!((sign_test(4, 0) - 1.0).abs() < 1e-12);
-        assert!((sign_test(16, 12) - 0.038_406_372).abs() < 1e-6);
+    fn the_signed_rank_test_counts_the_sign_patterns() {
+        // Ten differences, all positive: one pattern in 1024 reaches that sum.
+        let all: Vec<f64> = (1..=10).map(f64::from).collect();
+        let (plus, minus, p) = signed_rank(&all);
+        assert_eq!((plus, minus), (55.0, 0.0));
+        assert!((p - 1.0 / 1024.0).abs() < 1e-12);
+        // Ranks 1..4, the two largest positive: W+ = 7, reached by 5 of 16 subsets.
+        let (plus, _, p) = signed_rank(&[-0.1, -0.2, 0.3, 0.4]);
+        assert_eq!(plus, 7.0);
+        assert!((p - 5.0 / 16.0).abs() < 1e-12);
+        // All tied (every mission reached by one only): the sign test's binomial tail.
+        let mut tied = vec![f64::INFINITY; 12];
+        tied.extend([f64::NEG_INFINITY; 4]);
+        let (_, _, p) = signed_rank(&tied);
+        assert!((p - 0.038_406_372).abs() < 1e-6, "{p}");
+        // Zeros (ties within the margin, or neither reached) are left out.
+        assert_eq!(signed_rank(&[0.0, 0.0]), (0.0, 0.0, 1.0));
+    }
+
+    #[test]
+    fn a_consistent_small_gain_is_measured_where_wins_alone_are_not() {
+        // 16 missions: 10.0 s against 9.0 s on ten (10% faster), 10.0 against 10.3 on six: ten
+        // wins of sixteen are no majority a sign test accepts (p = 0.23).
+        let rpp = figures("rpp", &[Some(10.0); 16]);
+        let times: Vec<Option<f64>> = (0..16)
+            .map(|i| Some(if i % 3 == 0 { 10.3 } else { 9.0 }))
+            .collect();
+        let hybrid = figures("hybrid", &times);
+        let (w, l) = wins(&hybrid, &rpp);
+        assert_eq!((w, l), (10, 6));
+        let pick = trial(vec![rpp, hybrid]).pick(|_| true).unwrap();
+        assert_eq!(pick.choice, ControllerChoice::Hybrid, "{}", pick.why);
+        assert!(
+            pick.why.contains("Wilcoxon signed-rank p = 0.0"),
+            "{}",
+            pick.why
+        );
     }
 
     #[test]

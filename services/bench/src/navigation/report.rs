@@ -300,7 +300,7 @@ pub(super) fn to_markdown(
                 e.build_s
             );
         }
-        s.push_str("\n## What `options.controller: auto` picks\n\nThe controller trial the `roadmap` job drives after the edges (`planner::controllers`): 16 missions between the geometric roadmap's nodes, each driven once by every candidate with the same seeds, among this run's people; a candidate replaces the classical pick only when it wins more missions and a one-sided sign test gives p < 0.05. `plan_endpoint` validates with this pick.\n\n| Map | Pick | Why | Trial (s) |\n|---|---|---|---|\n");
+        s.push_str("\n## What `options.controller: auto` picks\n\nThe controller trial the `roadmap` job drives after the edges (`planner::controllers`): 16 missions between the geometric roadmap's nodes, each driven once by every candidate with the same seeds, among this run's people; a candidate replaces the classical pick only when its wins outweigh its losses and a one-sided Wilcoxon signed-rank test on the missions' times gives p < 0.05. `plan_endpoint` validates with this pick.\n\n| Map | Pick | Why | Trial (s) |\n|---|---|---|---|\n");
         for e in edges {
             let _ = writeln!(
                 s,
