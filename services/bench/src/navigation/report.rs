@@ -359,6 +359,43 @@ pub(super) fn to_markdown(
     s
 }
 
+/// How `method`'s mean time on success compares with `baseline`'s map by map: the mean of the
+/// per-map ratios, their range and standard error, in words. One map's ratio is one draw of
+/// routes (a method on the policy-aware roadmap drives that map's one roadmap in every run), so
+/// the spread over maps says how far the mean can be trusted. `None` below two maps.
+fn per_map_ratio(rows: &[NavigationRow], method: &str, baseline: &str) -> Option<String> {
+    let mean_time = |m: &str, map: &str| {
+        let t: Vec<f64> = rows
+            .iter()
+            .filter(|r| r.method == m && r.map == map && r.success)
+            .map(|r| r.time_s)
+            .collect();
+        (!t.is_empty()).then(|| t.iter().sum::<f64>() / t.len() as f64)
+    };
+    let mut maps: Vec<&str> = rows.iter().map(|r| r.map.as_str()).collect();
+    maps.sort_unstable();
+    maps.dedup();
+    let ratios: Vec<f64> = maps
+        .iter()
+        .filter_map(|map| Some(mean_time(method, map)? / mean_time(baseline, map)?))
+        .collect();
+    let n = ratios.len();
+    if n < 2 {
+        return None;
+    }
+    let mean = ratios.iter().sum::<f64>() / n as f64;
+    let var = ratios.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    let se = (var / n as f64).sqrt();
+    let (lo, hi) = ratios
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
+            (a.min(*r), b.max(*r))
+        });
+    Some(format!(
+        "per map, its mean time over `{baseline}`'s: {mean:.2} on average ({lo:.2}–{hi:.2}, standard error {se:.3} over {n} maps)"
+    ))
+}
+
 /// The targets, checked on these runs: each hybrid on the policy-aware roadmap against
 /// the better of the shielded Regulated Pure Pursuit and MPPI (by mean time on success).
 fn verdict(s: &mut String, rows: &[NavigationRow], people: f64) {
@@ -419,6 +456,9 @@ fn verdict(s: &mut String, rows: &[NavigationRow], people: f64) {
             100.0 * speed_target,
             yes(faster.is_some_and(|f| f >= speed_target))
         );
+        if let Some(spread) = per_map_ratio(rows, name, best) {
+            let _ = writeln!(s, "- {spread}");
+        }
         if people > 0.0 {
             let _ = writeln!(
                 s,
@@ -438,5 +478,51 @@ fn verdict(s: &mut String, rows: &[NavigationRow], people: f64) {
                 yes(matches!((h, c), (Some(h), Some(c)) if h <= c))
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(method: &'static str, map: &str, success: bool, time_s: f64) -> NavigationRow {
+        NavigationRow {
+            method,
+            map: map.to_owned(),
+            run: 0,
+            success,
+            distance_m: 1.0,
+            time_s,
+            reason: String::new(),
+            fallback_legs: 0,
+            person_collision: false,
+            min_person_clearance_m: None,
+            intimate_intrusions: 0,
+            personal_intrusions: 0,
+            path_length_m: 1.0,
+            time_not_moving_s: 0.0,
+            recoveries: 0,
+        }
+    }
+
+    #[test]
+    fn per_map_ratios_show_their_spread() {
+        let rows = [
+            row("a", "m1", true, 8.0),
+            row("a", "m1", true, 10.0),
+            row("a", "m1", false, 1.0),
+            row("b", "m1", true, 10.0),
+            row("a", "m2", true, 12.0),
+            row("b", "m2", true, 10.0),
+            // Only one method reached on m3: left out.
+            row("b", "m3", true, 10.0),
+        ];
+        // m1: 9 / 10, m2: 12 / 10; mean 1.05, sample sd 0.212, standard error 0.150.
+        let s = per_map_ratio(&rows, "a", "b").expect("two maps");
+        assert!(
+            s.contains("1.05 on average (0.90–1.20, standard error 0.150 over 2 maps)"),
+            "{s}"
+        );
+        assert!(per_map_ratio(&rows[..4], "a", "b").is_none());
     }
 }
