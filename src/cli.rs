@@ -270,6 +270,10 @@ pub enum BenchCommand {
         /// Run only these methods (comma-separated names from the table; all by default).
         #[arg(long, value_delimiter = ',')]
         methods: Vec<String>,
+        /// Every method's roadmap path with its detours removed (the plan endpoint's
+        /// `options.shortcut`; `auto`'s trial keeps its own default).
+        #[arg(long)]
+        shortcut: bool,
     },
     /// Per-edge success of policies on every roadmap edge of every map under a directory (both
     /// directions, K rollouts each), the classical follower beside them with the same seeds
@@ -800,6 +804,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             people,
             seed,
             methods,
+            shortcut,
         } => {
             if !(safety_margin_m.is_finite() && (0.0..=5.0).contains(&safety_margin_m)) {
                 anyhow::bail!("--safety-margin-m must lie in [0, 5] metres, got {safety_margin_m}");
@@ -818,6 +823,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 seed,
                 verbose: true,
                 methods,
+                shortcut,
                 ..Default::default()
             };
             let report = bench::navigation::run_navigation_bench(options)?;

@@ -87,6 +87,8 @@ pub struct NavigationBenchOptions {
     pub people: f64,
     /// The methods to run (names from [`METHODS`]); empty for all of them.
     pub methods: Vec<String>,
+    /// Every method's roadmap path with its detours removed (`PlanOptions::shortcut`).
+    pub shortcut: bool,
 }
 
 impl NavigationBenchOptions {
@@ -116,6 +118,7 @@ impl Default for NavigationBenchOptions {
             verbose: false,
             people: 0.0,
             methods: Vec::new(),
+            shortcut: false,
         }
     }
 }

@@ -226,6 +226,9 @@ pub(super) fn to_markdown(
         opts.people,
         opts.seed
     );
+    if opts.shortcut {
+        s.push_str("Every method's roadmap path has its detours removed (`--shortcut`: each waypoint joined to the farthest one in straight sight, the plan endpoint's `options.shortcut`); `auto`'s trial keeps the default.\n\n");
+    }
     match &opts.policy {
         Some(p) => {
             let _ = writeln!(s, "Policy: `{}`.\n", p.display());

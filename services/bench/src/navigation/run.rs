@@ -149,6 +149,7 @@ pub(super) fn run_map(
                 roadmap_salt: salt,
                 trajectory_stride: 0,
                 people: people.clone(),
+                shortcut: opts.shortcut,
                 ..PlanOptions::default()
             },
             stop: rehearsal::Stop::default(),

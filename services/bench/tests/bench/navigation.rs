@@ -184,6 +184,22 @@ fn the_benchmark_writes_table_3_for_every_method() {
     assert_eq!(ran, ["classical_rpp_shielded", "hybrid_policy_path"]);
     assert!(report.markdown.contains("`hybrid_policy_path`:"));
     assert!(!report.markdown.contains("MPPI's cost per control cycle"));
+    // `--shortcut`: every method's roadmap path without its detours, and the header says so.
+    let long = run_navigation_bench(only(&["classical_rpp_shielded"])).expect("runs");
+    let short = run_navigation_bench(NavigationBenchOptions {
+        shortcut: true,
+        ..only(&["classical_rpp_shielded"])
+    })
+    .expect("runs");
+    assert!(short.markdown.contains("`--shortcut`"));
+    assert!(!long.markdown.contains("`--shortcut`"));
+    let driven = |r: &bench::navigation::NavigationBenchReport| r.rows[0].path_length_m;
+    assert!(
+        driven(&short) <= driven(&long) + 0.05,
+        "{} against {}",
+        driven(&short),
+        driven(&long)
+    );
     let e = run_navigation_bench(only(&["hybrid", "rpp"])).expect_err("unknown");
     assert!(
         e.to_string().contains("\"hybrid\"") && e.to_string().contains("hybrid_policy_path"),
