@@ -274,6 +274,10 @@ pub enum BenchCommand {
         /// `options.shortcut`; `auto`'s trial keeps its own default).
         #[arg(long)]
         shortcut: bool,
+        /// Build the policy-aware roadmap again in every run on that run's geometric roadmap
+        /// (the classical methods'), not once per map.
+        #[arg(long)]
+        policy_roadmap_per_run: bool,
     },
     /// Per-edge success of policies on every roadmap edge of every map under a directory (both
     /// directions, K rollouts each), the classical follower beside them with the same seeds
@@ -805,6 +809,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             seed,
             methods,
             shortcut,
+            policy_roadmap_per_run,
         } => {
             if !(safety_margin_m.is_finite() && (0.0..=5.0).contains(&safety_margin_m)) {
                 anyhow::bail!("--safety-margin-m must lie in [0, 5] metres, got {safety_margin_m}");
@@ -824,6 +829,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
                 verbose: true,
                 methods,
                 shortcut,
+                policy_roadmap_per_run,
                 ..Default::default()
             };
             let report = bench::navigation::run_navigation_bench(options)?;

@@ -89,6 +89,11 @@ pub struct NavigationBenchOptions {
     pub methods: Vec<String>,
     /// Every method's roadmap path with its detours removed (`PlanOptions::shortcut`).
     pub shortcut: bool,
+    /// Build the policy-aware roadmap again in every run, on that run's geometric roadmap (the
+    /// one the classical methods drive), instead of once per map: the hybrids' routes then
+    /// differ from the classical ones' only where the policy's edge measurements send them
+    /// elsewhere, not by another draw of samples. The controller trial stays once per map.
+    pub policy_roadmap_per_run: bool,
 }
 
 impl NavigationBenchOptions {
@@ -119,6 +124,7 @@ impl Default for NavigationBenchOptions {
             people: 0.0,
             methods: Vec::new(),
             shortcut: false,
+            policy_roadmap_per_run: false,
         }
     }
 }

@@ -229,6 +229,9 @@ pub(super) fn to_markdown(
     if opts.shortcut {
         s.push_str("Every method's roadmap path has its detours removed (`--shortcut`: each waypoint joined to the farthest one in straight sight, the plan endpoint's `options.shortcut`); `auto`'s trial keeps the default.\n\n");
     }
+    if opts.policy_roadmap_per_run {
+        s.push_str("The policy-aware roadmap is built again in every run on that run's geometric roadmap, the one the classical methods drive (`--policy-roadmap-per-run`); the controller trial and the edge table below are the first build's.\n\n");
+    }
     match &opts.policy {
         Some(p) => {
             let _ = writeln!(s, "Policy: `{}`.\n", p.display());

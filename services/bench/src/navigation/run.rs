@@ -48,8 +48,14 @@ pub(super) fn run_map(
     let mut validate_ms: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
     let mut mppi_cycles = MppiCycles::default();
     let mut build_ms = Vec::new();
-    // One policy-aware roadmap per map (on the first run's geometric roadmap): its rollouts are
-    // the expensive part, built once per (floor, policy) as the service would.
+    // One policy-aware roadmap per map (on a geometric roadmap of its own seed): its rollouts
+    // are the expensive part, built once per (floor, policy) as the service would; with
+    // `policy_roadmap_per_run`, another one per run on that run's geometric roadmap (below).
+    let rollout = rehearsal::EdgeRolloutParams {
+        waypoint_timeout_s: opts.waypoint_timeout_s,
+        seed: opts.seed,
+        ..rehearsal::EdgeRolloutParams::default()
+    };
     let on_policy_roadmap = [
         "plan_endpoint",
         "hybrid_policy_roadmap",
@@ -68,17 +74,8 @@ pub(super) fn run_map(
             let (geometric, _) = cache
                 .roadmap(name, &space, &params)
                 .map_err(|e| plan_err(name, &e))?;
-            let rollout = rehearsal::EdgeRolloutParams {
-                waypoint_timeout_s: opts.waypoint_timeout_s,
-                seed: opts.seed,
-                ..rehearsal::EdgeRolloutParams::default()
-            };
-            let (_, report) = rehearsal::policy_roadmap(world, &geometric, p, &rollout)
-                .map_err(|e| plan_err(name, &e))?;
-            // What the plan endpoint's `auto` plans on: every measured direction, the unkept
-            // ones only where the kept ones join no route.
-            let roadmap = rehearsal::reweight_with_unkept(&geometric, &report)
-                .map_err(|e| plan_err(name, &e))?;
+            let (roadmap, report) =
+                policy_aware(world, &geometric, p, &rollout).map_err(|e| plan_err(name, &e))?;
             let build_s = t.elapsed().as_secs_f64();
             // The controller trial the `roadmap` job drives after the edges, here among the
             // bench's people: what `plan_endpoint` (`options.controller: auto`) validates with.
@@ -162,10 +159,20 @@ pub(super) fn run_map(
             seed: seed ^ salt,
             ..PrmParams::default()
         };
-        cache
+        let (geometric, _) = cache
             .roadmap(name, &space, &params)
             .map_err(|e| plan_err(name, &e))?;
         build_ms.push(ms(t));
+        // The policy-aware roadmap this run's hybrids plan on: the map's, or this run's own.
+        let run_policy_map = match (&policy_map, policy) {
+            (Some((_, edges)), Some(p)) if opts.policy_roadmap_per_run => {
+                let (roadmap, _) =
+                    policy_aware(world, &geometric, p, &rollout).map_err(|e| plan_err(name, &e))?;
+                Some((roadmap, edges))
+            }
+            (Some((roadmap, edges)), _) => Some((Arc::clone(roadmap), edges)),
+            _ => None,
+        };
 
         // The plain rehearsal of each controller on the first roadmap: its first attempt (and
         // its last, re-sampled, where the method has one).
@@ -236,7 +243,7 @@ pub(super) fn run_map(
         let Some(policy) = policy else {
             continue;
         };
-        if let Some((roadmap, edges)) = &policy_map
+        if let Some((roadmap, edges)) = &run_policy_map
             && wants("plan_endpoint")
         {
             rows.push(endpoint_row(
@@ -249,7 +256,7 @@ pub(super) fn run_map(
                 (edges.auto.choice, roadmap),
             )?);
         }
-        if let Some((roadmap, _)) = &policy_map {
+        if let Some((roadmap, _)) = &run_policy_map {
             let on_roadmap: [(&[&'static str], PolicyController); 3] = [
                 (
                     &["hybrid_policy_roadmap", "hybrid_policy_roadmap_resampled"],
@@ -564,4 +571,18 @@ fn row(method: &'static str, map: &str, run: usize, (a, d): &Attempt) -> Navigat
         time_not_moving_s: social.time_not_moving_s,
         recoveries: d.as_ref().map_or(0, |d| d.recoveries.len()),
     }
+}
+
+/// The policy-aware roadmap of `geometric` as the plan endpoint's `auto` plans on it: every edge
+/// driven by `policy` ([`rehearsal::policy_roadmap`]), every measured direction kept, the unkept
+/// ones only where the kept ones join no route; with the edges' report.
+fn policy_aware(
+    world: &Arc<World>,
+    geometric: &planning::Roadmap,
+    policy: &Arc<Policy>,
+    rollout: &rehearsal::EdgeRolloutParams,
+) -> Result<(Arc<planning::Roadmap>, rehearsal::EdgeReport), PlanError> {
+    let (_, report) = rehearsal::policy_roadmap(world, geometric, policy, rollout)?;
+    let roadmap = rehearsal::reweight_with_unkept(geometric, &report)?;
+    Ok((roadmap, report))
 }

@@ -200,6 +200,15 @@ fn the_benchmark_writes_table_3_for_every_method() {
         driven(&short),
         driven(&long)
     );
+    // `--policy-roadmap-per-run`: the hybrids plan on each run's own policy-aware roadmap.
+    let per_run = run_navigation_bench(NavigationBenchOptions {
+        runs: 2,
+        policy_roadmap_per_run: true,
+        ..only(&["hybrid_policy_path", "classical_rpp_shielded"])
+    })
+    .expect("runs");
+    assert!(per_run.markdown.contains("`--policy-roadmap-per-run`"));
+    assert_eq!(per_run.rows.len(), 4);
     let e = run_navigation_bench(only(&["hybrid", "rpp"])).expect_err("unknown");
     assert!(
         e.to_string().contains("\"hybrid\"") && e.to_string().contains("hybrid_policy_path"),
