@@ -768,11 +768,18 @@ impl Crowd {
             let (to, room) = if p.room - step - ROOM_SLACK_M >= p.radius {
                 (candidates[0], p.room - step)
             } else {
+                // A slide along a wall is not the velocity ORCA chose: it may not take the
+                // person nearer the robot once within its personal space.
+                let gap = |q: (f64, f64)| {
+                    norm(q.0 - robot.position.0, q.1 - robot.position.1) - robot.radius - p.radius
+                };
+                let keep = gap(from).min(PERSONAL_SPACE_M);
                 candidates
                     .into_iter()
-                    .map(|c| (c, wall_room(world, c)))
-                    .find(|(_, room)| *room >= p.radius)
-                    .unwrap_or((from, p.room))
+                    .enumerate()
+                    .map(|(k, c)| (k, c, wall_room(world, c)))
+                    .find(|(k, c, room)| *room >= p.radius && (*k == 0 || gap(*c) >= keep))
+                    .map_or((from, p.room), |(_, c, room)| (c, room))
             };
             p.room = room;
             p.velocity = ((to.0 - from.0) / dt, (to.1 - from.1) / dt);
