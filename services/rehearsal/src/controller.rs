@@ -230,9 +230,10 @@ struct Handover {
 
 /// Control steps (0.1 s each) the policy's own command must keep the handover margin, while
 /// the follower drives after a handover near something and no person is within personal space
-/// ([`crate::social::PERSONAL_M`]), before the policy drives again: one second, so that the policy does not take back a wall it was just turned away from. Before,
-/// the follower kept the robot to the waypoint, so on a long roadmap edge down a corridor the
-/// follower drove most of the way.
+/// ([`crate::social::PERSONAL_M`]), before the policy drives again: one second, so that the
+/// policy does not take back a wall it was just turned away from. Before, the follower kept
+/// the robot to the waypoint, so on a long roadmap edge down a corridor it drove most of the
+/// way.
 pub const HAND_BACK_STEPS: u32 = 10;
 
 impl PolicyController {
