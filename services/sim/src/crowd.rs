@@ -722,15 +722,17 @@ impl Crowd {
             .collect();
         let mut velocities = Vec::with_capacity(self.people.len());
         let mut neighbours: Vec<Cow<'_, Agent>> = Vec::new();
+        // Positions side by side: the search below reads every one for every person.
+        let positions: Vec<(f64, f64)> = self.people.iter().map(|p| p.position).collect();
         for (i, (p, pref)) in self.people.iter().zip(&preferred).enumerate() {
             neighbours.clear();
             let near = |q: (f64, f64)| {
                 let (dx, dy) = (q.0 - p.position.0, q.1 - p.position.1);
                 dx * dx + dy * dy < NEIGHBOUR_M * NEIGHBOUR_M
             };
-            for (j, a) in agents.iter().enumerate() {
-                if j != i && near(self.people[j].position) {
-                    neighbours.push(Cow::Borrowed(a));
+            for (j, q) in positions.iter().enumerate() {
+                if j != i && near(*q) {
+                    neighbours.push(Cow::Borrowed(&agents[j]));
                 }
             }
             if cfg.yield_to_robot > 0.0 && near(robot.position) {
@@ -804,8 +806,18 @@ impl Crowd {
         if self.people.is_empty() {
             return;
         }
+        // Only people nearer than the longest beam can shorten one.
+        let reach = out.iter().copied().fold(0.0, f64::max);
+        let near: Vec<&Person> = self
+            .people
+            .iter()
+            .filter(|p| norm(p.position.0 - origin.0, p.position.1 - origin.1) - p.radius < reach)
+            .collect();
+        if near.is_empty() {
+            return;
+        }
         for ((dx, dy), range) in dirs.zip(out.iter_mut()) {
-            for p in &self.people {
+            for p in &near {
                 if let Some(t) = ray_circle(origin, (dx, dy), p.position, p.radius) {
                     *range = range.min(t);
                 }
