@@ -217,6 +217,11 @@ impl Planner {
         // A plan the drive among the fleet refuses is fitted again from a later start (the
         // robot standing at its start until then, `later_start_after`), within `max_wait_s`.
         let mut later_s = 0.0f64;
+        // The fits whose drive among the fleet was refused, the floor's version they were
+        // driven at, and why: the drive is deterministic, so the same fit among the same plans
+        // is not driven twice.
+        let mut refused_fits: Vec<(traffic::Itinerary, i64, NoFit)> = Vec::new();
+        let mut drives = 0;
         // A plan refused because a robot with no plan yet stands in its way waits for the
         // floor's schedule to change (that robot's plan), up to `options.standing_wait_s`.
         let waiting_since = std::time::Instant::now();
@@ -297,6 +302,21 @@ impl Planner {
                 later_s,
             );
             let (itinerary, at_steps, waits) = match fitted {
+                // Driven before and refused: a later start at once.
+                Ok((it, _, _))
+                    if refused_fits
+                        .iter()
+                        .any(|(r, v, _)| *r == it && *v == version) =>
+                {
+                    drop(core.take());
+                    let no_fit = refused_fits
+                        .iter()
+                        .find(|(r, v, _)| *r == it && *v == version)
+                        .map(|(_, _, n)| n.clone())
+                        .unwrap_or_else(|| unreachable!("found above"));
+                    later_s = later_start(later_s, &it, start, options, no_fit)?;
+                    continue 'attempts;
+                }
                 Ok(f) => f,
                 Err(e) => {
                     drop(core.take());
@@ -309,6 +329,7 @@ impl Planner {
                     }
                 }
             };
+            let fitted = itinerary.clone();
             let time_at = |k: usize| {
                 let waited: f64 = waits
                     .iter()
@@ -351,6 +372,7 @@ impl Planner {
                     Arc::clone(&robots),
                 );
                 let radius = world.spec().robot.footprint_radius;
+                drives += 1;
                 self.simulating(entry.ticket, core.take(), move || {
                     replay2.among_fresh_draws(&world2, &report2, &robots2, &holds, radius)
                 })
@@ -418,7 +440,6 @@ impl Planner {
                     }
                     Err(e) => return Err(e),
                 };
-                let next = later_start_after(later_s);
                 for r in &no_fit.robots {
                     if !in_the_way.contains(r) {
                         in_the_way.push(r.clone());
@@ -436,16 +457,8 @@ impl Planner {
                         ..no_fit
                     }));
                 }
-                if next > options.max_wait_s {
-                    return Err(PlanFailure::FleetConflict(NoFit {
-                        message: format!(
-                            "{}; starting up to {later_s} s later did not help within `options.max_wait_s` ({} s)",
-                            no_fit.message, options.max_wait_s
-                        ),
-                        ..no_fit
-                    }));
-                }
-                later_s = next;
+                refused_fits.push((fitted.clone(), version, no_fit.clone()));
+                later_s = later_start(later_s, &fitted, start, options, no_fit)?;
                 continue;
             }
             // The times the robot reaches its waypoints are those of the drive committed.
@@ -490,6 +503,7 @@ impl Planner {
                 among,
                 waits,
                 others: others.len(),
+                drives,
                 version,
             })));
         }
@@ -643,6 +657,31 @@ async fn record_standing(
         "the floor's traffic schedule kept changing while the robot's place on it was recorded; retry"
             .to_owned(),
     ))
+}
+
+/// The later start tried after the drive among the fleet of `fitted` (asked to start at
+/// `start_unix_ms`, `later_s` seconds later) was refused (`no_fit`): the next in
+/// [`later_start_after`]'s series, and past the start `fitted` already had (a fit that waited
+/// at its start longer than asked would be fitted the same again); the refusal where that is
+/// beyond `options.max_wait_s`.
+fn later_start(
+    later_s: f64,
+    fitted: &traffic::Itinerary,
+    start_unix_ms: i64,
+    options: &FleetOptions,
+    no_fit: NoFit,
+) -> Result<f64, PlanFailure> {
+    let next = later_start_after(later_s).max(fleet::set_off_s(fitted, start_unix_ms) + 1.0);
+    if next > options.max_wait_s {
+        return Err(PlanFailure::FleetConflict(NoFit {
+            message: format!(
+                "{}; starting up to {later_s} s later did not help within `options.max_wait_s` ({} s)",
+                no_fit.message, options.max_wait_s
+            ),
+            ..no_fit
+        }));
+    }
+    Ok(next)
 }
 
 /// The next later start tried after a drive among the fleet refused one `later_s` seconds late:

@@ -205,6 +205,9 @@ pub struct FleetOutcome {
     pub among: Option<rehearsal::AmongReport>,
     /// Other robots' itineraries it was checked against.
     pub others: usize,
+    /// Drives among the other robots' plans it took (those refused included; 0 when alone on
+    /// the floor with nothing to wait for, where the validating drive is the one).
+    pub drives: u32,
     /// The floor's version after the commit; `None` when not committed.
     pub version: Option<i64>,
 }
@@ -485,6 +488,22 @@ impl Draft<'_> {
 /// [`ROBOT_MARGIN_M`], each robot anywhere within its tolerance of its schedule).
 pub fn first_conflict(itinerary: &Itinerary, others: &[Itinerary]) -> Option<Conflict> {
     first(itinerary, &Reserved::new(others, itinerary.start_unix_ms))
+}
+
+/// When `it`'s robot sets off, seconds after `start_unix_ms`: the end of its first stay at
+/// its first pose (0 where it moves at once).
+pub fn set_off_s(it: &Itinerary, start_unix_ms: i64) -> f64 {
+    let origin = (it.start_unix_ms - start_unix_ms) as f64 / 1000.0;
+    let Some(first) = it.trajectory.first() else {
+        return origin.max(0.0);
+    };
+    let stays = it
+        .trajectory
+        .iter()
+        .take_while(|p| (p.x - first.x).hypot(p.y - first.y) < 1e-6)
+        .last()
+        .map_or(0.0, |p| p.t_s);
+    (origin + stays).max(0.0)
 }
 
 /// The itineraries of `now` that are not in `checked` (committed, replaced or moved by a

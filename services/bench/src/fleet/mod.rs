@@ -152,6 +152,9 @@ pub struct FleetRow {
     pub sum_alone_s: f64,
     /// Total waiting the schedule gave the robots, seconds.
     pub waits_s: f64,
+    /// Drives among the fleet the plans took, refused ones included (each plan at least one
+    /// unless alone on the floor): what a plan costs beyond its validating rehearsal.
+    pub drives_among_fleet: u32,
     /// Plan latency under the concurrent requests, ms.
     pub latency_p50_ms: f64,
     /// Plan latency under the concurrent requests, ms.
@@ -182,6 +185,8 @@ pub struct FleetRobotRow {
     pub latency_ms: f64,
     /// Its plan's waits: (waypoint, `None` for the start; seconds; the robots it let pass).
     pub waits: Vec<(Option<usize>, f64, Vec<String>)>,
+    /// Drives among the fleet its plan took.
+    pub drives: u32,
 }
 
 /// The knowledge of one floor: one on-demand database per robot.
@@ -745,6 +750,7 @@ fn run_floor(
                         .map(|w| (w.waypoint, w.wait_s, w.for_robots.clone()))
                         .collect()
                 }),
+                drives: o.fleet.as_ref().map_or(0, |f| f.drives),
             }
         })
         .collect();
@@ -784,6 +790,11 @@ fn run_floor(
         sum_of_times_s: sum,
         sum_alone_s: sum_alone,
         waits_s,
+        drives_among_fleet: planned
+            .iter()
+            .filter_map(|o| o.fleet.as_ref())
+            .map(|f| f.drives)
+            .sum(),
         latency_p50_ms: percentile(&latencies, 0.5),
         latency_p95_ms: percentile(&latencies, 0.95),
         per_robot,

@@ -254,3 +254,22 @@ fn waypoints_are_found_along_the_steps_in_order() {
     let at = waypoint_steps(&steps, &[Point2::new(3.0, 0.2), Point2::new(10.0, 0.0)]);
     assert_eq!(at, vec![30, steps.len() - 1]);
 }
+
+/// A plan's set-off is the end of its stay at its first pose, on the clock of the start asked
+/// for: so a later start tried after a refused drive goes past the start the fit already gave.
+#[test]
+fn set_off_is_the_end_of_the_first_stay() {
+    let steps = straight((0.0, 0.0), (2.0, 0.0), 0.5, 0.1);
+    let moving_at_once = committed("A", &steps, 0.1, 10_000);
+    assert_eq!(set_off_s(&moving_at_once, 10_000), 0.0);
+    // Committed to start 3 s after the start asked for, waiting 4.5 s there first.
+    let waiting = Draft {
+        steps: &steps,
+        dt: 0.1,
+        waits: vec![(0, 4.5)],
+    }
+    .itinerary(&template("A", 13_000));
+    assert!((set_off_s(&waiting, 10_000) - 7.5).abs() < 1e-9);
+    // A start asked for after the itinerary's own is never before 0.
+    assert_eq!(set_off_s(&moving_at_once, 20_000), 0.0);
+}
