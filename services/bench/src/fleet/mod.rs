@@ -556,6 +556,11 @@ fn run_floor(
         map: name.to_owned(),
         source,
     })?;
+    // The floor's people too (where they walk and each target's path field), shared by every
+    // robot's world alike: a service that has planned among people on the floor has them.
+    if opts.people > 0.0 {
+        world.people_targets().prepare(&world);
+    }
     let people = sim::PeopleConfig {
         density: opts.people,
         ..sim::PeopleConfig::default()
