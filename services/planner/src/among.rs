@@ -301,22 +301,17 @@ impl Planner {
                 options.max_wait_s,
                 later_s,
             );
+            // A fit already driven and refused among the same plans: a later start at once.
+            if let Ok((it, _, _)) = &fitted
+                && let Some((_, _, no_fit)) = refused_fits
+                    .iter()
+                    .find(|(r, v, _)| r == it && *v == version)
+            {
+                drop(core.take());
+                later_s = later_start(later_s, it, start, options, no_fit.clone())?;
+                continue 'attempts;
+            }
             let (itinerary, at_steps, waits) = match fitted {
-                // Driven before and refused: a later start at once.
-                Ok((it, _, _))
-                    if refused_fits
-                        .iter()
-                        .any(|(r, v, _)| *r == it && *v == version) =>
-                {
-                    drop(core.take());
-                    let no_fit = refused_fits
-                        .iter()
-                        .find(|(r, v, _)| *r == it && *v == version)
-                        .map(|(_, _, n)| n.clone())
-                        .unwrap_or_else(|| unreachable!("found above"));
-                    later_s = later_start(later_s, &it, start, options, no_fit)?;
-                    continue 'attempts;
-                }
                 Ok(f) => f,
                 Err(e) => {
                     drop(core.take());
