@@ -20,6 +20,10 @@ const COMMIT_ATTEMPTS: usize = 16;
 /// 1 (plans queue for the lock sooner), 2.2–2.7 s with 16 (plans redriven more often).
 const OPTIMISTIC_COMMITS: usize = 3;
 
+/// Times a plan is fitted again on its own drive among the fleet ([`fleet::Basis`]) before a
+/// drive that arrived too close to another robot's schedule sends it to a later start.
+const REFITS_ON_DRIVE: u32 = 3;
+
 /// How often the floor's schedule is read while waiting for it to change, milliseconds.
 const POLL_MS: u64 = 25;
 
@@ -222,6 +226,10 @@ impl Planner {
         // is not driven twice.
         let mut refused_fits: Vec<(traffic::Itinerary, i64, NoFit)> = Vec::new();
         let mut drives = 0;
+        // After a drive among the fleet that arrived but left the margin to another robot's
+        // schedule, the fit starts from that drive ([`fleet::Basis`]), a few times.
+        let mut basis: Option<fleet::Basis> = None;
+        let mut refits_on_drive = 0;
         // A plan refused because a robot with no plan yet stands in its way waits for the
         // floor's schedule to change (that robot's plan), up to `options.standing_wait_s`.
         let waiting_since = std::time::Instant::now();
@@ -292,14 +300,18 @@ impl Planner {
                     fleet::MAX_ROBOTS_PER_FLOOR
                 )));
             }
+            let (steps, start_wait_s, max_wait_s) = match &basis {
+                Some(b) => (&b.steps, 0.0, options.max_wait_s - b.waited_s()),
+                None => (&report.steps, later_s, options.max_wait_s),
+            };
             let fitted = fleet::fit(
                 &template,
-                &report.steps,
+                steps,
                 report.control_period_s,
                 &report.waypoints,
                 &others,
-                options.max_wait_s,
-                later_s,
+                max_wait_s.max(0.0),
+                start_wait_s,
             );
             // A fit already driven and refused among the same plans: a later start at once.
             if let Ok((it, _, _)) = &fitted
@@ -308,6 +320,7 @@ impl Planner {
                     .find(|(r, v, _)| r == it && *v == version)
             {
                 drop(core.take());
+                basis = None;
                 later_s = later_start(later_s, it, start, options, no_fit.clone())?;
                 continue 'attempts;
             }
@@ -325,15 +338,16 @@ impl Planner {
                 }
             };
             let fitted = itinerary.clone();
+            let fitted_waits = waits;
             let time_at = |k: usize| {
-                let waited: f64 = waits
+                let waited: f64 = fitted_waits
                     .iter()
                     .filter(|(i, _, _)| *i < k)
                     .map(|(_, s, _)| s)
                     .sum();
                 start + ((k as f64 * report.control_period_s + waited) * 1000.0).round() as i64
             };
-            let waits: Vec<fleet::Wait> = waits
+            let waits: Vec<fleet::Wait> = fitted_waits
                 .iter()
                 .map(|(k, s, robots)| fleet::Wait {
                     waypoint: at_steps.iter().position(|a| a == k).filter(|_| *k > 0),
@@ -346,6 +360,14 @@ impl Planner {
                     },
                 })
                 .collect();
+            let waits = match &basis {
+                Some(b) => {
+                    let new_steps: Vec<(usize, f64)> =
+                        fitted_waits.iter().map(|(k, s, _)| (*k, *s)).collect();
+                    fleet::merge_waits(&b.waits, waits, &new_steps, &at_steps)
+                }
+                None => waits,
+            };
             let mut waypoint_times_unix_ms: Vec<i64> =
                 at_steps.iter().map(|&k| time_at(k)).collect();
             // Driven again with its waits while the others drive theirs: a plan that meets
@@ -452,6 +474,20 @@ impl Planner {
                         ..no_fit
                     }));
                 }
+                // Arrived, but leaving the margin to a robot's schedule: fitted again on this
+                // drive, a few times, before a later start.
+                if among.outcome == rehearsal::AttemptOutcome::Reached
+                    && among.met_robot().is_none()
+                    && refits_on_drive < REFITS_ON_DRIVE
+                {
+                    refits_on_drive += 1;
+                    basis = Some(fleet::Basis {
+                        steps: among.steps.clone(),
+                        waits,
+                    });
+                    continue;
+                }
+                basis = None;
                 refused_fits.push((fitted.clone(), version, no_fit.clone()));
                 later_s = later_start(later_s, &fitted, start, options, no_fit)?;
                 continue;

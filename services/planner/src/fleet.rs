@@ -17,9 +17,12 @@
 //!
 //! Then the plan is driven again in the simulation with its waits, while every other robot
 //! drives its committed itinerary in the same simulation ([`simulated_robots`]: footprints the
-//! laser sees, moving along their schedules, as they do not react to this robot); a plan that
-//! touches another robot there, or does not arrive among them (blocked), is fitted again from a
-//! later start, and refused (409, naming the robots) where no start within `max_wait_s` helps.
+//! laser sees, moving along their schedules, as they do not react to this robot). A drive that
+//! arrives but leaves the margin to another robot's schedule (people met at other times than in
+//! the validating drive make it early or late after a wait) is fitted again on itself
+//! ([`Basis`]): waits are added where the margin was lost. A plan that touches another robot
+//! there, or does not arrive among them (blocked), is fitted again from a later start, and
+//! refused (409, naming the robots) where no start within `max_wait_s` helps.
 //! Nothing is committed that was not driven through among the plans it was fitted against.
 //!
 //! Plans on one floor are fitted and driven side by side, each against the schedule it read,
@@ -310,6 +313,72 @@ pub fn holds(waits: &[Wait], start_unix_ms: i64, waypoints: usize) -> Vec<f64> {
         }
     }
     holds
+}
+
+/// The waits of a plan fitted on a drive among the fleet (a [`Basis`]) that already held at
+/// `old`'s points: each old wait later by the new waits `new_steps` (basis step, seconds) put
+/// at or before the step it holds at (`at_steps[j]` for waypoint `j`, 0 for the start), and a
+/// new wait at the same point as an old one merged with it (their seconds added, the later
+/// time, both robots' lists). In the order of the route.
+pub fn merge_waits(
+    old: &[Wait],
+    new: Vec<Wait>,
+    new_steps: &[(usize, f64)],
+    at_steps: &[usize],
+) -> Vec<Wait> {
+    let step_of = |w: &Wait| {
+        w.waypoint
+            .map_or(0, |j| at_steps.get(j).copied().unwrap_or(0))
+    };
+    let mut merged: Vec<Wait> = old
+        .iter()
+        .map(|w| {
+            let at = step_of(w);
+            let shift: f64 = new_steps
+                .iter()
+                .filter(|(k, _)| *k <= at)
+                .map(|(_, s)| s)
+                .sum();
+            Wait {
+                not_before_unix_ms: w.not_before_unix_ms + (shift * 1000.0).round() as i64,
+                ..w.clone()
+            }
+        })
+        .collect();
+    for w in new {
+        match merged.iter_mut().find(|m| m.waypoint == w.waypoint) {
+            Some(m) => {
+                m.wait_s += w.wait_s;
+                m.not_before_unix_ms = m.not_before_unix_ms.max(w.not_before_unix_ms);
+                m.for_robots = dedup(m.for_robots.iter().chain(&w.for_robots).cloned().collect());
+            }
+            None => merged.push(w),
+        }
+    }
+    merged.sort_by_key(|w| w.waypoint.map_or(0, |j| j + 1));
+    merged
+}
+
+/// What a plan is fitted on after its drive among the fleet arrived but left the margin to
+/// another robot's schedule: that drive (its holds included) and its waits. The drive differs
+/// from the validating one after each wait (the people have moved on meanwhile, so a robot
+/// that a person slowed there before may now pass at once): fitted on the validating drive
+/// again, from a later start, the same difference meets the same robot. Fitted on the drive,
+/// the waits added keep the margin where it was lost, and the next drive is the same as this
+/// one up to the first of them.
+#[derive(Debug, Clone)]
+pub struct Basis {
+    /// The drive among the fleet, every control period from the start.
+    pub steps: Vec<Pose2>,
+    /// The waits it was driven with.
+    pub waits: Vec<Wait>,
+}
+
+impl Basis {
+    /// Seconds waited in all.
+    pub fn waited_s(&self) -> f64 {
+        self.waits.iter().map(|w| w.wait_s).sum()
+    }
 }
 
 /// Why no schedule fits.

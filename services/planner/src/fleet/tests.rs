@@ -273,3 +273,38 @@ fn set_off_is_the_end_of_the_first_stay() {
     // A start asked for after the itinerary's own is never before 0.
     assert_eq!(set_off_s(&moving_at_once, 20_000), 0.0);
 }
+
+/// Fitted again on a drive that held at its start and at waypoint 1, with new waits at the
+/// start, at waypoint 1 and at waypoint 2: each old hold ends later by the new waits at or
+/// before it, and waits at one point are one wait.
+#[test]
+fn waits_fitted_on_a_drive_join_the_holds_it_was_driven_with() {
+    let wait = |waypoint: Option<usize>, wait_s: f64, not_before_unix_ms: i64, robot: &str| Wait {
+        waypoint,
+        wait_s,
+        not_before_unix_ms,
+        for_robots: vec![robot.to_owned()],
+    };
+    let old = [wait(None, 2.0, 2_000, "A"), wait(Some(1), 5.0, 20_000, "B")];
+    // Waypoints 0, 1 and 2 reached at steps 50, 150 and 300 of the drive.
+    let at_steps = [50, 150, 300];
+    let new = vec![
+        wait(None, 1.0, 1_000, "C"),
+        wait(Some(1), 3.0, 19_000, "B"),
+        wait(Some(2), 4.0, 40_000, "D"),
+    ];
+    let merged = merge_waits(&old, new, &[(0, 1.0), (150, 3.0), (300, 4.0)], &at_steps);
+    assert_eq!(
+        merged,
+        vec![
+            Wait {
+                for_robots: vec!["A".to_owned(), "C".to_owned()],
+                ..wait(None, 3.0, 3_000, "")
+            },
+            wait(Some(1), 8.0, 24_000, "B"),
+            wait(Some(2), 4.0, 40_000, "D"),
+        ]
+    );
+    // Nothing new: the holds as driven.
+    assert_eq!(merge_waits(&old, Vec::new(), &[], &at_steps), old.to_vec());
+}
