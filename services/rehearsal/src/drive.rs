@@ -207,6 +207,9 @@ pub fn drive(
     let radius = world.spec().robot.footprint_radius;
     let angular_max = env_config.limits.angular_max;
     let mut steps_on_waypoint = 0u64;
+    // The current waypoint, and the closest the robot has come to it since its timer last
+    // restarted.
+    let mut approach = (Point2::new(f64::NAN, f64::NAN), f64::INFINITY);
     let (mut steps, mut handover_steps) = (0u64, 0u64);
     let mut min_clearance = world.clearance(start.x, start.y);
     let mut min_person = (!env.people().is_empty()).then_some(f64::INFINITY);
@@ -295,6 +298,21 @@ pub fn drive(
         );
         if !in_recovery && !holding {
             steps_on_waypoint += 1;
+            // Among people (where the drive has recoveries), the waypoint's timer runs from
+            // the robot's last approach to it, as Nav2's progress checker counts progress: a
+            // robot creeping behind a person walking slowly the same way gets there, and one
+            // that no longer comes closer (blocked, or circling) times out as before.
+            if let Some(params) = &limits.recoveries {
+                if approach.0 != current.0 {
+                    approach = (current.0, f64::INFINITY);
+                }
+                let p = step.info.pose;
+                let d = (p.x - current.0.x).hypot(p.y - current.0.y);
+                if d < approach.1 - params.required_movement_m {
+                    approach.1 = d;
+                    steps_on_waypoint = 0;
+                }
+            }
         }
         let mut outcome = step.info.outcome;
         // A waypoint the controller drove past counts as reached (never a leg's goal).

@@ -390,3 +390,59 @@ fn among_people_a_drive_counts_intrusions_and_time_not_moving() {
     );
     assert!(r.social.time_not_moving_s <= r.time_s + 1e-9);
 }
+
+/// The classical follower held to a crawl, as a robot behind a person walking slowly its way.
+struct Creeper(ClassicalFollower);
+
+impl Controller for Creeper {
+    fn command(&mut self, obs: &Observation, pose: Pose2, waypoint: (f64, f64)) -> Action {
+        let a = self.0.command(obs, pose, waypoint);
+        Action {
+            linear: a.linear.min(0.15),
+            ..a
+        }
+    }
+    fn kind(&self) -> ControllerKind {
+        ControllerKind::Classical
+    }
+    fn description(&self) -> String {
+        "creeps".into()
+    }
+}
+
+/// Among people (with recoveries), a waypoint's timer runs from the robot's last approach to
+/// it, as Nav2's progress checker counts progress: a robot crawling 6 m at 0.15 m/s (40 s, the
+/// timer is 15 s) arrives, with no recovery; without recoveries the timer runs out as before.
+#[test]
+fn a_robot_crawling_towards_its_waypoint_is_not_timed_out_among_people() {
+    let world = open_room(12.0, 8.0);
+    let (start, leg) = (Pose2::new(3.0, 4.0, 0.0), [(9.0, 4.0)]);
+    let timed_out = run(
+        &world,
+        &mut Creeper(ClassicalFollower::default()),
+        start,
+        &leg,
+        None,
+    );
+    assert_eq!(timed_out.outcome, rehearsal::AttemptOutcome::Stalled);
+    assert!(
+        timed_out.reason.contains("not reached within 15 s"),
+        "{}",
+        timed_out.reason
+    );
+    let arrived = run(
+        &world,
+        &mut Creeper(ClassicalFollower::default()),
+        start,
+        &leg,
+        Some(RecoveryParams::default()),
+    );
+    assert_eq!(
+        arrived.outcome,
+        rehearsal::AttemptOutcome::Reached,
+        "{}",
+        arrived.reason
+    );
+    assert!(arrived.time_s > 35.0, "{}", arrived.time_s);
+    assert!(arrived.recoveries.is_empty(), "{:?}", arrived.recoveries);
+}
