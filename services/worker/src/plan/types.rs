@@ -84,7 +84,8 @@ pub struct PlanOptions {
     #[schema(minimum = 1, maximum = 50)]
     pub max_attempts: u32,
     /// The waypoint timer of the paper's §4.2.2: simulated seconds to reach one waypoint before
-    /// the planner replans from where the robot is, in (0, 600] (default 15).
+    /// the planner replans from where the robot is, in (0, 600] (default 15). Among people,
+    /// counted from the robot's last 0.5 m approach to the waypoint (Nav2's progress checker).
     #[schema(exclusive_minimum = 0, maximum = 600)]
     pub waypoint_timeout_s: f64,
     /// Replans allowed within one attempt before it counts as stalled, at most 1000
