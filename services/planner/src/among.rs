@@ -338,16 +338,15 @@ impl Planner {
                 }
             };
             let fitted = itinerary.clone();
-            let fitted_waits = waits;
             let time_at = |k: usize| {
-                let waited: f64 = fitted_waits
+                let waited: f64 = waits
                     .iter()
                     .filter(|(i, _, _)| *i < k)
                     .map(|(_, s, _)| s)
                     .sum();
                 start + ((k as f64 * report.control_period_s + waited) * 1000.0).round() as i64
             };
-            let waits: Vec<fleet::Wait> = fitted_waits
+            let waits: Vec<fleet::Wait> = waits
                 .iter()
                 .map(|(k, s, robots)| fleet::Wait {
                     waypoint: at_steps.iter().position(|a| a == k).filter(|_| *k > 0),
@@ -361,11 +360,7 @@ impl Planner {
                 })
                 .collect();
             let waits = match &basis {
-                Some(b) => {
-                    let new_steps: Vec<(usize, f64)> =
-                        fitted_waits.iter().map(|(k, s, _)| (*k, *s)).collect();
-                    fleet::merge_waits(&b.waits, waits, &new_steps, &at_steps)
-                }
+                Some(b) => fleet::merge_waits(&b.waits, waits, &at_steps),
                 None => waits,
             };
             let mut waypoint_times_unix_ms: Vec<i64> =

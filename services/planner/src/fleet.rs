@@ -316,16 +316,11 @@ pub fn holds(waits: &[Wait], start_unix_ms: i64, waypoints: usize) -> Vec<f64> {
 }
 
 /// The waits of a plan fitted on a drive among the fleet (a [`Basis`]) that already held at
-/// `old`'s points: each old wait later by the new waits `new_steps` (basis step, seconds) put
-/// at or before the step it holds at (`at_steps[j]` for waypoint `j`, 0 for the start), and a
-/// new wait at the same point as an old one merged with it (their seconds added, the later
-/// time, both robots' lists). In the order of the route.
-pub fn merge_waits(
-    old: &[Wait],
-    new: Vec<Wait>,
-    new_steps: &[(usize, f64)],
-    at_steps: &[usize],
-) -> Vec<Wait> {
+/// `old`'s points: each old wait later by the `new` waits at or before the step it holds at
+/// (`at_steps[j]` for waypoint `j`, 0 for the start), and a new wait at the same point as an
+/// old one merged with it (their seconds added, the later time, both robots' lists). In the
+/// order of the route.
+pub fn merge_waits(old: &[Wait], new: Vec<Wait>, at_steps: &[usize]) -> Vec<Wait> {
     let step_of = |w: &Wait| {
         w.waypoint
             .map_or(0, |j| at_steps.get(j).copied().unwrap_or(0))
@@ -334,10 +329,10 @@ pub fn merge_waits(
         .iter()
         .map(|w| {
             let at = step_of(w);
-            let shift: f64 = new_steps
+            let shift: f64 = new
                 .iter()
-                .filter(|(k, _)| *k <= at)
-                .map(|(_, s)| s)
+                .filter(|n| step_of(n) <= at)
+                .map(|n| n.wait_s)
                 .sum();
             Wait {
                 not_before_unix_ms: w.not_before_unix_ms + (shift * 1000.0).round() as i64,

@@ -293,7 +293,7 @@ fn waits_fitted_on_a_drive_join_the_holds_it_was_driven_with() {
         wait(Some(1), 3.0, 19_000, "B"),
         wait(Some(2), 4.0, 40_000, "D"),
     ];
-    let merged = merge_waits(&old, new, &[(0, 1.0), (150, 3.0), (300, 4.0)], &at_steps);
+    let merged = merge_waits(&old, new, &at_steps);
     assert_eq!(
         merged,
         vec![
@@ -306,5 +306,5 @@ fn waits_fitted_on_a_drive_join_the_holds_it_was_driven_with() {
         ]
     );
     // Nothing new: the holds as driven.
-    assert_eq!(merge_waits(&old, Vec::new(), &[], &at_steps), old.to_vec());
+    assert_eq!(merge_waits(&old, Vec::new(), &at_steps), old.to_vec());
 }
