@@ -215,6 +215,7 @@ impl Planner {
         (world, report, replay): (&Arc<World>, &rehearsal::PlanReport, &Arc<Replay>),
         entry: &FleetEntry,
         avoided: Option<&[String]>,
+        make_way: Option<f64>,
     ) -> Result<Among, PlanFailure> {
         let (plan_id, start, options) = (&entry.plan_id, entry.requested_unix_ms, &entry.options);
         let requested = start;
@@ -233,6 +234,7 @@ impl Planner {
         // A plan refused because a robot with no plan yet stands in its way waits for the
         // floor's schedule to change (that robot's plan), up to `options.standing_wait_s`.
         let waiting_since = std::time::Instant::now();
+        let route = crate::yielding::route_points(&report.steps, 0.2);
         let in_view = |version: i64, others: &'_ [traffic::Itinerary]| View {
             schedule,
             floor: &db.floor,
@@ -241,6 +243,11 @@ impl Planner {
             since: waiting_since,
             standing_wait_s: options.standing_wait_s,
             avoided,
+            me: &db.robot,
+            route: &route,
+            radius_m: world.spec().robot.footprint_radius,
+            world,
+            make_way,
         };
         let mut in_the_way: Vec<String> = Vec::new();
         let robot_lock = self.fleet_lock(format!("robot {}", db.robot));
@@ -334,6 +341,7 @@ impl Planner {
                     {
                         Standing::Changed => continue 'attempts,
                         Standing::Reroute => return Ok(Among::Reroute),
+                        Standing::MakeWay(at, robots) => return Ok(Among::MakeWay(at, robots)),
                     }
                 }
             };
@@ -445,6 +453,7 @@ impl Planner {
                 {
                     Ok(Standing::Changed) => continue 'attempts,
                     Ok(Standing::Reroute) => return Ok(Among::Reroute),
+                    Ok(Standing::MakeWay(at, robots)) => return Ok(Among::MakeWay(at, robots)),
                     Err(PlanFailure::FleetConflict(n))
                         if n.robots.iter().all(|r| !stands(&others, r)) =>
                     {
@@ -539,6 +548,103 @@ impl Planner {
         ))
     }
 
+    /// Commits the first leg of a plan making way (to its first goal, the place it makes way
+    /// at, [`crate::yielding::prefix`]) under the floor's lock, unless it would come within the
+    /// margins of another robot's schedule; whether it was.
+    pub(crate) async fn commit_first_leg(
+        &self,
+        schedule: &dyn FleetSchedule,
+        db: &FloorDatabase,
+        radius_m: f64,
+        report: &rehearsal::PlanReport,
+        entry: &FleetEntry,
+    ) -> Result<bool, PlanFailure> {
+        let Some(&goal) = report.goal_indices.first() else {
+            return Ok(false);
+        };
+        let Some(&at_step) = fleet::waypoint_steps(&report.steps, &report.waypoints).get(goal)
+        else {
+            return Ok(false);
+        };
+        let template = traffic::Itinerary {
+            plan_id: entry.plan_id.clone(),
+            robot: db.robot.clone(),
+            floor: db.floor.clone(),
+            start_unix_ms: entry.requested_unix_ms,
+            trajectory: Vec::new(),
+            radius_m,
+            tolerance_s: entry.options.tolerance_s,
+            expires_unix_ms: entry.requested_unix_ms,
+            delay_s: 0.0,
+        };
+        let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
+        let _one_commit_per_floor = floor_lock.lock().await;
+        let (_, all) = schedule
+            .snapshot(&db.floor)
+            .await
+            .map_err(PlanFailure::Unavailable)?;
+        let others: Vec<traffic::Itinerary> =
+            all.into_iter().filter(|i| i.robot != db.robot).collect();
+        let first = crate::yielding::SET_OFF_DELAYS_S.iter().find_map(|&delay| {
+            let first = crate::yielding::prefix(
+                &template,
+                &report.steps,
+                at_step,
+                report.control_period_s,
+                delay,
+                entry.options.max_wait_s + entry.options.tolerance_s + 1.0,
+            );
+            fleet::first_conflict(&first, &others)
+                .is_none()
+                .then_some(first)
+        });
+        let Some(first) = first else {
+            return Ok(false);
+        };
+        record_standing(schedule, &first, true).await
+    }
+
+    /// Where `view`'s robot is the one of a cycle of plans waiting for each other's robots to
+    /// make way ([`crate::yielding::Waits::turn_to_make_way`]): where, and for whom; a robot
+    /// that finds no place says so, and another of the cycle takes its turn.
+    fn make_way(&self, view: &View<'_>) -> Option<Standing> {
+        let margin = view.make_way?;
+        let (mut routes, for_robots) = self.waits.turn_to_make_way(view.me)?;
+        routes.extend(
+            view.others
+                .iter()
+                .filter(|o| !fleet::stands_only(o))
+                .map(|o| {
+                    (
+                        o.trajectory.iter().map(|p| (p.x, p.y)).collect(),
+                        o.radius_m,
+                    )
+                }),
+        );
+        let here = view.route.first().copied()?;
+        let standing: Vec<((f64, f64), f64)> = view
+            .others
+            .iter()
+            .filter(|o| fleet::stands_only(o))
+            .filter_map(|o| o.trajectory.first().map(|p| ((p.x, p.y), o.radius_m)))
+            .collect();
+        let world = view.world;
+        let at = crate::yielding::spot_off_routes(
+            here,
+            view.radius_m,
+            |x, y| world.clearance(x, y) - margin,
+            &routes,
+            &standing,
+        );
+        match at {
+            Some(at) => Some(Standing::MakeWay(at, for_robots)),
+            None => {
+                self.waits.cannot_make_way(view.me);
+                None
+            }
+        }
+    }
+
     /// Where one of the robots `refused` names stands in the way with no plan yet (in
     /// `others`, read at `version`), waits until the floor's schedule changes (and answers
     /// `Ok`: fit again), up to `standing_wait_s` after `since`; else the refusal, saying who
@@ -567,7 +673,22 @@ impl Planner {
             view.standing_wait_s
         };
         let deadline = view.since + std::time::Duration::from_secs_f64(limit);
+        let _waiting = self.waits.enter(
+            view.me,
+            crate::yielding::Waiting {
+                floor: view.floor.to_owned(),
+                by: standing.iter().map(|o| o.robot.clone()).collect(),
+                route: view.route.to_vec(),
+                radius_m: view.radius_m,
+                cannot_make_way: view.make_way.is_none() || reroute,
+            },
+        );
         while std::time::Instant::now() < deadline {
+            // Only where no route keeps clear of the robots standing: a route around them
+            // is tried first.
+            if !reroute && let Some(at) = self.make_way(view) {
+                return Ok(at);
+            }
             let now = view
                 .schedule
                 .version(view.floor)
@@ -655,7 +776,7 @@ fn standing_at(
 /// Commits `standing` (a robot with no plan), replacing its robot's itinerary only where
 /// `replace` (else a robot the floor's schedule holds already keeps its itinerary). Whether it
 /// was recorded: not on a floor holding [`fleet::MAX_ROBOTS_PER_FLOOR`] other robots.
-async fn record_standing(
+pub(crate) async fn record_standing(
     schedule: &dyn FleetSchedule,
     standing: &traffic::Itinerary,
     replace: bool,
@@ -736,6 +857,9 @@ pub(crate) enum Among {
     /// A robot with no plan yet stands in its route, and the route was not planned around it:
     /// rehearse again, keeping clear of every robot standing now.
     Reroute,
+    /// Robots standing with no plan wait for each other's plans, this one among them: it
+    /// makes way at the place given for the robots named ([`crate::yielding`]).
+    MakeWay(planning::Point2, Vec<String>),
 }
 
 /// What a plan refused by a robot standing in its way does.
@@ -744,6 +868,9 @@ enum Standing {
     Changed,
     /// The robot was not avoided by the route: rehearse around it.
     Reroute,
+    /// Robots standing in each other's way wait for each other's plans: this one makes way
+    /// at `at` for `for_robots`.
+    MakeWay(planning::Point2, Vec<String>),
 }
 
 /// The floor as a plan saw it when it was refused.
@@ -756,6 +883,14 @@ struct View<'a> {
     standing_wait_s: f64,
     /// The standing robots the route keeps clear of; `None`: it did not try.
     avoided: Option<&'a [String]>,
+    /// The robot waiting, its route and radius, and its world: where it may make way
+    /// ([`crate::yielding`]; `make_way`: the margin its routes keep from walls and objects),
+    /// the place it makes way at is found there.
+    me: &'a str,
+    route: &'a [(f64, f64)],
+    radius_m: f64,
+    world: &'a World,
+    make_way: Option<f64>,
 }
 
 /// Whether `robot` stands with no plan in `others`.

@@ -24,6 +24,7 @@ mod gate;
 pub mod policies;
 mod replay;
 pub mod roadmaps;
+mod yielding;
 
 use std::collections::HashMap;
 use std::future::Future;
@@ -315,6 +316,8 @@ pub struct Planner {
     fleet_locks: Mutex<HashMap<String, Arc<tokio::sync::Mutex<()>>>>,
     /// The cores the plans' simulation work shares, oldest plan first.
     cpu: Arc<gate::CpuGate>,
+    /// The plans waiting for robots standing in their way ([`yielding`]).
+    waits: Arc<yielding::Waits>,
 }
 
 impl std::fmt::Debug for Planner {
@@ -346,6 +349,7 @@ impl Planner {
             loaded: Mutex::new(HashMap::new()),
             applied: Arc::default(),
             fleet_locks: Mutex::new(HashMap::new()),
+            waits: Arc::default(),
             cpu: gate::CpuGate::of_this_machine(),
         }
     }
@@ -519,8 +523,16 @@ impl Planner {
         // waits for their plans.
         let mut avoiding = entry.is_some();
         let mut reroutes = 0;
+        // Where robots standing with no plan wait for each other's plans, this one may make way
+        // once ([`yielding`]): its route goes first to the place given, and that first leg is
+        // committed before the whole plan is fitted.
+        let mut making_way: Option<(planning::Point2, Vec<String>)> = None;
+        let mut may_make_way = true;
         let (report, world, people, pick, replay, fleet) = loop {
             let mut request = request.clone();
+            if let Some((at, _)) = &making_way {
+                request.goals.insert(0, *at);
+            }
             let mut standing_robots: Vec<String> = Vec::new();
             if let (Some(schedule), Some(entry)) = (&self.fleet, &entry) {
                 let (standing, moving) = self.others_on_the_floor(schedule.as_ref(), &db).await?;
@@ -533,7 +545,8 @@ impl Planner {
                 }
                 // The first route passes a standing robot rather than go far around it (it is
                 // likely asking for its plan now); once one was in its way, it keeps clear.
-                if reroutes == 0 {
+                // Making way, it keeps clear of them.
+                if reroutes == 0 && making_way.is_none() {
                     request.options.standing_pass_m = PASS_STANDING_M;
                 }
                 request.options.reserved = entry.reserved(&moving).map(Arc::new);
@@ -550,6 +563,11 @@ impl Planner {
                     avoiding = false;
                     continue;
                 }
+                // The place to make way at did not validate: the plan as asked, waiting.
+                Err(_) if making_way.is_some() => {
+                    making_way = None;
+                    continue;
+                }
                 r => r?,
             };
             let (Some(schedule), Some(entry)) = (&self.fleet, &entry) else {
@@ -564,6 +582,14 @@ impl Planner {
                 .map(|(name, _)| name)
                 .collect();
             let avoided = (avoiding && reroutes < MAX_REROUTES).then_some(avoided.as_slice());
+            if making_way.is_some()
+                && !self
+                    .commit_first_leg(schedule.as_ref(), &db, radius, &report, entry)
+                    .await?
+            {
+                making_way = None;
+                continue;
+            }
             match self
                 .among_the_fleet(
                     schedule.as_ref(),
@@ -571,14 +597,29 @@ impl Planner {
                     (&world, &report, &replay),
                     entry,
                     avoided,
+                    may_make_way.then_some(margin),
                 )
                 .await?
             {
                 among::Among::Fitted(o) => break (report, world, people, pick, replay, Some(*o)),
                 among::Among::Reroute => reroutes += 1,
+                among::Among::MakeWay(at, robots) => {
+                    making_way = Some((at, robots));
+                    may_make_way = false;
+                }
             }
         };
         let note = note(policy_id.is_some(), &pick, &report);
+        let note = match &making_way {
+            Some((at, robots)) => Some(format!(
+                "{}made way at ({:.2}, {:.2}), its first goal, for {}: they stood in each other's way with no plan",
+                note.map(|n| format!("{n}; ")).unwrap_or_default(),
+                at.x,
+                at.y,
+                robots.join(", ")
+            )),
+            None => note,
+        };
         Ok(PlanOutcome {
             fleet,
             robot: db.robot.clone(),
