@@ -604,6 +604,47 @@ impl Planner {
         record_standing(schedule, &first, true).await
     }
 
+    /// A plan that made way refused after its first leg was committed: the robot stands at
+    /// `start` again in the schedule, as it did before, unless a plan committed meanwhile was
+    /// fitted through it there (then the first leg stays, and a warning is logged: that plan
+    /// counts on this robot having gone).
+    pub(crate) async fn stand_again(
+        &self,
+        schedule: &dyn FleetSchedule,
+        db: &FloorDatabase,
+        radius_m: f64,
+        start: sim::Pose2,
+        entry: &FleetEntry,
+    ) {
+        let standing = standing_at(
+            &entry.plan_id,
+            db,
+            radius_m,
+            start,
+            entry.requested_unix_ms,
+            entry.options.max_wait_s + entry.options.tolerance_s + 1.0,
+        );
+        let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
+        let _one_commit_per_floor = floor_lock.lock().await;
+        let others = match schedule.snapshot(&db.floor).await {
+            Ok((_, all)) => all
+                .into_iter()
+                .filter(|i| i.robot != db.robot)
+                .collect::<Vec<_>>(),
+            Err(e) => {
+                tracing::warn!(robot = %db.robot, error = %e, "the schedule could not be read to stand the robot again");
+                return;
+            }
+        };
+        if let Some(c) = fleet::first_conflict(&standing, &others) {
+            tracing::warn!(robot = %db.robot, other = %c.b_robot, "a plan that made way was refused after another was fitted through where it stood");
+            return;
+        }
+        if let Err(e) = record_standing(schedule, &standing, true).await {
+            tracing::warn!(robot = %db.robot, error = %e, "the robot could not be stood again");
+        }
+    }
+
     /// Where `view`'s robot is the one of a cycle of plans waiting for each other's robots to
     /// make way ([`crate::yielding::Waits::turn_to_make_way`]): where, and for whom; a robot
     /// that finds no place says so, and another of the cycle takes its turn.

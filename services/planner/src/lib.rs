@@ -528,6 +528,7 @@ impl Planner {
         // committed before the whole plan is fitted.
         let mut making_way: Option<(planning::Point2, Vec<String>)> = None;
         let mut may_make_way = true;
+        let asked_start = request.start;
         let (report, world, people, pick, replay, fleet) = loop {
             let mut request = request.clone();
             if let Some((at, _)) = &making_way {
@@ -590,7 +591,7 @@ impl Planner {
                 making_way = None;
                 continue;
             }
-            match self
+            let among = self
                 .among_the_fleet(
                     schedule.as_ref(),
                     &db,
@@ -599,8 +600,13 @@ impl Planner {
                     avoided,
                     may_make_way.then_some(margin),
                 )
-                .await?
-            {
+                .await;
+            // Refused after its first leg was committed: the robot has not moved.
+            if let (Err(_), Some(_)) = (&among, &making_way) {
+                self.stand_again(schedule.as_ref(), &db, radius, asked_start, entry)
+                    .await;
+            }
+            match among? {
                 among::Among::Fitted(o) => break (report, world, people, pick, replay, Some(*o)),
                 among::Among::Reroute => reroutes += 1,
                 among::Among::MakeWay(at, robots) => {
