@@ -43,6 +43,12 @@ pub(crate) struct FleetEntry {
 const ROUTE_NODE_WAIT_S: f64 = 60.0;
 
 impl FleetEntry {
+    /// How long the robot stands in the schedule before its plan replaces it: until it sets
+    /// off at the latest, late by its tolerance.
+    fn stand_for_s(&self) -> f64 {
+        self.options.max_wait_s + self.options.tolerance_s + 1.0
+    }
+
     /// The committed plans of `moving` as reservations a route is timed among, on the clock of
     /// this plan's start (`None` where there are none, or their tracks are unusable).
     pub(crate) fn reserved(&self, moving: &[traffic::Itinerary]) -> Option<rehearsal::Reserved> {
@@ -103,8 +109,7 @@ impl Planner {
             radius_m,
             start,
             requested,
-            // Until it sets off at the latest, late by its tolerance.
-            options.max_wait_s + options.tolerance_s + 1.0,
+            entry.stand_for_s(),
         );
         // A robot with an itinerary on the floor keeps it until its new plan is committed (a
         // refused plan changes nothing).
@@ -577,6 +582,32 @@ impl Planner {
             expires_unix_ms: entry.requested_unix_ms,
             delay_s: 0.0,
         };
+        let candidates = crate::yielding::SET_OFF_DELAYS_S.map(|delay| {
+            crate::yielding::prefix(
+                &template,
+                &report.steps,
+                at_step,
+                report.control_period_s,
+                delay,
+                entry.stand_for_s(),
+            )
+        });
+        Ok(self
+            .commit_first_clear(schedule, db, candidates)
+            .await?
+            .is_ok())
+    }
+
+    /// Commits the first of `candidates` (itineraries of `db`'s robot) that keeps the margins
+    /// from every other robot's schedule, under the floor's lock: `Ok(Ok(()))` once one is
+    /// recorded, else `Ok(Err(robot))` naming the robot the last one came too near (empty
+    /// where none was tried or the full floor took none).
+    async fn commit_first_clear(
+        &self,
+        schedule: &dyn FleetSchedule,
+        db: &FloorDatabase,
+        candidates: impl IntoIterator<Item = traffic::Itinerary>,
+    ) -> Result<Result<(), String>, PlanFailure> {
         let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
         let _one_commit_per_floor = floor_lock.lock().await;
         let (_, all) = schedule
@@ -585,23 +616,15 @@ impl Planner {
             .map_err(PlanFailure::Unavailable)?;
         let others: Vec<traffic::Itinerary> =
             all.into_iter().filter(|i| i.robot != db.robot).collect();
-        let first = crate::yielding::SET_OFF_DELAYS_S.iter().find_map(|&delay| {
-            let first = crate::yielding::prefix(
-                &template,
-                &report.steps,
-                at_step,
-                report.control_period_s,
-                delay,
-                entry.options.max_wait_s + entry.options.tolerance_s + 1.0,
-            );
-            fleet::first_conflict(&first, &others)
-                .is_none()
-                .then_some(first)
-        });
-        let Some(first) = first else {
-            return Ok(false);
-        };
-        record_standing(schedule, &first, true).await
+        let mut near = String::new();
+        for it in candidates {
+            match fleet::first_conflict(&it, &others) {
+                Some(c) => near = c.b_robot,
+                None if record_standing(schedule, &it, true).await? => return Ok(Ok(())),
+                None => break,
+            }
+        }
+        Ok(Err(near))
     }
 
     /// A plan that made way refused after its first leg was committed: the robot stands at
@@ -622,26 +645,16 @@ impl Planner {
             radius_m,
             start,
             entry.requested_unix_ms,
-            entry.options.max_wait_s + entry.options.tolerance_s + 1.0,
+            entry.stand_for_s(),
         );
-        let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
-        let _one_commit_per_floor = floor_lock.lock().await;
-        let others = match schedule.snapshot(&db.floor).await {
-            Ok((_, all)) => all
-                .into_iter()
-                .filter(|i| i.robot != db.robot)
-                .collect::<Vec<_>>(),
-            Err(e) => {
-                tracing::warn!(robot = %db.robot, error = %e, "the schedule could not be read to stand the robot again");
-                return;
+        match self.commit_first_clear(schedule, db, [standing]).await {
+            Ok(Ok(())) => {}
+            Ok(Err(other)) => {
+                tracing::warn!(robot = %db.robot, %other, "a plan that made way was refused after another was fitted through where it stood, or the floor was full");
             }
-        };
-        if let Some(c) = fleet::first_conflict(&standing, &others) {
-            tracing::warn!(robot = %db.robot, other = %c.b_robot, "a plan that made way was refused after another was fitted through where it stood");
-            return;
-        }
-        if let Err(e) = record_standing(schedule, &standing, true).await {
-            tracing::warn!(robot = %db.robot, error = %e, "the robot could not be stood again");
+            Err(e) => {
+                tracing::warn!(robot = %db.robot, error = %e, "the robot could not be stood again");
+            }
         }
     }
 
