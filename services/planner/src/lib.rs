@@ -528,6 +528,10 @@ impl Planner {
         // committed before the whole plan is fitted.
         let mut making_way: Option<(planning::Point2, Vec<String>)> = None;
         let mut may_make_way = true;
+        // Whether the first leg is in the schedule: once it is, every way out but a fitted plan
+        // stands the robot at its start again (it has not moved).
+        // (With the robot's radius it was committed with.)
+        let mut leg_committed: Option<f64> = None;
         let asked_start = request.start;
         let (report, world, people, pick, replay, fleet) = loop {
             let mut request = request.clone();
@@ -556,10 +560,17 @@ impl Planner {
             let standing_at = request.options.standing.clone();
             let margin = request.options.safety_margin_m;
             let run = rehearsal.clone();
-            let (report, world, people, pick, replay) = match self
+            let rehearsed = self
                 .simulating(ticket, None, move || run.run(request))
-                .await?
-            {
+                .await;
+            if let (Some(radius), false) = (leg_committed, matches!(rehearsed, Ok(Ok(_)))) {
+                leg_committed = None;
+                if let (Some(schedule), Some(entry)) = (&self.fleet, &entry) {
+                    self.stand_again(schedule.as_ref(), &db, radius, asked_start, entry)
+                        .await;
+                }
+            }
+            let (report, world, people, pick, replay) = match rehearsed? {
                 Err(PlanFailure::Plan(PlanError::Unreachable { .. })) if with_standing => {
                     avoiding = false;
                     continue;
@@ -583,13 +594,17 @@ impl Planner {
                 .map(|(name, _)| name)
                 .collect();
             let avoided = (avoiding && reroutes < MAX_REROUTES).then_some(avoided.as_slice());
-            if making_way.is_some()
-                && !self
+            // Committed once: a route rehearsed again after it keeps the same first goal, and
+            // the fit below is checked against that leg.
+            if making_way.is_some() && leg_committed.is_none() {
+                let committed = self
                     .commit_first_leg(schedule.as_ref(), &db, radius, &report, entry)
-                    .await?
-            {
-                making_way = None;
-                continue;
+                    .await?;
+                leg_committed = committed.then_some(radius);
+                if !committed {
+                    making_way = None;
+                    continue;
+                }
             }
             let among = self
                 .among_the_fleet(
@@ -602,7 +617,7 @@ impl Planner {
                 )
                 .await;
             // Refused after its first leg was committed: the robot has not moved.
-            if let (Err(_), Some(_)) = (&among, &making_way) {
+            if among.is_err() && leg_committed.is_some() {
                 self.stand_again(schedule.as_ref(), &db, radius, asked_start, entry)
                     .await;
             }
