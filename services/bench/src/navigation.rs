@@ -205,6 +205,9 @@ pub struct NavigationRow {
     pub path_length_m: f64,
     /// Time the robot stood still (linear speed under 1 cm/s), seconds.
     pub time_not_moving_s: f64,
+    /// The time the same driven line takes at the robot's top speeds, seconds
+    /// ([`rehearsal::SocialMetrics::limit_time_s`]).
+    pub limit_time_s: f64,
     /// Recovery behaviours tried.
     pub recoveries: usize,
 }
@@ -586,6 +589,7 @@ mod tests {
             personal_intrusions: 3,
             path_length_m: d,
             time_not_moving_s: 1.5,
+            limit_time_s: 0.75 * d,
             recoveries: 2,
         };
         let rows = [r(true, 10.0), r(true, 20.0), r(false, 4.0)];
@@ -593,12 +597,14 @@ mod tests {
         assert_eq!(st.successes, 2);
         assert_eq!(st.success_distance, Some(15.0));
         assert_eq!(st.success_time, Some(30.0));
+        assert_eq!(st.success_limit_time, Some(11.25));
         assert_eq!((st.person_collisions, st.person_near_misses), (1, 2));
         assert_eq!(st.failure_distance, Some(4.0));
         assert!(to_csv(&rows).starts_with(
             "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m,\
-             intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries\n\
-             pure_rl,m,0,true,10.000,20.000,false,0.050,1,3,10.000,1.5,2\n"
+             intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries,\
+             limit_time_s\n\
+             pure_rl,m,0,true,10.000,20.000,false,0.050,1,3,10.000,1.5,2,7.500\n"
         ));
         // Per 100 m driven: 34 m over three runs, 3 intimate and 9 personal intrusions.
         assert_eq!((st.intimate, st.personal, st.recoveries), (3, 9, 6));

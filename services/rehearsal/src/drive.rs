@@ -289,6 +289,11 @@ pub fn drive(
             .iter()
             .map(|q| (q.position, q.radius))
             .collect();
+        social.moved(
+            (step.info.pose.x - pose.x).hypot(step.info.pose.y - pose.y),
+            sim::kinematics::wrap_angle(step.info.pose.yaw - pose.yaw),
+            (env_config.limits.linear_max, angular_max),
+        );
         social.step(
             (step.info.pose.x, step.info.pose.y),
             radius,

@@ -24,6 +24,11 @@ pub struct SocialMetrics {
     pub personal_intrusions: u32,
     /// Simulated time the robot's linear speed was below [`NOT_MOVING_M_S`], s.
     pub time_not_moving_s: f64,
+    /// The time the same driven path takes at the robot's limits, s: each control step's
+    /// arc at the top linear speed or the top angular speed, whichever binds (the simulation
+    /// has no acceleration limit). What any controller would need to drive the same line; the
+    /// rest of the drive's time is how it drove, not where.
+    pub limit_time_s: f64,
 }
 
 impl SocialMetrics {
@@ -33,6 +38,7 @@ impl SocialMetrics {
             intimate_intrusions: self.intimate_intrusions + other.intimate_intrusions,
             personal_intrusions: self.personal_intrusions + other.personal_intrusions,
             time_not_moving_s: self.time_not_moving_s + other.time_not_moving_s,
+            limit_time_s: self.limit_time_s + other.limit_time_s,
         }
     }
 }
@@ -85,6 +91,16 @@ impl SocialTracker {
         }
     }
 
+    /// After a step that moved the robot `distance_m` and turned it `turn_rad` (either way),
+    /// with the robot's top speeds: adds the step's share of [`SocialMetrics::limit_time_s`].
+    pub fn moved(&mut self, distance_m: f64, turn_rad: f64, (linear_max, angular_max): (f64, f64)) {
+        let at_top_speed = distance_m.abs() / linear_max;
+        let at_top_turn = turn_rad.abs() / angular_max;
+        if at_top_speed.is_finite() && at_top_turn.is_finite() {
+            self.metrics.limit_time_s += at_top_speed.max(at_top_turn);
+        }
+    }
+
     /// The metrics so far.
     pub fn metrics(&self) -> SocialMetrics {
         self.metrics
@@ -114,5 +130,21 @@ mod tests {
         assert!(m.time_not_moving_s.abs() < 1e-12);
         t.step((0.0, 0.0), 0.3, 0.0, 0.1, &[person(3.0)]);
         assert!((t.metrics().time_not_moving_s - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn limit_time_takes_whichever_top_speed_binds() {
+        let mut t = SocialTracker::default();
+        let limits = (0.8, 0.5);
+        // Straight: 0.8 m at 0.8 m/s. Arc of radius 0.4 m turning 0.5 rad (0.2 m): the turn
+        // binds, 1 s. Turning on the spot by 0.25 rad: 0.5 s.
+        t.moved(0.8, 0.0, limits);
+        t.moved(0.2, -0.5, limits);
+        t.moved(0.0, 0.25, limits);
+        assert!(
+            (t.metrics().limit_time_s - 2.5).abs() < 1e-12,
+            "{:?}",
+            t.metrics()
+        );
     }
 }

@@ -11,10 +11,11 @@ use super::{
 /// `navigation.csv`: method, map, run, success, distance_m, time_s, person_collision,
 /// min_person_clearance_m (empty without people), and the social metrics of Francis et al.
 /// 2023 / HuNavSim: intimate_intrusions, personal_intrusions, path_length_m,
-/// time_not_moving_s; then the recoveries tried.
+/// time_not_moving_s; then the recoveries tried, and the time the driven line takes at the
+/// robot's top speeds (limit_time_s).
 pub fn to_csv(rows: &[NavigationRow]) -> String {
     let mut s = String::from(
-        "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m,intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries\n",
+        "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m,intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries,limit_time_s\n",
     );
     for r in rows {
         let map = if r.map.contains([',', '"', '\n']) {
@@ -24,7 +25,7 @@ pub fn to_csv(rows: &[NavigationRow]) -> String {
         };
         let _ = writeln!(
             s,
-            "{},{},{},{},{:.3},{:.3},{},{},{},{},{:.3},{:.1},{}",
+            "{},{},{},{},{:.3},{:.3},{},{},{},{},{:.3},{:.1},{},{:.3}",
             r.method,
             map,
             r.run,
@@ -38,7 +39,8 @@ pub fn to_csv(rows: &[NavigationRow]) -> String {
             r.personal_intrusions,
             r.path_length_m,
             r.time_not_moving_s,
-            r.recoveries
+            r.recoveries,
+            r.limit_time_s
         );
     }
     s
@@ -55,6 +57,8 @@ pub struct Stats {
     pub success_distance: Option<f64>,
     /// Mean time over successes, seconds.
     pub success_time: Option<f64>,
+    /// Mean over successes of the time their driven lines take at the top speeds, seconds.
+    pub success_limit_time: Option<f64>,
     /// Mean distance over failures, metres.
     pub failure_distance: Option<f64>,
     /// Runs that ended by touching a person.
@@ -77,7 +81,7 @@ impl Stats {
     /// The statistics of `rows`.
     pub fn of<'a>(rows: impl Iterator<Item = &'a NavigationRow>) -> Stats {
         let (mut n, mut ok) = (0usize, 0usize);
-        let (mut sd, mut st, mut fd) = (0.0, 0.0, 0.0);
+        let (mut sd, mut st, mut fd, mut sl) = (0.0, 0.0, 0.0, 0.0);
         let (mut hit, mut near) = (0usize, 0usize);
         let (mut dist, mut intimate, mut personal, mut still, mut rec) = (0.0, 0, 0, 0.0, 0);
         for r in rows {
@@ -99,6 +103,7 @@ impl Stats {
                 ok += 1;
                 sd += r.distance_m;
                 st += r.time_s;
+                sl += r.limit_time_s;
             } else {
                 fd += r.distance_m;
             }
@@ -109,6 +114,7 @@ impl Stats {
             successes: ok,
             success_distance: mean(sd, ok),
             success_time: mean(st, ok),
+            success_limit_time: mean(sl, ok),
             failure_distance: mean(fd, n - ok),
             person_collisions: hit,
             person_near_misses: near,
@@ -162,11 +168,11 @@ fn cell(v: Option<f64>) -> String {
 }
 
 fn table(out: &mut String, rows: &[&NavigationRow], people: bool) {
-    out.push_str("| Method | Success: avg distance (m) | Success: avg time (s) | Failure: avg distance (m) | Success rate | Not moving (s per 100 m) | Recoveries |");
+    out.push_str("| Method | Success: avg distance (m) | Success: avg time (s) | Its line at the top speeds (s) | Failure: avg distance (m) | Success rate | Not moving (s per 100 m) | Recoveries |");
     out.push_str(if people {
-        " Collisions with people | Near misses (< 10 cm of a person) | Intimate intrusions per 100 m | Personal intrusions per 100 m |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
+        " Collisions with people | Near misses (< 10 cm of a person) | Intimate intrusions per 100 m | Personal intrusions per 100 m |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     } else {
-        "\n|---|---|---|---|---|---|---|\n"
+        "\n|---|---|---|---|---|---|---|---|\n"
     });
     for m in METHODS {
         let st = Stats::of(rows.iter().copied().filter(|r| r.method == m));
@@ -175,9 +181,10 @@ fn table(out: &mut String, rows: &[&NavigationRow], people: bool) {
         }
         let _ = write!(
             out,
-            "| {m} | {} | {} | {} | {:.0}% ({}/{}) |",
+            "| {m} | {} | {} | {} | {} | {:.0}% ({}/{}) |",
             cell(st.success_distance),
             cell(st.success_time),
+            cell(st.success_limit_time),
             cell(st.failure_distance),
             100.0 * st.rate(),
             st.successes,
@@ -507,6 +514,7 @@ mod tests {
             personal_intrusions: 0,
             path_length_m: 1.0,
             time_not_moving_s: 0.0,
+            limit_time_s: 0.0,
             recoveries: 0,
         }
     }

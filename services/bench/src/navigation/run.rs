@@ -308,6 +308,7 @@ pub(super) fn run_map(
                                 personal_intrusions: 0,
                                 path_length_m: 0.0,
                                 time_not_moving_s: 0.0,
+                                limit_time_s: 0.0,
                                 recoveries: 0,
                             });
                         }
@@ -372,6 +373,7 @@ pub(super) fn run_map(
             personal_intrusions: pure.social.personal_intrusions,
             path_length_m: pure.distance_m,
             time_not_moving_s: pure.social.time_not_moving_s,
+            limit_time_s: pure.social.limit_time_s,
             recoveries: pure.recoveries.len(),
         });
     }
@@ -535,6 +537,7 @@ fn endpoint_row(
                 personal_intrusions: social.personal_intrusions,
                 path_length_m: report.distance_m,
                 time_not_moving_s: social.time_not_moving_s,
+                limit_time_s: social.limit_time_s,
                 recoveries: validating.iter().map(|x| x.recoveries.len()).sum(),
             }
         }
@@ -569,6 +572,7 @@ fn row(method: &'static str, map: &str, run: usize, (a, d): &Attempt) -> Navigat
         personal_intrusions: social.personal_intrusions,
         path_length_m: a.distance_m,
         time_not_moving_s: social.time_not_moving_s,
+        limit_time_s: social.limit_time_s,
         recoveries: d.as_ref().map_or(0, |d| d.recoveries.len()),
     }
 }

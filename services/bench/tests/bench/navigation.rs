@@ -98,7 +98,8 @@ fn the_benchmark_writes_table_3_for_every_method() {
         lines.next(),
         Some(
             "method,map,run,success,distance_m,time_s,person_collision,min_person_clearance_m,\
-             intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries"
+             intimate_intrusions,personal_intrusions,path_length_m,time_not_moving_s,recoveries,\
+             limit_time_s"
         )
     );
     assert_eq!(lines.count(), 32);
@@ -273,6 +274,11 @@ fn with_people_the_table_counts_collisions_and_near_misses_with_them() {
         assert_eq!(r.path_length_m, r.distance_m);
         assert!(
             r.time_not_moving_s >= 0.0 && r.time_not_moving_s <= r.time_s + 1e-9,
+            "{r:?}"
+        );
+        // The driven line at the top speeds takes some time, never more than the drive did.
+        assert!(
+            r.limit_time_s <= r.time_s + 1e-6 && (r.distance_m < 0.1 || r.limit_time_s > 0.0),
             "{r:?}"
         );
     }
