@@ -497,11 +497,22 @@ impl Trainer {
         let dim = self.options.scaling.input_len();
         let base = c.seed ^ (u64::from(self.counters.sessions) << 32);
         let worlds = &self.train_worlds;
+        // With a carrot, every other environment shows it on the way to goals anywhere in
+        // the free region (what a plan's policy sees on its path); the rest keep the goals
+        // as configured (a roadmap edge's far vertex, as edge rollouts and vertex plans show).
+        let carrot = |i: usize| {
+            let mut config = self.env_config.clone();
+            if c.carrot_m > 0.0 && i % 2 == 1 {
+                config.carrot_m = Some(c.carrot_m);
+                config.goals_in_view = false;
+            }
+            config
+        };
         self.envs = (0..c.envs)
             .map(|i| {
                 NavEnv::new(
                     Arc::clone(&worlds[i % worlds.len()]),
-                    self.env_config.clone(),
+                    carrot(i),
                     sim::env_seed(base, i),
                 )
             })

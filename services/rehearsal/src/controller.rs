@@ -676,6 +676,11 @@ impl Controller for ShieldedFollower {
 mod tests {
     use super::*;
 
+    #[test]
+    fn the_training_preset_shows_the_carrot_plans_steer_to() {
+        assert_eq!(learning::TrainConfig::fast().carrot_m, POLICY_CARROT_M);
+    }
+
     fn obs() -> Observation {
         Observation {
             ranges: vec![5.0; 23],

@@ -154,6 +154,11 @@ pub struct EnvConfig {
     pub record_trajectory: bool,
     /// People walking about ([`crate::crowd`]); none by default.
     pub people: PeopleConfig,
+    /// The policy sees, instead of the goal, the point this far along the shortest path to it
+    /// (the goal once nearer; [`PathField::carrot`]): the carrot on the path that a plan's
+    /// policy steers to, so that it learns to carry its speed round corners towards a goal it
+    /// does not see. Needs the geodesic reward's field. None: the goal itself.
+    pub carrot_m: Option<f64>,
 }
 
 impl Default for EnvConfig {
@@ -171,6 +176,7 @@ impl Default for EnvConfig {
             goals_in_view: false,
             record_trajectory: false,
             people: PeopleConfig::default(),
+            carrot_m: None,
         }
     }
 }
@@ -942,7 +948,11 @@ impl NavEnv {
             .iter()
             .map(|r| (r + gauss(&mut self.rng, noise.range)).clamp(lo, hi) as f32)
             .collect();
-        let (dx, dy) = (self.goal.0 - self.pose.x, self.goal.1 - self.pose.y);
+        let goal = match (self.config.carrot_m, &self.field) {
+            (Some(l), Some(f)) => f.carrot(self.pose.x, self.pose.y, l).unwrap_or(self.goal),
+            _ => self.goal,
+        };
+        let (dx, dy) = (goal.0 - self.pose.x, goal.1 - self.pose.y);
         let dist = dx.hypot(dy) + gauss(&mut self.rng, noise.goal_distance);
         let angle =
             wrap_angle(dy.atan2(dx) - self.pose.yaw + gauss(&mut self.rng, noise.goal_angle));
@@ -1040,6 +1050,14 @@ fn check_config(c: &EnvConfig) -> Result<(), EnvError> {
     }
     if c.max_steps == 0 {
         return bad("max_steps", "an episode needs at least one step".into());
+    }
+    if let Some(l) = c.carrot_m
+        && !(pos(l) && c.reward.progress && c.reward.geodesic)
+    {
+        return bad(
+            "carrot_m",
+            format!("needs a positive distance and the geodesic progress reward, got {l}"),
+        );
     }
     if let Some((field, message)) = c.people.problem() {
         return bad(field, message);

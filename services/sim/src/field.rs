@@ -150,6 +150,30 @@ impl PathField {
         Some(self.centre(n))
     }
 
+    /// The point `ahead_m` along the path from `(x, y)` to the goal (the goal once the path
+    /// is shorter): a path tracker's carrot on the field's shortest path. `None` as for
+    /// [`PathField::distance`].
+    pub fn carrot(&self, x: f64, y: f64, ahead_m: f64) -> Option<(f64, f64)> {
+        let (mut i, _) = self.best_cell(x, y)?;
+        let mut at = (x, y);
+        let mut left = ahead_m;
+        loop {
+            let n = self.next[i] as usize;
+            let to = if n == i { self.goal } else { self.centre(n) };
+            let d = (to.0 - at.0).hypot(to.1 - at.1);
+            if d >= left {
+                let t = left / d;
+                return Some((at.0 + t * (to.0 - at.0), at.1 + t * (to.1 - at.1)));
+            }
+            if n == i {
+                return Some(self.goal);
+            }
+            left -= d;
+            at = to;
+            i = n;
+        }
+    }
+
     /// As [`PathField::lookahead`], but from the cell holding `(x, y)` alone when it is
     /// reachable (one lookup instead of a search of the cells around): for people, who walk
     /// inside the free region and ask every step.
@@ -310,5 +334,23 @@ mod tests {
             "followed the lookahead to within {d} m of the goal"
         );
         assert!(world.clearance(p.0, p.1) > 0.0);
+    }
+
+    #[test]
+    fn the_carrot_lies_ahead_on_the_path_and_is_the_goal_once_nearer() {
+        let world = split_room();
+        let field = PathField::new(&world, (4.5, 1.0), 0.2);
+        // From the left room the carrot 1.2 m ahead is up towards the door, 1.2 m away (the
+        // path's first steps are nearly straight), not towards the goal through the wall.
+        let (cx, cy) = field.carrot(1.5, 1.0, 1.2).expect("reachable");
+        assert!(cy > 1.8 && cx >= 1.5, "carrot ({cx}, {cy})");
+        let d = (cx - 1.5).hypot(cy - 1.0);
+        assert!((1.0..=1.21).contains(&d), "carrot {d} m away");
+        // Its path distance is about 1.2 m less than the robot's.
+        let ahead = field.distance(1.5, 1.0).unwrap() - field.distance(cx, cy).unwrap();
+        assert!((0.9..1.5).contains(&ahead), "{ahead} m along the path");
+        // Within the look-ahead of the goal, the carrot is the goal.
+        assert_eq!(field.carrot(4.0, 1.2, 1.2), Some((4.5, 1.0)));
+        assert_eq!(field.carrot(-50.0, -50.0, 1.2), None);
     }
 }

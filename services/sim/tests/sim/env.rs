@@ -257,6 +257,39 @@ fn a_batch_equals_its_environments_stepped_one_by_one() {
 }
 
 #[test]
+fn with_a_carrot_the_policy_sees_the_point_ahead_on_the_path_then_the_goal() {
+    let world = World::build(room(12.0, 8.0)).expect("builds");
+    let mut config = quiet();
+    config.reward.progress = true;
+    config.reward.geodesic = true;
+    config.carrot_m = Some(1.2);
+    let mut env = NavEnv::new(world, config, 1).expect("env");
+    // The goal 8 m straight ahead: the carrot 1.2 m ahead, straight on (to within a cell).
+    let obs = env
+        .reset(Pose2::new(2.0, 4.0, 0.0), (10.0, 4.0))
+        .expect("reset");
+    assert!((obs.goal_distance - 1.2).abs() < 0.05, "{obs:?}");
+    assert!(obs.goal_angle.abs() < 0.1, "{obs:?}");
+    // Driving on, the carrot stays ahead until the goal is nearer; the episode still ends at
+    // the goal, not at the carrot.
+    let mut seen = Vec::new();
+    for _ in 0..200 {
+        let r = env.step(Action::new(0.8, 0.0));
+        seen.push(r.observation.goal_distance);
+        if r.done {
+            assert_eq!(r.info.outcome, Outcome::ReachedGoal);
+            break;
+        }
+    }
+    assert!(seen.len() > 80, "{} steps", seen.len());
+    assert!(
+        seen[..60].iter().all(|d| (d - 1.2).abs() < 0.05),
+        "{seen:?}"
+    );
+    assert!(seen.last().is_some_and(|d| *d < 0.35), "{seen:?}");
+}
+
+#[test]
 fn bad_settings_are_refused() {
     let world = World::build(room(6.0, 6.0)).expect("builds");
     let cases: Vec<(EnvConfig, &str)> = vec![
@@ -297,6 +330,14 @@ fn bad_settings_are_refused() {
                 ..EnvConfig::default()
             },
             "noise.range",
+        ),
+        (
+            // A carrot needs the geodesic reward's path field (off by default).
+            EnvConfig {
+                carrot_m: Some(1.2),
+                ..EnvConfig::default()
+            },
+            "carrot_m",
         ),
     ];
     for (config, want) in cases {
