@@ -528,9 +528,8 @@ impl Planner {
         // committed before the whole plan is fitted.
         let mut making_way: Option<(planning::Point2, Vec<String>)> = None;
         let mut may_make_way = true;
-        // Whether the first leg is in the schedule: once it is, every way out but a fitted plan
-        // stands the robot at its start again (it has not moved).
-        // (With the robot's radius it was committed with.)
+        // The robot's radius once the first leg is in the schedule: from then on, every way out
+        // but a fitted plan stands the robot at its start again (it has not moved).
         let mut leg_committed: Option<f64> = None;
         let asked_start = request.start;
         let (report, world, people, pick, replay, fleet) = loop {
