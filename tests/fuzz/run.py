@@ -5,7 +5,7 @@ Starts `mentalsim serve` on a free port with a fresh data directory and two toke
 one robot), then:
 
 1. runs schemathesis (PyPI) over every operation of `openapi/knowledge.json` and
-   `openapi/worker.json` (the service does not serve them: they are the committed documents),
+   `openapi/fleet.json` (the service does not serve them: they are the committed documents),
    once per role, with every check: no 5xx, status codes documented, bodies, content types and
    headers conforming to the schema, schema-valid requests accepted, schema-invalid ones
    rejected, authentication not ignored, unsupported methods answered 405 with `Allow`;

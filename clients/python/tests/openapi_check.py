@@ -1,5 +1,5 @@
 """Checks of the client's operation table and of the requests it sends against the committed
-OpenAPI documents (openapi/knowledge.json, openapi/worker.json)."""
+OpenAPI documents (openapi/knowledge.json, openapi/fleet.json)."""
 
 from __future__ import annotations
 

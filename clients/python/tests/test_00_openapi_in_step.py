@@ -1,7 +1,7 @@
 """The client kept in step with the committed OpenAPI documents (no service needed).
 
 1. Every operation of the client's table (``mentalsim_client.OPERATIONS``) exists in
-   openapi/knowledge.json or openapi/worker.json with that method, path, operationId, path,
+   openapi/knowledge.json or openapi/fleet.json with that method, path, operationId, path,
    query and header parameters, request body schema and success media types; and every
    operation of the documents is in the table, so a new endpoint fails here until the client
    has it.

@@ -2,7 +2,7 @@
 
 The client sends requests only through this table (``Client._send`` looks the operation up by
 its OpenAPI ``operationId``), and ``tests/test_openapi_in_step.py`` reads it: each operation must
-exist in ``openapi/knowledge.json`` or ``openapi/worker.json`` with the same method, path,
+exist in ``openapi/knowledge.json`` or ``openapi/fleet.json`` with the same method, path,
 operation id, parameters, request body schema and response media types, so a change of the API
 that the client does not follow fails a test.
 """
@@ -80,7 +80,7 @@ OPERATIONS: Final[dict[str, Operation]] = dict(
         _op("robot_urdf", "GET", "/v1/robots/{id}/robot.urdf", "knowledge", accept=("application/xml",)),
         _op("robot_sdf", "GET", "/v1/robots/{id}/robot.sdf", "knowledge", accept=("application/xml",)),
         _op("bridge_yaml", "GET", "/v1/robots/{id}/bridge.yaml", "knowledge", query=("world",), accept=("application/yaml",)),
-        # Plans, roadmaps, jobs and policies (openapi/worker.json).
+        # Plans, roadmaps, jobs and policies (openapi/fleet.json).
         _op("plan", "POST", "/v1/plan", "worker", body="PlanApiRequest", body_type=JSON, accept=(JSON, "application/x-mcap")),
         _op("get_roadmap", "GET", "/v1/roadmaps", "worker", query=("place", "robot", "policy", "safety_margin_m")),
         _op("route_graph", "GET", "/v1/places/{id}/route-graph.geojson", "worker", query=("robot", "policy"), accept=("application/geo+json",)),

@@ -1,4 +1,4 @@
-//! The committed OpenAPI document (`openapi/worker.json`) must match the code. Refresh it with
+//! The committed OpenAPI document (`openapi/fleet.json`) must match the code. Refresh it with
 //! `UPDATE_OPENAPI=1 cargo test --release -p api --test api openapi` (after a workspace build).
 
 use utoipa::OpenApi;
@@ -9,18 +9,18 @@ fn committed_openapi_document_matches_the_code() {
         std::env::var("CARGO_MANIFEST_DIR")
             .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
     )
-    .join("../../openapi/worker.json");
+    .join("../../openapi/fleet.json");
     let generated = api::WorkerApi::openapi()
         .to_pretty_json()
         .expect("the document serialises");
     if std::env::var_os("UPDATE_OPENAPI").is_some() {
-        std::fs::write(&path, format!("{generated}\n")).expect("write openapi/worker.json");
+        std::fs::write(&path, format!("{generated}\n")).expect("write openapi/fleet.json");
         return;
     }
     let committed = std::fs::read_to_string(&path).unwrap_or_default();
     assert!(
         committed.trim_end() == generated.trim_end(),
-        "openapi/worker.json is out of date with the code: run \
+        "openapi/fleet.json is out of date with the code: run \
          `UPDATE_OPENAPI=1 cargo test --release -p api --test api openapi` and commit the result"
     );
 }
