@@ -58,7 +58,7 @@ sys.path.insert(0, str(ROOT / "tests" / "support"))
 import mentalsim_service  # noqa: E402
 from mentalsim_service import Config, default_binary, engineer_and_robot, executable, signal_name  # noqa: E402
 
-DOCUMENTS = ("knowledge", "worker")
+DOCUMENTS = ("knowledge", "fleet")
 # Fixed so that printed reproductions work against `--serve`; the service only ever runs on
 # 127.0.0.1 with a throw-away data directory.
 TOKENS = {

@@ -46,7 +46,7 @@ def test_every_operation_of_the_table_is_documented_as_the_client_calls_it() -> 
 
 def test_every_documented_operation_is_in_the_table() -> None:
     documented = set()
-    for name in ("knowledge", "worker"):
+    for name in ("knowledge", "fleet"):
         for path, item in document(name)["paths"].items():
             for method in METHODS:
                 if method in item:
