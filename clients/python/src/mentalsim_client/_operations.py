@@ -27,7 +27,7 @@ class Operation:
     #: The OpenAPI path template, with ``{id}`` style parameters.
     path: str
     #: Which committed OpenAPI document describes it.
-    document: Literal["knowledge", "worker"]
+    document: Literal["knowledge", "fleet"]
     #: Query parameters the client may send.
     query: tuple[str, ...] = ()
     #: Request headers the client may send besides ``Authorization`` and ``Accept``.
@@ -44,7 +44,7 @@ def _op(
     operation_id: str,
     method: str,
     path: str,
-    document: Literal["knowledge", "worker"],
+    document: Literal["knowledge", "fleet"],
     *,
     query: tuple[str, ...] = (),
     headers: tuple[str, ...] = (),
@@ -81,24 +81,24 @@ OPERATIONS: Final[dict[str, Operation]] = dict(
         _op("robot_sdf", "GET", "/v1/robots/{id}/robot.sdf", "knowledge", accept=("application/xml",)),
         _op("bridge_yaml", "GET", "/v1/robots/{id}/bridge.yaml", "knowledge", query=("world",), accept=("application/yaml",)),
         # Plans, roadmaps, jobs and policies (openapi/fleet.json).
-        _op("plan", "POST", "/v1/plan", "worker", body="PlanApiRequest", body_type=JSON, accept=(JSON, "application/x-mcap")),
-        _op("get_roadmap", "GET", "/v1/roadmaps", "worker", query=("place", "robot", "policy", "safety_margin_m")),
-        _op("route_graph", "GET", "/v1/places/{id}/route-graph.geojson", "worker", query=("robot", "policy"), accept=("application/geo+json",)),
-        _op("floor_traffic", "GET", "/v1/places/{id}/traffic", "worker", query=("robot",)),
-        _op("floor_traffic_events", "GET", "/v1/places/{id}/traffic/events", "worker", query=("robot",), accept=("text/event-stream",)),
-        _op("stand", "POST", "/v1/places/{id}/traffic/standing", "worker", body="Standing", body_type=JSON),
-        _op("cancel_plan", "DELETE", "/v1/plans/{id}", "worker"),
-        _op("report_progress", "POST", "/v1/plans/{id}/progress", "worker", body="Progress", body_type=JSON),
-        _op("create_job", "POST", "/v1/jobs", "worker", body="NewJobRequest", body_type=JSON),
-        _op("list_jobs", "GET", "/v1/jobs", "worker", query=("state", "kind", "limit")),
-        _op("get_job", "GET", "/v1/jobs/{id}", "worker"),
-        _op("cancel_job", "POST", "/v1/jobs/{id}/cancel", "worker"),
-        _op("job_events", "GET", "/v1/jobs/{id}/events", "worker", query=("after",), headers=("Last-Event-ID",), accept=("text/event-stream",)),
-        _op("job_curves_csv", "GET", "/v1/jobs/{id}/curves.csv", "worker", accept=("text/csv",)),
-        _op("job_curves_png", "GET", "/v1/jobs/{id}/curves.png", "worker", accept=("image/png",)),
-        _op("list_policies", "GET", "/v1/policies", "worker"),
-        _op("get_policy", "GET", "/v1/policies/{id}", "worker"),
-        _op("policy_metadata", "GET", "/v1/policies/{id}/policy.json", "worker"),
-        _op("policy_weights", "GET", "/v1/policies/{id}/policy.safetensors", "worker", accept=("application/octet-stream",)),
+        _op("plan", "POST", "/v1/plan", "fleet", body="PlanApiRequest", body_type=JSON, accept=(JSON, "application/x-mcap")),
+        _op("get_roadmap", "GET", "/v1/roadmaps", "fleet", query=("place", "robot", "policy", "safety_margin_m")),
+        _op("route_graph", "GET", "/v1/places/{id}/route-graph.geojson", "fleet", query=("robot", "policy"), accept=("application/geo+json",)),
+        _op("floor_traffic", "GET", "/v1/places/{id}/traffic", "fleet", query=("robot",)),
+        _op("floor_traffic_events", "GET", "/v1/places/{id}/traffic/events", "fleet", query=("robot",), accept=("text/event-stream",)),
+        _op("stand", "POST", "/v1/places/{id}/traffic/standing", "fleet", body="Standing", body_type=JSON),
+        _op("cancel_plan", "DELETE", "/v1/plans/{id}", "fleet"),
+        _op("report_progress", "POST", "/v1/plans/{id}/progress", "fleet", body="Progress", body_type=JSON),
+        _op("create_job", "POST", "/v1/jobs", "fleet", body="NewJobRequest", body_type=JSON),
+        _op("list_jobs", "GET", "/v1/jobs", "fleet", query=("state", "kind", "limit")),
+        _op("get_job", "GET", "/v1/jobs/{id}", "fleet"),
+        _op("cancel_job", "POST", "/v1/jobs/{id}/cancel", "fleet"),
+        _op("job_events", "GET", "/v1/jobs/{id}/events", "fleet", query=("after",), headers=("Last-Event-ID",), accept=("text/event-stream",)),
+        _op("job_curves_csv", "GET", "/v1/jobs/{id}/curves.csv", "fleet", accept=("text/csv",)),
+        _op("job_curves_png", "GET", "/v1/jobs/{id}/curves.png", "fleet", accept=("image/png",)),
+        _op("list_policies", "GET", "/v1/policies", "fleet"),
+        _op("get_policy", "GET", "/v1/policies/{id}", "fleet"),
+        _op("policy_metadata", "GET", "/v1/policies/{id}/policy.json", "fleet"),
+        _op("policy_weights", "GET", "/v1/policies/{id}/policy.safetensors", "fleet", accept=("application/octet-stream",)),
     ]
 )
