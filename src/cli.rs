@@ -773,7 +773,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             concurrency,
             postgres_url,
         } => {
-            let options = queue::bench::BenchOptions {
+            let options = bench::queue::BenchOptions {
                 jobs,
                 concurrency,
                 postgres_url,
@@ -781,7 +781,7 @@ fn run_bench(command: BenchCommand) -> anyhow::Result<()> {
             let runtime = tokio::runtime::Builder::new_multi_thread()
                 .enable_all()
                 .build()?;
-            let reports = runtime.block_on(queue::bench::run(&options))?;
+            let reports = runtime.block_on(bench::queue::run(&options))?;
             println!(
                 "queue throughput (durable commits: SQLite synchronous=FULL, PostgreSQL fsync=on)"
             );

@@ -57,7 +57,7 @@ pub fn router(pages: Pages) -> Router {
 /// API reference and for clients that want one document.
 pub fn merged_openapi() -> utoipa::openapi::OpenApi {
     let mut doc = knowledge::api::KnowledgeApi::openapi();
-    doc.merge(api::WorkerApi::openapi());
+    doc.merge(api::FleetApi::openapi());
     doc.info.title = "Mentalsim".to_owned();
     doc.info.description = Some(
         "The knowledge service (places, robots, maps, objects, on-demand databases; SPARQL at \

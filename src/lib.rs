@@ -10,6 +10,7 @@
     clippy::cast_possible_wrap
 )]
 
+pub mod assembly;
 pub mod cli;
 pub mod config;
 pub mod console;

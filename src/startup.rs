@@ -8,11 +8,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use axum::Router;
+use jobs::{InProcessKnowledge, JobDirs, JobEnv};
 use knowledge::{Knowledge, KnowledgeStore, StoreError};
 use queue::{JobDatabase, LazyQueue};
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use worker::jobs::{InProcessKnowledge, JobDirs, JobEnv};
+
+use crate::assembly::Fleet;
 
 use crate::config::Config;
 
@@ -25,7 +27,7 @@ pub struct Components {
     data_dir: PathBuf,
     knowledge: Arc<Knowledge>,
     queue: Arc<LazyQueue>,
-    job_env: Arc<JobEnv>,
+    fleet: Fleet,
 }
 
 impl Components {
@@ -73,20 +75,20 @@ impl Components {
             config.job_backoff(),
             Some(config.data_dir.clone()),
         ));
-        let job_env = Arc::new(JobEnv::new(
+        let fleet = crate::assembly::fleet(
             Arc::new(InProcessKnowledge::new(knowledge.clone())),
             job_dirs(config),
-            Arc::clone(&queue),
+            &queue,
             Some(edge::disk::DiskWatch::new(
                 config.checkpoints_dir(),
                 config.min_free_bytes,
             )),
-        ));
+        );
         Self {
             data_dir: config.data_dir.clone(),
             knowledge,
             queue,
-            job_env,
+            fleet,
         }
     }
 
@@ -98,7 +100,7 @@ impl Components {
     /// What job handlers share: the in-process knowledge source, checkpoint and policy
     /// directories, the plan validator.
     pub fn job_env(&self) -> &Arc<JobEnv> {
-        &self.job_env
+        &self.fleet.kinds
     }
 
     /// The data directory.
@@ -190,14 +192,14 @@ impl Application {
         let grace = self.config.shutdown_grace();
         let stopping = self.stopping.clone();
         let workers = (self.config.worker_concurrency > 0).then(|| {
-            tokio::spawn(worker::service::run_workers(
+            tokio::spawn(jobs::service::run_workers(
                 self.components.queue().clone(),
                 self.components.job_env().clone(),
                 self.config.worker_config(),
                 stopping.clone(),
             ))
         });
-        let purge = tokio::spawn(worker::service::purge_loop(
+        let purge = tokio::spawn(jobs::service::purge_loop(
             self.components.queue().clone(),
             self.components.job_env().clone(),
             self.config.job_retention(),
@@ -256,18 +258,20 @@ impl Application {
 fn router(config: &Config, components: Arc<Components>, stopping: CancellationToken) -> Router {
     let knowledge = components.knowledge().clone();
     let guard = config.guard(knowledge.tokens.clone());
-    let jobs = Arc::new(api::JobsApi {
+    let fleet = api::FleetServices {
         queue: components.queue().clone(),
         tokens: knowledge.tokens.clone(),
-        env: components.job_env().clone(),
+        planner: Arc::clone(&components.fleet.planner),
+        kinds: Arc::clone(&components.fleet.kinds),
+        fleet: Arc::clone(&components.fleet.schedule),
         shutdown: stopping,
         event_poll: std::time::Duration::from_millis(250),
         // Each stream polls the job database every 250 ms; the pool is the heartbeats' too.
         streams: Arc::new(api::StreamLimits::new(64, 8)),
-    });
+    };
     let app = Router::new()
         .merge(crate::health::router(components))
-        .merge(api::router(jobs))
+        .merge(api::router(fleet))
         .merge(knowledge::api::router(knowledge.clone()))
         .merge(knowledge::protocol::router(knowledge))
         .merge(

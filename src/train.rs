@@ -431,7 +431,7 @@ enum EdgeDriver<'a> {
 /// policy-aware roadmap drives them; returns the report and the wall-clock seconds.
 fn drive_roadmap(
     world: &Arc<World>,
-    roadmap: &planning::Roadmap,
+    roadmap: &prm::Roadmap,
     driver: EdgeDriver<'_>,
     seed: u64,
     rollouts: u32,

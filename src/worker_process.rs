@@ -11,11 +11,11 @@ use axum::extract::State;
 use axum::response::Response;
 use axum::routing::get;
 use axum::{Json, Router};
+use jobs::{HttpKnowledge, JobEnv};
 use queue::{LazyQueue, Queue};
 use serde_json::json;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use worker::jobs::{HttpKnowledge, JobEnv};
 
 use crate::config::Config;
 use crate::health::{self, Check, Detail, Readiness};
@@ -58,15 +58,16 @@ impl WorkerProcess {
         if let Err(reason) = queue.get().await {
             tracing::error!(%reason, "job database unavailable; /readyz will report it");
         }
-        let env = Arc::new(JobEnv::new(
+        let env = crate::assembly::fleet(
             Arc::new(knowledge.clone()),
             crate::startup::job_dirs(&config),
-            Arc::clone(&queue),
+            &queue,
             Some(edge::disk::DiskWatch::new(
                 config.checkpoints_dir(),
                 config.min_free_bytes,
             )),
-        ));
+        )
+        .kinds;
         let shared = Arc::new(Shared {
             queue,
             knowledge,
@@ -115,7 +116,7 @@ impl WorkerProcess {
         let stopping = CancellationToken::new();
         let config = self.config.worker_config();
         tracing::info!(worker = %config.id, knowledge = %self.shared.knowledge.base(), concurrency = config.concurrency, "mentalsim worker starting");
-        let workers = tokio::spawn(worker::service::run_workers(
+        let workers = tokio::spawn(jobs::service::run_workers(
             self.shared.queue.clone(),
             self.env.clone(),
             config,

@@ -4,7 +4,6 @@
 //! Engineers create and cancel jobs; any valid token (robot or engineer) reads. Wire types live
 //! here and are converted from the queue's types.
 
-use std::collections::HashMap;
 use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Duration;
@@ -25,129 +24,58 @@ use tokio_util::sync::CancellationToken;
 use utoipa::{OpenApi, ToSchema};
 use uuid::Uuid;
 
-use crate::policies::{PolicyView, get_policy, list_policies, policy_metadata, policy_weights};
+use crate::policies::PolicyView;
+use crate::streams::{StreamLimits, StreamPermit};
+use jobs::{EvaluatePayload, JobEnv, JobKind, PayloadError, TrainPayload};
 use queue::{Job, JobEvent, JobState, LazyQueue, NewJob, QueueError};
-use worker::jobs::{EvaluatePayload, JobEnv, JobKind, PayloadError, TrainPayload};
 
-/// The OpenAPI document of the jobs and policies API, generated from the handlers below.
+/// The OpenAPI document of the fleet's routes (plans, roadmaps, traffic, jobs, policies),
+/// generated from their handlers.
 #[derive(OpenApi)]
 #[openapi(
-    info(title = "Mentalsim worker service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
+    info(title = "Mentalsim fleet service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
     paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph, crate::traffic::floor_traffic, crate::traffic::floor_traffic_events, crate::traffic::cancel_plan, crate::traffic::report_progress, crate::traffic::stand),
     components(
-        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, worker::jobs::RoadmapPayload, worker::jobs::JobResult, worker::jobs::TrainResult, worker::jobs::EvaluateResult, worker::jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, worker::plan::types::PlanApiRequestDoc, worker::plan::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, crate::traffic::Standing, traffic::Itinerary, traffic::TimedPose),
+        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, jobs::RoadmapPayload, jobs::JobResult, jobs::TrainResult, jobs::EvaluateResult, jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, wire::types::PlanApiRequestDoc, wire::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, crate::traffic::Standing, traffic::Itinerary, traffic::TimedPose),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
     security(("bearer" = []))
 )]
-pub struct WorkerApi;
+pub struct FleetApi;
 
-/// What the API handlers share.
-pub struct JobsApi {
+/// The state of the job routes.
+pub struct JobRoutes {
     /// The queue (opened lazily).
     pub queue: Arc<LazyQueue>,
     /// Who may do what.
     pub tokens: Tokens,
-    /// The job environment: knowledge source (payload checks), policies.
-    pub env: Arc<JobEnv>,
+    /// The job kinds: what a new job is checked against.
+    pub kinds: Arc<JobEnv>,
     /// Fires when the process shuts down: event streams end.
     pub shutdown: CancellationToken,
     /// How often an event stream polls for new events.
     pub event_poll: Duration,
-    /// Event streams open at once, in all and per token: each polls the job database, whose
-    /// pool the running jobs' heartbeats need.
+    /// Event streams open at once.
     pub streams: Arc<StreamLimits>,
 }
 
-/// Caps on open event streams.
-#[derive(Debug)]
-pub struct StreamLimits {
-    /// Streams open at once in all.
-    pub total: usize,
-    /// Streams open at once per token holder.
-    pub per_principal: usize,
-    open: std::sync::Mutex<HashMap<String, usize>>,
-}
-
-impl StreamLimits {
-    /// At most `total` streams, `per_principal` of them by one token holder.
-    pub fn new(total: usize, per_principal: usize) -> Self {
-        Self {
-            total,
-            per_principal,
-            open: std::sync::Mutex::default(),
-        }
-    }
-
-    /// A place for one more stream of `who`, held until the stream ends.
-    pub(crate) fn open(self: &Arc<Self>, who: &str) -> Result<StreamPermit, ApiError> {
-        let mut open = self
-            .open
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        let all: usize = open.values().sum();
-        let mine = open.get(who).copied().unwrap_or(0);
-        if all >= self.total {
-            return Err(ApiError::new(
-                ErrorCode::Overloaded,
-                format!("{all} event streams are open, the service's limit; retry later"),
-            ));
-        }
-        if mine >= self.per_principal {
-            return Err(ApiError::new(
-                ErrorCode::TooManyRequests,
-                format!(
-                    "{who} has {mine} event streams open, the limit per token; close one first"
-                ),
-            ));
-        }
-        *open.entry(who.to_owned()).or_insert(0) += 1;
-        Ok(StreamPermit {
-            limits: Arc::clone(self),
-            who: who.to_owned(),
-        })
-    }
-}
-
-/// One open stream's place; given back when the stream is dropped.
-pub(crate) struct StreamPermit {
-    limits: Arc<StreamLimits>,
-    who: String,
-}
-
-impl Drop for StreamPermit {
-    fn drop(&mut self) {
-        let mut open = self
-            .limits
-            .open
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        if let Some(n) = open.get_mut(&self.who) {
-            *n = n.saturating_sub(1);
-            if *n == 0 {
-                open.remove(&self.who);
-            }
-        }
-    }
-}
-
-impl TokenSource for JobsApi {
+impl TokenSource for JobRoutes {
     fn tokens(&self) -> &Tokens {
         &self.tokens
     }
 }
 
-impl std::fmt::Debug for JobsApi {
+impl std::fmt::Debug for JobRoutes {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("JobsApi")
-            .field("env", &self.env)
+        f.debug_struct("JobRoutes")
+            .field("kinds", &self.kinds)
             .finish_non_exhaustive()
     }
 }
 
-/// The routes: jobs, policies, and plans and roadmaps ([`crate::plan`]).
-pub fn router(state: Arc<JobsApi>) -> Router {
+/// The job routes.
+pub fn router(state: Arc<JobRoutes>) -> Router {
     Router::new()
         .route("/v1/jobs", post(create_job).get(list_jobs))
         .route("/v1/jobs/{id}", get(get_job))
@@ -155,16 +83,10 @@ pub fn router(state: Arc<JobsApi>) -> Router {
         .route("/v1/jobs/{id}/events", get(job_events))
         .route("/v1/jobs/{id}/curves.csv", get(job_curves_csv))
         .route("/v1/jobs/{id}/curves.png", get(job_curves_png))
-        .route("/v1/policies", get(list_policies))
-        .route("/v1/policies/{id}", get(get_policy))
-        .route("/v1/policies/{id}/policy.safetensors", get(policy_weights))
-        .route("/v1/policies/{id}/policy.json", get(policy_metadata))
-        .with_state(Arc::clone(&state))
-        .merge(crate::plan::router(Arc::clone(&state)))
-        .merge(crate::traffic::router(state))
+        .with_state(state)
 }
 
-impl JobsApi {
+impl JobRoutes {
     /// The job `id` names; 404 for anything else.
     async fn job(&self, id: &str) -> Result<Job, ApiError> {
         let id = job_id(id)?;
@@ -275,7 +197,7 @@ enum NewJobDoc {
     #[serde(deny_unknown_fields)]
     Validate {
         /// The plan, as `POST /v1/plan` takes it.
-        payload: worker::plan::types::PlanApiRequestDoc,
+        payload: wire::types::PlanApiRequestDoc,
         /// Higher runs first [default: 0].
         #[schema(minimum = -2147483648, maximum = 2147483647)]
         priority: Option<i32>,
@@ -287,7 +209,7 @@ enum NewJobDoc {
     #[serde(deny_unknown_fields)]
     Roadmap {
         /// The job's parameters.
-        payload: worker::jobs::RoadmapPayload,
+        payload: jobs::RoadmapPayload,
         /// Higher runs first [default: 0].
         #[schema(minimum = -2147483648, maximum = 2147483647)]
         priority: Option<i32>,
@@ -327,7 +249,7 @@ pub struct JobView {
     checkpoint: Option<Value>,
     /// The result, once succeeded: its form follows `kind` (`TrainResult`, `EvaluateResult`,
     /// the `POST /v1/plan` answer for `validate`, `RoadmapResult`).
-    #[schema(value_type = Option<worker::jobs::JobResult>)]
+    #[schema(value_type = Option<jobs::JobResult>)]
     result: Option<Value>,
     /// The latest error.
     error: Option<String>,
@@ -367,7 +289,7 @@ impl JobView {
 
 impl From<&Job> for JobView {
     fn from(j: &Job) -> Self {
-        let t = worker::jobs::rfc3339;
+        let t = jobs::rfc3339;
         Self {
             id: j.id.to_string(),
             kind: j.kind.clone(),
@@ -406,7 +328,7 @@ impl From<&Job> for JobView {
     (status = 503, response = edge::error::responses::ServiceUnavailable),
     (status = 507, response = edge::error::responses::StorageFull)))]
 async fn create_job(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<JobRoutes>>,
     EngineerCaller(principal): EngineerCaller,
     Json(request): Json<NewJobRequest>,
 ) -> Result<Response, ApiError> {
@@ -415,7 +337,7 @@ async fn create_job(
         .parse()
         .map_err(|e| payload_error(PayloadError::from(e)))?;
     let payload = api
-        .env
+        .kinds
         .check_new(kind, &request.payload)
         .await
         .map_err(payload_error)?;
@@ -472,7 +394,7 @@ pub struct ListQuery {
     (status = 401, response = edge::error::responses::Unauthorized),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn list_jobs(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<JobRoutes>>,
     Caller(caller): Caller,
     Query(query): Query<ListQuery>,
 ) -> Result<Json<Vec<JobView>>, ApiError> {
@@ -510,7 +432,7 @@ async fn list_jobs(
     (status = 404, description = "No job has this id.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn get_job(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<JobRoutes>>,
     Caller(caller): Caller,
     Path(id): Path<String>,
 ) -> Result<Json<JobView>, ApiError> {
@@ -528,7 +450,7 @@ async fn get_job(
     (status = 409, description = "The job has already finished.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn cancel_job(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<JobRoutes>>,
     EngineerCaller(principal): EngineerCaller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
@@ -584,7 +506,7 @@ pub struct EventsQuery {
     (status = 429, description = "This token already has 8 event streams open (`too_many_requests`, with `Retry-After`); close one.", body = ErrorBody),
     (status = 503, description = "64 event streams are open in all (`overloaded`, with `Retry-After`), or the service cannot serve now (`not_ready`, `timeout`).", body = ErrorBody)))]
 async fn job_events(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<JobRoutes>>,
     Caller(principal): Caller,
     headers: HeaderMap,
     Path(id): Path<String>,
@@ -620,7 +542,7 @@ async fn job_events(
 struct Cursor {
     /// Held while the stream lives.
     _permit: StreamPermit,
-    api: Arc<JobsApi>,
+    api: Arc<JobRoutes>,
     job: Uuid,
     after: i64,
     pending: std::collections::VecDeque<JobEvent>,
@@ -634,7 +556,7 @@ fn sse_event(e: &JobEvent, role: Role) -> Event {
     let data = serde_json::json!({
         "kind": e.kind,
         "data": if e.kind == "checkpoint" { checkpoint_for(e.data.clone(), role) } else { e.data.clone() },
-        "created": worker::jobs::rfc3339(e.created_ms),
+        "created": jobs::rfc3339(e.created_ms),
     });
     Event::default()
         .id(e.id.to_string())
@@ -643,7 +565,7 @@ fn sse_event(e: &JobEvent, role: Role) -> Event {
 }
 
 fn event_stream(
-    api: Arc<JobsApi>,
+    api: Arc<JobRoutes>,
     job: Uuid,
     after: i64,
     permit: StreamPermit,
@@ -713,7 +635,7 @@ enum CurvesSource {
 
 /// The curves of training job `id`: the exported policy's files once it succeeded, else its
 /// latest checkpoint's episodes; 404 for other kinds and before the first checkpoint.
-async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
+async fn curves_of(api: &JobRoutes, id: &str) -> Result<CurvesSource, ApiError> {
     let job = api.job(id).await?;
     let id = job.id;
     if job.kind != "train" {
@@ -726,12 +648,12 @@ async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
         .result
         .as_ref()
         .and_then(|r| r["policy_id"].as_str())
-        .and_then(|p| api.env.policies.path(p));
+        .and_then(|p| api.kinds.policies.path(p));
     if let Some(dir) = policy_dir.filter(|d| d.join(learning::curves::CSV_FILE).is_file()) {
         return Ok(CurvesSource::Files(dir));
     }
     let checkpoint_dir =
-        worker::jobs::train::checkpoint_dir(job.checkpoint.as_ref(), id, &api.env.checkpoints_dir);
+        jobs::train::checkpoint_dir(job.checkpoint.as_ref(), id, &api.kinds.checkpoints_dir);
     let episodes = tokio::task::spawn_blocking(move || {
         learning::trainer::Trainer::checkpointed_episodes(&checkpoint_dir)
     })
@@ -755,7 +677,7 @@ async fn curves_of(api: &JobsApi, id: &str) -> Result<CurvesSource, ApiError> {
     (status = 404, description = "No job has this id, it is not a training job, or it has no curve point yet.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn job_curves_csv(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<JobRoutes>>,
     _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
@@ -776,7 +698,7 @@ async fn job_curves_csv(
     (status = 404, description = "No job has this id, it is not a training job, or it has no curve point yet.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 async fn job_curves_png(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<JobRoutes>>,
     _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
@@ -791,7 +713,7 @@ async fn job_curves_png(
                 let path = tmp.path().join(learning::curves::PNG_FILE);
                 learning::curves::plot_curves(
                     &path,
-                    &worker::jobs::train::curves_title(&id),
+                    &jobs::train::curves_title(&id),
                     &[("reward".into(), learning::curves::smooth(&episodes))],
                 )
                 .map_err(|e| e.to_string())?;

@@ -23,16 +23,28 @@ use axum::http::HeaderMap;
 use axum::response::IntoResponse;
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use edge::{ApiError, ErrorCode, RobotCaller};
+use edge::{ApiError, ErrorCode, RobotCaller, TokenSource, Tokens};
 use planner::PlanFailure;
 use sim::World;
-use worker::plan::{PlanApiRequest, PlanApiResponse, types};
+use wire::{PlanApiRequest, PlanApiResponse, types};
 
 pub use self::error::PlanErrorResponse;
-use crate::jobs::JobsApi;
+/// The state of the plan and roadmap routes.
+pub struct PlanRoutes {
+    /// Who may do what.
+    pub tokens: Tokens,
+    /// The plan use case.
+    pub planner: Arc<planner::Planner>,
+}
 
-/// The routes of plans and roadmaps, over the jobs API's state (its planner).
-pub fn router(state: Arc<JobsApi>) -> Router {
+impl TokenSource for PlanRoutes {
+    fn tokens(&self) -> &Tokens {
+        &self.tokens
+    }
+}
+
+/// The routes of plans and roadmaps.
+pub fn router(state: Arc<PlanRoutes>) -> Router {
     Router::new()
         .route("/v1/plan", post(plan))
         .route("/v1/roadmaps", get(roadmap_view::get_roadmap))
@@ -98,7 +110,7 @@ pub(crate) fn plan_failure(e: PlanFailure) -> ApiError {
     security(("bearer" = []))
 )]
 async fn plan(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<PlanRoutes>>,
     _caller: RobotCaller,
     headers: HeaderMap,
     Json(mut req): Json<PlanApiRequest>,
@@ -115,12 +127,7 @@ async fn plan(
     // sees the stop at its next check and ends.
     let stop = rehearsal::Stop::new();
     let _stop_on_drop = rehearsal::StopOnDrop(stop.clone());
-    let outcome = api
-        .env
-        .planner
-        .plan(query, stop)
-        .await
-        .map_err(plan_failure)?;
+    let outcome = api.planner.plan(query, stop).await.map_err(plan_failure)?;
     let world = Arc::clone(&outcome.world);
     let service_ms = started.elapsed().as_secs_f64() * 1000.0;
     let answer = PlanApiResponse::of(outcome, &start, service_ms);

@@ -15,7 +15,35 @@ use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
-use crate::jobs::JobsApi;
+use axum::Router;
+use axum::routing::get;
+use edge::{TokenSource, Tokens};
+use planner::PolicyStore;
+
+/// The state of the policy routes.
+#[derive(Debug)]
+pub struct PolicyRoutes {
+    /// Who may do what.
+    pub tokens: Tokens,
+    /// The exported policies.
+    pub policies: PolicyStore,
+}
+
+impl TokenSource for PolicyRoutes {
+    fn tokens(&self) -> &Tokens {
+        &self.tokens
+    }
+}
+
+/// The routes of exported policies.
+pub fn router(state: Arc<PolicyRoutes>) -> Router {
+    Router::new()
+        .route("/v1/policies", get(list_policies))
+        .route("/v1/policies/{id}", get(get_policy))
+        .route("/v1/policies/{id}/policy.safetensors", get(policy_weights))
+        .route("/v1/policies/{id}/policy.json", get(policy_metadata))
+        .with_state(state)
+}
 
 /// A policy in a listing: its id and its training's summary, in the wire types.
 #[derive(Debug, Clone, Serialize, ToSchema)]
@@ -48,7 +76,7 @@ impl From<&PolicyEntry> for PolicyView {
             place: s.place.clone(),
             floor: s.floor.clone(),
             job_id: s.job_id.clone(),
-            created: (s.created_ms > 0).then(|| worker::jobs::rfc3339(s.created_ms)),
+            created: (s.created_ms > 0).then(|| jobs::rfc3339(s.created_ms)),
             eval: s
                 .eval
                 .as_ref()
@@ -58,9 +86,8 @@ impl From<&PolicyEntry> for PolicyView {
     }
 }
 
-fn policy_path(api: &JobsApi, id: &str) -> Result<std::path::PathBuf, ApiError> {
-    api.env
-        .policies
+fn policy_path(api: &PolicyRoutes, id: &str) -> Result<std::path::PathBuf, ApiError> {
+    api.policies
         .path(id)
         .filter(|p| p.join(WEIGHTS).is_file())
         .ok_or_else(|| ApiError::not_found(format!("no policy has id {id:?}")))
@@ -72,10 +99,10 @@ fn policy_path(api: &JobsApi, id: &str) -> Result<std::path::PathBuf, ApiError> 
     (status = 401, response = edge::error::responses::Unauthorized),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(crate) async fn list_policies(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<PolicyRoutes>>,
     _caller: Caller,
 ) -> Result<Json<Vec<PolicyView>>, ApiError> {
-    let store = api.env.policies.clone();
+    let store = api.policies.clone();
     let list = tokio::task::spawn_blocking(move || store.list())
         .await
         .map_err(ApiError::internal)?;
@@ -89,13 +116,12 @@ pub(crate) async fn list_policies(
     (status = 404, description = "No policy has this id.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(crate) async fn get_policy(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<PolicyRoutes>>,
     _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Json<Value>, ApiError> {
     policy_path(&api, &id)?;
     let meta = api
-        .env
         .policies
         .metadata(&id)
         .ok_or_else(|| ApiError::not_found(format!("no policy has id {id:?}")))?;
@@ -113,7 +139,7 @@ pub(crate) async fn get_policy(
 }
 
 async fn download(
-    api: &JobsApi,
+    api: &PolicyRoutes,
     id: &str,
     file: &str,
     media: &'static str,
@@ -143,7 +169,7 @@ async fn download(
     (status = 404, description = "No policy has this id.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(crate) async fn policy_weights(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<PolicyRoutes>>,
     _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
@@ -157,7 +183,7 @@ pub(crate) async fn policy_weights(
     (status = 404, description = "No policy has this id.", body = ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub(crate) async fn policy_metadata(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<PolicyRoutes>>,
     _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {

@@ -11,16 +11,37 @@ use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{delete, get, post};
 use axum::{Json, Router};
-use edge::{ApiError, ErrorCode, Principal, RobotCaller, Role};
+use edge::{ApiError, ErrorCode, Principal, RobotCaller, Role, TokenSource, Tokens};
 use serde::{Deserialize, Serialize};
 use tokio::sync::broadcast;
+use tokio_util::sync::CancellationToken;
 use traffic::{Change, Itinerary, Schedule, TrafficError};
 use utoipa::{IntoParams, ToSchema};
 
-use crate::jobs::{JobsApi, StreamPermit};
+use crate::streams::{StreamLimits, StreamPermit};
 
-/// The routes of the traffic schedule, over the jobs API's state (its job database).
-pub fn router(state: Arc<JobsApi>) -> Router {
+/// The state of the traffic routes.
+pub struct TrafficRoutes {
+    /// Who may do what.
+    pub tokens: Tokens,
+    /// The fleet's traffic schedule in the job database.
+    pub fleet: Arc<jobs::QueueFleet>,
+    /// The plan use case: which floor a place is on, where a robot stands.
+    pub planner: Arc<planner::Planner>,
+    /// Fires when the process shuts down: event streams end.
+    pub shutdown: CancellationToken,
+    /// Event streams open at once.
+    pub streams: Arc<StreamLimits>,
+}
+
+impl TokenSource for TrafficRoutes {
+    fn tokens(&self) -> &Tokens {
+        &self.tokens
+    }
+}
+
+/// The routes of the traffic schedule.
+pub fn router(state: Arc<TrafficRoutes>) -> Router {
     Router::new()
         .route("/v1/places/{id}/traffic", get(floor_traffic))
         .route("/v1/places/{id}/traffic/events", get(floor_traffic_events))
@@ -100,9 +121,8 @@ fn traffic_error(e: TrafficError) -> ApiError {
     }
 }
 
-async fn schedule(api: &JobsApi) -> Result<&traffic::Schedule, ApiError> {
-    api.env
-        .fleet
+async fn schedule(api: &TrafficRoutes) -> Result<&traffic::Schedule, ApiError> {
+    api.fleet
         .schedule()
         .await
         .map_err(|m| ApiError::new(ErrorCode::NotReady, m))
@@ -118,7 +138,11 @@ fn acts_for(caller: &Principal, robot: &str) -> bool {
 
 /// A plan of the schedule, 404 when there is none (or it expired), 403 when `caller` may not
 /// act for its robot.
-async fn own_plan(api: &JobsApi, caller: &Principal, id: &str) -> Result<Itinerary, ApiError> {
+async fn own_plan(
+    api: &TrafficRoutes,
+    caller: &Principal,
+    id: &str,
+) -> Result<Itinerary, ApiError> {
     let plan = schedule(api)
         .await?
         .get(id)
@@ -152,7 +176,7 @@ async fn own_plan(api: &JobsApi, caller: &Principal, id: &str) -> Result<Itinera
     security(("bearer" = []))
 )]
 async fn floor_traffic(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<TrafficRoutes>>,
     _caller: RobotCaller,
     Path(id): Path<String>,
     Query(query): Query<TrafficQuery>,
@@ -164,7 +188,7 @@ async fn floor_traffic(
 
 /// The floor a traffic route names: its IRI, or the floor of a place on `robot`'s map.
 async fn traffic_floor(
-    api: &JobsApi,
+    api: &TrafficRoutes,
     id: String,
     robot: Option<String>,
 ) -> Result<String, ApiError> {
@@ -178,7 +202,6 @@ async fn traffic_floor(
         )
     })?;
     Ok(api
-        .env
         .planner
         .floor(&id, &robot)
         .await
@@ -220,7 +243,7 @@ async fn floor_snapshot(schedule: &Schedule, floor: String) -> Result<FloorTraff
     security(("bearer" = []))
 )]
 async fn floor_traffic_events(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<TrafficRoutes>>,
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
     Query(query): Query<TrafficQuery>,
@@ -256,7 +279,7 @@ const VERSION_POLL: Duration = Duration::from_secs(1);
 struct TrafficCursor {
     /// Held while the stream lives.
     _permit: StreamPermit,
-    api: Arc<JobsApi>,
+    api: Arc<TrafficRoutes>,
     schedule: Schedule,
     floor: String,
     changes: broadcast::Receiver<Change>,
@@ -361,12 +384,12 @@ fn traffic_stream(
     security(("bearer" = []))
 )]
 async fn stand(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<TrafficRoutes>>,
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
     Json(standing): Json<Standing>,
 ) -> Result<Json<Itinerary>, ApiError> {
-    let planner = &api.env.planner;
+    let planner = &api.planner;
     let floor = planner
         .floor(&id, &standing.robot)
         .await
@@ -404,7 +427,7 @@ async fn stand(
     security(("bearer" = []))
 )]
 async fn cancel_plan(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<TrafficRoutes>>,
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
 ) -> Result<Json<Itinerary>, ApiError> {
@@ -439,7 +462,7 @@ async fn cancel_plan(
     security(("bearer" = []))
 )]
 async fn report_progress(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<TrafficRoutes>>,
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
     Json(progress): Json<Progress>,

@@ -38,11 +38,7 @@ pub struct EdgeBenchOptions {
 
 /// The undirected edges of `roadmap` to drive: all, or `at_most` of them drawn with `seed`
 /// (in the roadmap's order).
-fn edge_sample(
-    roadmap: &planning::Roadmap,
-    at_most: Option<usize>,
-    seed: u64,
-) -> Vec<(usize, usize)> {
+fn edge_sample(roadmap: &prm::Roadmap, at_most: Option<usize>, seed: u64) -> Vec<(usize, usize)> {
     use rand::SeedableRng;
     let all: Vec<(usize, usize)> = roadmap.edges().collect();
     match at_most {
@@ -61,10 +57,10 @@ fn edge_sample(
 /// neither is (drawn last, on top).
 fn edge_map_png(
     world: &World,
-    roadmap: &planning::Roadmap,
+    roadmap: &prm::Roadmap,
     report: &rehearsal::EdgeReport,
 ) -> Result<Vec<u8>, String> {
-    let nodes: Vec<planning::Point2> = roadmap.nodes().collect();
+    let nodes: Vec<prm::Point2> = roadmap.nodes().collect();
     let keep = report.params.keep_threshold;
     let mut segments: Vec<(usize, sim::render::Segment)> = report
         .edges
@@ -157,7 +153,7 @@ pub fn run_edge_bench(options: &EdgeBenchOptions) -> Result<String, BenchError> 
 
     fn drive_with(
         world: &Arc<World>,
-        roadmap: &planning::Roadmap,
+        roadmap: &prm::Roadmap,
         some: &[(usize, usize)],
         which: Which,
         policy: Option<&Arc<Policy>>,

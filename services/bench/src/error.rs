@@ -35,7 +35,7 @@ pub enum BenchError {
         /// The map file.
         path: PathBuf,
         /// What is wrong.
-        source: planning::ConfigSpaceError,
+        source: prm::ConfigSpaceError,
     },
     /// The planner rejected the parameters.
     #[error("{map}: {source}")]
@@ -43,7 +43,7 @@ pub enum BenchError {
         /// The map.
         map: String,
         /// What is wrong.
-        source: planning::BuildError,
+        source: prm::BuildError,
     },
     /// No map to run on.
     #[error("no ROS map_server .yaml file under {0}")]

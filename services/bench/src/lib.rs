@@ -12,6 +12,7 @@ pub mod movingai;
 pub mod navigation;
 pub mod plan_load;
 pub mod prm;
+pub mod queue;
 pub mod sim;
 
 /// This crate's directory (its `scripts/`, the repository's `ontologies/` two levels up). Read

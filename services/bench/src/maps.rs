@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use grid::hash::fnv1a;
 use grid::seed::mix;
-use planning::PlanningGrid;
+use prm::PlanningGrid;
 
 use crate::error::BenchError;
 

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use planning::{
+use prm::{
     ConfigSpace, Inflation, PlanningGrid, Point2, PrmParams, QueryOptions, Roadmap,
     SearchAlgorithm, optimal_samples,
 };
@@ -209,7 +209,7 @@ fn run_map(
     name: &str,
     grid: &PlanningGrid,
     scens: &[Scenario],
-) -> Result<MovingAiMapResult, planning::BuildError> {
+) -> Result<MovingAiMapResult, prm::BuildError> {
     let free_cells = grid.blocked.iter().filter(|b| !**b).count();
     let inflation = Inflation {
         robot_radius_m: 0.0,

@@ -38,7 +38,7 @@ use std::time::Instant;
 
 use grid::seed::mix;
 use learning::Policy;
-use planning::{Point2, PrmParams, QueryOptions};
+use prm::{Point2, PrmParams, QueryOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rehearsal::{MppiCycles, PlanError, RoadmapCache};
@@ -486,7 +486,7 @@ fn choose_mission(
         return Ok(None);
     };
     let params = PrmParams {
-        samples: planning::optimal_samples(space.free_area_m2),
+        samples: prm::optimal_samples(space.free_area_m2),
         seed: opts.seed,
         ..PrmParams::default()
     };

@@ -23,7 +23,7 @@
 use std::sync::Arc;
 
 use learning::Policy;
-use planning::{Point2, Roadmap};
+use prm::{Point2, Roadmap};
 use rayon::prelude::*;
 use rehearsal::{AttemptOutcome, ControllerChoice, PlanError, PlanRequest, RoadmapCache};
 use serde::{Deserialize, Serialize};

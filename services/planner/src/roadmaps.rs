@@ -217,7 +217,7 @@ impl StoredRoadmap {
 }
 
 /// FNV-1a of a roadmap's node coordinates.
-pub fn nodes_fingerprint(roadmap: &planning::Roadmap) -> u64 {
+pub fn nodes_fingerprint(roadmap: &prm::Roadmap) -> u64 {
     let mut bytes = Vec::new();
     for p in roadmap.nodes() {
         bytes.extend_from_slice(&p.x.to_le_bytes());
@@ -268,13 +268,13 @@ pub fn geometric_roadmap(
     roadmaps: &rehearsal::RoadmapCache,
     floor_state: &str,
     margin: f64,
-) -> Result<Arc<planning::Roadmap>, String> {
+) -> Result<Arc<prm::Roadmap>, String> {
     let space =
         rehearsal::config_space(world, roadmaps, floor_state, margin).map_err(|e| e.to_string())?;
-    let params = planning::PrmParams {
-        samples: planning::optimal_samples(space.free_area_m2),
+    let params = prm::PrmParams {
+        samples: prm::optimal_samples(space.free_area_m2),
         seed: 0,
-        ..planning::PrmParams::default()
+        ..prm::PrmParams::default()
     };
     roadmaps
         .roadmap(floor_state, &space, &params)
@@ -287,7 +287,7 @@ pub fn geometric_roadmap(
 #[derive(Debug, Clone)]
 pub struct AppliedRoadmap {
     /// The policy-aware roadmap.
-    pub roadmap: Arc<planning::Roadmap>,
+    pub roadmap: Arc<prm::Roadmap>,
     /// The controllers measured on the floor state, when they were.
     pub trial: Option<Arc<ControllerTrial>>,
 }

@@ -14,7 +14,7 @@ use planner::{
     BuildFuture, FloorDatabase, KnowledgeSource, PlanFailure, PlanPeople, PlanQuery, Planner,
     PolicyRoadmapKey, PolicyStore, RoadmapBuilds, RoadmapStore, SourceError, SourceFuture,
 };
-use planning::Point2;
+use prm::Point2;
 use rehearsal::{
     ControllerChoice, ControllerKind, EdgeRolloutParams, PlanOptions, PlanRequest, RoadmapChoice,
     RoadmapKind,

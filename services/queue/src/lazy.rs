@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use tokio::sync::OnceCell;
 
 use crate::database::JobDatabase;
-use crate::queue::{Backoff, Queue};
+use crate::jobs::{Backoff, Queue};
 
 /// A [`Queue`] opened lazily.
 #[derive(Debug)]

@@ -1,5 +1,5 @@
 //! The job engine: a durable job queue and the runner that drains it. It knows no job kind:
-//! kinds are names, payloads and results JSON; the fleet's job kinds live in `worker`.
+//! kinds are names, payloads and results JSON; the fleet's job kinds live in `jobs`.
 //!
 //! - [`JobDatabase`]: connection and migrations, SQLite (default) or PostgreSQL by URL.
 //! - [`Queue`]: enqueue, claim (leases with fencing tokens), heartbeats, progress events,
@@ -7,8 +7,6 @@
 //! - [`Worker`]: claims jobs for the [`JobHandler`]s registered by kind name and runs them with
 //!   heartbeats, cooperative cancellation and graceful shutdown; [`run_workers`] waits for a
 //!   lazily opened queue ([`LazyQueue`]) first.
-//! - `bench` (feature `bench`, off by default): the queue throughput benchmark behind
-//!   `mentalsim bench queue`.
 
 // Casts that can lose a sign, wrap or truncate hide bugs: each one here says why it cannot.
 #![warn(
@@ -17,12 +15,10 @@
     clippy::cast_possible_wrap
 )]
 
-#[cfg(feature = "bench")]
-pub mod bench;
 pub mod clock;
 pub mod database;
+pub mod jobs;
 pub mod lazy;
-pub mod queue;
 pub mod runner;
 
 use std::sync::Arc;
@@ -32,11 +28,11 @@ use tokio_util::sync::CancellationToken;
 
 pub use clock::{Clock, ManualClock, SystemClock};
 pub use database::{Backend, DatabaseError, DatabaseStatus, JobDatabase, PoolSize};
-pub use lazy::LazyQueue;
-pub use queue::{
+pub use jobs::{
     Backoff, Checkpoint, Claimed, FailOutcome, Job, JobEvent, JobState, Lease, NewJob, Queue,
     QueueError, QueueStats, WriteAck,
 };
+pub use lazy::LazyQueue;
 pub use runner::{
     FnHandler, JobContext, JobError, JobHandler, StopReason, Worker, WorkerConfig, WorkerReport,
     handler_fn,

@@ -21,7 +21,7 @@ use tokio::task::{AbortHandle, JoinSet};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-use crate::queue::{Checkpoint, Claimed, Job, JobState, Lease, Queue, QueueError};
+use crate::jobs::{Checkpoint, Claimed, Job, JobState, Lease, Queue, QueueError};
 
 /// Why a handler's cancellation token fired.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -228,7 +228,7 @@ impl JobContext {
     }
 
     /// Enqueues a follow-up job (a policy's roadmap after its export, say).
-    pub async fn enqueue(&self, job: crate::queue::NewJob) -> Result<Uuid, JobError> {
+    pub async fn enqueue(&self, job: crate::jobs::NewJob) -> Result<Uuid, JobError> {
         self.inner
             .queue
             .enqueue(job)
@@ -714,9 +714,9 @@ async fn fail(queue: &Queue, lease: &Lease, message: String, retryable: bool) ->
             q.fail(&l, &message, retryable)
                 .await
                 .map(|outcome| match outcome {
-                    crate::queue::FailOutcome::Retrying { .. } => Outcome::Retried,
-                    crate::queue::FailOutcome::Failed => Outcome::Failed,
-                    crate::queue::FailOutcome::Cancelled => Outcome::Cancelled,
+                    crate::jobs::FailOutcome::Retrying { .. } => Outcome::Retried,
+                    crate::jobs::FailOutcome::Failed => Outcome::Failed,
+                    crate::jobs::FailOutcome::Cancelled => Outcome::Cancelled,
                 })
         }
     })

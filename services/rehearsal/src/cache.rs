@@ -10,7 +10,7 @@ use std::collections::{HashMap, VecDeque};
 use std::hash::Hash;
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use planning::{ConfigSpace, Inflation, PrmParams, Roadmap, RoadmapKey};
+use prm::{ConfigSpace, Inflation, PrmParams, Roadmap, RoadmapKey};
 use sim::World;
 
 use crate::error::{PlanError, invalid};
@@ -208,8 +208,8 @@ impl RoadmapCache {
         }
         let roadmap =
             Roadmap::build_until(Arc::clone(&space.cspace), params, stop).map_err(|e| match e {
-                planning::BuildError::Stopped => PlanError::Stopped,
-                planning::BuildError::NoFreeSpace { .. } => PlanError::Map(e.to_string()),
+                prm::BuildError::Stopped => PlanError::Stopped,
+                prm::BuildError::NoFreeSpace { .. } => PlanError::Map(e.to_string()),
                 other => invalid("options.samples", other.to_string()),
             })?;
         let roadmap = Arc::new(roadmap);

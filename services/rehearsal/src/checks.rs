@@ -1,7 +1,7 @@
 //! The executor's checks of a request before any work: values within bounds, a start and goals
 //! in free configuration space and in one free region; planner errors as the request's own.
 
-use planning::{ConfigSpace, Point2, QueryError};
+use prm::{ConfigSpace, Point2, QueryError};
 use sim::{Pose2, World};
 
 use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
@@ -81,11 +81,11 @@ fn check_options(o: &PlanOptions) -> Result<(), PlanError> {
         ));
     }
     if let Some(n) = o.samples
-        && !(1..=planning::MAX_SAMPLES).contains(&n)
+        && !(1..=prm::MAX_SAMPLES).contains(&n)
     {
         return Err(invalid(
             "options.samples",
-            format!("must lie in [1, {}], got {n}", planning::MAX_SAMPLES),
+            format!("must lie in [1, {}], got {n}", prm::MAX_SAMPLES),
         ));
     }
     if o.max_replans > 1000 {
@@ -107,7 +107,7 @@ pub(crate) fn start_entry(
     collision_clearance: f64,
 ) -> Result<Option<Point2>, PlanError> {
     let p = Point2::new(start.x, start.y);
-    match cs.validate_endpoint(planning::Endpoint::Start, p) {
+    match cs.validate_endpoint(prm::Endpoint::Start, p) {
         Ok(()) => Ok(None),
         Err(e @ QueryError::InObstacle { .. }) => {
             let escape = cs.nearest_free(p).filter(|&q| {
@@ -130,7 +130,7 @@ pub(crate) fn check_goals(
     goals: &[Point2],
 ) -> Result<(), PlanError> {
     for (i, &g) in goals.iter().enumerate() {
-        cs.validate_endpoint(planning::Endpoint::Goal, g)
+        cs.validate_endpoint(prm::Endpoint::Goal, g)
             .map_err(|e| blocked_error(Endpoint::Goal(i), e))?;
     }
     let mut prev = (from, Endpoint::Start);

@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use learning::Policy;
-use planning::Point2;
+use prm::Point2;
 pub use sim::FollowerParams;
 pub use sim::shield::{PERSON_MARGIN_M, SHIELD_HORIZON_S, SHIELD_MARGIN_M, Shield};
 use sim::{Action, Observation, Pose2, World};

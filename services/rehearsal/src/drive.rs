@@ -4,7 +4,7 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use planning::Point2;
+use prm::Point2;
 use sim::{Action, EnvConfig, NavEnv, Outcome, Pose2, World};
 
 use crate::controller::Controller;

@@ -18,7 +18,7 @@ use std::sync::Arc;
 
 use grid::seed::mix;
 use learning::Policy;
-use planning::{Point2, Roadmap};
+use prm::{Point2, Roadmap};
 use rayon::prelude::*;
 use sim::{Action, Pose2, World};
 
@@ -424,10 +424,10 @@ pub fn first_attempt_roadmap(world: &Arc<World>, seed: u64) -> Result<Arc<Roadma
     let cache = crate::RoadmapCache::default();
     let opts = crate::PlanOptions::default();
     let space = crate::config_space(world, &cache, "first-attempt", opts.safety_margin_m)?;
-    let params = planning::PrmParams {
-        samples: planning::optimal_samples(space.free_area_m2),
+    let params = prm::PrmParams {
+        samples: prm::optimal_samples(space.free_area_m2),
         seed,
-        ..planning::PrmParams::default()
+        ..prm::PrmParams::default()
     };
     let (roadmap, _) = cache.roadmap("first-attempt", &space, &params)?;
     Ok(roadmap)

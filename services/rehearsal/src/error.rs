@@ -3,7 +3,7 @@
 
 use std::fmt;
 
-use planning::Point2;
+use prm::Point2;
 
 use crate::types::AttemptReport;
 

@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 use grid::seed::mix;
 use learning::Policy;
-use planning::{Point2, PrmParams, QueryError, QueryOptions, Roadmap};
+use prm::{Point2, PrmParams, QueryError, QueryOptions, Roadmap};
 use sim::{Action, EnvConfig, NoiseConfig, Pose2, World};
 
 use crate::cache::{RoadmapCache, SpaceEntry};
@@ -242,7 +242,7 @@ fn validate_inner(
     if let Some(f) = fallback {
         drivers.push(Driver::new(world, opts, f)?);
     }
-    let inflation = planning::Inflation {
+    let inflation = prm::Inflation {
         robot_radius_m: world.spec().robot.footprint_radius,
         safety_margin_m: opts.safety_margin_m,
     };
@@ -260,7 +260,7 @@ fn validate_inner(
     // not densify: a denser one keeps the ways between them.
     let samples = opts
         .samples
-        .unwrap_or_else(|| planning::optimal_samples(space.free_area_m2))
+        .unwrap_or_else(|| prm::optimal_samples(space.free_area_m2))
         * if opts.standing.is_empty() {
             1
         } else {
@@ -323,7 +323,7 @@ fn validate_inner(
                 let legs = plan_leg(
                     &roadmap,
                     opts,
-                    timed.as_ref().map(|t| t as &dyn planning::Reservations),
+                    timed.as_ref().map(|t| t as &dyn prm::Reservations),
                     LegQuery {
                         robot: pose,
                         from,
@@ -741,7 +741,7 @@ struct LegPath {
 fn plan_leg(
     roadmap: &Roadmap,
     opts: &PlanOptions,
-    reserved: Option<&dyn planning::Reservations>,
+    reserved: Option<&dyn prm::Reservations>,
     q: LegQuery,
     max_segment_m: f64,
 ) -> Result<LegPath, PlanError> {
@@ -797,7 +797,7 @@ pub fn check_endpoints(
     map_version: &str,
     request: &PlanRequest,
 ) -> Result<(), PlanError> {
-    let inflation = planning::Inflation {
+    let inflation = prm::Inflation {
         robot_radius_m: world.spec().robot.footprint_radius,
         safety_margin_m: request.options.safety_margin_m,
     };
@@ -962,7 +962,7 @@ pub fn config_space(
     roadmaps.config_space(
         map_version,
         world,
-        planning::Inflation {
+        prm::Inflation {
             robot_radius_m: world.spec().robot.footprint_radius,
             safety_margin_m,
         },

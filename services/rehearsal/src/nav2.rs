@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use grid::seed::mix;
 use learning::Policy;
-use planning::Point2;
+use prm::Point2;
 use sim::{
     Action, Mppi, MppiParams, MppiWorld, Observation, PathTrack, Pose2, RppParams, SmootherParams,
     World,

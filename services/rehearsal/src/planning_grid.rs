@@ -6,7 +6,7 @@
 //! planned around as the simulator sees them: a table's legs block, the space between them does
 //! not, which is why the executor validates in the simulation rather than trusting the grid.
 
-use planning::PlanningGrid;
+use prm::PlanningGrid;
 use sim::{Shape, World};
 
 /// Cells above this many are refused: the world grid is capped at the same order by `sim`.

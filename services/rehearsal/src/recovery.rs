@@ -10,7 +10,7 @@
 //!
 //! Each recovery is recorded ([`RecoveryEvent`]) and the drive's report says what was tried.
 
-use planning::Point2;
+use prm::Point2;
 use sim::{Action, Pose2, World};
 
 /// One recovery behaviour.

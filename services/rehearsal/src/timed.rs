@@ -1,5 +1,5 @@
 //! A route timed among other robots' plans (the fleet's schedule): the roadmap search of
-//! [`planning::Roadmap::query_among`] asks, for each edge it would take, how long the robot
+//! [`prm::Roadmap::query_among`] asks, for each edge it would take, how long the robot
 //! must wait at the edge's first node before driving it clear of every other robot's track
 //! ([`Reserved`]), and takes the route that arrives first: a wait at a node, a detour, or the
 //! shortest way when nothing is in it. As safe-interval path planning (Phillips and Likhachev,
@@ -10,7 +10,7 @@
 //! only keeps a route from running into what is reserved, where the fit could only make the
 //! robot wait for it.
 
-use planning::Point2;
+use prm::Point2;
 
 /// Other robots' plans a route is timed among.
 #[derive(Clone, Debug, PartialEq)]
@@ -109,7 +109,7 @@ impl TimedAmong<'_> {
     }
 }
 
-impl planning::Reservations for TimedAmong<'_> {
+impl prm::Reservations for TimedAmong<'_> {
     fn wait_before(&self, a: Point2, b: Point2, t_s: f64) -> Option<f64> {
         let t = self.t0_s + t_s;
         let drive = a.distance(b) / self.speed_m_s;
@@ -153,7 +153,7 @@ fn segment_distance(a: Point2, b: Point2, c: Point2, d: Point2) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use planning::Reservations;
+    use prm::Reservations;
 
     fn crossing(at_t: f64) -> Reserved {
         // Another robot crossing x = 5 from y = -5 to y = 5 over 10 s, centred at `at_t`.

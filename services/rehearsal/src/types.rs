@@ -1,7 +1,7 @@
 //! What the executor takes and returns: plain values in the map frame (`sim::Pose2`,
-//! `planning::Point2`), no serde. An HTTP edge keeps its own wire types and converts them.
+//! `prm::Point2`), no serde. An HTTP edge keeps its own wire types and converts them.
 
-use planning::Point2;
+use prm::Point2;
 use sim::Pose2;
 
 /// How a plan is validated. [`PlanOptions::default`] gives the defaults of the plan endpoint.

@@ -129,7 +129,7 @@ mod tests {
     fn each_endpoint_and_cause_has_its_reason_and_details() {
         let blocked = |endpoint, reason| PlanError::Blocked {
             endpoint,
-            point: planning::Point2::new(1.0, 2.0),
+            point: prm::Point2::new(1.0, 2.0),
             reason,
             clearance_m: Some(0.05),
             required_m: 0.3,
@@ -182,7 +182,7 @@ mod tests {
         );
         let d = PlanError::Unreachable {
             goal_index: 1,
-            goal: planning::Point2::new(4.0, 5.0),
+            goal: prm::Point2::new(4.0, 5.0),
             from: Endpoint::Start,
         }
         .details();

@@ -12,7 +12,7 @@ use edge::{ApiError, ErrorCode, RobotCaller};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
-use crate::jobs::JobsApi;
+use crate::plan::PlanRoutes;
 use planner::roadmaps::{StoredEdge, geometric_roadmap, nodes_fingerprint};
 
 /// Which roadmap.
@@ -83,7 +83,7 @@ pub struct EdgeView {
     (status = 422, description = "The place is on no floor, the knowledge does not make a world, or the margin is out of range.", body = edge::ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub async fn get_roadmap(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<PlanRoutes>>,
     _caller: RobotCaller,
     axum::extract::Query(query): axum::extract::Query<RoadmapQuery>,
 ) -> Result<Json<RoadmapView>, ApiError> {
@@ -116,7 +116,7 @@ pub struct RouteGraphQuery {
     (status = 422, description = "The place is on no floor, or the knowledge does not make a world.", body = edge::ErrorBody),
     (status = 503, response = edge::error::responses::ServiceUnavailable)))]
 pub async fn route_graph(
-    State(api): State<Arc<JobsApi>>,
+    State(api): State<Arc<PlanRoutes>>,
     _caller: RobotCaller,
     axum::extract::Path(place): axum::extract::Path<String>,
     axum::extract::Query(query): axum::extract::Query<RouteGraphQuery>,
@@ -192,7 +192,7 @@ pub fn geojson(view: &RoadmapView) -> serde_json::Value {
 /// The roadmap `query` names, as `GET /v1/roadmaps` answers it; without a policy named, with
 /// `newest_policy` the robot's newest one's measurements.
 async fn roadmap_view(
-    api: Arc<JobsApi>,
+    api: Arc<PlanRoutes>,
     mut query: RoadmapQuery,
     newest_policy: bool,
 ) -> Result<RoadmapView, ApiError> {
@@ -206,7 +206,7 @@ async fn roadmap_view(
         )
         .with_details(serde_json::json!({"field": "safety_margin_m"})));
     }
-    let planner = Arc::clone(&api.env.planner);
+    let planner = Arc::clone(&api.planner);
     let db = planner
         .floor(&query.place, &query.robot)
         .await

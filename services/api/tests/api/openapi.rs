@@ -10,7 +10,7 @@ fn committed_openapi_document_matches_the_code() {
             .unwrap_or_else(|_| env!("CARGO_MANIFEST_DIR").to_owned()),
     )
     .join("../../openapi/fleet.json");
-    let generated = api::WorkerApi::openapi()
+    let generated = api::FleetApi::openapi()
         .to_pretty_json()
         .expect("the document serialises");
     if std::env::var_os("UPDATE_OPENAPI").is_some() {

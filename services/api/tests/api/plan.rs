@@ -7,9 +7,7 @@ use std::sync::Arc;
 use api::plan::PlanErrorResponse;
 use rehearsal::{ClassicalFollower, Controller, PlanError, RoadmapCache};
 use sim::{Action, Observation, Pose2, World};
-use worker::plan::{
-    AttemptOutcome, ControllerKind, PlanApiRequest, PlanOptions, PlanReport, Point, Pose,
-};
+use wire::{AttemptOutcome, ControllerKind, PlanApiRequest, PlanOptions, PlanReport, Point, Pose};
 
 /// What to plan, in the wire types: from a pose through goals.
 #[derive(Clone)]

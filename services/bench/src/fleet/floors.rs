@@ -12,7 +12,7 @@
 
 use std::f64::consts::PI;
 
-use planning::Point2;
+use prm::Point2;
 use sim::Pose2;
 use tosm::{Occupancy, OccupancyGrid};
 

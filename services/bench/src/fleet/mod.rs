@@ -338,7 +338,7 @@ fn missions(
     world: &Arc<World>,
     n: usize,
     seed: u64,
-) -> Result<Vec<(Pose2, planning::Point2)>, BenchError> {
+) -> Result<Vec<(Pose2, prm::Point2)>, BenchError> {
     let radius = world.spec().robot.footprint_radius;
     if let Some(layout) = layout {
         return floors::missions(scenario, layout, radius, n);
@@ -350,7 +350,7 @@ fn missions(
             source,
         })?;
     let far = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).hypot(a.1 - b.1) >= apart;
-    let mut out: Vec<(Pose2, planning::Point2)> = Vec::new();
+    let mut out: Vec<(Pose2, prm::Point2)> = Vec::new();
     for (s, g) in planner::controllers::trial_missions(&roadmap, 40 * n, seed) {
         if out.len() == n {
             break;
@@ -632,7 +632,7 @@ fn run_floor(
     // take a detour around robots standing in its way; alone it does not. Both on the same
     // roadmap: among robots standing the planner samples a denser one.
     let dense =
-        Some(planning::optimal_samples(space.free_area_m2) * rehearsal::executor::STANDING_DENSITY);
+        Some(prm::optimal_samples(space.free_area_m2) * rehearsal::executor::STANDING_DENSITY);
     let asked: Vec<PlanQuery> = asked
         .into_iter()
         .map(|mut q| {

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use grid::seed::mix;
 use learning::Policy;
-use planning::PrmParams;
+use prm::PrmParams;
 use rehearsal::{
     AttemptDetails, AttemptOutcome, AttemptReport, ClassicalFollower, Controller, DriveLimits,
     MppiController, MppiCycles, PlanError, PlanOptions, PlanRequest, PolicyController,
@@ -67,7 +67,7 @@ pub(super) fn run_map(
         Some(p) if on_policy_roadmap.iter().any(|m| wants(m)) => {
             let t = Instant::now();
             let params = PrmParams {
-                samples: planning::optimal_samples(space.free_area_m2),
+                samples: prm::optimal_samples(space.free_area_m2),
                 seed: opts.seed.wrapping_add(1000),
                 ..PrmParams::default()
             };
@@ -155,7 +155,7 @@ pub(super) fn run_map(
         // once per map version and seed).
         let t = Instant::now();
         let params = PrmParams {
-            samples: planning::optimal_samples(space.free_area_m2),
+            samples: prm::optimal_samples(space.free_area_m2),
             seed: seed ^ salt,
             ..PrmParams::default()
         };
@@ -476,7 +476,7 @@ fn endpoint_row(
     run: usize,
     request: &PlanRequest,
     policy: &Arc<Policy>,
-    (auto, policy_roadmap): (rehearsal::ControllerChoice, &Arc<planning::Roadmap>),
+    (auto, policy_roadmap): (rehearsal::ControllerChoice, &Arc<prm::Roadmap>),
 ) -> Result<NavigationRow, BenchError> {
     // As the planner validates with `auto`'s pick: the policy-aware roadmap for a hybrid, the
     // classical follower (shielded among people) for a leg the pick validates in no attempt.
@@ -582,10 +582,10 @@ fn row(method: &'static str, map: &str, run: usize, (a, d): &Attempt) -> Navigat
 /// ones only where the kept ones join no route; with the edges' report.
 fn policy_aware(
     world: &Arc<World>,
-    geometric: &planning::Roadmap,
+    geometric: &prm::Roadmap,
     policy: &Arc<Policy>,
     rollout: &rehearsal::EdgeRolloutParams,
-) -> Result<(Arc<planning::Roadmap>, rehearsal::EdgeReport), PlanError> {
+) -> Result<(Arc<prm::Roadmap>, rehearsal::EdgeReport), PlanError> {
     let (_, report) = rehearsal::policy_roadmap(world, geometric, policy, rollout)?;
     let roadmap = rehearsal::reweight_with_unkept(geometric, &report)?;
     Ok((roadmap, report))

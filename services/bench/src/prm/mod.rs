@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
-use planning::{
+use prm::{
     ConfigSpace, Inflation, Point2, PrmParams, QueryOptions, Roadmap, SearchAlgorithm,
     optimal_samples,
 };

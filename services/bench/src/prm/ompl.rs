@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use planning::{ConfigSpace, Point2};
+use prm::{ConfigSpace, Point2};
 
 use super::{PrmBenchOptions, PrmRow};
 use crate::maps::map_seed;

@@ -5,3 +5,4 @@
 
 mod fleet;
 mod navigation;
+mod queue_throughput;

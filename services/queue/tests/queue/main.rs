@@ -3,7 +3,6 @@
 
 #![allow(clippy::unwrap_used)] // reason: tests panic on failure
 
-mod bench;
 mod common;
 mod conformance;
 mod crash;

@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use planning::Point2;
+use prm::Point2;
 use rehearsal::{
     AttemptOutcome, ClassicalFollower, PlanOptions, PlanReport, PlanRequest, RoadmapCache,
     drive_among, validate,

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use planning::{Point2, PrmParams, QueryOptions};
+use prm::{Point2, PrmParams, QueryOptions};
 use rehearsal::{
     ClassicalFollower, Controller, ControllerKind, EdgeRolloutParams, PlanError, RoadmapCache,
     drive_edges,
@@ -14,7 +14,7 @@ fn room() -> Arc<World> {
     fixtures::worlds::walled_room()
 }
 
-fn roadmap(world: &Arc<World>, cache: &RoadmapCache) -> Arc<planning::Roadmap> {
+fn roadmap(world: &Arc<World>, cache: &RoadmapCache) -> Arc<prm::Roadmap> {
     let space = rehearsal::config_space(world, cache, "room-v1", 0.1).expect("space");
     let params = PrmParams {
         samples: 60,

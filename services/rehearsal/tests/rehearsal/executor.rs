@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use learning::Policy;
 use learning::policy::write_goal_seeking_policy;
-use planning::Point2;
+use prm::Point2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rehearsal::{

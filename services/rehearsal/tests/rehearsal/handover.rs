@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use learning::Policy;
-use planning::{Point2, PrmParams};
+use prm::{Point2, PrmParams};
 use rehearsal::{
     AttemptOutcome, ClassicalFollower, Controller, DriveLimits, EdgeRolloutParams,
     PolicyController, RoadmapCache, drive, drive_edges,

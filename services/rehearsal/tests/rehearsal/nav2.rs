@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use planning::Point2;
+use prm::Point2;
 use rehearsal::{
     ClassicalFollower, Controller, ControllerKind, DriveLimits, DriveRun, MppiController,
     RecoveryKind, RecoveryParams, RppController, env_config,

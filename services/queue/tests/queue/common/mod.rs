@@ -20,11 +20,11 @@ pub struct Fixture {
     pub clock: Arc<ManualClock>,
     /// A queue on the manual clock: time moves only by `clock.advance`.
     pub queue: Queue,
-    _dir: Option<tempfile::TempDir>,
+    _fresh: Option<fixtures::job_database::FreshDatabase>,
 }
 
 impl Fixture {
-    async fn new(url: String, dir: Option<tempfile::TempDir>) -> Self {
+    async fn new(url: String, fresh: Option<fixtures::job_database::FreshDatabase>) -> Self {
         let db = JobDatabase::connect(&url).await.unwrap();
         let clock = Arc::new(ManualClock::new(START_MS));
         let queue = Queue::new(db.clone()).with_clock(clock.clone());
@@ -33,7 +33,7 @@ impl Fixture {
             url,
             clock,
             queue,
-            _dir: dir,
+            _fresh: fresh,
         }
     }
 
@@ -44,22 +44,18 @@ impl Fixture {
 }
 
 pub async fn sqlite() -> Option<Fixture> {
-    let dir = tempfile::tempdir().unwrap();
-    let url = format!("sqlite://{}", dir.path().join("jobs.sqlite").display());
-    Some(Fixture::new(url, Some(dir)).await)
+    let fresh = fixtures::job_database::sqlite();
+    Some(Fixture::new(fresh.url.clone(), Some(fresh)).await)
 }
 
 /// A fresh database in the shared temporary cluster, or `None` (the test returns) when
 /// PostgreSQL is missing and [`fixtures::missing`] lets the test skip.
 pub async fn postgres_url() -> Option<String> {
-    let pg = tokio::task::spawn_blocking(fixtures::temp_postgres::shared_cluster)
-        .await
-        .unwrap()?;
-    let name = format!("t_{}", uuid::Uuid::new_v4().simple());
-    Some(pg.create_database(&name).await.unwrap())
+    let fresh = fixtures::job_database::postgres().await?;
+    Some(fresh.url)
 }
 
 pub async fn postgres() -> Option<Fixture> {
-    let url = postgres_url().await?;
-    Some(Fixture::new(url, None).await)
+    let fresh = fixtures::job_database::postgres().await?;
+    Some(Fixture::new(fresh.url.clone(), Some(fresh)).await)
 }

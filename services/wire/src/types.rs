@@ -1,6 +1,6 @@
 //! Request and report of a plan validation: the wire types of `POST /v1/plan` and of `validate`
 //! jobs (serde, OpenAPI schemas). The executor (`rehearsal`) takes and returns its own core types
-//! (`rehearsal::types`, over `sim::Pose2` and `planning::Point2`); they are converted here, on
+//! (`rehearsal::types`, over `sim::Pose2` and `prm::Point2`); they are converted here, on
 //! purpose, field by field, and never exposed on the wire.
 
 pub use super::ros::{
@@ -28,15 +28,15 @@ impl Point {
     }
 }
 
-impl From<planning::Point2> for Point {
-    fn from(p: planning::Point2) -> Self {
+impl From<prm::Point2> for Point {
+    fn from(p: prm::Point2) -> Self {
         Self { x: p.x, y: p.y }
     }
 }
 
-impl From<Point> for planning::Point2 {
+impl From<Point> for prm::Point2 {
     fn from(p: Point) -> Self {
-        planning::Point2::new(p.x, p.y)
+        prm::Point2::new(p.x, p.y)
     }
 }
 
@@ -99,7 +99,7 @@ pub struct PlanOptions {
     /// (default 0.1).
     #[schema(minimum = 0, maximum = 5)]
     pub safety_margin_m: f64,
-    /// PRM samples n, 1-10 000 000 (`planning::MAX_SAMPLES`); `null` for the paper's
+    /// PRM samples n, 1-10 000 000 (`prm::MAX_SAMPLES`); `null` for the paper's
     /// n* = ceil(0.05 · free area + 84) (Eq. 19).
     #[schema(minimum = 1, maximum = 10_000_000)]
     pub samples: Option<usize>,

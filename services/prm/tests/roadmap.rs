@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use planning::{
+use prm::{
     BuildError, ConfigSpace, ConfigSpaceError, Endpoint, GridError, Inflation, PlanningGrid,
     Point2, PrmParams, QueryError, QueryOptions, Roadmap, RoadmapKey, SearchAlgorithm,
     optimal_samples,
@@ -183,10 +183,10 @@ fn bad_parameters_are_rejected() {
         ),
         (
             PrmParams {
-                samples: planning::MAX_SAMPLES + 1,
+                samples: prm::MAX_SAMPLES + 1,
                 ..base.clone()
             },
-            BuildError::TooManySamples(planning::MAX_SAMPLES + 1),
+            BuildError::TooManySamples(prm::MAX_SAMPLES + 1),
         ),
     ];
     for (p, want) in cases {
@@ -710,7 +710,7 @@ struct Side {
     free_at_s: Option<f64>,
 }
 
-impl planning::Reservations for Side {
+impl prm::Reservations for Side {
     fn wait_before(&self, a: Point2, b: Point2, t_s: f64) -> Option<f64> {
         let inside = |p: Point2| if self.above { p.y > 4.5 } else { p.y < 1.5 };
         if !(inside(a) || inside(b)) || (a.x < 3.0 && b.x < 3.0) || (a.x > 7.0 && b.x > 7.0) {
@@ -731,7 +731,7 @@ fn a_timed_route_goes_the_way_that_arrives_first_among_reservations() {
         no_densify: true,
         ..QueryOptions::default()
     };
-    let side = |p: &planning::Plan| {
+    let side = |p: &prm::Plan| {
         let mid = p
             .waypoints
             .iter()

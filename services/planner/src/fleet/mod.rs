@@ -1,3 +1,8 @@
+//! Fleet coordination: a plan among the other robots of its floor. Here the fit and the commit;
+//! [`joining`]: the plan's way into the floor's schedule (standing at its start until planned,
+//! routes around robots standing with no plan, the drive among the others, retries);
+//! [`yielding`]: one of robots standing in each other's only way makes way.
+//!
 //! A plan among the fleet: the timed trajectory the rehearsal validated, checked against every
 //! other robot's committed itinerary on the floor ([`traffic`]: footprints, each robot
 //! anywhere within its time tolerance of its schedule), conflicts resolved by waiting, and the
@@ -37,11 +42,14 @@
 //! schedule), and the robot, holding at its waypoints and setting off again under noise among
 //! the others and the people, arrived in that drive.
 
+pub(crate) mod joining;
+pub(crate) mod yielding;
+
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use planning::Point2;
+use prm::Point2;
 use sim::Pose2;
 use traffic::{Conflict, Itinerary, Margins, Reserved, TimedPose};
 

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use sim::World;
 
-use crate::fleet::{self, FleetOptions, FleetOutcome, FleetSchedule, NoFit};
+use crate::fleet::{self, FleetOptions, FleetOutcome, FleetSchedule, NoFit, yielding};
 use crate::replay::Replay;
 use crate::{FloorDatabase, PlanFailure, Planner};
 
@@ -239,7 +239,7 @@ impl Planner {
         // A plan refused because a robot with no plan yet stands in its way waits for the
         // floor's schedule to change (that robot's plan), up to `options.standing_wait_s`.
         let waiting_since = std::time::Instant::now();
-        let route = crate::yielding::route_points(&report.steps, 0.2);
+        let route = yielding::route_points(&report.steps, 0.2);
         let in_view = |version: i64, others: &'_ [traffic::Itinerary]| View {
             schedule,
             floor: &db.floor,
@@ -554,7 +554,7 @@ impl Planner {
     }
 
     /// Commits the first leg of a plan making way (to its first goal, the place it makes way
-    /// at, [`crate::yielding::prefix`]) under the floor's lock, unless it would come within the
+    /// at, [`yielding::prefix`]) under the floor's lock, unless it would come within the
     /// margins of another robot's schedule; whether it was.
     pub(crate) async fn commit_first_leg(
         &self,
@@ -582,8 +582,8 @@ impl Planner {
             expires_unix_ms: entry.requested_unix_ms,
             delay_s: 0.0,
         };
-        let candidates = crate::yielding::SET_OFF_DELAYS_S.map(|delay| {
-            crate::yielding::prefix(
+        let candidates = yielding::SET_OFF_DELAYS_S.map(|delay| {
+            yielding::prefix(
                 &template,
                 &report.steps,
                 at_step,
@@ -659,7 +659,7 @@ impl Planner {
     }
 
     /// Where `view`'s robot is the one of a cycle of plans waiting for each other's robots to
-    /// make way ([`crate::yielding::Waits::turn_to_make_way`]): where, and for whom; a robot
+    /// make way ([`yielding::Waits::turn_to_make_way`]): where, and for whom; a robot
     /// that finds no place says so, and another of the cycle takes its turn.
     fn make_way(&self, view: &View<'_>) -> Option<Standing> {
         let margin = view.make_way?;
@@ -683,7 +683,7 @@ impl Planner {
             .filter_map(|o| o.trajectory.first().map(|p| ((p.x, p.y), o.radius_m)))
             .collect();
         let world = view.world;
-        let at = crate::yielding::spot_off_routes(
+        let at = yielding::spot_off_routes(
             here,
             view.radius_m,
             |x, y| world.clearance(x, y) - margin,
@@ -729,7 +729,7 @@ impl Planner {
         let deadline = view.since + std::time::Duration::from_secs_f64(limit);
         let _waiting = self.waits.enter(
             view.me,
-            crate::yielding::Waiting {
+            yielding::Waiting {
                 floor: view.floor.to_owned(),
                 by: standing.iter().map(|o| o.robot.clone()).collect(),
                 route: view.route.to_vec(),
@@ -913,7 +913,7 @@ pub(crate) enum Among {
     Reroute,
     /// Robots standing with no plan wait for each other's plans, this one among them: it
     /// makes way at the place given for the robots named ([`crate::yielding`]).
-    MakeWay(planning::Point2, Vec<String>),
+    MakeWay(prm::Point2, Vec<String>),
 }
 
 /// What a plan refused by a robot standing in its way does.
@@ -924,7 +924,7 @@ enum Standing {
     Reroute,
     /// Robots standing in each other's way wait for each other's plans: this one makes way
     /// at `at` for `for_robots`.
-    MakeWay(planning::Point2, Vec<String>),
+    MakeWay(prm::Point2, Vec<String>),
 }
 
 /// The floor as a plan saw it when it was refused.

@@ -1,14 +1,14 @@
-//! The queue throughput benchmark (`queue::bench`, feature `bench`), checked rather than timed:
-//! the figures come from `mentalsim bench queue`, which runs the same `queue::bench::run`
+//! The queue throughput benchmark (`bench::queue`), checked rather than timed:
+//! the figures come from `mentalsim bench queue`, which runs the same `bench::queue::run`
 //! with thousands of jobs. Here a few hundred jobs go through it on SQLite and PostgreSQL, and
 //! the test asserts what the figures rest on: every job enqueued was claimed and completed
 //! exactly once, by one attempt, and the reported rates are positive and finite.
 
 #![allow(clippy::unwrap_used)] // reason: tests panic on failure
 
-use crate::common::Fixture;
-use queue::bench::{BenchOptions, ThroughputReport, queue_throughput, run};
-use queue::{JobState, Queue};
+use bench::queue::{BenchOptions, ThroughputReport, queue_throughput, run};
+use fixtures::job_database::FreshDatabase;
+use queue::{JobDatabase, JobState, Queue};
 
 const JOBS: usize = 240;
 const CONCURRENCY: usize = 4;
@@ -45,8 +45,8 @@ async fn assert_each_job_ran_once(queue: &Queue) {
     }
 }
 
-async fn each_job_is_claimed_and_completed_once(f: Fixture) {
-    let queue = f.system_queue();
+async fn each_job_is_claimed_and_completed_once(fresh: FreshDatabase) {
+    let queue = Queue::new(JobDatabase::connect(&fresh.url).await.unwrap());
     let report = queue_throughput(&queue, JOBS, CONCURRENCY).await.unwrap();
     assert_sound(&report);
     assert_each_job_ran_once(&queue).await;
@@ -54,16 +54,15 @@ async fn each_job_is_claimed_and_completed_once(f: Fixture) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sqlite_each_job_is_claimed_and_completed_once() {
-    let f = crate::common::sqlite().await.unwrap();
-    each_job_is_claimed_and_completed_once(f).await;
+    each_job_is_claimed_and_completed_once(fixtures::job_database::sqlite()).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn postgres_each_job_is_claimed_and_completed_once() {
-    let Some(f) = crate::common::postgres().await else {
+    let Some(fresh) = fixtures::job_database::postgres().await else {
         return;
     };
-    each_job_is_claimed_and_completed_once(f).await;
+    each_job_is_claimed_and_completed_once(fresh).await;
 }
 
 /// What `mentalsim bench queue` runs: a fresh SQLite file and a temporary durable PostgreSQL

@@ -8,7 +8,7 @@ use queue::{LazyQueue, Queue, WorkerConfig, WorkerReport};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-use crate::jobs::JobEnv;
+use crate::JobEnv;
 
 /// Claims and runs jobs of every kind until `shutdown` fires ([`queue::run_workers`]).
 pub async fn run_workers(

@@ -1,17 +1,33 @@
-//! The job kinds: `train` (TD3 in the mental simulation of a floor, exported as a policy),
-//! `evaluate` (an exported policy on a floor), `validate` (a plan tried in the mental
-//! simulation, through the same [`planner::Planner`] as `POST /v1/plan`) and `roadmap` (a
-//! floor's policy-aware roadmap).
+//! The fleet's job kinds, which the job engine (`queue`) runs and knows nothing of: `train`
+//! (TD3 in the mental simulation of a floor, exported as a policy), `evaluate` (an exported
+//! policy on a floor), `validate` (a plan tried in the mental simulation, through the same
+//! [`planner::Planner`] as `POST /v1/plan`, its payload and result in the plan's wire form,
+//! [`wire`]) and `roadmap` (a floor's policy-aware roadmap).
+//!
+//! - [`JobRequest`]: a kind and its typed payload, as `POST /v1/jobs` takes it;
+//! - [`JobEnv`]: what the handlers share (the knowledge, the files, the planner the process
+//!   assembled);
+//! - [`source`], [`builds`], [`fleet`]: the planner's ports over the knowledge service (in
+//!   process or over HTTP), the job database (roadmap builds) and the traffic schedule;
+//! - [`service`]: runners for every kind, and the retention purge.
 //!
 //! Payloads are checked twice: when a job is created (so a client learns at once, with the
 //! field named, that it asked for something impossible) and when it runs (a payload from
 //! another process or an older version still fails cleanly, as a fatal error).
+
+// Casts that can lose a sign, wrap or truncate hide bugs: each one here says why it cannot.
+#![warn(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap
+)]
 
 pub mod builds;
 pub mod evaluate;
 pub mod fleet;
 pub mod results;
 pub mod roadmap;
+pub mod service;
 pub mod source;
 pub mod train;
 pub mod validate;
@@ -26,7 +42,7 @@ pub use builds::QueueRoadmapBuilds;
 pub use evaluate::{EvaluateHandler, EvaluatePayload};
 pub use fleet::QueueFleet;
 pub use planner::{PolicyRoadmapKey, PolicyStore, RoadmapStore};
-use queue::{JobError, LazyQueue, Worker};
+use queue::{JobError, Worker};
 pub use results::{EvaluateResult, JobResult, RoadmapResult, TrainResult};
 pub use roadmap::{RoadmapHandler, RoadmapPayload};
 pub use source::{FloorDatabase, HttpKnowledge, InProcessKnowledge, KnowledgeSource, SourceError};
@@ -100,29 +116,29 @@ fn kind_names() -> String {
     JobKind::ALL.map(JobKind::as_str).join(", ")
 }
 
-/// What the handlers share: where worlds come from, where files go, and the planner.
+/// What the handlers share: where worlds come from, where files go, and the planner. The
+/// process assembles it ([`JobEnv::new`] over a planner it built).
 #[derive(Clone)]
 pub struct JobEnv {
     /// The knowledge service (in process, or over HTTP).
     pub knowledge: Arc<dyn KnowledgeSource>,
     /// Checkpoints of running trainings: `<checkpoints_dir>/<job id>/`.
     pub checkpoints_dir: PathBuf,
-    /// Exported policies.
+    /// Exported policies (the planner's).
     pub policies: PolicyStore,
-    /// Geometric roadmaps by floor state, shared by plans and roadmap jobs in this process.
+    /// Geometric roadmaps by floor state, shared by plans and roadmap jobs in this process
+    /// (the planner's).
     pub roadmaps: Arc<rehearsal::RoadmapCache>,
-    /// Stored policy-aware roadmaps.
+    /// Stored policy-aware roadmaps (the planner's).
     pub policy_roadmaps: RoadmapStore,
     /// The plan use case: `validate` jobs and `POST /v1/plan` call it alike.
     pub planner: Arc<planner::Planner>,
-    /// The fleet's traffic schedule the planner commits plans to.
-    pub fleet: Arc<QueueFleet>,
     /// The free-space reserve of the disk checkpoints and policies go to: a training whose
     /// disk has less stops at once and goes back to the queue until there is room.
     pub disk: Option<edge::disk::DiskWatch>,
 }
 
-/// Where a [`JobEnv`] keeps its files.
+/// Where the jobs and the planner keep their files.
 #[derive(Debug, Clone)]
 pub struct JobDirs {
     /// Checkpoints of running trainings.
@@ -143,36 +159,21 @@ impl std::fmt::Debug for JobEnv {
 }
 
 impl JobEnv {
-    /// The jobs' environment over `knowledge` and the files in `dirs`, with a planner whose
-    /// missing policy-aware roadmaps are built by `roadmap` jobs on `queue`.
+    /// The jobs' environment over `knowledge`, with `planner` (whose stores the jobs share)
+    /// and checkpoints under `checkpoints_dir`.
     pub fn new(
         knowledge: Arc<dyn KnowledgeSource>,
-        dirs: JobDirs,
-        queue: Arc<LazyQueue>,
+        planner: Arc<planner::Planner>,
+        checkpoints_dir: PathBuf,
         disk: Option<edge::disk::DiskWatch>,
     ) -> Self {
-        let policies = PolicyStore::new(dirs.policies);
-        let roadmaps = Arc::new(rehearsal::RoadmapCache::default());
-        let policy_roadmaps = RoadmapStore::new(dirs.roadmaps);
-        let fleet = Arc::new(QueueFleet::new(Arc::clone(&queue)));
-        let planner = Arc::new(
-            planner::Planner::new(
-                Arc::clone(&knowledge),
-                policies.clone(),
-                Arc::clone(&roadmaps),
-                policy_roadmaps.clone(),
-                Arc::new(QueueRoadmapBuilds::new(queue)),
-            )
-            .with_fleet(Arc::clone(&fleet) as Arc<dyn planner::FleetSchedule>),
-        );
         Self {
             knowledge,
-            checkpoints_dir: dirs.checkpoints,
-            policies,
-            roadmaps,
-            policy_roadmaps,
+            checkpoints_dir,
+            policies: planner.policies().clone(),
+            roadmaps: Arc::clone(planner.roadmaps()),
+            policy_roadmaps: planner.policy_roadmaps().clone(),
             planner,
-            fleet,
             disk,
         }
     }

@@ -11,7 +11,7 @@
 use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex, PoisonError};
 
-use planning::Point2;
+use prm::Point2;
 
 use crate::fleet;
 

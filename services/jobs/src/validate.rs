@@ -9,9 +9,9 @@ use planner::{PlanFailure, PlanQuery};
 use serde_json::Value;
 
 use super::{JobEnv, PayloadError};
-use crate::plan::{PlanApiRequest, PlanApiResponse};
 use queue::{JobContext, JobError, JobHandler};
 use std::sync::Arc;
+use wire::{PlanApiRequest, PlanApiResponse};
 
 /// What a `validate` job is asked: exactly the request of `POST /v1/plan`.
 pub type ValidatePayload = PlanApiRequest;
@@ -66,7 +66,7 @@ impl JobHandler for ValidateHandler {
         let started = Instant::now();
         let query = check(&self.env, ctx.payload())
             .map_err(|m| JobError::Fatal(format!("invalid validate payload: {m}")))?;
-        let start = crate::plan::Pose::from(query.request.start);
+        let start = wire::Pose::from(query.request.start);
         let _ = ctx
             .report_progress(&serde_json::json!({"stage": "simulating"}))
             .await;

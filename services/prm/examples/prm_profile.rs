@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use planning::{BuildPhase, ConfigSpace, Inflation, PlanningGrid, PrmParams, Roadmap};
+use prm::{BuildPhase, ConfigSpace, Inflation, PlanningGrid, PrmParams, Roadmap};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -45,7 +45,7 @@ fn main() {
             )
             .expect("cspace"),
         );
-        let n = ((planning::optimal_samples(free) as f64) * scale).round() as usize;
+        let n = ((prm::optimal_samples(free) as f64) * scale).round() as usize;
         let mut times = Vec::new();
         let mut phases = [0.0f64; BuildPhase::COUNT];
         let (mut nodes, mut edges, mut comps, mut checks, mut bridge, mut flood) =

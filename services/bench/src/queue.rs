@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use serde_json::json;
 
-use crate::database::{Backend, JobDatabase, PoolSize};
-use crate::queue::{NewJob, Queue, QueueError};
 use fixtures::{Durability, TempPostgres, TempPostgresError};
+use queue::{Backend, JobDatabase, PoolSize};
+use queue::{NewJob, Queue, QueueError};
 
 /// One backend's figures.
 #[derive(Debug, Clone, Serialize)]

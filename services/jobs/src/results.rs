@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use utoipa::ToSchema;
 
-use crate::plan::PlanApiResponse;
+use wire::PlanApiResponse;
 
 /// A finished `train` job: the exported policy and its held-out evaluation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -117,7 +117,7 @@ pub struct RoadmapResult {
     /// What `options.controller: auto` validates with on this floor state from now on, from
     /// the controller trial the job drove (absent with `trial_missions: 0`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub controller: Option<crate::plan::ControllerChoiceReport>,
+    pub controller: Option<wire::ControllerChoiceReport>,
     /// The stored file's name.
     pub file: Option<String>,
 }

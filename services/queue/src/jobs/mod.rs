@@ -82,7 +82,7 @@ use on_pool;
 /// its backend's type): job id, kind, data as JSON text, time.
 macro_rules! insert_event {
     ($queue:expr, $tx:ident, $id:expr, $kind:expr, $data:expr, $now:expr) => {
-        sqlx::query($crate::queue::INSERT_EVENT)
+        sqlx::query($crate::jobs::INSERT_EVENT)
             .bind($id)
             .bind($kind)
             .bind($data)
