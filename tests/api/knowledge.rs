@@ -696,7 +696,7 @@ async fn the_robot_exports_as_a_gz_sim_model_and_a_bridge_configuration() {
 /// service answers 304, and reads it again after a write.
 #[tokio::test]
 async fn the_http_knowledge_source_reuses_its_database_until_a_write() {
-    use worker::jobs::source::{HttpKnowledge, KnowledgeSource};
+    use jobs::source::{HttpKnowledge, KnowledgeSource};
     let app = spawn_app().await;
     let source = HttpKnowledge::new(&app.address, Some(app.token.clone())).unwrap();
     let first = source.floor_database("F0", "R-001").await.unwrap();
