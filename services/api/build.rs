@@ -1,4 +1,4 @@
-//! Gives the worker's test binaries an rpath to libtorch (found by the `learning` crate's
+//! Gives the API's test binaries an rpath to libtorch (found by the `learning` crate's
 //! build: the training job links it), so they run without LD_LIBRARY_PATH.
 
 fn main() {

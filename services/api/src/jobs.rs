@@ -36,7 +36,7 @@ use queue::{Job, JobEvent, JobState, LazyQueue, NewJob, QueueError};
     info(title = "Mentalsim fleet service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
     paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph, crate::traffic::floor_traffic, crate::traffic::floor_traffic_events, crate::traffic::cancel_plan, crate::traffic::report_progress, crate::traffic::stand),
     components(
-        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, jobs::RoadmapPayload, jobs::JobResult, jobs::TrainResult, jobs::EvaluateResult, jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, wire::types::PlanApiRequestDoc, wire::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, crate::traffic::Standing, traffic::Itinerary, traffic::TimedPose),
+        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, jobs::RoadmapPayload, jobs::JobResult, jobs::TrainResult, jobs::EvaluateResult, jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, wire::types::PlanApiRequestDoc, wire::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, crate::traffic::Standing, wire::itinerary::Itinerary, wire::itinerary::TimedPose),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
@@ -625,47 +625,29 @@ fn event_stream(
     })
 }
 
-/// Where a training job's curves come from.
-enum CurvesSource {
-    /// Written beside the exported policy.
-    Files(std::path::PathBuf),
-    /// The episodes of the job's latest checkpoint (a run in progress).
-    Episodes(Vec<learning::trainer::EpisodeRecord>),
+/// A curves use case's refusal as the API answers it.
+fn curves_error(e: jobs::curves::CurvesError) -> ApiError {
+    use jobs::curves::CurvesError;
+    match e {
+        e @ (CurvesError::NotTraining { .. } | CurvesError::NoPointYet(_)) => {
+            ApiError::not_found(e.to_string())
+        }
+        e @ CurvesError::Unreadable { .. } => ApiError::internal(e),
+    }
 }
 
-/// The curves of training job `id`: the exported policy's files once it succeeded, else its
-/// latest checkpoint's episodes; 404 for other kinds and before the first checkpoint.
-async fn curves_of(api: &JobRoutes, id: &str) -> Result<CurvesSource, ApiError> {
+/// Runs the blocking curves use case `curves` on training job `id`.
+async fn curves_of<T: Send + 'static>(
+    api: &JobRoutes,
+    id: &str,
+    curves: fn(&JobEnv, &Job) -> Result<T, jobs::curves::CurvesError>,
+) -> Result<T, ApiError> {
     let job = api.job(id).await?;
-    let id = job.id;
-    if job.kind != "train" {
-        return Err(ApiError::not_found(format!(
-            "job {id} is a `{}` job: only `train` jobs have learning curves",
-            job.kind
-        )));
-    }
-    let policy_dir = job
-        .result
-        .as_ref()
-        .and_then(|r| r["policy_id"].as_str())
-        .and_then(|p| api.kinds.policies.path(p));
-    if let Some(dir) = policy_dir.filter(|d| d.join(learning::curves::CSV_FILE).is_file()) {
-        return Ok(CurvesSource::Files(dir));
-    }
-    let checkpoint_dir =
-        jobs::train::checkpoint_dir(job.checkpoint.as_ref(), id, &api.kinds.checkpoints_dir);
-    let episodes = tokio::task::spawn_blocking(move || {
-        learning::trainer::Trainer::checkpointed_episodes(&checkpoint_dir)
-    })
-    .await
-    .map_err(|e| ApiError::internal(format!("reading the checkpoint failed: {e}")))?;
-    match episodes {
-        Some(e) if !e.is_empty() => Ok(CurvesSource::Episodes(e)),
-        _ => Err(ApiError::not_found(format!(
-            "job {id} has no learning curve yet: its first checkpoint (or its exported policy) \
-             holds the first points; its progress events have the running figures"
-        ))),
-    }
+    let kinds = Arc::clone(&api.kinds);
+    tokio::task::spawn_blocking(move || curves(&kinds, &job))
+        .await
+        .map_err(|e| ApiError::internal(format!("the curves task failed: {e}")))?
+        .map_err(curves_error)
 }
 
 /// A training job's learning curves as CSV: one row per episode with its reward, outcome and
@@ -681,12 +663,7 @@ async fn job_curves_csv(
     _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let csv = match curves_of(&api, &id).await? {
-        CurvesSource::Files(dir) => tokio::fs::read_to_string(dir.join(learning::curves::CSV_FILE))
-            .await
-            .map_err(|e| ApiError::internal(format!("reading the curves: {e}")))?,
-        CurvesSource::Episodes(episodes) => learning::curves::curves_csv(&episodes),
-    };
+    let csv = curves_of(&api, &id, jobs::curves::curves_csv).await?;
     Ok(([(header::CONTENT_TYPE, "text/csv; charset=utf-8")], csv).into_response())
 }
 
@@ -702,28 +679,7 @@ async fn job_curves_png(
     _caller: Caller,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let source = curves_of(&api, &id).await?;
-    let png = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
-        match source {
-            CurvesSource::Files(dir) => {
-                std::fs::read(dir.join(learning::curves::PNG_FILE)).map_err(|e| e.to_string())
-            }
-            CurvesSource::Episodes(episodes) => {
-                let tmp = tempfile::tempdir().map_err(|e| e.to_string())?;
-                let path = tmp.path().join(learning::curves::PNG_FILE);
-                learning::curves::plot_curves(
-                    &path,
-                    &jobs::train::curves_title(&id),
-                    &[("reward".into(), learning::curves::smooth(&episodes))],
-                )
-                .map_err(|e| e.to_string())?;
-                std::fs::read(&path).map_err(|e| e.to_string())
-            }
-        }
-    })
-    .await
-    .map_err(|e| ApiError::internal(format!("plotting the curves failed: {e}")))?
-    .map_err(|e| ApiError::internal(format!("the curves' picture: {e}")))?;
+    let png = curves_of(&api, &id, jobs::curves::curves_png).await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
 

@@ -68,7 +68,7 @@ pub struct FloorTraffic {
     /// The floor schedule's version: it moves on with every commit, cancel and progress.
     pub version: i64,
     /// Every unexpired plan on the floor, by start.
-    pub plans: Vec<Itinerary>,
+    pub plans: Vec<wire::itinerary::Itinerary>,
 }
 
 /// Where a robot is on its plan, and when.
@@ -218,7 +218,7 @@ async fn floor_snapshot(schedule: &Schedule, floor: String) -> Result<FloorTraff
     Ok(FloorTraffic {
         floor,
         version,
-        plans,
+        plans: plans.into_iter().map(Into::into).collect(),
     })
 }
 
@@ -370,7 +370,7 @@ fn traffic_stream(
     params(("id" = String, Path, description = "The robot's floor, or a place on it (identifier or IRI)")),
     request_body = Standing,
     responses(
-        (status = 200, description = "Recorded: the robot standing, as the schedule holds it (one pose, until `expires_unix_ms`)", body = Itinerary),
+        (status = 200, description = "Recorded: the robot standing, as the schedule holds it (one pose, until `expires_unix_ms`)", body = wire::itinerary::Itinerary),
         (status = 400, description = "Malformed body", body = edge::ErrorBody),
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, description = "Another robot (a robot's token acts only for itself)", body = edge::ErrorBody),
@@ -388,7 +388,7 @@ async fn stand(
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
     Json(standing): Json<Standing>,
-) -> Result<Json<Itinerary>, ApiError> {
+) -> Result<Json<wire::itinerary::Itinerary>, ApiError> {
     let planner = &api.planner;
     let floor = planner
         .floor(&id, &standing.robot)
@@ -409,7 +409,7 @@ async fn stand(
         .await
         .map_err(crate::plan::plan_failure)?;
     tracing::info!(robot = %recorded.robot, plan = %recorded.plan_id, "robot standing recorded");
-    Ok(Json(recorded))
+    Ok(Json(recorded.into()))
 }
 
 /// Cancels a committed plan: its robot's place in the schedule is freed at once.
@@ -418,7 +418,7 @@ async fn stand(
     path = "/v1/plans/{id}",
     params(("id" = String, Path, description = "The plan's id (`schedule.plan_id` of its answer)")),
     responses(
-        (status = 200, description = "Cancelled: the plan as it was committed", body = Itinerary),
+        (status = 200, description = "Cancelled: the plan as it was committed", body = wire::itinerary::Itinerary),
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, description = "Another robot's plan", body = edge::ErrorBody),
         (status = 404, description = "No such committed plan (or it expired)", body = edge::ErrorBody),
@@ -430,7 +430,7 @@ async fn cancel_plan(
     State(api): State<Arc<TrafficRoutes>>,
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
-) -> Result<Json<Itinerary>, ApiError> {
+) -> Result<Json<wire::itinerary::Itinerary>, ApiError> {
     own_plan(&api, &caller, &id).await?;
     let cancelled = schedule(&api)
         .await?
@@ -439,7 +439,7 @@ async fn cancel_plan(
         .map_err(traffic_error)?
         .ok_or_else(|| ApiError::new(ErrorCode::NotFound, format!("no committed plan `{id}`")))?;
     tracing::info!(plan = %id, by = %caller.name, "plan cancelled");
-    Ok(Json(cancelled))
+    Ok(Json(cancelled.into()))
 }
 
 /// Reports where the plan's robot is: the rest of its schedule shifts by its observed delay.
@@ -449,7 +449,7 @@ async fn cancel_plan(
     params(("id" = String, Path, description = "The plan's id")),
     request_body = Progress,
     responses(
-        (status = 200, description = "The plan as now scheduled (`delay_s`: how late the robot is)", body = Itinerary),
+        (status = 200, description = "The plan as now scheduled (`delay_s`: how late the robot is)", body = wire::itinerary::Itinerary),
         (status = 400, description = "Malformed body", body = edge::ErrorBody),
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, description = "Another robot's plan", body = edge::ErrorBody),
@@ -466,7 +466,7 @@ async fn report_progress(
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
     Json(progress): Json<Progress>,
-) -> Result<Json<Itinerary>, ApiError> {
+) -> Result<Json<wire::itinerary::Itinerary>, ApiError> {
     if !(progress.x.is_finite() && progress.y.is_finite()) {
         return Err(ApiError::new(
             ErrorCode::Unprocessable,
@@ -480,5 +480,5 @@ async fn report_progress(
         .progress(&id, &plan.robot, at, progress.x, progress.y)
         .await
         .map_err(traffic_error)?;
-    Ok(Json(updated))
+    Ok(Json(updated.into()))
 }

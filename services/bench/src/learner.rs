@@ -93,7 +93,7 @@ pub fn run_learner_bench(opts: &LearnerBenchOptions) -> Result<LearnerBenchRepor
             clippy::cast_possible_wrap,
             reason = "small"
         )]
-        tch::set_num_threads(opts.threads as i32);
+        learning::set_torch_threads(opts.threads as i32);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let mut buffer = ReplayBuffer::new(opts.obs_dim, opts.buffer);
@@ -117,7 +117,7 @@ pub fn run_learner_bench(opts: &LearnerBenchOptions) -> Result<LearnerBenchRepor
         batch_size: opts.batch_size,
         ..Td3Config::default()
     };
-    let mut learner = Learner::new(config, opts.obs_dim, tch::Device::Cpu, 1);
+    let mut learner = Learner::new(config, opts.obs_dim, learning::Device::Cpu, 1);
     let mut batch = Batch::default();
     // Sampling is part of a gradient step, as it is in SB3's `train`.
     let mut step = |learner: &mut Learner, rng: &mut ChaCha8Rng| {

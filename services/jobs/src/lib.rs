@@ -23,6 +23,7 @@
 )]
 
 pub mod builds;
+pub mod curves;
 pub mod evaluate;
 pub mod fleet;
 pub mod results;

@@ -52,10 +52,21 @@ pub use observation::{InputLayout, Scaling};
 pub use policy::{Policy, PolicyError, PolicyMetadata};
 pub use summary::{Goals, GoalsSummary, HeldOut, TrainSummary, held_out};
 
+/// libtorch's device type, for callers that pick one (the learner benchmark runs on the CPU):
+/// only this crate names tch.
+#[cfg(feature = "train")]
+pub use tch::Device;
+
+/// Sets the threads libtorch's operators use in this process.
+#[cfg(feature = "train")]
+pub fn set_torch_threads(threads: i32) {
+    tch::set_num_threads(threads);
+}
+
 /// The device training runs on: the first CUDA device when libtorch sees one, else the CPU.
 #[cfg(feature = "train")]
-pub fn training_device() -> tch::Device {
-    tch::Device::cuda_if_available()
+pub fn training_device() -> Device {
+    Device::cuda_if_available()
 }
 
 /// The libtorch build this crate runs against, for logs and `/readyz`.

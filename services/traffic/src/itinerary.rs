@@ -3,7 +3,6 @@
 //! ([`Itinerary::pose_at`]).
 
 use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
 use crate::error::TrafficError;
 
@@ -15,7 +14,7 @@ pub const MAX_HORIZON_S: f64 = 86_400.0;
 pub const MAX_NAME_BYTES: usize = 200;
 
 /// A pose of a trajectory, at a time counted from the itinerary's start.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TimedPose {
     /// Seconds after the itinerary's start (`start_unix_ms`), before any delay.
     pub t_s: f64,
@@ -28,7 +27,7 @@ pub struct TimedPose {
 }
 
 /// A robot's plan as the fleet's traffic schedule holds it: where the robot will be and when.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Itinerary {
     /// The plan this itinerary comes from; unique in the schedule.
     pub plan_id: String,

@@ -6,8 +6,10 @@
 //! - [`types`]: options and reports (serde, OpenAPI schemas), converted field by field to and
 //!   from the executor's core types;
 //! - [`ros`]: the path as a ROS 2 `nav_msgs/Path`;
-//! - [`schedule`]: the plan in the floor's traffic schedule.
+//! - [`schedule`]: the plan in the floor's traffic schedule;
+//! - [`itinerary`]: a committed plan as the traffic routes show it.
 
+pub mod itinerary;
 pub mod ros;
 pub mod schedule;
 pub mod types;
