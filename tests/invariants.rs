@@ -26,7 +26,10 @@ const DIRECTION: &[(&str, &[&str])] = &[
         "planner",
         &["grid", "learning", "prm", "rehearsal", "sim", "traffic"],
     ),
-    ("wire", &["planner", "prm", "rehearsal", "sim", "traffic"]),
+    (
+        "wire",
+        &["learning", "planner", "prm", "rehearsal", "sim", "traffic"],
+    ),
     ("edge", &[]),
     ("knowledge", &["edge", "grid", "sim", "tosm"]),
     (

@@ -201,3 +201,11 @@ def test_a_job_is_cancelled_once(engineer: Client) -> None:
     with pytest.raises(MentalsimError) as e:
         engineer.cancel_job(job.id)
     assert e.value.status == 409 and e.value.code == "conflict"
+
+
+def test_a_refused_job_names_the_field_at_fault(engineer: Client) -> None:
+    with pytest.raises(MentalsimError) as e:
+        engineer.submit_evaluation("p-1", "F0", episodes=0)
+    assert e.value.status == 422 and e.value.code == "unprocessable"
+    assert e.value.field == "payload.episodes", e.value
+    assert "episodes" in e.value.message

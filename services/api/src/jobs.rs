@@ -121,9 +121,11 @@ fn payload_error(e: PayloadError) -> ApiError {
     {
         match e {
             PayloadError::UnknownKind(m) => ApiError::bad_request(m),
-            PayloadError::Invalid(m) | PayloadError::Unprocessable(m) => {
-                ApiError::new(ErrorCode::Unprocessable, m)
+            PayloadError::Invalid { field, message } => {
+                ApiError::new(ErrorCode::Unprocessable, format!("{field}: {message}"))
+                    .with_field(field)
             }
+            PayloadError::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m),
             PayloadError::NotFound(m) => ApiError::not_found(m),
             PayloadError::Unavailable(m) => ApiError::new(
                 ErrorCode::NotReady,
@@ -350,7 +352,8 @@ async fn create_job(
             return Err(ApiError::new(
                 ErrorCode::Unprocessable,
                 format!("max_attempts: must be in 1..=100, got {n}"),
-            ));
+            )
+            .with_field("max_attempts"));
         }
         job = job.max_attempts(n);
     }

@@ -106,11 +106,13 @@ impl ErrorCode {
     }
 }
 
-/// An error answered to an HTTP client as `{"error": {"code", "message", "details"?}}`.
+/// An error answered to an HTTP client as `{"error": {"code", "message", "field"?,
+/// "details"?}}`.
 #[derive(Debug, Clone)]
 pub struct ApiError {
     code: ErrorCode,
     message: String,
+    field: Option<String>,
     details: Option<serde_json::Value>,
 }
 
@@ -123,6 +125,8 @@ struct Body<'a> {
 struct Inner<'a> {
     code: ErrorCode,
     message: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    field: Option<&'a str>,
     #[serde(skip_serializing_if = "Option::is_none")]
     details: Option<&'a serde_json::Value>,
 }
@@ -143,6 +147,11 @@ pub struct ErrorDetail {
     code: String,
     /// What is wrong, for people.
     message: String,
+    /// The request field the error is about, as a dotted path into the request's JSON (e.g.
+    /// `options.max_wait_s`, `goal`, `payload.episodes`), when one field is at fault. Clients
+    /// point at it by this, never by parsing the message.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    field: Option<String>,
     /// Structured details when the error has some (e.g. the problems found, the attempts of a
     /// plan that could not be validated).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -204,8 +213,20 @@ impl ApiError {
         Self {
             code,
             message: message.into(),
+            field: None,
             details: None,
         }
+    }
+
+    /// Names the request field at fault (a dotted path into the request's JSON).
+    pub fn with_field(mut self, field: impl Into<String>) -> Self {
+        self.field = Some(field.into());
+        self
+    }
+
+    /// The request field at fault, when one is.
+    pub fn field(&self) -> Option<&str> {
+        self.field.as_deref()
     }
 
     /// Attaches structured details (e.g. the nearest free point, a list of problems).
@@ -263,6 +284,7 @@ impl IntoResponse for ApiError {
             error: Inner {
                 code: self.code,
                 message: &self.message,
+                field: self.field.as_deref(),
                 details: self.details.as_ref(),
             },
         };
@@ -313,5 +335,19 @@ mod tests {
         let json: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
         assert_eq!(json["error"]["code"], "bad_request");
         assert_eq!(json["error"]["message"], "port must be a number");
+        assert!(json["error"].get("field").is_none());
+    }
+
+    #[tokio::test]
+    async fn a_field_at_fault_is_named_beside_the_message() {
+        let response = ApiError::bad_request("must be positive")
+            .with_field("options.max_wait_s")
+            .into_response();
+        let bytes = axum::body::to_bytes(response.into_body(), 1 << 16)
+            .await
+            .unwrap();
+        let json: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        assert_eq!(json["error"]["field"], "options.max_wait_s");
+        assert_eq!(json["error"]["message"], "must be positive");
     }
 }

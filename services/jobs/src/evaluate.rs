@@ -43,9 +43,10 @@ impl EvaluatePayload {
     /// Values in range.
     pub fn check(&self) -> Result<(), PayloadError> {
         match self.episodes {
-            Some(n) if n == 0 || n > MAX_EPISODES => Err(PayloadError::Invalid(format!(
-                "payload.episodes: must be in 1..={MAX_EPISODES}, got {n}"
-            ))),
+            Some(n) if n == 0 || n > MAX_EPISODES => Err(PayloadError::invalid(
+                "payload.episodes",
+                format!("must be in 1..={MAX_EPISODES}, got {n}"),
+            )),
             _ if !planner::policies::valid_id(&self.policy) => Err(PayloadError::NotFound(
                 format!("payload.policy: no policy has id {:?}", self.policy),
             )),
@@ -62,9 +63,9 @@ pub fn policy_robot(policies: &PolicyStore, p: &EvaluatePayload) -> Result<Strin
     match (&p.robot, summary.robot) {
         (Some(r), _) => Ok(r.clone()),
         (None, Some(r)) => Ok(r),
-        (None, None) => Err(PayloadError::Invalid(
-            "payload.robot: the policy does not say which robot it was trained for; name one"
-                .to_owned(),
+        (None, None) => Err(PayloadError::invalid(
+            "payload.robot",
+            "the policy does not say which robot it was trained for; name one".to_owned(),
         )),
     }
 }

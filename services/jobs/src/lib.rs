@@ -237,9 +237,14 @@ pub enum PayloadError {
     /// No such kind (400).
     #[error("{0}")]
     UnknownKind(String),
-    /// The payload is malformed or a value is out of range; the message names the field (422).
-    #[error("{0}")]
-    Invalid(String),
+    /// The payload is malformed or a value is out of range (422).
+    #[error("{field}: {message}")]
+    Invalid {
+        /// The field at fault, as a dotted path into the job request (`payload.episodes`).
+        field: String,
+        /// What is wrong with it.
+        message: String,
+    },
     /// A robot, place or policy it names does not exist (404).
     #[error("{0}")]
     NotFound(String),
@@ -249,6 +254,16 @@ pub enum PayloadError {
     /// The knowledge service cannot answer now (503).
     #[error("{0}")]
     Unavailable(String),
+}
+
+impl PayloadError {
+    /// [`PayloadError::Invalid`]: `field` (a dotted path, `payload.episodes`) and what is wrong.
+    pub fn invalid(field: &str, message: String) -> Self {
+        PayloadError::Invalid {
+            field: field.to_owned(),
+            message,
+        }
+    }
 }
 
 impl From<UnknownKind> for PayloadError {
@@ -277,12 +292,13 @@ pub fn source_error(e: SourceError) -> JobError {
 /// The payload as `T`; serde's message names the field (`missing field `place``).
 pub fn parse<T: for<'de> Deserialize<'de>>(payload: &Value) -> Result<T, PayloadError> {
     if !payload.is_object() {
-        return Err(PayloadError::Invalid(
-            "payload: must be a JSON object".to_owned(),
+        return Err(PayloadError::invalid(
+            "payload",
+            "must be a JSON object".to_owned(),
         ));
     }
     serde_json::from_value(payload.clone())
-        .map_err(|e| PayloadError::Invalid(format!("payload: {e}")))
+        .map_err(|e| PayloadError::invalid("payload", e.to_string()))
 }
 
 /// A handler's result or progress as JSON (serialising our own types cannot fail).

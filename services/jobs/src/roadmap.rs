@@ -70,31 +70,37 @@ impl RoadmapPayload {
         if let Some(m) = self.safety_margin_m
             && !(m.is_finite() && (0.0..=MAX_MARGIN_M).contains(&m))
         {
-            return Err(PayloadError::Invalid(format!(
-                "payload.safety_margin_m: must be in [0, {MAX_MARGIN_M}] metres, got {m}"
-            )));
+            return Err(PayloadError::invalid(
+                "payload.safety_margin_m",
+                format!("must be in [0, {MAX_MARGIN_M}] metres, got {m}"),
+            ));
         }
         if let Some(k) = self.rollouts
             && !(1..=MAX_ROLLOUTS).contains(&k)
         {
-            return Err(PayloadError::Invalid(format!(
-                "payload.rollouts: must be in 1..={MAX_ROLLOUTS}, got {k}"
-            )));
+            return Err(PayloadError::invalid(
+                "payload.rollouts",
+                format!("must be in 1..={MAX_ROLLOUTS}, got {k}"),
+            ));
         }
         if let Some(m) = self.trial_missions
             && m > planner::controllers::MAX_TRIAL_MISSIONS
         {
-            return Err(PayloadError::Invalid(format!(
-                "payload.trial_missions: must be in 0..={}, got {m}",
-                planner::controllers::MAX_TRIAL_MISSIONS
-            )));
+            return Err(PayloadError::invalid(
+                "payload.trial_missions",
+                format!(
+                    "must be in 0..={}, got {m}",
+                    planner::controllers::MAX_TRIAL_MISSIONS
+                ),
+            ));
         }
         if let Some(t) = self.keep_threshold
             && !(t.is_finite() && t > 0.0 && t <= 1.0)
         {
-            return Err(PayloadError::Invalid(format!(
-                "payload.keep_threshold: must be in (0, 1], got {t}"
-            )));
+            return Err(PayloadError::invalid(
+                "payload.keep_threshold",
+                format!("must be in (0, 1], got {t}"),
+            ));
         }
         Ok(())
     }

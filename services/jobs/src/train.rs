@@ -56,19 +56,24 @@ impl TrainPayload {
     /// Values in range, the configuration valid.
     pub fn check(&self) -> Result<(), PayloadError> {
         if !(self.minutes.is_finite() && self.minutes > 0.0 && self.minutes <= MAX_MINUTES) {
-            return Err(PayloadError::Invalid(format!(
-                "payload.minutes: must be a positive number of minutes, at most {MAX_MINUTES} (a week), got {}",
-                self.minutes
-            )));
+            return Err(PayloadError::invalid(
+                "payload.minutes",
+                format!(
+                    "must be a positive number of minutes, at most {MAX_MINUTES} (a week), got {}",
+                    self.minutes
+                ),
+            ));
         }
         if self.robot.trim().is_empty() {
-            return Err(PayloadError::Invalid(
-                "payload.robot: must not be empty".into(),
+            return Err(PayloadError::invalid(
+                "payload.robot",
+                "must not be empty".into(),
             ));
         }
         if self.place.trim().is_empty() {
-            return Err(PayloadError::Invalid(
-                "payload.place: must not be empty".into(),
+            return Err(PayloadError::invalid(
+                "payload.place",
+                "must not be empty".into(),
             ));
         }
         self.train_config().map(|_| ())
@@ -80,7 +85,7 @@ impl TrainPayload {
         let mut config = match &self.config {
             Some(v) => TrainConfig::fast()
                 .with_json(v.clone())
-                .map_err(|e| PayloadError::Invalid(format!("payload.config: {e}")))?,
+                .map_err(|e| PayloadError::invalid("payload.config", e.to_string()))?,
             None => TrainConfig::fast(),
         };
         if let Some(seed) = self.seed {
@@ -88,7 +93,7 @@ impl TrainPayload {
         }
         config
             .validate()
-            .map_err(|e| PayloadError::Invalid(format!("payload.config: {e}")))?;
+            .map_err(|e| PayloadError::invalid("payload.config", e.to_string()))?;
         Ok(config)
     }
 }

@@ -23,7 +23,7 @@ pub fn query_of(payload: &Value) -> Result<PlanQuery, PayloadError> {
     let request: PlanApiRequest = super::parse(payload)?;
     let mut query = request
         .into_query()
-        .map_err(|m| PayloadError::Invalid(format!("payload: {m}")))?;
+        .map_err(|m| PayloadError::invalid("payload", m.to_string()))?;
     query.fleet.commit = false;
     Ok(query)
 }
@@ -35,9 +35,9 @@ pub fn check(env: &JobEnv, payload: &Value) -> Result<PlanQuery, PayloadError> {
     env.planner.check(&query).map_err(|e| match e {
         PlanFailure::NotFound(m) => PayloadError::NotFound(format!("payload.policy: {m}")),
         PlanFailure::Plan(rehearsal::PlanError::InvalidInput { field, message }) => {
-            PayloadError::Invalid(format!("payload.{field}: {message}"))
+            PayloadError::invalid(&format!("payload.{field}"), message)
         }
-        other => PayloadError::Invalid(format!("payload: {other}")),
+        other => PayloadError::invalid("payload", other.to_string()),
     })?;
     Ok(query)
 }

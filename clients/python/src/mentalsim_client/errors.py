@@ -15,7 +15,8 @@ class MentalsimError(Exception):
     or the request timed out), ``code`` the API's stable error code (``ErrorBody.error.code``:
     ``not_found``, ``unprocessable``, ``conflict``, ...; ``unreachable`` or ``timeout`` without
     an answer, ``http_<status>`` for an answer that is not an ``ErrorBody``), ``message`` what is
-    wrong, ``details`` the structured details some errors carry (a plan's attempts, the nearest
+    wrong, ``field`` the request field at fault when one is (a dotted path such as
+    ``options.max_attempts``), ``details`` the structured details some errors carry (a plan's attempts, the nearest
     free point), ``request_id`` the service's ``x-request-id`` and ``retry_after`` the seconds
     ``Retry-After`` asks to wait (429, 503).
     """
@@ -26,6 +27,7 @@ class MentalsimError(Exception):
         code: str,
         message: str,
         *,
+        field: str | None = None,
         details: dict[str, Any] | None = None,
         request_id: str | None = None,
         retry_after: float | None = None,
@@ -37,6 +39,7 @@ class MentalsimError(Exception):
         self.status = status
         self.code = code
         self.message = message
+        self.field = field
         self.details = details
         self.request_id = request_id
         self.retry_after = retry_after
@@ -48,6 +51,7 @@ class MentalsimError(Exception):
         code = f"http_{response.status_code}"
         message = response.reason_phrase or "request failed"
         details: dict[str, Any] | None = None
+        field: str | None = None
         try:
             body = json.loads(response.content) if response.content else None
         except ValueError:
@@ -61,6 +65,8 @@ class MentalsimError(Exception):
                 code = error["code"]
             if isinstance(error.get("message"), str):
                 message = error["message"]
+            if isinstance(error.get("field"), str):
+                field = error["field"]
             if isinstance(error.get("details"), dict):
                 details = error["details"]
         retry_after: float | None = None
@@ -74,6 +80,7 @@ class MentalsimError(Exception):
             response.status_code,
             code,
             message,
+            field=field,
             details=details,
             request_id=response.headers.get("x-request-id"),
             retry_after=retry_after,

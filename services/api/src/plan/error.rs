@@ -109,7 +109,16 @@ impl PlanErrorResponse for PlanError {
     }
 
     fn to_api_error(&self) -> ApiError {
-        ApiError::new(self.api_code(), self.to_string()).with_details(self.details())
+        let e = ApiError::new(self.api_code(), self.to_string()).with_details(self.details());
+        match self {
+            PlanError::InvalidInput { field, .. } => e.with_field(field.clone()),
+            PlanError::Blocked { endpoint, .. } => match endpoint {
+                Endpoint::Start => e.with_field("start"),
+                Endpoint::Goal(_) => e.with_field("goal"),
+                Endpoint::Waypoint => e,
+            },
+            _ => e,
+        }
     }
 }
 
