@@ -146,6 +146,14 @@ const ONLY: &[(&[&str], &[&str], &str)] = &[
 /// Crates whose only place is a test or a harness: never a normal dependency of a product library.
 const HARNESSES: &[&str] = &["bench", "fixtures"];
 
+/// [`DIRECTION`] as sets.
+fn direction() -> BTreeMap<&'static str, BTreeSet<&'static str>> {
+    DIRECTION
+        .iter()
+        .map(|(c, deps)| (*c, deps.iter().copied().collect()))
+        .collect()
+}
+
 struct Manifest {
     /// Normal (not dev, not build) dependencies by crate, ours and external.
     normal: BTreeMap<String, BTreeSet<String>>,
@@ -181,10 +189,7 @@ fn manifest() -> Manifest {
 #[test]
 fn every_crate_is_in_the_direction_table_and_depends_only_downwards() {
     let m = manifest();
-    let table: BTreeMap<&str, BTreeSet<&str>> = DIRECTION
-        .iter()
-        .map(|(c, deps)| (*c, deps.iter().copied().collect()))
-        .collect();
+    let table = direction();
     let ours: BTreeSet<&str> = m.normal.keys().map(String::as_str).collect();
     let listed: BTreeSet<&str> = table.keys().copied().collect();
     assert_eq!(
@@ -257,10 +262,7 @@ fn the_rules_catch_what_they_forbid() {
             ("planner".to_owned(), deps(&["tch", "fixtures"])),
         ]),
     };
-    let table: BTreeMap<&str, BTreeSet<&str>> = DIRECTION
-        .iter()
-        .map(|(c, d)| (*c, d.iter().copied().collect()))
-        .collect();
+    let table = direction();
     assert!(!table["sim"].contains("planner"));
     let forbidden = |krate: &str, ext: &str| {
         ONLY.iter()
