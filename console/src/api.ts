@@ -1,6 +1,8 @@
 // Same-origin API calls with the session's bearer token, and errors shown in place.
 
 import { h, clear } from './dom';
+import type { components as KnowledgeDoc } from './wire/knowledge';
+import type { components as FleetDoc } from './wire/fleet';
 
 const TOKEN_KEY = 'mentalsim.token';
 
@@ -12,40 +14,20 @@ export function setToken(t: string | null): void {
   else sessionStorage.removeItem(TOKEN_KEY);
 }
 
-export interface ErrorDetailItem { field?: string; message?: string; [k: string]: unknown }
-
-/** An HTTP error: the service's `{"error": {"code", "message", "details"?}}` body. */
+/** An HTTP error: the service's `{"error": {"code", "message", "field"?, "details"?}}` body
+ *  (`ErrorBody`), or a failure to reach the service (`code` "network", status 0). */
 export class ApiError extends Error {
   constructor(
     public status: number,
+    /** The body's `code` (an `ErrorCode`), else `http_<status>` or `network`. */
     public code: string,
     message: string,
-    public details: unknown = null,
+    public details: ErrorDetail['details'] = null,
+    /** The request field at fault, as a dotted path into the request's JSON (`payload.minutes`,
+     *  `options.people_hour`, `goal`), when the service names one: forms point at it by this. */
+    public field: string | null = null,
   ) {
     super(message);
-  }
-
-  /** The request fields this error names: `details.field`, `details[].field`, or a message
-   *  that starts with `payload.<field>:` / `<field>:` or quotes serde's `field \`x\``. */
-  fields(): string[] {
-    const out = new Set<string>();
-    const add = (f: unknown) => {
-      if (typeof f === 'string' && f) out.add(f.replace(/^payload\./, ''));
-    };
-    const d = this.details as unknown;
-    if (Array.isArray(d)) d.forEach((x) => add((x as ErrorDetailItem)?.field));
-    else if (d && typeof d === 'object') {
-      add((d as ErrorDetailItem).field);
-      const problems = (d as Record<string, unknown>).problems;
-      if (Array.isArray(problems)) problems.forEach((x) => add((x as ErrorDetailItem)?.field));
-    }
-    let m = /^payload\.([A-Za-z_][\w.]*)\s*:/.exec(this.message);
-    if (m) add(m[1]);
-    m = /(?:missing|unknown) field `([^`]+)`/.exec(this.message);
-    if (m) add(m[1]);
-    m = /^([a-z_]+):/.exec(this.message);
-    if (m && m[1] !== 'payload') add(m[1]);
-    return [...out];
   }
 }
 
@@ -86,15 +68,18 @@ export async function request(path: string, opts: RequestOptions = {}): Promise<
 export async function errorOf(res: Response): Promise<ApiError> {
   let code = `http_${res.status}`;
   let message = res.statusText || `HTTP ${res.status}`;
-  let details: unknown = null;
+  let details: ErrorDetail['details'] = null;
+  let field: string | null = null;
   try {
     const text = await res.text();
     try {
-      const j = JSON.parse(text);
-      if (j && typeof j === 'object' && j.error) {
-        code = j.error.code ?? code;
-        message = j.error.message ?? message;
-        details = j.error.details ?? null;
+      const body = JSON.parse(text) as Partial<ErrorBody> | null;
+      const e = body && typeof body === 'object' ? body.error : undefined;
+      if (e && typeof e === 'object') {
+        code = e.code ?? code;
+        message = e.message ?? message;
+        details = e.details ?? null;
+        field = typeof e.field === 'string' && e.field ? e.field : null;
       } else if (text) message = text.slice(0, 500);
     } catch {
       if (text) message = text.slice(0, 500);
@@ -103,7 +88,7 @@ export async function errorOf(res: Response): Promise<ApiError> {
     /* no body */
   }
   if (res.status === 401) onUnauthorized?.();
-  return new ApiError(res.status, code, message, details);
+  return new ApiError(res.status, code, message, details, field);
 }
 
 /** Called on any 401 (the app signs out). */
@@ -134,7 +119,9 @@ export function showError(box: HTMLElement, e: unknown, prefix = ''): void {
   box.hidden = false;
   box.classList.add('error');
   box.setAttribute('role', 'alert');
+  delete box.dataset.field;
   if (e instanceof ApiError) {
+    if (e.field) box.dataset.field = e.field;
     box.append(
       h('strong', null, prefix, e.status ? `${e.status} ${e.code}` : e.code),
       ': ',
@@ -152,12 +139,15 @@ export function clearError(box: HTMLElement): void {
   box.hidden = true;
 }
 
+/** An item of an error's `details` (the schema leaves them open): a problem and its field. */
+interface DetailItem { field?: string; message?: string; [k: string]: unknown }
+
 function detailLines(d: unknown): string[] {
   if (!d) return [];
   if (Array.isArray(d)) {
     return d.slice(0, 20).map((x) => {
       if (x && typeof x === 'object') {
-        const o = x as ErrorDetailItem;
+        const o = x as DetailItem;
         if (o.message) return o.field ? `${o.field}: ${o.message}` : String(o.message);
       }
       return typeof x === 'string' ? x : JSON.stringify(x);
@@ -175,66 +165,33 @@ function detailLines(d: unknown): string[] {
   return [String(d)];
 }
 
-// ---- wire types (see openapi/*.json) ----
+// ---- wire types: the schemas of openapi/*.json, generated into src/wire/ (npm run wire) ----
 
-export interface MapView { width: number; height: number; resolution: number; origin: number[]; free_area_m2?: number }
-export interface PlaceView {
-  iri: string; id: string | null; name: string; kind: string; parent: string | null;
-  connected: string[]; boundary: number[][]; map?: MapView | null; complexity?: number | null;
-}
-export interface RobotView {
-  iri: string; id: string | null; name: string; footprint?: number[] | null; wheel_separation?: number | null;
-  wheels: number; joints: number; lasers: number; cameras: number;
-}
-export type Shape =
-  | { kind: 'box'; length: number; width: number; height: number }
-  | { kind: 'cylinder'; diameter: number; height: number }
-  | { kind: 'sphere'; diameter: number };
-export interface ObjectView {
-  iri: string; id: string | null; name: string; class: string;
-  pose: { x: number; y: number; z: number; yaw: number }; shape: Shape;
-  colour: { r: number; g: number; b: number; a: number } | null; placeholder: boolean; is_open: boolean | null;
-  /** A colour given as "#rrggbb" instead of linear components. */
-  colourHex?: string | null;
-}
-export interface RoadmapEdge { a: number; b: number; length_m: number; success: number | null; mean_time_s: number | null; kept: boolean | null }
-export interface Roadmap {
-  kind: 'geometric' | 'policy'; samples: number; seed: number; inflation_m: number;
-  nodes: number[][]; edges: RoadmapEdge[]; policy: string | null; note: string | null;
-}
-export interface Pose { x: number; y: number; yaw?: number }
-export interface Attempt {
-  attempt: number; leg: number; controller: string; roadmap_seed: number; outcome: string; reason: string;
-  simulated_time_s: number; distance_m: number; min_clearance_m: number; replans: number;
-  waypoints_reached: number; goals_reached: number; prm_path_length_m: number; end_pose: Pose;
-  trajectory?: Pose[]; ranges?: number[][]; path?: number[][]; t?: number[];
-}
-export interface Leg {
-  goal_index: number; controller: string; roadmap: string; attempts: number; roadmap_seed: number;
-  simulated_time_s: number; distance_m: number; min_clearance_m: number; replans: number;
-}
-export interface PlanReport {
-  waypoints: Pose[]; goal_indices: number[]; controller: string; controller_description: string;
-  legs: Leg[]; attempts: Attempt[]; simulated_time_s: number; distance_m: number; min_clearance_m: number;
-  prm_path_length_m: number; waypoint_path_length_m: number; replans: number; trajectory: Pose[];
-  roadmap: { samples: number; nodes: number; seed: number; inflation_m: number; cached: boolean; kind: string };
-  laser?: { angles_rad: number[]; max_range_m: number };
-  robot?: string; floor?: string; policy?: string | null; note?: string | null; service_ms?: number;
-}
-export interface JobView {
-  id: string; kind: string; state: string; payload: Record<string, unknown>; priority: number; attempts: number;
-  max_attempts: number; cancel_requested: boolean; created: string; updated: string; run_after: string;
-  started?: string | null; finished?: string | null; progress?: Record<string, unknown> | null;
-  result?: Record<string, unknown> | null; error?: string | null; checkpoint?: unknown; worker?: string | null; events: string;
-}
-export interface PolicySummary {
-  id: string; robot?: string | null; floor?: string | null; place?: string | null; job_id?: string | null;
-  created?: string | null; eval: Record<string, unknown>;
-}
-export interface Me { name: string; role: 'engineer' | 'robot' | string }
-export interface TimedPose { t_s: number; x: number; y: number; yaw: number }
-export interface Itinerary {
-  plan_id: string; robot: string; floor: string; start_unix_ms: number; trajectory: TimedPose[];
-  radius_m: number; tolerance_s: number; expires_unix_ms: number; delay_s: number;
-}
-export interface FloorTraffic { floor: string; version: number; plans: Itinerary[] }
+type Knowledge = KnowledgeDoc['schemas'];
+type Fleet = FleetDoc['schemas'];
+
+export type ErrorBody = Fleet['ErrorBody'];
+export type ErrorDetail = Fleet['ErrorDetail'];
+export type Me = Knowledge['Me'];
+export type MapView = Knowledge['MapView'];
+export type PlaceView = Knowledge['PlaceView'];
+export type RobotView = Knowledge['RobotView'];
+export type ObjectView = Knowledge['ObjectView'];
+export type Point = Fleet['Point'];
+export type Pose = Fleet['Pose'];
+export type RoadmapView = Fleet['RoadmapView'];
+export type EdgeView = Fleet['EdgeView'];
+export type PlanApiRequest = Fleet['PlanApiRequest'];
+export type PlanOptions = Fleet['PlanOptions'];
+export type PlanApiResponse = Fleet['PlanApiResponse'];
+export type AttemptReport = Fleet['AttemptReport'];
+export type AttemptTrace = Fleet['AttemptTrace'];
+export type LegReport = Fleet['LegReport'];
+export type NewJobRequest = Fleet['NewJobRequest'];
+export type TrainPayload = Fleet['TrainPayload'];
+export type EvaluatePayload = Fleet['EvaluatePayload'];
+export type JobView = Fleet['JobView'];
+export type PolicySummary = Fleet['PolicySummary'];
+export type TimedPose = Fleet['TimedPose'];
+export type Itinerary = Fleet['Itinerary'];
+export type FloorTraffic = Fleet['FloorTraffic'];

@@ -1,6 +1,6 @@
 // Shared, cached reads: places, robots, map images, objects.
 
-import { getBlob, getJson, ApiError, type PlaceView, type RobotView, type ObjectView, type Roadmap, type PolicySummary } from './api';
+import { getBlob, getJson, ApiError, type PlaceView, type RobotView, type ObjectView, type RoadmapView, type PolicySummary } from './api';
 import type { MapCanvas } from './mapview';
 
 const cache = new Map<string, Promise<unknown>>();
@@ -34,53 +34,55 @@ export function mapImage(p: PlaceView): Promise<ImageBitmap> {
   });
 }
 
-export function objects(p: PlaceView): Promise<ObjectView[]> {
-  return cached(`objects:${p.iri}`, async () => (await getJson<unknown[]>(`/v1/places/${placeKey(p)}/objects`)).map(normaliseObject));
+export function objects(p: PlaceView): Promise<MapObject[]> {
+  return cached(`objects:${p.iri}`, async () => (await getJson<ObjectView[]>(`/v1/places/${placeKey(p)}/objects`)).map(mapObject));
 }
 
-/** An object as the contract has it. Also takes the variant with `shape` as a name and `size`
- *  as [x, y, z] extents, `colour` as "#rrggbb" and `open` for `is_open`. */
-export function normaliseObject(raw: unknown): ObjectView {
-  const o = raw as Record<string, unknown>;
-  const iri = String(o.iri ?? '');
-  const local = iri.split(/[#/]/).filter(Boolean).pop() ?? iri;
-  const pose = (o.pose ?? {}) as Record<string, number>;
-  let shape = o.shape as ObjectView['shape'] | string;
-  if (typeof shape === 'string' || !shape) {
-    const size = (Array.isArray(o.size) ? o.size : [0.5, 0.5, 0.5]) as number[];
-    const kind = typeof shape === 'string' ? shape : 'box';
-    shape = kind === 'box'
-      ? { kind: 'box', length: size[0], width: size[1], height: size[2] }
-      : kind === 'sphere'
-        ? { kind: 'sphere', diameter: Math.max(size[0], size[1]) }
-        : { kind: 'cylinder', diameter: Math.max(size[0], size[1]), height: size[2] };
-  }
-  let colour = o.colour as ObjectView['colour'] | string | null;
-  let srgbHex: string | null = null;
-  if (typeof colour === 'string') {
-    srgbHex = colour;
-    colour = null;
-  }
+/** An object's footprint as the maps draw it. */
+export type Shape =
+  | { kind: 'box'; length: number; width: number; height: number }
+  | { kind: 'cylinder'; diameter: number; height: number }
+  | { kind: 'sphere'; diameter: number };
+
+/** An object as the maps draw it: the wire's `shape` name and `size` extents made one shape,
+ *  named after its IRI, its class by local name. */
+export interface MapObject {
+  iri: string;
+  name: string;
+  class: string;
+  pose: ObjectView['pose'];
+  shape: Shape;
+  /** "#rrggbb", or null for the default. */
+  colour: string | null;
+  placeholder: boolean;
+  open: boolean;
+}
+
+export function mapObject(o: ObjectView): MapObject {
+  const local = o.iri.split(/[#/]/).filter(Boolean).pop() ?? o.iri;
+  const [x = 0.5, y = 0.5, z = 0.5] = o.size;
+  const shape: Shape = o.shape === 'box'
+    ? { kind: 'box', length: x, width: y, height: z }
+    : o.shape === 'sphere'
+      ? { kind: 'sphere', diameter: Math.max(x, y) }
+      : { kind: 'cylinder', diameter: Math.max(x, y), height: z };
   return {
-    iri,
-    id: (o.id as string | null) ?? null,
-    name: (o.name as string) ?? local,
-    class: String(o.class ?? '').split(/[#/]/).pop() ?? '',
-    pose: { x: pose.x ?? 0, y: pose.y ?? 0, z: pose.z ?? 0, yaw: pose.yaw ?? 0 },
+    iri: o.iri,
+    name: local,
+    class: (o.class ?? '').split(/[#/]/).pop() ?? '',
+    pose: o.pose,
     shape,
-    colour: colour as ObjectView['colour'],
-    colourHex: srgbHex,
-    placeholder: Boolean(o.placeholder),
-    is_open: (o.is_open as boolean | null) ?? (o.open as boolean | null) ?? null,
+    colour: o.colour || null,
+    placeholder: o.placeholder,
+    open: o.open,
   };
 }
 
-export function roadmap(p: PlaceView, robot: string, policy: string | null): Promise<Roadmap> {
+export function roadmap(p: PlaceView, robot: string, policy: string | null): Promise<RoadmapView> {
   const q = new URLSearchParams({ place: p.id ?? p.iri, robot });
   if (policy) q.set('policy', policy);
-  return cached(`roadmap:${q}`, () => getJson<Roadmap>(`/v1/roadmaps?${q}`));
+  return cached(`roadmap:${q}`, () => getJson<RoadmapView>(`/v1/roadmaps?${q}`));
 }
-
 /** The floors and, for each, the places (rooms, corridors, ...) whose parent chain leads to it. */
 export interface FloorIndex {
   byIri: Map<string, PlaceView>;
@@ -119,7 +121,7 @@ export function missing(e: unknown): boolean {
  * hands the floor's objects to `onObjects` when they arrive. */
 export async function showFloorOn(
   m: MapCanvas, floor: PlaceView, alive: () => boolean,
-  onObjects: (o: ObjectView[]) => void, onError: (e: unknown) => void,
+  onObjects: (o: MapObject[]) => void, onError: (e: unknown) => void,
 ): Promise<void> {
   m.setMap(null, floor.map ?? null);
   m.canvas.dataset.floor = floor.id ?? floor.iri;

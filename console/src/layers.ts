@@ -1,7 +1,8 @@
 // What the floor and plan pages draw on a map: places, objects, roadmap.
 
-import type { ObjectView, PlaceView, Roadmap } from './api';
-import { type MapCanvas, polyline, srgb, successColour, label } from './mapview';
+import type { PlaceView, RoadmapView } from './api';
+import type { MapObject } from './data';
+import { type MapCanvas, polyline, successColour, label } from './mapview';
 
 const AREA_COLOURS: Record<string, string> = {
   room: '#7c3aed',
@@ -46,20 +47,16 @@ export function centroid(b: number[][]): [number, number] {
   return [cx / (3 * a), cy / (3 * a)];
 }
 
-export function objectColour(o: ObjectView): string {
-  if (o.colourHex) return o.colourHex;
-  if (!o.colour) return 'rgba(100, 116, 139, 0.75)';
-  const { r, g, b } = o.colour;
-  const a = o.colour.a ?? 1;
-  return `rgba(${srgb(r)}, ${srgb(g)}, ${srgb(b)}, ${Math.max(0.35, Math.min(1, a))})`;
+export function objectColour(o: MapObject): string {
+  return o.colour ?? 'rgba(100, 116, 139, 0.75)';
 }
 
-export function drawObjects(ctx: CanvasRenderingContext2D, m: MapCanvas, objects: ObjectView[], names = true): void {
+export function drawObjects(ctx: CanvasRenderingContext2D, m: MapCanvas, objects: MapObject[], names = true): void {
   for (const o of objects) {
     const [sx, sy] = m.toScreen(o.pose.x, o.pose.y);
     ctx.save();
     ctx.translate(sx, sy);
-    ctx.rotate(-(o.pose.yaw ?? 0));
+    ctx.rotate(-o.pose.yaw);
     ctx.beginPath();
     const s = o.shape;
     if (s.kind === 'box') {
@@ -72,7 +69,7 @@ export function drawObjects(ctx: CanvasRenderingContext2D, m: MapCanvas, objects
     ctx.fill();
     ctx.lineWidth = o.placeholder ? 2 : 1;
     ctx.strokeStyle = o.placeholder ? '#dc2626' : '#1f2937';
-    ctx.setLineDash(o.placeholder ? [5, 3] : o.is_open ? [2, 2] : []);
+    ctx.setLineDash(o.placeholder ? [5, 3] : o.open ? [2, 2] : []);
     ctx.stroke();
     ctx.setLineDash([]);
     ctx.restore();
@@ -80,7 +77,7 @@ export function drawObjects(ctx: CanvasRenderingContext2D, m: MapCanvas, objects
   }
 }
 
-export function drawRoadmap(ctx: CanvasRenderingContext2D, m: MapCanvas, r: Roadmap, alpha = 0.9): void {
+export function drawRoadmap(ctx: CanvasRenderingContext2D, m: MapCanvas, r: RoadmapView, alpha = 0.9): void {
   const policyAware = r.kind === 'policy';
   ctx.lineWidth = policyAware ? 2 : 1;
   ctx.globalAlpha = alpha;
@@ -92,7 +89,7 @@ export function drawRoadmap(ctx: CanvasRenderingContext2D, m: MapCanvas, r: Road
     ctx.beginPath();
     ctx.moveTo(ax, ay);
     ctx.lineTo(bx, by);
-    ctx.strokeStyle = policyAware ? successColour(e.success) : '#5b7fa6';
+    ctx.strokeStyle = policyAware ? successColour(e.success ?? null) : '#5b7fa6';
     ctx.setLineDash(policyAware && e.kept === false ? [4, 4] : []);
     ctx.stroke();
   }

@@ -320,12 +320,6 @@ export class MapCanvas {
 
 // ---- drawing helpers, all through the canvas's transform ----
 
-/** Linear [0, 1] → sRGB 0..255. */
-export function srgb(c: number): number {
-  const v = c <= 0.0031308 ? 12.92 * c : 1.055 * Math.pow(c, 1 / 2.4) - 0.055;
-  return Math.round(Math.min(1, Math.max(0, v)) * 255);
-}
-
 /** Success probability → colour (red 0, amber 0.5, green 1). */
 export function successColour(p: number | null): string {
   if (p === null || p === undefined || !Number.isFinite(p)) return '#5b7fa6';

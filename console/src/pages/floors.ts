@@ -2,8 +2,9 @@
 // robot's footprint to scale.
 
 import { h, add, clear, field, fmt } from '../dom';
-import { showError, clearError, type PlaceView, type RobotView, type ObjectView, type Roadmap, type PolicySummary } from '../api';
+import { showError, clearError, type PlaceView, type RobotView, type RoadmapView, type PolicySummary } from '../api';
 import * as data from '../data';
+import type { MapObject } from '../data';
 import { MapCanvas, drawRobot } from '../mapview';
 import { drawAreas, drawObjects, drawRoadmap, centroid } from '../layers';
 import type { PageContext, Cleanup } from '../main';
@@ -59,197 +60,242 @@ function floorLinks(floors: PlaceView[], current: PlaceView | undefined): HTMLUL
 }
 
 async function showFloor(view: HTMLElement, floor: PlaceView, index: data.FloorIndex): Promise<Cleanup> {
-  const t0 = performance.now();
-  const areas = index.areasOn(floor);
-  const state: {
-    image: ImageBitmap | null; objects: ObjectView[]; roadmap: Roadmap | null; robots: RobotView[];
-    robot: RobotView | null; robotPose: { x: number; y: number; yaw: number } | null; hover: [number, number] | null;
-  } = { image: null, objects: [], roadmap: null, robots: [], robot: null, robotPose: null, hover: null };
+  const f = new FloorView(floor, index);
+  f.render(view);
+  f.wire();
+  const image = f.loadImage();
+  f.loadObjects();
+  f.loadRobots();
+  await image;
+  return () => f.destroy();
+}
 
-  const show = {
+/** One floor's map, its layers and controls. */
+class FloorView {
+  private readonly t0 = performance.now();
+  private readonly areas: PlaceView[];
+  private alive = true;
+  private objects: MapObject[] = [];
+  private roadmap: RoadmapView | null = null;
+  private robots: RobotView[] = [];
+  private robot: RobotView | null = null;
+  private robotPose: { x: number; y: number; yaw: number } | null = null;
+
+  private readonly show = {
     areas: h('input', { type: 'checkbox', checked: true }),
     objects: h('input', { type: 'checkbox', checked: true }),
     roadmap: h('input', { type: 'checkbox' }),
     robot: h('input', { type: 'checkbox', checked: true }),
   };
-  const robotSel = h('select', { name: 'robot' });
-  const policySel = h('select', { name: 'policy' }, h('option', { value: '' }, 'none: geometric roadmap'));
-  const status = h('p', { class: 'status', 'aria-live': 'polite' });
-  const roadmapErr = h('div', { hidden: true });
-  const objectsErr = h('div', { hidden: true });
-  const mapErr = h('div', { hidden: true });
-  const coords = h('output', { class: 'coords', 'aria-live': 'off' }, ' ');
-  const px = h('input', { type: 'number', step: 'any', name: 'fx', inputmode: 'decimal' });
-  const py = h('input', { type: 'number', step: 'any', name: 'fy', inputmode: 'decimal' });
-  const pyaw = h('input', { type: 'number', step: 'any', name: 'fyaw', value: '0', inputmode: 'decimal' });
+  private readonly robotSel = h('select', { name: 'robot' });
+  private readonly policySel = h('select', { name: 'policy' }, h('option', { value: '' }, 'none: geometric roadmap'));
+  private readonly status = h('p', { class: 'status', 'aria-live': 'polite' });
+  private readonly roadmapErr = h('div', { hidden: true });
+  private readonly objectsErr = h('div', { hidden: true });
+  private readonly mapErr = h('div', { hidden: true });
+  private readonly coords = h('output', { class: 'coords', 'aria-live': 'off' }, ' ');
+  private readonly px = h('input', { type: 'number', step: 'any', name: 'fx', inputmode: 'decimal' });
+  private readonly py = h('input', { type: 'number', step: 'any', name: 'fy', inputmode: 'decimal' });
+  private readonly pyaw = h('input', { type: 'number', step: 'any', name: 'fyaw', value: '0', inputmode: 'decimal' });
+  private readonly details = h('div', { class: 'details' });
+  private readonly legend = legendEl();
+  private readonly m: MapCanvas;
 
-  const m = new MapCanvas(`Map of ${floor.name}`);
-  m.canvas.dataset.floor = floor.id ?? floor.iri;
-  if (floor.map) m.setMap(null, floor.map);
-  else {
-    const b = areas.flatMap((a) => a.boundary);
-    if (b.length) m.setBounds([Math.min(...b.map((p) => p[0])), Math.min(...b.map((p) => p[1])), Math.max(...b.map((p) => p[0])), Math.max(...b.map((p) => p[1]))]);
+  constructor(private readonly floor: PlaceView, index: data.FloorIndex) {
+    this.areas = index.areasOn(floor);
+    this.m = new MapCanvas(`Map of ${floor.name}`);
+    this.m.canvas.dataset.floor = floor.id ?? floor.iri;
+    if (floor.map) this.m.setMap(null, floor.map);
+    else {
+      const b = this.areas.flatMap((a) => a.boundary);
+      if (b.length) this.m.setBounds([Math.min(...b.map((p) => p[0])), Math.min(...b.map((p) => p[1])), Math.max(...b.map((p) => p[0])), Math.max(...b.map((p) => p[1]))]);
+    }
+    this.placeDefaultPose();
   }
-  const legend = legendEl();
-  add(view,
-    h('h2', null, floor.name, ' ', h('span', { class: 'muted' }, floor.id ?? floor.iri)),
-    floor.map
-      ? h('p', { class: 'muted' }, `${floor.map.width} × ${floor.map.height} cells at ${floor.map.resolution} m, origin (${floor.map.origin.slice(0, 2).map((v) => fmt(v)).join(', ')}), free area ${fmt(floor.map.free_area_m2, 1)} m²`)
-      : null,
-    h('div', { class: 'controls' },
-      h('fieldset', null, h('legend', null, 'Show'),
-        h('label', null, show.areas, ' Rooms and corridors'),
-        h('label', null, show.objects, ' Objects'),
-        h('label', null, show.roadmap, ' Roadmap'),
-        h('label', null, show.robot, ' Robot footprint'),
-      ),
-      field('Robot', robotSel),
-      field('Policy (policy-aware roadmap)', policySel),
-    ),
-    roadmapErr,
-    objectsErr,
-    mapErr,
-    m.el,
-    h('div', { class: 'below-map' }, coords, status),
-    h('form', { class: 'inline', 'aria-label': 'Place the robot footprint', onsubmit: (e: Event) => {
-      e.preventDefault();
-      const x = parseFloat(px.value), y = parseFloat(py.value);
-      if (Number.isFinite(x) && Number.isFinite(y)) {
-        state.robotPose = { x, y, yaw: parseFloat(pyaw.value) || 0 };
-        m.request();
-      }
-    } },
-      field('Footprint x (m)', px), field('y (m)', py), field('yaw (rad)', pyaw),
-      h('button', { type: 'submit' }, 'Place footprint'),
-    ),
-    legend,
-  );
-  const details = h('div', { class: 'details' });
-  view.append(details);
 
-  m.drawStatic = (c) => {
-    if (show.areas.checked) drawAreas(c, m, areas);
-    if (show.roadmap.checked && state.roadmap) drawRoadmap(c, m, state.roadmap);
-    if (show.objects.checked) drawObjects(c, m, state.objects);
-  };
-  m.drawDynamic = (c) => {
-    if (show.robot.checked && state.robotPose) drawRobot(c, m, state.robotPose, state.robot?.footprint);
-  };
-  m.onHover = (x, y) => {
-    coords.value = `x ${x.toFixed(2)} m, y ${y.toFixed(2)} m`;
+  render(view: HTMLElement): void {
+    const { floor, show } = this;
+    add(view,
+      h('h2', null, floor.name, ' ', h('span', { class: 'muted' }, floor.id ?? floor.iri)),
+      floor.map
+        ? h('p', { class: 'muted' }, `${floor.map.width} × ${floor.map.height} cells at ${floor.map.resolution} m, origin (${floor.map.origin.slice(0, 2).map((v) => fmt(v)).join(', ')}), free area ${fmt(floor.map.free_area_m2, 1)} m²`)
+        : null,
+      h('div', { class: 'controls' },
+        h('fieldset', null, h('legend', null, 'Show'),
+          h('label', null, show.areas, ' Rooms and corridors'),
+          h('label', null, show.objects, ' Objects'),
+          h('label', null, show.roadmap, ' Roadmap'),
+          h('label', null, show.robot, ' Robot footprint'),
+        ),
+        field('Robot', this.robotSel),
+        field('Policy (policy-aware roadmap)', this.policySel),
+      ),
+      this.roadmapErr,
+      this.objectsErr,
+      this.mapErr,
+      this.m.el,
+      h('div', { class: 'below-map' }, this.coords, this.status),
+      h('form', { class: 'inline', 'aria-label': 'Place the robot footprint', onsubmit: (e: Event) => {
+        e.preventDefault();
+        this.placeFromForm();
+      } },
+        field('Footprint x (m)', this.px), field('y (m)', this.py), field('yaw (rad)', this.pyaw),
+        h('button', { type: 'submit' }, 'Place footprint'),
+      ),
+      this.legend,
+    );
+    view.append(this.details);
+  }
+
+  /** The map's layers and pointer, the layer toggles, the robot and policy pickers. */
+  wire(): void {
+    const { m, show } = this;
+    m.drawStatic = (c) => {
+      if (show.areas.checked) drawAreas(c, m, this.areas);
+      if (show.roadmap.checked && this.roadmap) drawRoadmap(c, m, this.roadmap);
+      if (show.objects.checked) drawObjects(c, m, this.objects);
+    };
+    m.drawDynamic = (c) => {
+      if (show.robot.checked && this.robotPose) drawRobot(c, m, this.robotPose, this.robot?.footprint);
+    };
+    m.onHover = (x, y) => this.hover(x, y);
+    m.onClick = (x, y) => {
+      this.robotPose = { x, y, yaw: this.robotPose?.yaw ?? 0 };
+      this.px.value = x.toFixed(2);
+      this.py.value = y.toFixed(2);
+      m.request();
+    };
+    for (const cb of Object.values(show)) cb.addEventListener('change', () => m.invalidate());
+    show.roadmap.addEventListener('change', () => void this.loadRoadmap());
+    this.robotSel.addEventListener('change', () => {
+      this.robot = this.robots.find((r) => (r.id ?? r.iri) === this.robotSel.value) ?? null;
+      void data.policies().then((ps) => this.fillPolicies(ps), () => undefined);
+      m.request();
+      void this.loadRoadmap();
+    });
+    this.policySel.addEventListener('change', () => {
+      if (this.policySel.value) show.roadmap.checked = true;
+      void this.loadRoadmap();
+    });
+  }
+
+  private hover(x: number, y: number): void {
+    this.coords.value = `x ${x.toFixed(2)} m, y ${y.toFixed(2)} m`;
     // The object under the pointer, by its footprint's bounding circle.
-    const o = state.objects.find((ob) => {
+    const o = this.objects.find((ob) => {
       const s = ob.shape;
       const r = s.kind === 'box' ? Math.hypot(s.length, s.width) / 2 : s.diameter / 2;
       return Math.hypot(ob.pose.x - x, ob.pose.y - y) <= r;
     });
     const title = o ? `${o.name} (${o.class}${o.placeholder ? ', placeholder' : ''})` : '';
-    if (m.canvas.title !== title) m.canvas.title = title;
-  };
-  m.onClick = (x, y) => {
-    state.robotPose = { x, y, yaw: state.robotPose?.yaw ?? 0 };
-    px.value = x.toFixed(2);
-    py.value = y.toFixed(2);
-    m.request();
-  };
-  for (const cb of Object.values(show)) cb.addEventListener('change', () => m.invalidate());
-  show.roadmap.addEventListener('change', () => void loadRoadmap());
-
-  // Default footprint position: the largest area's centroid, else the map's centre.
-  const biggest = areas.slice().sort((a, b) => area(b.boundary) - area(a.boundary))[0];
-  if (biggest) {
-    const [cx, cy] = centroid(biggest.boundary);
-    state.robotPose = { x: cx, y: cy, yaw: 0 };
-  } else if (floor.map) {
-    const { origin: [ox, oy], width, height, resolution } = floor.map;
-    state.robotPose = { x: ox + (width * resolution) / 2, y: oy + (height * resolution) / 2, yaw: 0 };
-  }
-  if (state.robotPose) {
-    px.value = state.robotPose.x.toFixed(2);
-    py.value = state.robotPose.y.toFixed(2);
+    if (this.m.canvas.title !== title) this.m.canvas.title = title;
   }
 
-  let alive = true;
-  const imageP = floor.map
-    ? data.mapImage(floor).then((img) => {
-        if (!alive) return;
-        state.image = img;
-        m.setMap(img, floor.map!);
-        m.draw();
-        const now = performance.now();
-        performance.mark('floor-map-drawn');
-        m.canvas.dataset.ready = '1';
-        window.__floorStats = { floor: floor.id ?? floor.iri, drawnMs: now, imageMs: now - t0, cells: floor.map!.width * floor.map!.height };
-        status.textContent = `Map drawn in ${(now - t0).toFixed(0)} ms.`;
-      }, (e) => showError(mapErr, e, 'map: '))
-    : Promise.resolve();
+  private placeFromForm(): void {
+    const x = parseFloat(this.px.value), y = parseFloat(this.py.value);
+    if (Number.isFinite(x) && Number.isFinite(y)) {
+      this.robotPose = { x, y, yaw: parseFloat(this.pyaw.value) || 0 };
+      this.m.request();
+    }
+  }
 
-  data.objects(floor).then((objs) => {
-    if (!alive) return;
-    state.objects = objs;
-    m.invalidate();
-    renderDetails(details, areas, objs);
-  }, (e) => {
-    showError(objectsErr, e, 'objects: ');
-    renderDetails(details, areas, []);
-  });
+  /** The footprint's first place: the largest area's centroid, else the map's centre. */
+  private placeDefaultPose(): void {
+    const biggest = this.areas.slice().sort((a, b) => area(b.boundary) - area(a.boundary))[0];
+    if (biggest) {
+      const [cx, cy] = centroid(biggest.boundary);
+      this.robotPose = { x: cx, y: cy, yaw: 0 };
+    } else if (this.floor.map) {
+      const { origin: [ox, oy], width, height, resolution } = this.floor.map;
+      this.robotPose = { x: ox + (width * resolution) / 2, y: oy + (height * resolution) / 2, yaw: 0 };
+    }
+    if (this.robotPose) {
+      this.px.value = this.robotPose.x.toFixed(2);
+      this.py.value = this.robotPose.y.toFixed(2);
+    }
+  }
 
-  data.robots().then((rs) => {
-    if (!alive) return;
-    state.robots = rs;
-    for (const r of rs) robotSel.append(h('option', { value: r.id ?? r.iri }, `${r.name} (${r.id ?? r.iri})`));
-    state.robot = rs[0] ?? null;
-    m.request();
-    return data.policies().then((ps) => fillPolicies(ps), () => undefined);
-  }, (e) => showError(roadmapErr, e, 'robots: '));
+  /** The map image; once drawn, the canvas is ready and `window.__floorStats` says when. */
+  async loadImage(): Promise<void> {
+    const { floor, m } = this;
+    const map = floor.map;
+    if (!map) return;
+    try {
+      const img = await data.mapImage(floor);
+      if (!this.alive) return;
+      m.setMap(img, map);
+      m.draw();
+      const now = performance.now();
+      performance.mark('floor-map-drawn');
+      m.canvas.dataset.ready = '1';
+      window.__floorStats = { floor: floor.id ?? floor.iri, drawnMs: now, imageMs: now - this.t0, cells: map.width * map.height };
+      this.status.textContent = `Map drawn in ${(now - this.t0).toFixed(0)} ms.`;
+    } catch (e) {
+      showError(this.mapErr, e, 'map: ');
+    }
+  }
 
-  function fillPolicies(ps: PolicySummary[]): void {
+  loadObjects(): void {
+    data.objects(this.floor).then((objs) => {
+      if (!this.alive) return;
+      this.objects = objs;
+      this.m.invalidate();
+      renderDetails(this.details, this.areas, objs);
+    }, (e) => {
+      showError(this.objectsErr, e, 'objects: ');
+      renderDetails(this.details, this.areas, []);
+    });
+  }
+
+  loadRobots(): void {
+    data.robots().then((rs) => {
+      if (!this.alive) return;
+      this.robots = rs;
+      for (const r of rs) this.robotSel.append(h('option', { value: r.id ?? r.iri }, `${r.name} (${r.id ?? r.iri})`));
+      this.robot = rs[0] ?? null;
+      this.m.request();
+      return data.policies().then((ps) => this.fillPolicies(ps), () => undefined);
+    }, (e) => showError(this.roadmapErr, e, 'robots: '));
+  }
+
+  private fillPolicies(ps: PolicySummary[]): void {
+    const { policySel, robot, floor } = this;
     clear(policySel);
     policySel.append(h('option', { value: '' }, 'none: geometric roadmap'));
     for (const p of ps) {
-      if (state.robot && p.robot && p.robot !== state.robot.iri) continue;
+      if (robot && p.robot && p.robot !== robot.iri) continue;
       const onFloor = !p.floor || p.floor === floor.iri;
       policySel.append(h('option', { value: p.id }, `${p.id.slice(0, 13)}… ${onFloor ? '' : '(other floor)'}`));
     }
   }
-  robotSel.addEventListener('change', () => {
-    state.robot = state.robots.find((r) => (r.id ?? r.iri) === robotSel.value) ?? null;
-    void data.policies().then(fillPolicies, () => undefined);
-    m.request();
-    void loadRoadmap();
-  });
-  policySel.addEventListener('change', () => {
-    if (policySel.value) show.roadmap.checked = true;
-    void loadRoadmap();
-  });
 
-  async function loadRoadmap(): Promise<void> {
-    clearError(roadmapErr);
-    if (!show.roadmap.checked) return m.invalidate();
-    if (!state.robot) return;
+  private async loadRoadmap(): Promise<void> {
+    const { m, status } = this;
+    clearError(this.roadmapErr);
+    if (!this.show.roadmap.checked) return m.invalidate();
+    if (!this.robot) return;
     status.textContent = 'Loading the roadmap…';
     try {
-      const r = await data.roadmap(floor, state.robot.id ?? state.robot.iri, policySel.value || null);
-      if (!alive) return;
-      state.roadmap = r;
-      legend.dataset.roadmap = r.kind;
+      const r = await data.roadmap(this.floor, this.robot.id ?? this.robot.iri, this.policySel.value || null);
+      if (!this.alive) return;
+      this.roadmap = r;
+      this.legend.dataset.roadmap = r.kind;
       const kept = r.edges.filter((e) => e.kept !== false).length;
       status.textContent = `Roadmap: ${r.kind}, ${r.nodes.length} nodes, ${r.edges.length} edges` +
         (r.kind === 'policy' ? `, ${kept} kept by the policy` : '') + (r.note ? `. ${r.note}` : '.');
       m.invalidate();
     } catch (e) {
-      state.roadmap = null;
+      this.roadmap = null;
       status.textContent = '';
-      showError(roadmapErr, e, 'roadmap: ');
+      showError(this.roadmapErr, e, 'roadmap: ');
       m.invalidate();
     }
   }
 
-  await imageP;
-  return () => {
-    alive = false;
-    m.destroy();
-  };
+  destroy(): void {
+    this.alive = false;
+    this.m.destroy();
+  }
 }
 
 function area(b: number[][]): number {
@@ -277,7 +323,7 @@ function legendEl(): HTMLElement {
   );
 }
 
-function renderDetails(el: HTMLElement, areas: PlaceView[], objects: ObjectView[]): void {
+function renderDetails(el: HTMLElement, areas: PlaceView[], objects: MapObject[]): void {
   clear(el);
   el.append(
     h('details', null, h('summary', null, `Rooms and corridors (${areas.length})`),

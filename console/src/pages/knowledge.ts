@@ -122,14 +122,24 @@ async function select(query: string): Promise<Row[]> {
 }
 
 interface YasguiLike { getTab(): { setQuery(q: string): unknown; query(): Promise<unknown> } | undefined; destroy(): void; on(e: string, f: (...a: unknown[]) => void): void }
+interface YasguiClass {
+  new (el: HTMLElement, cfg: unknown): YasguiLike;
+  Yasqe: { defaults: { autocompleters: string[] } };
+}
 
 export async function mount(root: HTMLElement, ctx: PageContext): Promise<Cleanup> {
   root.append(h('h1', { id: 'page-title' }, 'Knowledge'));
   const browser = h('section', { class: 'card', 'aria-labelledby': 'browse-title' });
   const sparql = h('section', { class: 'card', 'aria-labelledby': 'sparql-title' });
   root.append(browser, sparql);
+  browserSection(browser, ctx);
+  const editor = new SparqlEditor(sparql);
+  await editor.load();
+  return () => editor.destroy();
+}
 
-  // ---- browser ----
+/** The form that browses an IRI (from the address's `?iri=`), its result, links browsing in place. */
+function browserSection(browser: HTMLElement, ctx: PageContext): void {
   const iriIn = h('input', { type: 'url', name: 'iri', list: 'known-iris', size: 60, autocomplete: 'off', value: ctx.query.get('iri') ?? '' });
   const known = h('datalist', { id: 'known-iris' });
   const out = h('div', { id: 'browse-result', 'aria-live': 'polite' });
@@ -157,41 +167,71 @@ export async function mount(root: HTMLElement, ctx: PageContext): Promise<Cleanu
     void browse(iriIn.value, out, err);
     browser.scrollIntoView();
   });
+}
 
-  // ---- SPARQL ----
-  const host = h('div', { id: 'yasgui', class: 'yasgui-host' });
-  const examples = h('ul', { class: 'examples' });
-  const yErr = h('div', { hidden: true });
-  sparql.append(
-    h('h2', { id: 'sparql-title' }, 'SPARQL'),
-    h('p', { class: 'hint' }, 'Queries go to ', h('code', null, '/sparql'), ' (POST, with your token); the data lives in named graphs, entailments in ', h('code', null, INFERRED), '.'),
-    h('h3', null, 'Example queries'), examples, yErr, h('p', { class: 'status', id: 'yasgui-status', 'aria-live': 'polite' }, 'Loading the editor…'), host,
-  );
-  let yasgui: YasguiLike | null = null;
-  let alive = true;
-  for (const ex of EXAMPLES) {
-    examples.append(h('li', null, h('button', { type: 'button', class: 'link', onclick: async () => {
-      const tab = yasgui?.getTab();
-      if (!tab) return;
-      tab.setQuery(`${PROLOGUE}\n\n${ex.query}\n`);
-      try {
-        await tab.query();
-      } catch {
-        /* YASR shows it */
-      }
-    } }, ex.title)));
+/** YASGUI bound to /sparql with the session's token, loaded on demand, and the example queries. */
+class SparqlEditor {
+  private readonly host = h('div', { id: 'yasgui', class: 'yasgui-host' });
+  private readonly yErr = h('div', { hidden: true });
+  private yasgui: YasguiLike | null = null;
+  private alive = true;
+
+  constructor(sparql: HTMLElement) {
+    const examples = h('ul', { class: 'examples' });
+    sparql.append(
+      h('h2', { id: 'sparql-title' }, 'SPARQL'),
+      h('p', { class: 'hint' }, 'Queries go to ', h('code', null, '/sparql'), ' (POST, with your token); the data lives in named graphs, entailments in ', h('code', null, INFERRED), '.'),
+      h('h3', null, 'Example queries'), examples, this.yErr, h('p', { class: 'status', id: 'yasgui-status', 'aria-live': 'polite' }, 'Loading the editor…'), this.host,
+    );
+    for (const ex of EXAMPLES) {
+      examples.append(h('li', null, h('button', { type: 'button', class: 'link', onclick: () => void this.run(ex.query) }, ex.title)));
+    }
   }
-  try {
-    const [{ default: Yasgui }] = await Promise.all([import('@zazuko/yasgui'), import('@zazuko/yasgui/build/yasgui.min.css')]);
-    if (!alive) return;
-    const Y = Yasgui as unknown as {
-      new (el: HTMLElement, cfg: unknown): YasguiLike;
-      Yasqe: { defaults: { autocompleters: string[] } };
-    };
+
+  private async run(query: string): Promise<void> {
+    const tab = this.yasgui?.getTab();
+    if (!tab) return;
+    tab.setQuery(`${PROLOGUE}\n\n${query}\n`);
+    try {
+      await tab.query();
+    } catch {
+      /* YASR shows it */
+    }
+  }
+
+  async load(): Promise<void> {
+    const { host } = this;
+    try {
+      const [{ default: Yasgui }] = await Promise.all([import('@zazuko/yasgui'), import('@zazuko/yasgui/build/yasgui.min.css')]);
+      if (!this.alive) return;
+      const yasgui = this.create(Yasgui as unknown as YasguiClass);
+      this.yasgui = yasgui;
+      yasgui.on('queryResponse', () => {
+        host.dataset.responses = String(Number(host.dataset.responses ?? '0') + 1);
+      });
+      // Tab and Shift+Tab leave the editor (keyboard users could not get out of it otherwise);
+      // indentation is still Ctrl+] / Ctrl+[.
+      const freeTab = () => {
+        const yq = (yasgui.getTab() as unknown as { getYasqe?: () => { getOption(k: string): unknown; setOption(k: string, v: unknown): void } } | undefined)?.getYasqe?.();
+        if (yq) yq.setOption('extraKeys', { ...((yq.getOption('extraKeys') as object) ?? {}), Tab: false, 'Shift-Tab': false });
+      };
+      freeTab();
+      yasgui.on('tabSelect', () => setTimeout(freeTab));
+      yasgui.on('tabAdd', () => setTimeout(freeTab));
+      host.dataset.ready = '1';
+      const st = document.getElementById('yasgui-status');
+      if (st) st.textContent = 'Ctrl+Enter or the ▶ button runs the query.';
+      labelYasgui(host);
+    } catch (e) {
+      showError(this.yErr, e, 'YASGUI: ');
+    }
+  }
+
+  private create(Y: YasguiClass): YasguiLike {
     // Only completions that need no other server (LOV's class and property completers call out).
     Y.Yasqe.defaults.autocompleters = Y.Yasqe.defaults.autocompleters.filter((a) => a === 'prefixes' || a === 'variables');
     const endpoint = `${location.origin}/sparql`;
-    yasgui = new Y(host, {
+    return new Y(this.host, {
       requestConfig: {
         endpoint,
         method: 'POST',
@@ -207,29 +247,12 @@ export async function mount(root: HTMLElement, ctx: PageContext): Promise<Cleanu
       yasqe: { value: `${PROLOGUE}\n\n${EXAMPLES[0].query}\n`, resizeable: true, editorHeight: '260px' },
       yasr: { prefixes: PREFIXES, persistencyExpire: 0 },
     });
-    yasgui.on('queryResponse', () => {
-      host.dataset.responses = String(Number(host.dataset.responses ?? '0') + 1);
-    });
-    // Tab and Shift+Tab leave the editor (keyboard users could not get out of it otherwise);
-    // indentation is still Ctrl+] / Ctrl+[.
-    const freeTab = () => {
-      const yq = (yasgui?.getTab() as unknown as { getYasqe?: () => { getOption(k: string): unknown; setOption(k: string, v: unknown): void } } | undefined)?.getYasqe?.();
-      if (yq) yq.setOption('extraKeys', { ...((yq.getOption('extraKeys') as object) ?? {}), Tab: false, 'Shift-Tab': false });
-    };
-    freeTab();
-    yasgui.on('tabSelect', () => setTimeout(freeTab));
-    yasgui.on('tabAdd', () => setTimeout(freeTab));
-    host.dataset.ready = '1';
-    const st = document.getElementById('yasgui-status');
-    if (st) st.textContent = 'Ctrl+Enter or the ▶ button runs the query.';
-    labelYasgui(host);
-  } catch (e) {
-    showError(yErr, e, 'YASGUI: ');
   }
-  return () => {
-    alive = false;
-    yasgui?.destroy();
-  };
+
+  destroy(): void {
+    this.alive = false;
+    this.yasgui?.destroy();
+  }
 }
 
 /** YASGUI leaves a few controls without accessible names: give them one. */

@@ -5,7 +5,8 @@
 import { h, add, clear, field, fmt, localName } from '../dom';
 import { request, showError, clearError, type FloorTraffic, type Itinerary, type PlaceView } from '../api';
 import * as data from '../data';
-import { stream } from '../sse';
+import type { MapObject } from '../data';
+import { stream, type SseEvent } from '../sse';
 import { MapCanvas, marker, polyline, label } from '../mapview';
 import { drawAreas, drawObjects } from '../layers';
 import { endMs, poseAt, robotColour, startMs, waits, type Wait } from '../traffic';
@@ -29,131 +30,169 @@ export async function mount(root: HTMLElement, ctx: PageContext): Promise<Cleanu
     return;
   }
   const index = data.indexPlaces(all);
-  let floor: PlaceView | undefined =
-    index.floors.find((f) => f.id === ctx.args[0] || f.iri === ctx.args[0]) ?? index.floors[0];
-  let alive = true;
+  const floor = index.floors.find((f) => f.id === ctx.args[0] || f.iri === ctx.args[0]) ?? index.floors[0];
+  const page = new TrafficPage(root, topErr, index, floor, ctx.engineer);
+  await page.start();
+  return () => page.destroy();
+}
 
+class TrafficPage {
   // ---- state ----
-  const plans = new Map<string, Shown>();
-  let version = 0;
-  let live = true;
-  let replay: JointReplay | null = null;
-  let nowMs = Date.now();
-  let playing = false;
-  let sub: { stop: () => void } | null = null;
-  let areas: PlaceView[] = [];
-  let objects: Awaited<ReturnType<typeof data.objects>> = [];
+  private readonly plans = new Map<string, Shown>();
+  private version = 0;
+  private live = true;
+  private replay: JointReplay | null = null;
+  private nowMs = Date.now();
+  private playing = false;
+  private sub: { stop: () => void } | null = null;
+  private areas: PlaceView[] = [];
+  private objects: MapObject[] = [];
+  private alive = true;
+  private raf = 0;
+  private last = 0;
 
   // ---- controls ----
-  const floorSel = h('select', { name: 'floor' }, index.floors.map((f) => h('option', { value: f.id ?? f.iri, selected: f === floor }, f.name)));
-  const liveBox = h('input', { type: 'checkbox', name: 'live', checked: true });
-  const slider = h('input', { type: 'range', name: 'time', min: '0', max: '1000', value: '0', step: '1', 'aria-label': 'Time on the schedule' });
-  const timeOut = h('output', { class: 'replay-time', id: 'traffic-time' }, '—');
-  const playBtn = h('button', { type: 'button', id: 'traffic-play' }, 'Play');
-  const speedSel = h('select', { name: 'speed' }, [1, 2, 5, 10, 20].map((s) => h('option', { value: String(s), selected: s === 5 }, `${s}×`)));
-  const fileIn = h('input', { type: 'file', name: 'replay', accept: 'application/json,.json' });
-  const status = h('p', { class: 'status', id: 'traffic-status', 'aria-live': 'polite' });
-  const streamErr = h('div', { hidden: true, id: 'traffic-error' });
-  const table = h('div', { class: 'traffic-plans', id: 'traffic-plans' });
-  const m = new MapCanvas('Traffic: every committed plan on the floor, each robot where its schedule puts it');
-  m.el.id = 'traffic-map';
+  private readonly floorSel: HTMLSelectElement;
+  private readonly liveBox = h('input', { type: 'checkbox', name: 'live', checked: true });
+  private readonly slider = h('input', { type: 'range', name: 'time', min: '0', max: '1000', value: '0', step: '1', 'aria-label': 'Time on the schedule' });
+  private readonly timeOut = h('output', { class: 'replay-time', id: 'traffic-time' }, '—');
+  private readonly playBtn = h('button', { type: 'button', id: 'traffic-play' }, 'Play');
+  private readonly speedSel = h('select', { name: 'speed' }, [1, 2, 5, 10, 20].map((s) => h('option', { value: String(s), selected: s === 5 }, `${s}×`)));
+  private readonly fileIn = h('input', { type: 'file', name: 'replay', accept: 'application/json,.json' });
+  private readonly status = h('p', { class: 'status', id: 'traffic-status', 'aria-live': 'polite' });
+  private readonly streamErr = h('div', { hidden: true, id: 'traffic-error' });
+  private readonly table = h('div', { class: 'traffic-plans', id: 'traffic-plans' });
+  private readonly m = new MapCanvas('Traffic: every committed plan on the floor, each robot where its schedule puts it');
 
-  root.append(
-    h('div', { class: 'controls' },
-      field('Floor', floorSel),
-      h('label', null, liveBox, ' Live (now)'),
-      field('Joint rehearsal file (bench fleet --replay)', fileIn),
-    ),
-    streamErr,
-    m.el,
-    h('div', { class: 'below-map' }, status),
-    h('div', { class: 'replay', role: 'group', 'aria-label': 'Timeline of the schedule' },
-      playBtn, field('Speed', speedSel), field('Time', slider), timeOut),
-    legendEl(),
-    table,
-  );
+  constructor(private readonly root: HTMLElement, private readonly topErr: HTMLElement, private readonly index: data.FloorIndex,
+    private floor: PlaceView | undefined, private readonly engineer: boolean) {
+    this.floorSel = h('select', { name: 'floor' }, index.floors.map((f) => h('option', { value: f.id ?? f.iri, selected: f === floor }, f.name)));
+    this.m.el.id = 'traffic-map';
+    root.append(
+      h('div', { class: 'controls' },
+        field('Floor', this.floorSel),
+        h('label', null, this.liveBox, ' Live (now)'),
+        field('Joint rehearsal file (bench fleet --replay)', this.fileIn),
+      ),
+      this.streamErr,
+      this.m.el,
+      h('div', { class: 'below-map' }, this.status),
+      h('div', { class: 'replay', role: 'group', 'aria-label': 'Timeline of the schedule' },
+        this.playBtn, field('Speed', this.speedSel), field('Time', this.slider), this.timeOut),
+      legendEl(),
+      this.table,
+    );
+    this.wire();
+    this.m.drawStatic = (c) => this.drawStatic(c);
+    this.m.drawDynamic = (c) => this.drawDynamic(c);
+    this.raf = requestAnimationFrame(this.tick);
+  }
+
+  async start(): Promise<void> {
+    if (!this.floor) add(this.table, h('p', null, 'No floor yet: import a map (POST /v1/maps).'));
+    else await this.loadFloor();
+  }
+
+  private wire(): void {
+    const { slider, liveBox, fileIn } = this;
+    slider.addEventListener('input', () => {
+      const [lo, hi] = this.span();
+      this.setLive(false);
+      this.nowMs = lo + (+slider.value / 1000) * (hi - lo);
+      this.syncSlider();
+      this.m.request();
+    });
+    liveBox.addEventListener('change', () => {
+      if (liveBox.checked && this.replay) {
+        this.replay = null;
+        fileIn.value = '';
+        void this.subscribe();
+      }
+      this.setLive(liveBox.checked);
+    });
+    this.playBtn.addEventListener('click', () => this.togglePlay());
+    fileIn.addEventListener('change', () => void this.loadReplayFile());
+    this.floorSel.addEventListener('change', () => {
+      this.floor = this.index.floors.find((f) => (f.id ?? f.iri) === this.floorSel.value) ?? this.floor;
+      this.replay = null;
+      fileIn.value = '';
+      this.setLive(true);
+      void this.loadFloor();
+    });
+  }
 
   // ---- time ----
+
   /** The span the timeline covers: every plan's start to its end, and now when live. */
-  function span(): [number, number] {
+  private span(): [number, number] {
     let lo = Infinity;
     let hi = -Infinity;
-    for (const s of plans.values()) {
+    for (const s of this.plans.values()) {
       lo = Math.min(lo, startMs(s.it));
       hi = Math.max(hi, endMs(s.it));
     }
-    if (live || !Number.isFinite(lo)) {
+    if (this.live || !Number.isFinite(lo)) {
       lo = Math.min(lo, Date.now());
       hi = Math.max(hi, Date.now());
     }
     return [lo, Math.max(hi, lo + 1000)];
   }
-  function syncSlider(): void {
-    const [lo, hi] = span();
-    slider.value = String(Math.round(((nowMs - lo) / (hi - lo)) * 1000));
-    const rel = (nowMs - lo) / 1000;
-    const text = replay
-      ? `${rel.toFixed(1)} s of ${((hi - lo) / 1000).toFixed(1)} s`
-      : `${new Date(nowMs).toLocaleTimeString()}${live ? ' (now)' : ''}`;
-    timeOut.value = text;
-    slider.setAttribute('aria-valuetext', text);
-  }
-  slider.addEventListener('input', () => {
-    const [lo, hi] = span();
-    setLive(false);
-    nowMs = lo + (+slider.value / 1000) * (hi - lo);
-    syncSlider();
-    m.request();
-  });
-  function setLive(on: boolean): void {
-    live = on && !replay;
-    liveBox.checked = live;
-    if (live) stopPlay();
-  }
-  liveBox.addEventListener('change', () => {
-    if (liveBox.checked && replay) {
-      replay = null;
-      fileIn.value = '';
-      void subscribe();
-    }
-    setLive(liveBox.checked);
-  });
 
-  let raf = 0;
-  let last = 0;
-  const tick = (t: number) => {
-    if (!alive) return;
-    if (live) nowMs = Date.now();
-    else if (playing) {
-      nowMs += (t - last) * (parseFloat(speedSel.value) || 1);
-      if (nowMs >= span()[1]) stopPlay();
+  private syncSlider(): void {
+    const [lo, hi] = this.span();
+    const { nowMs } = this;
+    this.slider.value = String(Math.round(((nowMs - lo) / (hi - lo)) * 1000));
+    const rel = (nowMs - lo) / 1000;
+    const text = this.replay
+      ? `${rel.toFixed(1)} s of ${((hi - lo) / 1000).toFixed(1)} s`
+      : `${new Date(nowMs).toLocaleTimeString()}${this.live ? ' (now)' : ''}`;
+    this.timeOut.value = text;
+    this.slider.setAttribute('aria-valuetext', text);
+  }
+
+  private setLive(on: boolean): void {
+    this.live = on && !this.replay;
+    this.liveBox.checked = this.live;
+    if (this.live) this.stopPlay();
+  }
+
+  /** Every animation frame: the clock (now when live, the schedule's time when playing). */
+  private readonly tick = (t: number): void => {
+    if (!this.alive) return;
+    if (this.live) this.nowMs = Date.now();
+    else if (this.playing) {
+      this.nowMs += (t - this.last) * (parseFloat(this.speedSel.value) || 1);
+      if (this.nowMs >= this.span()[1]) this.stopPlay();
     }
-    last = t;
-    syncSlider();
-    m.draw();
-    raf = requestAnimationFrame(tick);
+    this.last = t;
+    this.syncSlider();
+    this.m.draw();
+    this.raf = requestAnimationFrame(this.tick);
   };
-  raf = requestAnimationFrame(tick);
-  playBtn.addEventListener('click', () => {
-    if (playing) return stopPlay();
-    setLive(false);
-    const [lo, hi] = span();
-    if (nowMs >= hi) nowMs = lo;
-    playing = true;
-    playBtn.textContent = 'Pause';
-    playBtn.setAttribute('aria-pressed', 'true');
-  });
-  function stopPlay(): void {
-    playing = false;
-    playBtn.textContent = 'Play';
-    playBtn.setAttribute('aria-pressed', 'false');
+
+  private togglePlay(): void {
+    if (this.playing) return this.stopPlay();
+    this.setLive(false);
+    const [lo, hi] = this.span();
+    if (this.nowMs >= hi) this.nowMs = lo;
+    this.playing = true;
+    this.playBtn.textContent = 'Pause';
+    this.playBtn.setAttribute('aria-pressed', 'true');
+  }
+
+  private stopPlay(): void {
+    this.playing = false;
+    this.playBtn.textContent = 'Play';
+    this.playBtn.setAttribute('aria-pressed', 'false');
   }
 
   // ---- drawing ----
-  m.drawStatic = (c) => {
-    drawAreas(c, m, areas);
-    drawObjects(c, m, objects, false);
-    for (const s of plans.values()) {
+
+  private drawStatic(c: CanvasRenderingContext2D): void {
+    const { m } = this;
+    drawAreas(c, m, this.areas);
+    drawObjects(c, m, this.objects, false);
+    for (const s of this.plans.values()) {
       c.strokeStyle = s.colour;
       c.globalAlpha = 0.55;
       c.lineWidth = 2;
@@ -164,15 +203,19 @@ export async function mount(root: HTMLElement, ctx: PageContext): Promise<Cleanu
       if (goal) marker(c, m, goal.x, goal.y, 'cross', s.colour);
       for (const w of s.waits) marker(c, m, w.x, w.y, 'ring', s.colour, 7);
     }
-  };
-  m.drawDynamic = (c) => {
+  }
+
+  /** Each robot where its schedule puts it at the timeline's time (faint while it waits). */
+  private drawDynamic(c: CanvasRenderingContext2D): void {
+    const { m, nowMs } = this;
     let drawn = 0;
-    for (const s of plans.values()) {
+    for (const s of this.plans.values()) {
       const p = poseAt(s.it, nowMs);
       if (!p) continue;
       drawn++;
       const [sx, sy] = m.toScreen(p.x, p.y);
       const waiting = s.waits.some((w) => w.fromMs <= nowMs && nowMs < w.toMs);
+      const r = Math.max(8, m.px(s.it.radius_m));
       c.fillStyle = s.colour;
       c.globalAlpha = waiting ? 0.35 : 0.7;
       c.beginPath();
@@ -183,172 +226,185 @@ export async function mount(root: HTMLElement, ctx: PageContext): Promise<Cleanu
       c.lineWidth = 2;
       c.beginPath();
       c.moveTo(sx, sy);
-      c.lineTo(sx + Math.cos(p.yaw) * Math.max(8, m.px(s.it.radius_m)), sy - Math.sin(p.yaw) * Math.max(8, m.px(s.it.radius_m)));
+      c.lineTo(sx + Math.cos(p.yaw) * r, sy - Math.sin(p.yaw) * r);
       c.stroke();
       label(c, localName(s.it.robot) + (waiting ? ' (waits)' : ''), sx, sy - Math.max(12, m.px(s.it.radius_m) + 8), s.colour);
     }
     m.canvas.dataset.robotsDrawn = String(drawn);
-  };
+  }
 
-  function renderTable(): void {
+  // ---- the plans ----
+
+  private renderTable(): void {
+    const { table, plans, replay } = this;
     clear(table);
-    root.dataset.plans = String(plans.size);
-    root.dataset.version = String(version);
+    this.root.dataset.plans = String(plans.size);
+    this.root.dataset.version = String(this.version);
     const rows = [...plans.values()].sort((a, b) => startMs(a.it) - startMs(b.it));
-    const outcomes = new Map((replay?.joint ?? []).map((j) => [j.robot, j]));
     if (!rows.length) {
       table.append(h('p', { class: 'muted' }, replay ? 'The file holds no plans.' : 'No plan is committed on this floor now.'));
       return;
     }
-    const t = (ms: number) => new Date(ms).toLocaleTimeString();
+    const outcomes = new Map((replay?.joint ?? []).map((j) => [j.robot, j]));
     table.append(h('table', null,
       h('thead', null, h('tr', null, ['robot', 'plan', 'sets off', 'arrives', 'delay', 'waits', replay ? 'joint run' : 'expires', ''].map((c) => h('th', null, c)))),
-      h('tbody', null, rows.map((s) => {
-        const waited = s.waits.reduce((sum, w) => sum + (w.toMs - w.fromMs) / 1000, 0);
-        const o = outcomes.get(s.it.robot);
-        return h('tr', { 'data-plan': s.it.plan_id },
-          h('td', null, h('span', { class: 'sw', style: `background:${s.colour}`, 'aria-hidden': 'true' }), ' ', localName(s.it.robot)),
-          h('td', null, h('code', null, s.it.plan_id)),
-          h('td', null, t(startMs(s.it))),
-          h('td', null, t(endMs(s.it))),
-          h('td', null, `${fmt(s.it.delay_s, 1)} s`),
-          h('td', { title: s.waits.map((w) => `${((w.toMs - w.fromMs) / 1000).toFixed(1)} s at (${fmt(w.x)}, ${fmt(w.y)})`).join('\n') },
-            s.waits.length ? `${s.waits.length} (${waited.toFixed(1)} s)` : 'none'),
-          h('td', { title: o?.reason ?? '' }, replay ? (o ? `${o.outcome} at ${fmt(o.time_s, 1)} s` : '—') : t(s.it.expires_unix_ms)),
-          h('td', null, ctx.engineer && !replay
-            ? h('button', { type: 'button', class: 'small', 'aria-label': `Cancel the plan of ${localName(s.it.robot)}`, onclick: () => void cancel(s.it.plan_id) }, 'Cancel')
-            : null),
-        );
-      })),
+      h('tbody', null, rows.map((s) => this.planRow(s, outcomes.get(s.it.robot)))),
     ));
   }
 
-  async function cancel(id: string): Promise<void> {
-    clearError(streamErr);
+  private planRow(s: Shown, o: JointOutcome | undefined): HTMLElement {
+    const { it } = s;
+    const t = (ms: number) => new Date(ms).toLocaleTimeString();
+    const waited = s.waits.reduce((sum, w) => sum + (w.toMs - w.fromMs) / 1000, 0);
+    return h('tr', { 'data-plan': it.plan_id },
+      h('td', null, h('span', { class: 'sw', style: `background:${s.colour}`, 'aria-hidden': 'true' }), ' ', localName(it.robot)),
+      h('td', null, h('code', null, it.plan_id)),
+      h('td', null, t(startMs(it))),
+      h('td', null, t(endMs(it))),
+      h('td', null, `${fmt(it.delay_s, 1)} s`),
+      h('td', { title: s.waits.map((w) => `${((w.toMs - w.fromMs) / 1000).toFixed(1)} s at (${fmt(w.x)}, ${fmt(w.y)})`).join('\n') },
+        s.waits.length ? `${s.waits.length} (${waited.toFixed(1)} s)` : 'none'),
+      h('td', { title: o?.reason ?? '' }, this.replay ? (o ? `${o.outcome} at ${fmt(o.time_s, 1)} s` : '—') : t(it.expires_unix_ms)),
+      h('td', null, this.engineer && !this.replay
+        ? h('button', { type: 'button', class: 'small', 'aria-label': `Cancel the plan of ${localName(it.robot)}`, onclick: () => void this.cancel(it.plan_id) }, 'Cancel')
+        : null),
+    );
+  }
+
+  private async cancel(id: string): Promise<void> {
+    clearError(this.streamErr);
     try {
       await request(`/v1/plans/${encodeURIComponent(id)}`, { method: 'DELETE' });
     } catch (e) {
-      showError(streamErr, e, 'cancel: ');
+      showError(this.streamErr, e, 'cancel: ');
     }
   }
 
-  function setPlans(list: Itinerary[]): void {
-    plans.clear();
-    for (const it of list) put(it);
+  private setPlans(list: Itinerary[]): void {
+    this.plans.clear();
+    for (const it of list) this.put(it);
   }
-  function put(it: Itinerary): void {
-    for (const [id, s] of plans) if (s.it.robot === it.robot && id !== it.plan_id) plans.delete(id);
-    plans.set(it.plan_id, { it, waits: waits(it), colour: robotColour(it.robot) });
+
+  /** An itinerary in: it replaces its robot's other one (a robot has one at most). */
+  private put(it: Itinerary): void {
+    for (const [id, s] of this.plans) if (s.it.robot === it.robot && id !== it.plan_id) this.plans.delete(id);
+    this.plans.set(it.plan_id, { it, waits: waits(it), colour: robotColour(it.robot) });
   }
-  function changed(what: string): void {
+
+  private changed(what: string): void {
+    const { plans, replay } = this;
     // An itinerary past its expiry leaves without an event.
     const now = Date.now();
     if (!replay) for (const [id, s] of plans) if (s.it.expires_unix_ms < now) plans.delete(id);
-    status.textContent = `${replay ? 'Joint rehearsal' : 'Live'}: version ${version}, ${plans.size} plan${plans.size === 1 ? '' : 's'}. ${what}`;
-    renderTable();
-    m.invalidate();
+    this.status.textContent = `${replay ? 'Joint rehearsal' : 'Live'}: version ${this.version}, ${plans.size} plan${plans.size === 1 ? '' : 's'}. ${what}`;
+    this.renderTable();
+    this.m.invalidate();
   }
 
   // ---- the live stream ----
-  async function subscribe(): Promise<void> {
-    sub?.stop();
-    sub = null;
-    clearError(streamErr);
-    if (!floor) return;
-    setPlans([]);
-    changed('Connecting…');
-    sub = stream(`/v1/places/${encodeURIComponent(floor.iri)}/traffic/events`, {
-      onEvent: (e) => {
-        if (!alive || replay) return;
-        let d: Record<string, unknown>;
-        try {
-          d = JSON.parse(e.data);
-        } catch {
-          return;
-        }
-        version = Number(e.id) || version;
-        if (e.event === 'snapshot') {
-          setPlans((d as unknown as FloorTraffic).plans);
-          changed('Snapshot received.');
-        } else if (e.event === 'committed' || e.event === 'progressed') {
-          const it = d.itinerary as Itinerary;
-          put(it);
-          changed(`${e.event === 'committed' ? 'Committed' : 'Progress of'} ${localName(it.robot)} at ${new Date().toLocaleTimeString()}.`);
-        } else if (e.event === 'removed') {
-          plans.delete(String(d.plan_id));
-          changed(`${localName(String(d.robot))}'s plan ${d.reason === 'replaced' ? 'replaced' : 'cancelled'} at ${new Date().toLocaleTimeString()}.`);
-        }
-      },
-      onError: (e) => showError(streamErr, e, 'live traffic: '),
-      onOpen: () => clearError(streamErr),
+
+  private async subscribe(): Promise<void> {
+    this.sub?.stop();
+    this.sub = null;
+    clearError(this.streamErr);
+    if (!this.floor) return;
+    this.setPlans([]);
+    this.changed('Connecting…');
+    this.sub = stream(`/v1/places/${encodeURIComponent(this.floor.iri)}/traffic/events`, {
+      onEvent: (e) => this.onEvent(e),
+      onError: (e) => showError(this.streamErr, e, 'live traffic: '),
+      onOpen: () => clearError(this.streamErr),
     });
   }
 
+  /** `snapshot` (the floor's traffic), `committed` and `progressed` (an itinerary), `removed`. */
+  private onEvent(e: SseEvent): void {
+    if (!this.alive || this.replay) return;
+    let d: Record<string, unknown>;
+    try {
+      d = JSON.parse(e.data);
+    } catch {
+      return;
+    }
+    this.version = Number(e.id) || this.version;
+    if (e.event === 'snapshot') {
+      this.setPlans((d as unknown as FloorTraffic).plans);
+      this.changed('Snapshot received.');
+    } else if (e.event === 'committed' || e.event === 'progressed') {
+      const it = d.itinerary as Itinerary;
+      this.put(it);
+      this.changed(`${e.event === 'committed' ? 'Committed' : 'Progress of'} ${localName(it.robot)} at ${new Date().toLocaleTimeString()}.`);
+    } else if (e.event === 'removed') {
+      this.plans.delete(String(d.plan_id));
+      this.changed(`${localName(String(d.robot))}'s plan ${d.reason === 'replaced' ? 'replaced' : 'cancelled'} at ${new Date().toLocaleTimeString()}.`);
+    }
+  }
+
   // ---- a joint rehearsal from a file ----
-  fileIn.addEventListener('change', async () => {
-    const f = fileIn.files?.[0];
+
+  private async loadReplayFile(): Promise<void> {
+    const f = this.fileIn.files?.[0];
     if (!f) return;
-    clearError(streamErr);
+    clearError(this.streamErr);
     try {
       const r = JSON.parse(await f.text()) as JointReplay;
       if (!r || !Array.isArray(r.plans) || r.plans.some((p) => !Array.isArray(p?.trajectory))) {
         throw new Error('not a joint rehearsal: expected {"floor", "plans": [itineraries], "joint": [...]}');
       }
-      sub?.stop();
-      sub = null;
-      replay = r;
-      setLive(false);
-      const onFloor = index.floors.find((fl) => fl.iri === r.floor);
-      if (onFloor && onFloor !== floor) {
-        floor = onFloor;
-        floorSel.value = onFloor.id ?? onFloor.iri;
-        await loadFloor(false);
-      } else if (!onFloor) {
-        areas = [];
-        objects = [];
-        m.setMap(null, null);
-        const xs = r.plans.flatMap((p) => p.trajectory.map((q) => q.x));
-        const ys = r.plans.flatMap((p) => p.trajectory.map((q) => q.y));
-        if (xs.length) m.setBounds([Math.min(...xs) - 1, Math.min(...ys) - 1, Math.max(...xs) + 1, Math.max(...ys) + 1]);
-      }
-      version = r.version ?? 0;
-      setPlans(r.plans);
-      nowMs = span()[0];
+      this.sub?.stop();
+      this.sub = null;
+      this.replay = r;
+      this.setLive(false);
+      const onFloor = await this.showReplayFloor(r);
+      this.version = r.version ?? 0;
+      this.setPlans(r.plans);
+      this.nowMs = this.span()[0];
       const arrived = (r.joint ?? []).filter((j) => j.outcome === 'reached').length;
-      changed(`${r.map ?? localName(r.floor)}${r.scenario ? ` (${r.scenario})` : ''}: ${arrived} of ${r.plans.length} arrived in the joint run` +
+      this.changed(`${r.map ?? localName(r.floor)}${r.scenario ? ` (${r.scenario})` : ''}: ${arrived} of ${r.plans.length} arrived in the joint run` +
         (onFloor ? '.' : '; the floor is not on this service, drawn without its map.'));
     } catch (e) {
-      showError(streamErr, e, 'joint rehearsal: ');
+      showError(this.streamErr, e, 'joint rehearsal: ');
     }
-  });
+  }
+
+  /** The replay's floor, when this service has it; else its plans' extent without a map. */
+  private async showReplayFloor(r: JointReplay): Promise<PlaceView | undefined> {
+    const onFloor = this.index.floors.find((fl) => fl.iri === r.floor);
+    if (onFloor && onFloor !== this.floor) {
+      this.floor = onFloor;
+      this.floorSel.value = onFloor.id ?? onFloor.iri;
+      await this.loadFloor(false);
+    } else if (!onFloor) {
+      this.areas = [];
+      this.objects = [];
+      this.m.setMap(null, null);
+      const xs = r.plans.flatMap((p) => p.trajectory.map((q) => q.x));
+      const ys = r.plans.flatMap((p) => p.trajectory.map((q) => q.y));
+      if (xs.length) this.m.setBounds([Math.min(...xs) - 1, Math.min(...ys) - 1, Math.max(...xs) + 1, Math.max(...ys) + 1]);
+    }
+    return onFloor;
+  }
 
   // ---- floor ----
-  async function loadFloor(listen = true): Promise<void> {
-    if (!floor) return;
-    areas = index.areasOn(floor);
-    objects = [];
-    if (listen) void subscribe();
-    await data.showFloorOn(m, floor, () => alive, (o) => { objects = o; m.invalidate(); }, (e) => showError(topErr, e, 'map: '));
-  }
-  floorSel.addEventListener('change', () => {
-    floor = index.floors.find((f) => (f.id ?? f.iri) === floorSel.value) ?? floor;
-    replay = null;
-    fileIn.value = '';
-    setLive(true);
-    void loadFloor();
-  });
 
-  if (!floor) {
-    add(table, h('p', null, 'No floor yet: import a map (POST /v1/maps).'));
-  } else {
-    await loadFloor();
+  private async loadFloor(listen = true): Promise<void> {
+    const floor = this.floor;
+    if (!floor) return;
+    this.areas = this.index.areasOn(floor);
+    this.objects = [];
+    if (listen) void this.subscribe();
+    await data.showFloorOn(this.m, floor, () => this.alive, (o) => {
+      this.objects = o;
+      this.m.invalidate();
+    }, (e) => showError(this.topErr, e, 'map: '));
   }
-  return () => {
-    alive = false;
-    cancelAnimationFrame(raf);
-    sub?.stop();
-    m.destroy();
-  };
+
+  destroy(): void {
+    this.alive = false;
+    cancelAnimationFrame(this.raf);
+    this.sub?.stop();
+    this.m.destroy();
+  }
 }
 
 function legendEl(): HTMLElement {
