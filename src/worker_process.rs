@@ -48,8 +48,8 @@ impl WorkerProcess {
         if config.worker_concurrency == 0 {
             anyhow::bail!("`worker_concurrency` must be at least 1 for mentalsim worker");
         }
-        let knowledge =
-            HttpKnowledge::new(&url, config.knowledge_token()).map_err(anyhow::Error::msg)?;
+        let knowledge = HttpKnowledge::new(&url, config.knowledge_token())
+            .map_err(|e| anyhow::anyhow!("the knowledge client: {e}"))?;
         let queue = Arc::new(LazyQueue::new(
             config.database_url(),
             config.job_backoff(),

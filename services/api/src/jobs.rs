@@ -26,7 +26,7 @@ use uuid::Uuid;
 
 use crate::policies::PolicyView;
 use crate::streams::{StreamLimits, StreamPermit};
-use jobs::{EvaluatePayload, JobEnv, JobKind, PayloadError, TrainPayload};
+use jobs::{EvaluatePayload, JobEnv, PayloadError, TrainPayload};
 use queue::{Job, JobEvent, JobState, LazyQueue, NewJob, QueueError};
 
 /// The OpenAPI document of the fleet's routes (plans, roadmaps, traffic, jobs, policies),
@@ -36,7 +36,7 @@ use queue::{Job, JobEvent, JobState, LazyQueue, NewJob, QueueError};
     info(title = "Mentalsim fleet service", description = "Plans validated in the mental simulation (POST /v1/plan); jobs (train, evaluate, validate, roadmap) in a durable queue, their progress as server-sent events, and the policies training exports."),
     paths(create_job, list_jobs, get_job, cancel_job, job_events, job_curves_csv, job_curves_png, crate::policies::list_policies, crate::policies::get_policy, crate::policies::policy_weights, crate::policies::policy_metadata, crate::plan::plan, crate::plan::roadmap_view::get_roadmap, crate::plan::roadmap_view::route_graph, crate::traffic::floor_traffic, crate::traffic::floor_traffic_events, crate::traffic::cancel_plan, crate::traffic::report_progress, crate::traffic::stand),
     components(
-        schemas(NewJobDoc, JobView, TrainPayload, EvaluatePayload, jobs::RoadmapPayload, jobs::JobResult, jobs::TrainResult, jobs::EvaluateResult, jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, wire::types::PlanApiRequestDoc, wire::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, crate::traffic::Standing, wire::itinerary::Itinerary, wire::itinerary::TimedPose),
+        schemas(NewJobRequest, jobs::JobRequest, JobView, TrainPayload, EvaluatePayload, jobs::RoadmapPayload, jobs::JobResult, jobs::TrainResult, jobs::EvaluateResult, jobs::RoadmapResult, PolicyView, ErrorBody, ErrorDetail, ErrorCode, wire::types::PlanApiRequestDoc, wire::PlanApiResponse, crate::plan::roadmap_view::RoadmapView, crate::plan::roadmap_view::EdgeView, crate::traffic::FloorTraffic, crate::traffic::Progress, crate::traffic::Standing, wire::itinerary::Itinerary, wire::itinerary::TimedPose),
         responses(edge::error::responses::Unauthorized, edge::error::responses::Forbidden, edge::error::responses::StorageFull, edge::error::responses::PayloadTooLarge, edge::error::responses::UnsupportedMediaType, edge::error::responses::ServiceUnavailable)
     ),
     modifiers(&BearerAuth),
@@ -139,86 +139,72 @@ fn job_id(id: &str) -> Result<Uuid, ApiError> {
     Uuid::parse_str(id).map_err(|_| ApiError::not_found(format!("no job has id {id:?}")))
 }
 
-/// A job to create. The OpenAPI document describes it as [`NewJobDoc`]: the payload's schema
-/// follows the kind.
+/// A job to create: its kind and that kind's payload (one form per kind), and how it is
+/// queued. Read from [`RawJobRequest`], so that an unknown kind is 400 and a payload that does
+/// not fit its kind 422, naming the field.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+#[serde(try_from = "RawJobRequest")]
+pub struct NewJobRequest {
+    /// The kind and its payload.
+    #[serde(flatten)]
+    pub job: jobs::JobRequest,
+    /// Higher runs first [default: 0].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = -2147483648, maximum = 2147483647)]
+    pub priority: Option<i32>,
+    /// Attempts before the job fails for good, 1-100 [default: 3].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1, maximum = 100)]
+    pub max_attempts: Option<u32>,
+}
+
+impl NewJobRequest {
+    /// The job to enqueue.
+    pub fn to_job(&self) -> NewJob {
+        let mut job = self.job.to_job();
+        if let Some(p) = self.priority {
+            job = job.priority(p);
+        }
+        if let Some(n) = self.max_attempts {
+            job = job.max_attempts(n);
+        }
+        job
+    }
+}
+
+/// [`NewJobRequest`] as JSON has it, before its payload is read as its kind's.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct NewJobRequest {
+pub struct RawJobRequest {
     /// `train`, `evaluate`, `validate` or `roadmap`.
     kind: String,
-    /// The kind's parameters: see `TrainPayload`, `EvaluatePayload`, `ValidatePayload`,
-    /// `RoadmapPayload`.
+    /// The kind's parameters.
     payload: Value,
-    /// Higher runs first [default: 0].
     #[serde(default)]
     priority: Option<i32>,
-    /// Attempts before the job fails for good [default: 3].
     #[serde(default)]
     max_attempts: Option<u32>,
 }
 
-/// [`NewJobRequest`] as the OpenAPI document describes it: one form per kind. Documentation
-/// only: the handler reads [`NewJobRequest`] (an unknown kind is 400, a payload that does not
-/// fit its kind 422).
-#[derive(ToSchema)]
-#[serde(tag = "kind", rename_all = "lowercase")]
-#[schema(
-    as = NewJobRequest,
-    description = "A job to create: its `kind`, and a `payload` of that kind's schema."
-)]
-#[allow(
-    dead_code,
-    reason = "documentation only: the handler reads `NewJobRequest`"
-)]
-enum NewJobDoc {
-    /// Trains a policy for a robot on a floor.
-    #[serde(deny_unknown_fields)]
-    Train {
-        /// The job's parameters.
-        payload: TrainPayload,
-        /// Higher runs first [default: 0].
-        #[schema(minimum = -2147483648, maximum = 2147483647)]
-        priority: Option<i32>,
-        /// Attempts before the job fails for good, 1-100 [default: 3].
-        #[schema(minimum = 1, maximum = 100)]
-        max_attempts: Option<u32>,
-    },
-    /// Evaluates a policy on a floor.
-    #[serde(deny_unknown_fields)]
-    Evaluate {
-        /// The job's parameters.
-        payload: EvaluatePayload,
-        /// Higher runs first [default: 0].
-        #[schema(minimum = -2147483648, maximum = 2147483647)]
-        priority: Option<i32>,
-        /// Attempts before the job fails for good, 1-100 [default: 3].
-        #[schema(minimum = 1, maximum = 100)]
-        max_attempts: Option<u32>,
-    },
-    /// Validates a plan in the mental simulation: the payload is a `POST /v1/plan` request.
-    #[serde(deny_unknown_fields)]
-    Validate {
-        /// The plan, as `POST /v1/plan` takes it.
-        payload: wire::types::PlanApiRequestDoc,
-        /// Higher runs first [default: 0].
-        #[schema(minimum = -2147483648, maximum = 2147483647)]
-        priority: Option<i32>,
-        /// Attempts before the job fails for good, 1-100 [default: 3].
-        #[schema(minimum = 1, maximum = 100)]
-        max_attempts: Option<u32>,
-    },
-    /// Builds the policy-aware roadmap of a floor and a policy.
-    #[serde(deny_unknown_fields)]
-    Roadmap {
-        /// The job's parameters.
-        payload: jobs::RoadmapPayload,
-        /// Higher runs first [default: 0].
-        #[schema(minimum = -2147483648, maximum = 2147483647)]
-        priority: Option<i32>,
-        /// Attempts before the job fails for good, 1-100 [default: 3].
-        #[schema(minimum = 1, maximum = 100)]
-        max_attempts: Option<u32>,
-    },
+impl TryFrom<RawJobRequest> for NewJobRequest {
+    type Error = PayloadError;
+
+    fn try_from(raw: RawJobRequest) -> Result<Self, PayloadError> {
+        let job = jobs::JobRequest::parse(&raw.kind, &raw.payload)?;
+        if let Some(n) = raw.max_attempts
+            && !(1..=100).contains(&n)
+        {
+            return Err(PayloadError::invalid(
+                "max_attempts",
+                format!("must be in 1..=100, got {n}"),
+            ));
+        }
+        Ok(Self {
+            job,
+            priority: raw.priority,
+            max_attempts: raw.max_attempts,
+        })
+    }
 }
 
 /// A job as the API shows it.
@@ -318,7 +304,7 @@ impl From<&Job> for JobView {
 
 /// Creates a job. The payload is checked now: an unknown kind is 400; a malformed payload or a
 /// value out of range is 422 naming the field; an unknown robot, place or policy is 404.
-#[utoipa::path(post, path = "/v1/jobs", request_body = NewJobDoc, responses(
+#[utoipa::path(post, path = "/v1/jobs", request_body = NewJobRequest, responses(
     (status = 201, body = JobView, headers(("location" = String, description = "the job's URL"))),
     (status = 400, description = "The body is not JSON, or the kind is unknown.", body = ErrorBody),
     (status = 401, response = edge::error::responses::Unauthorized),
@@ -332,34 +318,17 @@ impl From<&Job> for JobView {
 async fn create_job(
     State(api): State<Arc<JobRoutes>>,
     EngineerCaller(principal): EngineerCaller,
-    Json(request): Json<NewJobRequest>,
+    Json(raw): Json<RawJobRequest>,
 ) -> Result<Response, ApiError> {
-    let kind: JobKind = request
-        .kind
-        .parse()
-        .map_err(|e| payload_error(PayloadError::from(e)))?;
-    let payload = api
-        .kinds
-        .check_new(kind, &request.payload)
+    let request = NewJobRequest::try_from(raw).map_err(payload_error)?;
+    api.kinds
+        .check_new(&request.job)
         .await
         .map_err(payload_error)?;
-    let mut job = NewJob::new(kind, payload);
-    if let Some(p) = request.priority {
-        job = job.priority(p);
-    }
-    if let Some(n) = request.max_attempts {
-        if n == 0 || n > 100 {
-            return Err(ApiError::new(
-                ErrorCode::Unprocessable,
-                format!("max_attempts: must be in 1..=100, got {n}"),
-            )
-            .with_field("max_attempts"));
-        }
-        job = job.max_attempts(n);
-    }
+    let job = request.to_job();
     let queue = api.queue().await?;
     let id = queue.enqueue(job).await.map_err(queue_error)?;
-    tracing::info!(job = %id, kind = %request.kind, by = %principal.name, "job created");
+    tracing::info!(job = %id, kind = %request.job.kind(), by = %principal.name, "job created");
     let job = queue
         .get(id)
         .await

@@ -68,14 +68,16 @@ fn wants_recording(headers: &HeaderMap) -> Result<bool, ApiError> {
     Ok(chosen == rosbag::MEDIA_TYPE)
 }
 
-/// A planner's refusal as the API answers it.
+/// A planner's refusal as the API answers it: a status per cause, and the request field at
+/// fault where the cause names one.
 pub(crate) fn plan_failure(e: PlanFailure) -> ApiError {
-    match e {
-        PlanFailure::BadRequest(m) => ApiError::new(ErrorCode::BadRequest, m),
-        PlanFailure::NotFound(m) => ApiError::new(ErrorCode::NotFound, m),
-        PlanFailure::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m),
-        PlanFailure::Unavailable(m) => ApiError::new(ErrorCode::NotReady, m),
-        PlanFailure::RoadmapNotReady(m) => ApiError::new(ErrorCode::Conflict, m),
+    let field = e.field().map(str::to_owned);
+    let error = match e {
+        PlanFailure::BadRequest(m) => ApiError::new(ErrorCode::BadRequest, m.message),
+        PlanFailure::NotFound(m) => ApiError::new(ErrorCode::NotFound, m.to_string()),
+        PlanFailure::Unprocessable(m) => ApiError::new(ErrorCode::Unprocessable, m.to_string()),
+        PlanFailure::Unavailable(m) => ApiError::new(ErrorCode::NotReady, m.to_string()),
+        PlanFailure::RoadmapNotReady(m) => ApiError::new(ErrorCode::Conflict, m.to_string()),
         PlanFailure::PolicyRoadmapUnreachable(ref p) => {
             ApiError::new(ErrorCode::Conflict, e.to_string()).with_details(p.details())
         }
@@ -84,8 +86,15 @@ pub(crate) fn plan_failure(e: PlanFailure) -> ApiError {
                 "robots": f.robots,
                 "earliest_start_ms": f.earliest_start_unix_ms,
             })),
-        PlanFailure::Plan(p) => p.to_api_error(),
-        PlanFailure::Internal(m) => ApiError::internal(m),
+        PlanFailure::Plan(p) => return p.to_api_error(),
+        PlanFailure::Internal { what, source } => match source {
+            Some(source) => ApiError::internal(format!("{what}: {source}")),
+            None => ApiError::internal(what),
+        },
+    };
+    match field {
+        Some(field) => error.with_field(field),
+        None => error,
     }
 }
 
@@ -120,9 +129,7 @@ async fn plan(
     // A recording replays every attempt step by step.
     req.options.trace |= recording;
     let start = req.start;
-    let query = req
-        .into_query()
-        .map_err(|m| ApiError::new(ErrorCode::BadRequest, m))?;
+    let query = req.into_query().map_err(|e| plan_failure(e.into()))?;
     // When this future is dropped (the request timed out, the client hung up), the rehearsal
     // sees the stop at its next check and ends.
     let stop = rehearsal::Stop::new();

@@ -125,7 +125,7 @@ async fn schedule(api: &TrafficRoutes) -> Result<&traffic::Schedule, ApiError> {
     api.fleet
         .schedule()
         .await
-        .map_err(|m| ApiError::new(ErrorCode::NotReady, m))
+        .map_err(|e| ApiError::new(ErrorCode::NotReady, e.to_string()))
 }
 
 /// Whether `caller` may act for `robot` (an IRI): engineers for every robot, a robot's token

@@ -3,10 +3,8 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use planner::{BuildFuture, PolicyRoadmapKey, RoadmapBuilds};
-use queue::{LazyQueue, NewJob};
-
-use super::JobKind;
+use planner::{BuildFuture, PolicyRoadmapKey, PortError, RoadmapBuilds};
+use queue::LazyQueue;
 
 /// Roadmap jobs remembered at most (the oldest are forgotten, not cancelled).
 const REMEMBERED: usize = 16;
@@ -42,7 +40,7 @@ impl RoadmapBuilds for QueueRoadmapBuilds {
                 .queue
                 .get()
                 .await
-                .map_err(|reason| format!("the job database is not available: {reason}"))?;
+                .map_err(|reason| PortError::new("opening the job database", reason))?;
             let mut jobs = self.jobs.lock().await;
             if let Some(id) = jobs.get(key).copied() {
                 let pending = queue
@@ -55,14 +53,11 @@ impl RoadmapBuilds for QueueRoadmapBuilds {
                     return Ok(id.to_string());
                 }
             }
-            let job = NewJob::new(
-                JobKind::Roadmap,
-                super::roadmap::payload(&key.policy, floor, robot, margin),
-            );
+            let job = super::roadmap::request(&key.policy, floor, robot, margin).to_job();
             let id = queue
                 .enqueue(job)
                 .await
-                .map_err(|e| format!("enqueueing the roadmap job: {e}"))?;
+                .map_err(|e| PortError::new("enqueueing the roadmap job", e))?;
             if jobs.len() >= REMEMBERED {
                 jobs.clear();
             }

@@ -108,7 +108,7 @@ impl JobHandler for EvaluateHandler {
         let report = tokio::task::spawn_blocking(move || -> Result<_, JobError> {
             let policy = Policy::load(&dir)
                 .map_err(|e| JobError::Fatal(format!("the policy does not load: {e}")))?;
-            let world = db.world().map_err(JobError::Fatal)?;
+            let world = db.world().map_err(JobError::fatal)?;
             learning::evaluate_held_out(&policy, &world, episodes, seed, in_view)
                 .map_err(|e| JobError::Fatal(format!("evaluation: {e}")))
         })

@@ -5,6 +5,7 @@
 use std::future::Future;
 use std::sync::Arc;
 
+use planner::PortError;
 use planner::fleet::{Committed, FleetFuture, FleetSchedule};
 use queue::LazyQueue;
 use tokio::sync::OnceCell;
@@ -27,18 +28,19 @@ impl QueueFleet {
     }
 
     /// The schedule, opening (and migrating) its tables on first use.
-    pub async fn schedule(&self) -> Result<&Schedule, String> {
+    pub async fn schedule(&self) -> Result<&Schedule, PortError> {
+        const DOING: &str = "opening the traffic schedule";
         self.schedule
             .get_or_try_init(|| async {
                 let queue = self
                     .queue
                     .get()
                     .await
-                    .map_err(|e| format!("the job database is not available: {e}"))?;
+                    .map_err(|e| PortError::new(DOING, e))?;
                 let db = queue.database().clone();
-                on_own_thread(move || futures_block_on(Schedule::open(&db)))
+                on_own_thread(DOING, move || futures_block_on(Schedule::open(&db)))
                     .await?
-                    .map_err(|e| e.to_string())
+                    .map_err(|e| PortError::new(DOING, e))
             })
             .await
     }
@@ -49,12 +51,13 @@ impl FleetSchedule for QueueFleet {
         Box::pin(async move {
             let schedule = self.schedule().await?.clone();
             let floor = floor.to_owned();
-            on_own_thread(move || {
+            const DOING: &str = "reading the floor's traffic schedule";
+            on_own_thread(DOING, move || {
                 let now = schedule.now_ms();
                 futures_block_on(schedule.snapshot(&floor, now))
             })
             .await?
-            .map_err(|e| e.to_string())
+            .map_err(|e| PortError::new(DOING, e))
         })
     }
 
@@ -62,16 +65,18 @@ impl FleetSchedule for QueueFleet {
         Box::pin(async move {
             let schedule = self.schedule().await?.clone();
             let floor = floor.to_owned();
-            on_own_thread(move || futures_block_on(schedule.version(&floor)))
+            const DOING: &str = "reading the floor's schedule version";
+            on_own_thread(DOING, move || futures_block_on(schedule.version(&floor)))
                 .await?
-                .map_err(|e| e.to_string())
+                .map_err(|e| PortError::new(DOING, e))
         })
     }
 
     fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed> {
         Box::pin(async move {
             let schedule = self.schedule().await?.clone();
-            let committed = on_own_thread(move || {
+            const DOING: &str = "committing to the floor's traffic schedule";
+            let committed = on_own_thread(DOING, move || {
                 futures_block_on(schedule.commit(itinerary, expected_version))
             })
             .await?;
@@ -81,7 +86,7 @@ impl FleetSchedule for QueueFleet {
                 Err(e @ (TrafficError::Invalid(_) | TrafficError::PlanIdTaken { .. })) => {
                     Ok(Committed::Refused(format!("the traffic schedule: {e}")))
                 }
-                Err(e) => Err(e.to_string()),
+                Err(e) => Err(PortError::new(DOING, e)),
             }
         })
     }
@@ -105,11 +110,12 @@ fn now_unix_ms() -> i64 {
 /// for every lifetime inside a boxed trait future (the "`Executor` is not general enough"
 /// limitation of async generators), and a blocking thread needs no such proof.
 async fn on_own_thread<T: Send + 'static>(
+    doing: &'static str,
     f: impl FnOnce() -> T + Send + 'static,
-) -> Result<T, String> {
+) -> Result<T, PortError> {
     tokio::task::spawn_blocking(f)
         .await
-        .map_err(|e| format!("the schedule task failed: {e}"))
+        .map_err(|e| PortError::new(doing, e))
 }
 
 /// Drives `future` to completion on this (blocking-pool) thread, within the runtime.

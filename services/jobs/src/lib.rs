@@ -26,6 +26,7 @@ pub mod builds;
 pub mod curves;
 pub mod evaluate;
 pub mod fleet;
+pub mod request;
 pub mod results;
 pub mod roadmap;
 pub mod service;
@@ -44,6 +45,7 @@ pub use evaluate::{EvaluateHandler, EvaluatePayload};
 pub use fleet::QueueFleet;
 pub use planner::{PolicyRoadmapKey, PolicyStore, RoadmapStore};
 use queue::{JobError, Worker};
+pub use request::JobRequest;
 pub use results::{EvaluateResult, JobResult, RoadmapResult, TrainResult};
 pub use roadmap::{RoadmapHandler, RoadmapPayload};
 pub use source::{FloorDatabase, HttpKnowledge, InProcessKnowledge, KnowledgeSource, SourceError};
@@ -191,34 +193,29 @@ impl JobEnv {
             })
     }
 
-    /// Checks a job about to be created: the payload has the kind's shape and values in range,
-    /// and what it names (robot, place, policy) exists. Returns the payload as it will be
-    /// stored. (Whether the kind exists is its parsing: [`JobKind`]'s `FromStr`.)
-    pub async fn check_new(&self, kind: JobKind, payload: &Value) -> Result<Value, PayloadError> {
-        match kind {
-            JobKind::Train => {
-                let p: TrainPayload = parse(payload)?;
+    /// Checks a job about to be created: its payload's values are in range, and what it names
+    /// (robot, place, policy) exists. (Its shape is [`JobRequest::parse`]'s.)
+    pub async fn check_new(&self, request: &JobRequest) -> Result<(), PayloadError> {
+        match request {
+            JobRequest::Train(p) => {
                 p.check()?;
-                self.check_floor(&p.place, &p.robot).await?;
+                self.check_floor(&p.place, &p.robot).await
             }
-            JobKind::Evaluate => {
-                let p: EvaluatePayload = parse(payload)?;
+            JobRequest::Evaluate(p) => {
                 p.check()?;
-                let robot = evaluate::policy_robot(&self.policies, &p)?;
-                self.check_floor(&p.place, &robot).await?;
+                let robot = evaluate::policy_robot(&self.policies, p)?;
+                self.check_floor(&p.place, &robot).await
             }
-            JobKind::Validate => {
-                let q = validate::check(self, payload)?;
-                self.check_floor(&q.place, &q.robot).await?;
+            JobRequest::Validate(p) => {
+                let q = validate::check(self, p)?;
+                self.check_floor(&q.place, &q.robot).await
             }
-            JobKind::Roadmap => {
-                let p: RoadmapPayload = parse(payload)?;
+            JobRequest::Roadmap(p) => {
                 p.check()?;
-                let robot = roadmap::roadmap_robot(self, &p)?;
-                self.check_floor(&p.place, &robot).await?;
+                let robot = roadmap::roadmap_robot(self, p)?;
+                self.check_floor(&p.place, &robot).await
             }
         }
-        Ok(payload.clone())
     }
 
     async fn check_floor(&self, place: &str, robot: &str) -> Result<(), PayloadError> {

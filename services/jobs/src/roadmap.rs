@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use super::results::{RoadmapResult, stored};
-use super::{JobEnv, PayloadError};
+use super::{JobEnv, JobRequest, PayloadError};
 use queue::{JobContext, JobError, JobHandler};
 
 /// Most rollouts per edge direction a job may ask for.
@@ -122,9 +122,18 @@ impl RoadmapPayload {
     }
 }
 
-/// The payload of the roadmap job for `policy` on `place` (the plan endpoint's and an export's).
-pub fn payload(policy: &str, place: &str, robot: &str, margin: f64) -> Value {
-    json!({"policy": policy, "place": place, "robot": robot, "safety_margin_m": margin})
+/// The roadmap job for `policy` on `place` (the plan endpoint's and an export's): the rollouts,
+/// keep threshold and trial at their defaults.
+pub fn request(policy: &str, place: &str, robot: &str, margin: f64) -> JobRequest {
+    JobRequest::Roadmap(RoadmapPayload {
+        policy: policy.to_owned(),
+        place: place.to_owned(),
+        robot: Some(robot.to_owned()),
+        safety_margin_m: Some(margin),
+        rollouts: None,
+        keep_threshold: None,
+        trial_missions: None,
+    })
 }
 
 /// Runs `roadmap` jobs.
@@ -187,12 +196,12 @@ impl JobHandler for RoadmapHandler {
                 learning::Policy::load(&dir)
                     .map_err(|e| JobError::Fatal(format!("the policy does not load: {e}")))?,
             );
-            let world = db.world().map_err(JobError::Fatal)?;
+            let world = db.world().map_err(JobError::fatal)?;
             // The geometric roadmap plans on this floor share (the cache's key names the
             // floor's geometry and the robot's size, not the robot).
             let version = world.geometry_key().to_owned();
             let geometric =
-                geometric_roadmap(&world, &roadmaps, &version, margin).map_err(JobError::Fatal)?;
+                geometric_roadmap(&world, &roadmaps, &version, margin).map_err(JobError::fatal)?;
             let started = std::time::Instant::now();
             let report = rehearsal::drive_edges(
                 &world,

@@ -135,12 +135,11 @@ impl std::fmt::Debug for HttpKnowledge {
 
 impl HttpKnowledge {
     /// A client of the service at `base` (`http://host:port`), sending `token` as bearer.
-    pub fn new(base: &str, token: Option<String>) -> Result<Self, String> {
+    pub fn new(base: &str, token: Option<String>) -> Result<Self, reqwest::Error> {
         let client = reqwest::Client::builder()
             .connect_timeout(Duration::from_secs(10))
             .timeout(Duration::from_secs(300))
-            .build()
-            .map_err(|e| format!("HTTP client: {e}"))?;
+            .build()?;
         Ok(Self {
             base: base.trim_end_matches('/').to_owned(),
             token,

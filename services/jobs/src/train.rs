@@ -176,7 +176,7 @@ impl JobHandler for TrainHandler {
         let world = tokio::task::spawn_blocking(move || db.world())
             .await
             .map_err(JobError::retryable)?
-            .map_err(JobError::Fatal)?;
+            .map_err(JobError::fatal)?;
         if ctx.is_stopping() {
             return Err(ctx.stopped());
         }
@@ -234,15 +234,13 @@ impl JobHandler for TrainHandler {
                 let _ = std::fs::remove_dir_all(&out_dir);
                 // The new policy's roadmap of the floor it was trained on, in the background,
                 // so that the first plan with it finds it built.
-                let follow_up = queue::NewJob::new(
-                    super::JobKind::Roadmap,
-                    super::roadmap::payload(
-                        &ctx.id().to_string(),
-                        &payload.place,
-                        &payload.robot,
-                        rehearsal::PlanOptions::default().safety_margin_m,
-                    ),
-                );
+                let follow_up = super::roadmap::request(
+                    &ctx.id().to_string(),
+                    &payload.place,
+                    &payload.robot,
+                    rehearsal::PlanOptions::default().safety_margin_m,
+                )
+                .to_job();
                 match ctx.enqueue(follow_up).await {
                     Ok(id) => result.roadmap_job = Some(id.to_string()),
                     Err(e) => {

@@ -19,25 +19,28 @@ pub type ValidatePayload = PlanApiRequest;
 /// The planner's query of a payload, its refusals naming the payload's fields. A job checks
 /// the plan against the fleet's committed plans but never commits it: it is an engineer's
 /// rehearsal, not a robot's order.
-pub fn query_of(payload: &Value) -> Result<PlanQuery, PayloadError> {
-    let request: PlanApiRequest = super::parse(payload)?;
+pub fn query_of(request: &ValidatePayload) -> Result<PlanQuery, PayloadError> {
     let mut query = request
+        .clone()
         .into_query()
-        .map_err(|m| PayloadError::invalid("payload", m.to_string()))?;
+        .map_err(|e| PayloadError::invalid(&format!("payload.{}", e.field), e.message))?;
     query.fleet.commit = false;
     Ok(query)
 }
 
 /// Checks a payload when the job is created: its shape, the bounds of a plan request (named in
 /// the payload), and that a policy it names exists.
-pub fn check(env: &JobEnv, payload: &Value) -> Result<PlanQuery, PayloadError> {
-    let query = query_of(payload)?;
+pub fn check(env: &JobEnv, request: &ValidatePayload) -> Result<PlanQuery, PayloadError> {
+    let query = query_of(request)?;
     env.planner.check(&query).map_err(|e| match e {
         PlanFailure::NotFound(m) => PayloadError::NotFound(format!("payload.policy: {m}")),
         PlanFailure::Plan(rehearsal::PlanError::InvalidInput { field, message }) => {
             PayloadError::invalid(&format!("payload.{field}"), message)
         }
-        other => PayloadError::invalid("payload", other.to_string()),
+        other => match other.field() {
+            Some(field) => PayloadError::invalid(&format!("payload.{field}"), other.to_string()),
+            None => PayloadError::invalid("payload", other.to_string()),
+        },
     })?;
     Ok(query)
 }
@@ -64,7 +67,8 @@ impl ValidateHandler {
 impl JobHandler for ValidateHandler {
     async fn run(&self, ctx: JobContext) -> Result<Value, JobError> {
         let started = Instant::now();
-        let query = check(&self.env, ctx.payload())
+        let query = super::parse(ctx.payload())
+            .and_then(|request| check(&self.env, &request))
             .map_err(|m| JobError::Fatal(format!("invalid validate payload: {m}")))?;
         let start = wire::Pose::from(query.request.start);
         let _ = ctx
@@ -87,7 +91,7 @@ impl JobHandler for ValidateHandler {
             Err(PlanFailure::Plan(rehearsal::PlanError::Stopped)) if ctx.is_stopping() => {
                 return Err(ctx.stopped());
             }
-            Err(PlanFailure::Unavailable(m)) => return Err(JobError::Retryable(m)),
+            Err(e @ PlanFailure::Unavailable(_)) => return Err(JobError::retryable(e)),
             Err(e) => return Err(JobError::Fatal(e.to_string())),
         };
         let answer = PlanApiResponse::of(outcome, &start, started.elapsed().as_secs_f64() * 1e3);

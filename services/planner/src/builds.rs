@@ -4,10 +4,10 @@
 use std::future::Future;
 use std::pin::Pin;
 
-use crate::PolicyRoadmapKey;
+use crate::{PolicyRoadmapKey, PortError};
 
 /// A boxed future for [`RoadmapBuilds`].
-pub type BuildFuture<'a> = Pin<Box<dyn Future<Output = Result<String, String>> + Send + 'a>>;
+pub type BuildFuture<'a> = Pin<Box<dyn Future<Output = Result<String, PortError>> + Send + 'a>>;
 
 /// Starts the background build of a policy-aware roadmap (the job engine's `roadmap` job).
 pub trait RoadmapBuilds: Send + Sync {

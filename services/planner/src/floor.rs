@@ -37,7 +37,7 @@ pub struct FloorDatabase {
     /// Names this content: equal versions mean equal triples (floor, robot and the state of
     /// the knowledge they were read at). Roadmaps and worlds are cached under it.
     pub version: String,
-    world: OnceLock<Result<Arc<World>, String>>,
+    world: OnceLock<Result<Arc<World>, WorldError>>,
 }
 
 impl FloorDatabase {
@@ -60,17 +60,47 @@ impl FloorDatabase {
     /// The mental simulation of the floor with the robot: the simulation parser, then the
     /// world build. Blocking (milliseconds to a second for large maps) the first time, shared
     /// afterwards. The error names what in the knowledge does not make a world.
-    pub fn world(&self) -> Result<Arc<World>, String> {
+    pub fn world(&self) -> Result<Arc<World>, WorldError> {
         self.world
             .get_or_init(|| {
+                let floor = || self.floor.clone();
                 let spec =
-                    sim::parse_floor(&self.graph, &self.robot, &self.floor).map_err(|p| {
-                        format!("the knowledge of {} does not make a world: {p}", self.floor)
+                    sim::parse_floor(&self.graph, &self.robot, &self.floor).map_err(|source| {
+                        WorldError::Parse {
+                            floor: floor(),
+                            source,
+                        }
                     })?;
-                World::build(spec).map_err(|e| format!("building the world of {}: {e}", self.floor))
+                World::build(spec).map_err(|source| WorldError::Build {
+                    floor: floor(),
+                    source,
+                })
             })
             .clone()
     }
+}
+
+/// Why a floor's on-demand database makes no mental simulation.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum WorldError {
+    /// The simulation parser found errors in the knowledge.
+    #[error("the knowledge of {floor} does not make a world: {source}")]
+    Parse {
+        /// The floor's IRI.
+        floor: String,
+        /// What the parser found.
+        #[source]
+        source: sim::SpecProblems,
+    },
+    /// The world could not be built from the parsed specification.
+    #[error("building the world of {floor}: {source}")]
+    Build {
+        /// The floor's IRI.
+        floor: String,
+        /// What the build found.
+        #[source]
+        source: sim::SpecProblems,
+    },
 }
 
 /// A fingerprint of `graph`'s triples that does not depend on their order (the sum and the

@@ -47,8 +47,11 @@ use rehearsal::RoadmapCache;
 pub use builds::{BuildFuture, RoadmapBuilds};
 pub use controllers::{ControllerPick, ControllerTrial};
 pub use error::PlanFailure;
+pub use error::{
+    BoxError, InvalidField, Missing, PortError, RoadmapPending, Unavailable, Unusable,
+};
 pub use fleet::{FleetOptions, FleetOutcome, FleetSchedule, NoFit};
-pub use floor::{FloorDatabase, KnowledgeSource, SourceError, SourceFuture};
+pub use floor::{FloorDatabase, KnowledgeSource, SourceError, SourceFuture, WorldError};
 pub use policies::{HeldOutEval, PolicyEntry, PolicyStore, PolicySummary};
 pub use query::{PeopleSource, PeopleSummary, PlanOutcome, PlanPeople, PlanQuery, roadmap_salt};
 pub use rehearse::knowledge_people;
@@ -168,7 +171,10 @@ impl Planner {
     ) -> Result<T, PlanFailure> {
         tokio::task::spawn_blocking(work)
             .await
-            .map_err(|e| PlanFailure::Internal(format!("plan task failed: {e}")))
+            .map_err(|e| PlanFailure::Internal {
+                what: "the plan task failed".into(),
+                source: Some(e.into()),
+            })
     }
 
     /// Runs the blocking simulation `work` of the plan holding `ticket` on the blocking pool

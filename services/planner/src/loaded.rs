@@ -4,7 +4,7 @@
 use std::sync::{Arc, PoisonError};
 
 use crate::policies;
-use crate::{PlanFailure, Planner};
+use crate::{BoxError, Missing, PlanFailure, Planner, Unusable};
 
 /// Policies kept loaded at most.
 pub(crate) const LOADED_POLICIES: usize = 16;
@@ -19,7 +19,7 @@ pub(crate) struct LoadedPolicy {
 impl Planner {
     /// The policy `id`, loaded again only when its weights file changed.
     pub(crate) async fn policy(&self, id: &str) -> Result<LoadedPolicy, PlanFailure> {
-        let not_found = || PlanFailure::NotFound(format!("no policy `{id}`"));
+        let not_found = || PlanFailure::NotFound(Missing::Policy(id.to_owned()));
         if !self.policies.exists(id) {
             return Err(not_found());
         }
@@ -40,17 +40,25 @@ impl Planner {
         let loaded = tokio::task::spawn_blocking(move || {
             let weights = std::fs::read(dir.join(policies::WEIGHTS))
                 .map(|b| grid::hash::fnv1a(&b))
-                .map_err(|e| e.to_string())?;
+                .map_err(|e| Arc::from(BoxError::from(e)))?;
             learning::Policy::load(&dir)
                 .map(|p| LoadedPolicy {
                     policy: Arc::new(p),
                     weights,
                 })
-                .map_err(|e| e.to_string())
+                .map_err(|e| Arc::from(BoxError::from(e)))
         })
         .await
-        .map_err(|e| PlanFailure::Internal(format!("policy loader failed: {e}")))?
-        .map_err(|e| PlanFailure::Unprocessable(format!("policy `{id}` cannot be loaded: {e}")))?;
+        .map_err(|e| PlanFailure::Internal {
+            what: "the policy loader failed".into(),
+            source: Some(e.into()),
+        })?
+        .map_err(|source| {
+            PlanFailure::Unprocessable(Unusable::Policy {
+                id: id.to_owned(),
+                source,
+            })
+        })?;
         let mut policies = self.loaded.lock().unwrap_or_else(PoisonError::into_inner);
         if policies.len() >= LOADED_POLICIES {
             policies.clear();

@@ -16,7 +16,7 @@ use crate::loaded::LoadedPolicy;
 use crate::query::{PlanOutcome, PlanPeople, PlanQuery, roadmap_salt};
 use crate::rehearse::{Rehearsal, Rehearsed};
 use crate::roadmaps::PolicyRoadmapKey;
-use crate::{PlanFailure, Planner, note};
+use crate::{PlanFailure, Planner, RoadmapPending, note};
 
 /// What passing a robot standing with no plan costs a plan's first route among the fleet,
 /// metres (about half a minute of the sample robot's driving): a detour longer than that
@@ -108,7 +108,7 @@ impl Planner {
         if let Some(id) = &query.policy
             && !self.policies.exists(id)
         {
-            return Err(PlanFailure::NotFound(format!("no policy `{id}`")));
+            return Err(PlanFailure::NotFound(crate::Missing::Policy(id.clone())));
         }
         Ok(())
     }
@@ -214,13 +214,10 @@ impl Planner {
         if !stored && choice != RoadmapChoice::Geometric {
             let build = self.builds.ensure(&key, &db.floor, &db.robot, margin).await;
             if choice == RoadmapChoice::Policy {
-                let why = match build {
-                    Ok(id) => format!("the `roadmap` job {id} is building it"),
-                    Err(e) => format!("no job could be enqueued to build it ({e})"),
-                };
-                return Err(PlanFailure::RoadmapNotReady(format!(
-                    "no policy-aware roadmap of this floor state and policy yet: {why} (every edge driven by the policy); retry when it has finished, or ask for `options.roadmap`: `auto`"
-                )));
+                return Err(PlanFailure::RoadmapNotReady(match build {
+                    Ok(job) => RoadmapPending::Building { job },
+                    Err(e) => RoadmapPending::NotEnqueued(e),
+                }));
             }
             if let Err(e) = build {
                 tracing::warn!(error = %e, "asking for a policy-aware roadmap build failed");
@@ -248,10 +245,9 @@ impl Planner {
                 let world = db2.world()?;
                 let key = world.geometry_key();
                 let fits = rehearsal::check_endpoints(&world, &roadmaps, key, &request2);
-                Ok::<_, String>((world.spec().robot.footprint_radius, fits.is_ok()))
+                Ok::<_, crate::WorldError>((world.spec().robot.footprint_radius, fits.is_ok()))
             })
-            .await?
-            .map_err(PlanFailure::Unprocessable)?;
+            .await??;
         let mut entry = self
             .enter_the_fleet(schedule.as_ref(), db, radius, request.start, fleet, fits)
             .await?;
@@ -421,10 +417,11 @@ fn check_bounds(query: &PlanQuery) -> Result<(), PlanFailure> {
     if let PlanPeople::Expected { hour: Some(h) } = query.people
         && h > 23
     {
-        return Err(PlanFailure::BadRequest(format!(
-            "`options.people_hour` is an hour of day in [0, 23], got {h}"
+        return Err(PlanFailure::BadRequest(crate::InvalidField::new(
+            "options.people_hour",
+            format!("`options.people_hour` is an hour of day in [0, 23], got {h}"),
         )));
     }
-    query.fleet.check().map_err(PlanFailure::BadRequest)?;
+    query.fleet.check()?;
     rehearsal::check_request(&query.request).map_err(PlanFailure::Plan)
 }

@@ -137,9 +137,7 @@ impl PlanOutcome {
             ),
             None => (now_ms(), Vec::new(), 0),
         };
-        let robots = fleet::simulated_robots(others, start)
-            .map_err(PlanFailure::Internal)?
-            .shielded();
+        let robots = fleet::simulated_robots(others, start)?.shielded();
         self.replay
             .among(&self.world, &self.report, &robots, &holds, draw)
     }

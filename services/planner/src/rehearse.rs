@@ -7,12 +7,12 @@ use std::sync::{Arc, Mutex, PoisonError};
 use rehearsal::{ControllerChoice, PlanError, PlanRequest, RoadmapCache, RoadmapChoice};
 use sim::World;
 
-use crate::PlanFailure;
 use crate::controllers::{self, ControllerPick, ControllerTrial};
 use crate::floor::FloorDatabase;
 use crate::query::{PeopleSource, PeopleSummary, PlanPeople};
 use crate::replay::Replay;
 use crate::roadmaps::{self, AppliedRoadmap, PolicyRoadmapKey, RoadmapStore};
+use crate::{PlanFailure, RoadmapPending, Unusable};
 
 /// Policy-aware roadmaps kept applied in memory at most.
 const POLICY_ROADMAPS: usize = 16;
@@ -53,7 +53,7 @@ impl Rehearsal {
     /// The world, the people, the roadmap, and the executor. Blocks.
     pub(crate) fn run(self, mut request: PlanRequest) -> Result<Rehearsed, PlanFailure> {
         let _running = Rehearsing::start();
-        let world = self.db.world().map_err(PlanFailure::Unprocessable)?;
+        let world = self.db.world()?;
         let source = match self.people {
             PlanPeople::Expected { hour } => {
                 request.options.people = knowledge_people(&world, hour);
@@ -71,7 +71,7 @@ impl Rehearsal {
         let mut primary = pick
             .choice
             .build(self.policy.as_ref(), request.options.seed)
-            .ok_or_else(|| PlanFailure::Internal("the picked controller needs a policy".into()))?;
+            .ok_or_else(|| PlanFailure::internal("the picked controller needs a policy"))?;
         // The policy-aware roadmap is the policy's: the classical controllers plan on the
         // geometric one.
         let policy_roadmap = applied
@@ -79,9 +79,7 @@ impl Rehearsal {
             .map(|a| a.roadmap);
         if choice == RoadmapChoice::Policy && pick.choice.needs_policy() && policy_roadmap.is_none()
         {
-            return Err(PlanFailure::RoadmapNotReady(
-                "the stored policy-aware roadmap of this floor state and policy cannot be read; ask for `options.roadmap`: `auto`".to_owned(),
-            ));
+            return Err(PlanFailure::RoadmapNotReady(RoadmapPending::Unreadable));
         }
         // Robots carry the classical follower too: a leg no attempt validates with the picked
         // controller is tried with it (behind the shield among people).
@@ -135,10 +133,9 @@ impl Rehearsal {
         let has_policy = self.policy.is_some();
         if let Some(choice) = self.controller {
             if choice.needs_policy() && !has_policy {
-                return Err(PlanFailure::Unprocessable(format!(
-                    "`options.controller`: `{}` drives a trained policy, and this robot has none yet; ask for `auto`, `rpp`, `mppi` or `follower`",
-                    choice.as_str()
-                )));
+                return Err(PlanFailure::Unprocessable(Unusable::NoPolicyFor {
+                    controller: choice.as_str(),
+                }));
             }
             return Ok(ControllerPick {
                 choice,
@@ -191,7 +188,10 @@ impl Rehearsal {
             &self.roadmaps,
             key.1,
         )
-        .map_err(|m| PlanFailure::Internal(format!("the stored policy-aware roadmap: {m}")))?;
+        .map_err(|e| PlanFailure::Internal {
+            what: e.to_string(),
+            source: Some(e.into()),
+        })?;
         if let Some(r) = &loaded {
             let mut applied = self.applied.lock().unwrap_or_else(PoisonError::into_inner);
             if applied.len() >= POLICY_ROADMAPS {

@@ -64,7 +64,7 @@ impl Replay {
         let mut primary = self
             .choice
             .build(self.policy.as_ref(), self.request.options.seed)
-            .ok_or_else(|| PlanFailure::Internal("the picked controller needs a policy".into()))?;
+            .ok_or_else(|| PlanFailure::internal("the picked controller needs a policy"))?;
         let mut follower = (!matches!(
             self.choice,
             ControllerChoice::Follower | ControllerChoice::ShieldedFollower

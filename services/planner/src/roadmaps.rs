@@ -268,9 +268,8 @@ pub fn geometric_roadmap(
     roadmaps: &rehearsal::RoadmapCache,
     floor_state: &str,
     margin: f64,
-) -> Result<Arc<prm::Roadmap>, String> {
-    let space =
-        rehearsal::config_space(world, roadmaps, floor_state, margin).map_err(|e| e.to_string())?;
+) -> Result<Arc<prm::Roadmap>, rehearsal::PlanError> {
+    let space = rehearsal::config_space(world, roadmaps, floor_state, margin)?;
     let params = prm::PrmParams {
         samples: prm::optimal_samples(space.free_area_m2),
         seed: 0,
@@ -279,7 +278,17 @@ pub fn geometric_roadmap(
     roadmaps
         .roadmap(floor_state, &space, &params)
         .map(|(r, _)| r)
-        .map_err(|e| e.to_string())
+}
+
+/// Why a stored policy-aware roadmap cannot be applied.
+#[derive(Debug, thiserror::Error)]
+pub enum StoredRoadmapError {
+    /// The geometric roadmap it applies to could not be made, or the stored one not applied.
+    #[error("the stored policy-aware roadmap: {0}")]
+    Roadmap(#[from] rehearsal::PlanError),
+    /// It was built over another geometric roadmap.
+    #[error("the stored policy-aware roadmap was built over another geometric roadmap")]
+    OtherGeometric,
 }
 
 /// A stored policy-aware roadmap applied to its floor's geometric roadmap, with the trial of
@@ -302,7 +311,7 @@ pub fn load_policy_roadmap(
     world: &Arc<World>,
     roadmaps: &rehearsal::RoadmapCache,
     with_unkept: bool,
-) -> Result<Option<AppliedRoadmap>, String> {
+) -> Result<Option<AppliedRoadmap>, StoredRoadmapError> {
     let Some(stored) = store.get(key) else {
         return Ok(None);
     };
@@ -315,9 +324,7 @@ pub fn load_policy_roadmap(
     if geometric.nodes().count() != stored.nodes
         || nodes_fingerprint(&geometric) != stored.nodes_fingerprint
     {
-        return Err(
-            "the stored policy-aware roadmap was built over another geometric roadmap".into(),
-        );
+        return Err(StoredRoadmapError::OtherGeometric);
     }
     let report = stored.report();
     if with_unkept {
@@ -331,5 +338,5 @@ pub fn load_policy_roadmap(
             trial: stored.trial.map(Arc::new),
         })
     })
-    .map_err(|e| e.to_string())
+    .map_err(StoredRoadmapError::from)
 }

@@ -181,7 +181,7 @@ async fn without_a_policy_the_follower_validates_and_the_note_says_why() {
     q.controller = Some(ControllerChoice::Hybrid);
     let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
     assert!(
-        matches!(e, PlanFailure::Unprocessable(ref m) if m.contains("`hybrid` drives a trained policy")),
+        matches!(e, PlanFailure::Unprocessable(planner::Unusable::NoPolicyFor { controller: "hybrid" })),
         "{e}"
     );
     assert_eq!(outcome.floor, FLOOR0);
@@ -239,7 +239,7 @@ async fn the_robots_newest_policy_drives_and_its_roadmap_is_asked_for_once_missi
     q.controller = Some(ControllerChoice::Hybrid);
     let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
     assert!(
-        matches!(e, PlanFailure::RoadmapNotReady(ref m) if m.contains("job-1")),
+        matches!(e, PlanFailure::RoadmapNotReady(planner::RoadmapPending::Building { ref job }) if job == "job-1"),
         "{e}"
     );
 }
@@ -262,7 +262,7 @@ async fn people_come_from_the_knowledge_at_the_hour_asked() {
     q.people = PlanPeople::Expected { hour: Some(24) };
     let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
     assert!(
-        matches!(e, PlanFailure::BadRequest(ref m) if m.contains("people_hour")),
+        matches!(e, PlanFailure::BadRequest(ref f) if f.field == "options.people_hour" && f.message.contains("got 24")),
         "{e}"
     );
 }
@@ -275,14 +275,14 @@ async fn what_does_not_exist_is_named() {
     q.policy = Some("no-such-policy".into());
     let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
     assert!(
-        matches!(e, PlanFailure::NotFound(ref m) if m.contains("no-such-policy")),
+        matches!(e, PlanFailure::NotFound(planner::Missing::Policy(ref id)) if id == "no-such-policy"),
         "{e}"
     );
     let mut q = query(start, goal, options(4));
     q.place = "F9".into();
     let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
     assert!(
-        matches!(e, PlanFailure::NotFound(ref m) if m.contains("F9")),
+        matches!(e, PlanFailure::NotFound(planner::Missing::Knowledge(ref m)) if m.contains("F9")),
         "{e}"
     );
 }

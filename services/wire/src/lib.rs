@@ -14,7 +14,7 @@ pub mod ros;
 pub mod schedule;
 pub mod types;
 
-use planner::{PeopleSummary, PlanOutcome, PlanPeople, PlanQuery};
+use planner::{InvalidField, PeopleSummary, PlanOutcome, PlanPeople, PlanQuery};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -51,19 +51,25 @@ pub struct PlanApiRequest {
 
 impl PlanApiRequest {
     /// The goals: `goal` or `goals` (exactly one of them, non-empty).
-    pub fn goals(&self) -> Result<Vec<Point>, String> {
+    pub fn goals(&self) -> Result<Vec<Point>, InvalidField> {
         match (self.goal, self.goals.is_empty()) {
-            (Some(_), false) => Err("give `goal` or `goals`, not both".into()),
+            (Some(_), false) => Err(InvalidField::new(
+                "goals",
+                "give `goal` or `goals`, not both",
+            )),
             (Some(g), true) => Ok(vec![g]),
             (None, false) => Ok(self.goals.clone()),
-            (None, true) => Err("a plan needs a goal: give `goal` or a non-empty `goals`".into()),
+            (None, true) => Err(InvalidField::new(
+                "goal",
+                "a plan needs a goal: give `goal` or a non-empty `goals`",
+            )),
         }
     }
 
     /// The planner's query: the goals (an error naming the fields when neither or both are
     /// given), the options in the executor's types, and who walks about (`people: auto` is the
     /// knowledge's people at `people_hour`).
-    pub fn into_query(self) -> Result<PlanQuery, String> {
+    pub fn into_query(self) -> Result<PlanQuery, InvalidField> {
         let goals = self.goals()?;
         let controller = self.options.controller.choice();
         let fleet = self.options.fleet();
@@ -208,12 +214,14 @@ mod tests {
             request(Some(p), vec![p])
                 .goals()
                 .unwrap_err()
+                .message
                 .contains("not both")
         );
         assert!(
             request(None, vec![])
                 .goals()
                 .unwrap_err()
+                .message
                 .contains("needs a goal")
         );
     }

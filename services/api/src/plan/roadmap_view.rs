@@ -12,7 +12,7 @@ use edge::{ApiError, ErrorCode, RobotCaller};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
-use crate::plan::PlanRoutes;
+use crate::plan::{PlanErrorResponse, PlanRoutes};
 use planner::roadmaps::{StoredEdge, geometric_roadmap, nodes_fingerprint};
 
 /// Which roadmap.
@@ -226,9 +226,9 @@ async fn roadmap_view(
     tokio::task::spawn_blocking(move || -> Result<RoadmapView, ApiError> {
         let world = db
             .world()
-            .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
+            .map_err(|e| ApiError::new(ErrorCode::Unprocessable, e.to_string()))?;
         let roadmap = geometric_roadmap(&world, planner.roadmaps(), &db.version, margin)
-            .map_err(|m| ApiError::new(ErrorCode::Unprocessable, m))?;
+            .map_err(|e| e.to_api_error())?;
         let stored = key
             .as_ref()
             .and_then(|k| planner.policy_roadmaps().get(k))

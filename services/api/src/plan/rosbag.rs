@@ -23,6 +23,18 @@ use std::io::Cursor;
 
 use super::types::{PlanReport, Pose, RosPath, RosQuaternion};
 
+/// Why no recording was written: the MCAP writer failed, or an attempt's report did not
+/// serialise (neither happens for a well-formed report).
+#[derive(Debug, thiserror::Error)]
+pub enum RecordingError {
+    /// The MCAP writer failed.
+    #[error("writing the MCAP recording: {0}")]
+    Mcap(#[from] mcap::McapError),
+    /// An attempt's report did not serialise.
+    #[error("an attempt's report: {0}")]
+    Json(#[from] serde_json::Error),
+}
+
 /// The media type of the answer.
 pub const MEDIA_TYPE: &str = "application/x-mcap";
 
@@ -50,7 +62,7 @@ pub struct Recording<'a> {
 }
 
 /// Writes the recording. Fails only when the MCAP writer does (never for a well-formed report).
-pub fn write(rec: &Recording<'_>) -> Result<Vec<u8>, String> {
+pub fn write(rec: &Recording<'_>) -> Result<Vec<u8>, RecordingError> {
     let mut out = Writer::new()?;
     let t0 = rec.start_ns;
     let map = out.channel("/map", OCCUPANCY_GRID)?;
@@ -99,7 +111,7 @@ pub fn write(rec: &Recording<'_>) -> Result<Vec<u8>, String> {
             continue;
         };
         let at = |t: f64| t0 + seconds_ns(offset_s + t);
-        let mut info = serde_json::to_value(attempt).map_err(|e| e.to_string())?;
+        let mut info = serde_json::to_value(attempt)?;
         if let Some(o) = info.as_object_mut() {
             o.remove("trace");
         }
@@ -157,22 +169,20 @@ struct Writer {
 }
 
 impl Writer {
-    fn new() -> Result<Self, String> {
+    fn new() -> Result<Self, RecordingError> {
         let inner = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("mentalsim ", env!("CARGO_PKG_VERSION")))
             .compression(Some(mcap::Compression::Zstd))
-            .create(Cursor::new(Vec::new()))
-            .map_err(|e| e.to_string())?;
+            .create(Cursor::new(Vec::new()))?;
         Ok(Self { inner, sequence: 0 })
     }
 
-    fn channel(&mut self, topic: &str, schema: &Schema) -> Result<u16, String> {
+    fn channel(&mut self, topic: &str, schema: &Schema) -> Result<u16, RecordingError> {
         let text = schema.text();
         let id = self
             .inner
-            .add_schema(schema.name, "ros2msg", text.as_bytes())
-            .map_err(|e| e.to_string())?;
+            .add_schema(schema.name, "ros2msg", text.as_bytes())?;
         // rosbag2 reads a topic's QoS from here; Foxglove ignores it.
         let qos = if topic == "/map" || topic == "/tf_static" {
             "- history: 1\n  depth: 1\n  reliability: 1\n  durability: 1\n  deadline:\n    sec: 2147483647\n    nsec: 4294967295\n  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295\n  avoid_ros_namespace_conventions: false\n"
@@ -182,10 +192,10 @@ impl Writer {
         let metadata = BTreeMap::from([("offered_qos_profiles".to_owned(), qos.to_owned())]);
         self.inner
             .add_channel(id, topic, "cdr", &metadata)
-            .map_err(|e| e.to_string())
+            .map_err(RecordingError::from)
     }
 
-    fn message(&mut self, channel: u16, stamp: u64, data: &[u8]) -> Result<(), String> {
+    fn message(&mut self, channel: u16, stamp: u64, data: &[u8]) -> Result<(), RecordingError> {
         self.sequence += 1;
         self.inner
             .write_to_known_channel(
@@ -197,17 +207,15 @@ impl Writer {
                 },
                 data,
             )
-            .map_err(|e| e.to_string())
+            .map_err(RecordingError::from)
     }
 
-    fn finish(mut self, metadata: &BTreeMap<String, String>) -> Result<Vec<u8>, String> {
-        self.inner
-            .write_metadata(&mcap::records::Metadata {
-                name: "mentalsim".to_owned(),
-                metadata: metadata.clone(),
-            })
-            .map_err(|e| e.to_string())?;
-        self.inner.finish().map_err(|e| e.to_string())?;
+    fn finish(mut self, metadata: &BTreeMap<String, String>) -> Result<Vec<u8>, RecordingError> {
+        self.inner.write_metadata(&mcap::records::Metadata {
+            name: "mentalsim".to_owned(),
+            metadata: metadata.clone(),
+        })?;
+        self.inner.finish()?;
         Ok(self.inner.into_inner().into_inner())
     }
 }

@@ -215,7 +215,12 @@ impl planner::RoadmapBuilds for NoBuilds {
         _robot: &'a str,
         _margin: f64,
     ) -> planner::BuildFuture<'a> {
-        Box::pin(async { Err("the fleet benchmark builds no policy-aware roadmaps".to_owned()) })
+        Box::pin(async {
+            Err(planner::PortError::new(
+                "building a policy-aware roadmap",
+                "the fleet benchmark builds none",
+            ))
+        })
     }
 }
 
@@ -513,16 +518,16 @@ fn run_floor(
                 floor_iri.clone(),
                 "bench",
             ));
-            db.world().map_err(|message| BenchError::Format {
+            db.world().map_err(|e| BenchError::Format {
                 path: yaml.to_path_buf(),
-                message,
+                message: e.to_string(),
             })?;
             Ok((iri, db))
         })
         .collect::<Result<_, BenchError>>()?;
-    let world = dbs[0].1.world().map_err(|message| BenchError::Format {
+    let world = dbs[0].1.world().map_err(|e| BenchError::Format {
         path: yaml.to_path_buf(),
-        message,
+        message: e.to_string(),
     })?;
     let radius = world.spec().robot.footprint_radius;
     floors::check_robot(

@@ -8,7 +8,17 @@ use sim::World;
 
 use crate::fleet::{self, FleetOptions, FleetOutcome, FleetSchedule, NoFit, yielding};
 use crate::replay::Replay;
-use crate::{FloorDatabase, PlanFailure, Planner};
+use crate::{FloorDatabase, InvalidField, PlanFailure, Planner, Unavailable, Unusable};
+
+/// How committing the first clear of several itineraries went.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Cleared {
+    /// One was committed.
+    Committed,
+    /// None: the robot the last one came too near (empty where none was tried or the full
+    /// floor took none).
+    TooNear(String),
+}
 
 /// Commits a plan may lose to other plans committed on its floor meanwhile (each time it is
 /// fitted again against the new schedule) before it answers 503. Fitting it again from a later
@@ -87,10 +97,15 @@ impl Planner {
         let requested = options.start_unix_ms.unwrap_or(now);
         let slack_ms = (options.tolerance_s * 1000.0).round() as i64;
         if requested < now - slack_ms {
-            return Err(PlanFailure::Unprocessable(format!(
-                "`options.start_time_ms` {requested} is {:.1} s in the past, beyond the plan's tolerance of {} s: a schedule cannot start before it is made",
-                (now - requested) as f64 / 1000.0,
-                options.tolerance_s
+            return Err(PlanFailure::Unprocessable(Unusable::Field(
+                InvalidField::new(
+                    "options.start_time_ms",
+                    format!(
+                        "`options.start_time_ms` {requested} is {:.1} s in the past, beyond the plan's tolerance of {} s: a schedule cannot start before it is made",
+                        (now - requested) as f64 / 1000.0,
+                        options.tolerance_s
+                    ),
+                ),
             )));
         }
         let entry = FleetEntry {
@@ -132,40 +147,42 @@ impl Planner {
         for_s: f64,
     ) -> Result<traffic::Itinerary, PlanFailure> {
         let Some(schedule) = &self.fleet else {
-            return Err(PlanFailure::Unavailable(
-                "this service keeps no traffic schedule".to_owned(),
-            ));
+            return Err(PlanFailure::Unavailable(Unavailable::NoSchedule));
         };
         if !(for_s.is_finite() && for_s > 0.0 && for_s <= fleet::MAX_FLEET_S) {
-            return Err(PlanFailure::Unprocessable(format!(
-                "`for_s` must lie in (0, {}] seconds, got {for_s}",
-                fleet::MAX_FLEET_S
-            )));
+            return Err(unusable_field(
+                "for_s",
+                format!(
+                    "`for_s` must lie in (0, {}] seconds, got {for_s}",
+                    fleet::MAX_FLEET_S
+                ),
+            ));
         }
         if !(at.x.is_finite() && at.y.is_finite() && at.yaw.is_finite()) {
-            return Err(PlanFailure::Unprocessable(
-                "`x`, `y` and `yaw` must be finite numbers".to_owned(),
+            return Err(unusable_field(
+                "x",
+                "`x`, `y` and `yaw` must be finite numbers",
             ));
         }
         let now = schedule.now_ms();
         let from = from_ms.unwrap_or(now);
         if !(0..=fleet::MAX_START_UNIX_MS).contains(&from) {
-            return Err(PlanFailure::Unprocessable(format!(
-                "`time_ms` must lie in [0, {}], got {from}",
-                fleet::MAX_START_UNIX_MS
-            )));
+            return Err(unusable_field(
+                "time_ms",
+                format!(
+                    "`time_ms` must lie in [0, {}], got {from}",
+                    fleet::MAX_START_UNIX_MS
+                ),
+            ));
         }
         let db = self.knowledge.floor_database(place, robot).await?;
         let db2 = Arc::clone(&db);
-        let world = self
-            .blocking(move || db2.world())
-            .await?
-            .map_err(PlanFailure::Unprocessable)?;
+        let world = self.blocking(move || db2.world()).await??;
         if world.clearance(at.x, at.y) <= 0.0 {
-            return Err(PlanFailure::Unprocessable(format!(
-                "the robot does not fit at ({:.2}, {:.2}): it would touch a wall or an object",
-                at.x, at.y
-            )));
+            return Err(PlanFailure::Unprocessable(Unusable::DoesNotFit {
+                x: at.x,
+                y: at.y,
+            }));
         }
         let radius = world.spec().robot.footprint_radius;
         let standing = standing_at(
@@ -176,16 +193,12 @@ impl Planner {
             from,
             for_s,
         );
-        let (_, all) = schedule
-            .snapshot(&db.floor)
-            .await
-            .map_err(PlanFailure::Unavailable)?;
+        let (_, all) = schedule.snapshot(&db.floor).await?;
         let others: Vec<&traffic::Itinerary> = all.iter().filter(|o| o.robot != db.robot).collect();
         outside_others(&others, (at.x, at.y), radius, from, "")?;
         if !record_standing(schedule.as_ref(), &standing, true).await? {
-            return Err(PlanFailure::Unprocessable(format!(
-                "the floor's traffic schedule holds the most robots it takes ({}); cancel some plans or wait for them to expire",
-                fleet::MAX_ROBOTS_PER_FLOOR
+            return Err(PlanFailure::Unprocessable(Unusable::ScheduleFull(
+                fleet::MAX_ROBOTS_PER_FLOOR,
             )));
         }
         Ok(standing)
@@ -198,10 +211,7 @@ impl Planner {
         schedule: &dyn FleetSchedule,
         db: &FloorDatabase,
     ) -> Result<(Vec<traffic::Itinerary>, Vec<traffic::Itinerary>), PlanFailure> {
-        let (_, all) = schedule
-            .snapshot(&db.floor)
-            .await
-            .map_err(PlanFailure::Unavailable)?;
+        let (_, all) = schedule.snapshot(&db.floor).await?;
         Ok(all
             .into_iter()
             .filter(|i| i.robot != db.robot)
@@ -286,10 +296,7 @@ impl Planner {
             // The core first, then the schedule: the plan is fitted and driven against the
             // schedule as it is when it runs, not as it was when it began to wait.
             let mut core = Some(self.cpu.acquire(entry.ticket).await);
-            let (version, committed) = schedule
-                .snapshot(&db.floor)
-                .await
-                .map_err(PlanFailure::Unavailable)?;
+            let (version, committed) = schedule.snapshot(&db.floor).await?;
             let others: Vec<traffic::Itinerary> = committed
                 .into_iter()
                 .filter(|i| i.robot != db.robot)
@@ -306,10 +313,8 @@ impl Planner {
                 )?;
             }
             if others.len() >= fleet::MAX_ROBOTS_PER_FLOOR {
-                return Err(PlanFailure::Unprocessable(format!(
-                    "the floor's traffic schedule holds {} other robots' plans, the most it takes ({}); cancel some or wait for them to expire",
-                    others.len(),
-                    fleet::MAX_ROBOTS_PER_FLOOR
+                return Err(PlanFailure::Unprocessable(Unusable::ScheduleFull(
+                    fleet::MAX_ROBOTS_PER_FLOOR,
                 )));
             }
             let (steps, start_wait_s, max_wait_s) = match &basis {
@@ -384,8 +389,7 @@ impl Planner {
             // Alone on the floor with nothing to wait for, that drive is the validating one,
             // step for step (`rehearsal::drive_among` drives each leg with its validating
             // attempt's noise): it is committed as it is.
-            let robots =
-                Arc::new(fleet::simulated_robots(&others, start).map_err(PlanFailure::Internal)?);
+            let robots = Arc::new(fleet::simulated_robots(&others, start)?);
             let among = if others.is_empty() && waits.is_empty() && report.drives_again_alike() {
                 fleet::validated_alone(report)
             } else {
@@ -547,10 +551,9 @@ impl Planner {
                 version,
             })));
         }
-        Err(PlanFailure::Unavailable(
-            "the floor's traffic schedule kept changing while this plan was committed; retry"
-                .to_owned(),
-        ))
+        Err(PlanFailure::Unavailable(Unavailable::ScheduleBusy(
+            "this plan was committed",
+        )))
     }
 
     /// Commits the first leg of a plan making way (to its first goal, the place it makes way
@@ -592,39 +595,35 @@ impl Planner {
                 entry.stand_for_s(),
             )
         });
-        Ok(self
-            .commit_first_clear(schedule, db, candidates)
-            .await?
-            .is_ok())
+        Ok(self.commit_first_clear(schedule, db, candidates).await? == Cleared::Committed)
     }
 
     /// Commits the first of `candidates` (itineraries of `db`'s robot) that keeps the margins
-    /// from every other robot's schedule, under the floor's lock: `Ok(Ok(()))` once one is
-    /// recorded, else `Ok(Err(robot))` naming the robot the last one came too near (empty
-    /// where none was tried or the full floor took none).
+    /// from every other robot's schedule, under the floor's lock: [`Cleared::Committed`] once
+    /// one is recorded, else [`Cleared::TooNear`] naming the robot the last one came too near
+    /// (empty where none was tried or the full floor took none).
     async fn commit_first_clear(
         &self,
         schedule: &dyn FleetSchedule,
         db: &FloorDatabase,
         candidates: impl IntoIterator<Item = traffic::Itinerary>,
-    ) -> Result<Result<(), String>, PlanFailure> {
+    ) -> Result<Cleared, PlanFailure> {
         let floor_lock = self.fleet_lock(format!("floor {}", db.floor));
         let _one_commit_per_floor = floor_lock.lock().await;
-        let (_, all) = schedule
-            .snapshot(&db.floor)
-            .await
-            .map_err(PlanFailure::Unavailable)?;
+        let (_, all) = schedule.snapshot(&db.floor).await?;
         let others: Vec<traffic::Itinerary> =
             all.into_iter().filter(|i| i.robot != db.robot).collect();
         let mut near = String::new();
         for it in candidates {
             match fleet::first_conflict(&it, &others) {
                 Some(c) => near = c.b_robot,
-                None if record_standing(schedule, &it, true).await? => return Ok(Ok(())),
+                None if record_standing(schedule, &it, true).await? => {
+                    return Ok(Cleared::Committed);
+                }
                 None => break,
             }
         }
-        Ok(Err(near))
+        Ok(Cleared::TooNear(near))
     }
 
     /// A plan that made way refused after its first leg was committed: the robot stands at
@@ -648,8 +647,8 @@ impl Planner {
             entry.stand_for_s(),
         );
         match self.commit_first_clear(schedule, db, [standing]).await {
-            Ok(Ok(())) => {}
-            Ok(Err(other)) => {
+            Ok(Cleared::Committed) => {}
+            Ok(Cleared::TooNear(other)) => {
                 tracing::warn!(robot = %db.robot, %other, "a plan that made way was refused after another was fitted through where it stood, or the floor was full");
             }
             Err(e) => {
@@ -743,11 +742,7 @@ impl Planner {
             if !reroute && let Some(at) = self.make_way(view) {
                 return Ok(at);
             }
-            let now = view
-                .schedule
-                .version(view.floor)
-                .await
-                .map_err(PlanFailure::Unavailable)?;
+            let now = view.schedule.version(view.floor).await?;
             if now != view.version {
                 return Ok(Standing::Changed);
             }
@@ -836,28 +831,22 @@ pub(crate) async fn record_standing(
     replace: bool,
 ) -> Result<bool, PlanFailure> {
     for _ in 0..COMMIT_ATTEMPTS {
-        let (version, all) = schedule
-            .snapshot(&standing.floor)
-            .await
-            .map_err(PlanFailure::Unavailable)?;
+        let (version, all) = schedule.snapshot(&standing.floor).await?;
         let known = all.iter().any(|i| i.robot == standing.robot);
         if (known && !replace) || all.len() >= fleet::MAX_ROBOTS_PER_FLOOR + usize::from(known) {
             return Ok(false);
         }
-        match schedule
-            .commit(standing.clone(), version)
-            .await
-            .map_err(PlanFailure::Unavailable)?
-        {
+        match schedule.commit(standing.clone(), version).await? {
             fleet::Committed::Yes(_) => return Ok(true),
-            fleet::Committed::Refused(m) => return Err(PlanFailure::Unprocessable(m)),
+            fleet::Committed::Refused(m) => {
+                return Err(PlanFailure::Unprocessable(Unusable::Refused(m)));
+            }
             fleet::Committed::VersionChanged => {}
         }
     }
-    Err(PlanFailure::Unavailable(
-        "the floor's traffic schedule kept changing while the robot's place on it was recorded; retry"
-            .to_owned(),
-    ))
+    Err(PlanFailure::Unavailable(Unavailable::ScheduleBusy(
+        "the robot's place on it was recorded",
+    )))
 }
 
 /// The later start tried after the drive among the fleet of `fitted` (asked to start at
@@ -952,6 +941,11 @@ fn stands(others: &[traffic::Itinerary], robot: &str) -> bool {
     others
         .iter()
         .any(|o| o.robot == robot && fleet::stands_only(o))
+}
+
+/// A well-formed value that cannot be used (422), naming its field.
+fn unusable_field(field: &str, message: impl Into<String>) -> PlanFailure {
+    PlanFailure::Unprocessable(Unusable::Field(InvalidField::new(field, message)))
 }
 
 #[cfg(test)]

@@ -53,10 +53,10 @@ use prm::Point2;
 use sim::Pose2;
 use traffic::{Conflict, Itinerary, Margins, Reserved, TimedPose};
 
-use crate::PlanFailure;
+use crate::{InvalidField, PlanFailure, PortError};
 
 /// A boxed future of a [`FleetSchedule`] call.
-pub type FleetFuture<'a, T> = Pin<Box<dyn Future<Output = Result<T, String>> + Send + 'a>>;
+pub type FleetFuture<'a, T> = Pin<Box<dyn Future<Output = Result<T, PortError>> + Send + 'a>>;
 
 /// How a commit went.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -164,7 +164,7 @@ const WAIT_STEP_S: f64 = 1.0;
 
 impl FleetOptions {
     /// The options, or which one is out of range.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), InvalidField> {
         for (name, v) in [
             ("tolerance_s", self.tolerance_s),
             ("max_wait_s", self.max_wait_s),
@@ -172,16 +172,20 @@ impl FleetOptions {
             ("standing_wait_s", self.standing_wait_s),
         ] {
             if !(v.is_finite() && (0.0..=MAX_FLEET_S).contains(&v)) {
-                return Err(format!(
-                    "`options.{name}` must lie in [0, {MAX_FLEET_S}] seconds, got {v}"
+                return Err(InvalidField::new(
+                    format!("options.{name}"),
+                    format!("`options.{name}` must lie in [0, {MAX_FLEET_S}] seconds, got {v}"),
                 ));
             }
         }
         if let Some(t) = self.start_unix_ms
             && !(0..=MAX_START_UNIX_MS).contains(&t)
         {
-            return Err(format!(
-                "`options.start_time_ms` must lie in [0, {MAX_START_UNIX_MS}] ms since the Unix epoch, got {t}"
+            return Err(InvalidField::new(
+                "options.start_time_ms",
+                format!(
+                    "`options.start_time_ms` must lie in [0, {MAX_START_UNIX_MS}] ms since the Unix epoch, got {t}"
+                ),
             ));
         }
         Ok(())
@@ -226,10 +230,12 @@ pub struct FleetOutcome {
 /// The other robots' itineraries as robots of a simulation whose clock starts at
 /// `start_unix_ms` (seconds after it), as the schedule places them: along their trajectories
 /// (with their delays), held at their last pose until they expire, absent before they start.
+/// An itinerary the simulation refuses (the schedule checked it when it was committed) is an
+/// internal failure.
 pub fn simulated_robots(
     others: &[Itinerary],
     start_unix_ms: i64,
-) -> Result<sim::OtherRobots, String> {
+) -> Result<sim::OtherRobots, PlanFailure> {
     let seconds = |unix_ms: i64| (unix_ms - start_unix_ms) as f64 / 1000.0;
     sim::OtherRobots::new(
         others
@@ -252,6 +258,7 @@ pub fn simulated_robots(
             })
             .collect(),
     )
+    .map_err(|e| PlanFailure::internal(format!("the other robots' itineraries: {e}")))
 }
 
 /// A plan alone on its floor with nothing to wait for, as its drive among the fleet: the
@@ -615,23 +622,18 @@ pub(crate) async fn commit_among(
     max_rechecks: usize,
 ) -> Result<CommitEnd, PlanFailure> {
     loop {
-        match schedule
-            .commit(itinerary.clone(), version)
-            .await
-            .map_err(PlanFailure::Unavailable)?
-        {
+        match schedule.commit(itinerary.clone(), version).await? {
             Committed::Yes(v) => return Ok(CommitEnd::Yes(v)),
-            Committed::Refused(m) => return Err(PlanFailure::Unprocessable(m)),
+            Committed::Refused(m) => {
+                return Err(PlanFailure::Unprocessable(crate::Unusable::Refused(m)));
+            }
             Committed::VersionChanged => {}
         }
         *rechecks += 1;
         if *rechecks >= max_rechecks {
             return Ok(CommitEnd::Exhausted);
         }
-        let (now_version, now) = schedule
-            .snapshot(&itinerary.floor)
-            .await
-            .map_err(PlanFailure::Unavailable)?;
+        let (now_version, now) = schedule.snapshot(&itinerary.floor).await?;
         let now: Vec<Itinerary> = now
             .into_iter()
             .filter(|i| i.robot != itinerary.robot)
