@@ -635,6 +635,31 @@ export interface components {
             /** @description The poses, with strictly increasing times. */
             trajectory: components["schemas"]["TimedPose"][];
         };
+        /** @description A job to run: its kind and that kind's payload. */
+        JobRequest: {
+            /** @enum {string} */
+            kind: "train";
+            /** @description Trains a policy for a robot on a floor. */
+            payload: components["schemas"]["TrainPayload"];
+        } | {
+            /** @enum {string} */
+            kind: "evaluate";
+            /** @description Evaluates a policy on a floor. */
+            payload: components["schemas"]["EvaluatePayload"];
+        } | {
+            /** @enum {string} */
+            kind: "validate";
+            /**
+             * @description Validates a plan in the mental simulation: the payload is a `POST /v1/plan` request
+             *     (its schema is `PlanApiRequest`'s, which the plan's wire types document).
+             */
+            payload: components["schemas"]["PlanApiRequest"];
+        } | {
+            /** @enum {string} */
+            kind: "roadmap";
+            /** @description Builds the policy-aware roadmap of a floor and a policy. */
+            payload: components["schemas"]["RoadmapPayload"];
+        };
         /**
          * @description A job's result by its kind (documentation of `JobView.result`: the `kind` beside it says
          *     which form it has).
@@ -746,62 +771,17 @@ export interface components {
              */
             simulated_time_s: number;
         };
-        /** @description A job to create: its `kind`, and a `payload` of that kind's schema. */
-        NewJobRequest: {
-            /** @enum {string} */
-            kind: "train";
+        /**
+         * @description A job to create: its kind and that kind's payload (one form per kind), and how it is
+         *     queued. Read from [`RawJobRequest`], so that an unknown kind is 400 and a payload that does
+         *     not fit its kind 422, naming the field.
+         */
+        NewJobRequest: components["schemas"]["JobRequest"] & {
             /**
              * Format: int32
              * @description Attempts before the job fails for good, 1-100 [default: 3].
              */
             max_attempts?: number | null;
-            /** @description The job's parameters. */
-            payload: components["schemas"]["TrainPayload"];
-            /**
-             * Format: int32
-             * @description Higher runs first [default: 0].
-             */
-            priority?: number | null;
-        } | {
-            /** @enum {string} */
-            kind: "evaluate";
-            /**
-             * Format: int32
-             * @description Attempts before the job fails for good, 1-100 [default: 3].
-             */
-            max_attempts?: number | null;
-            /** @description The job's parameters. */
-            payload: components["schemas"]["EvaluatePayload"];
-            /**
-             * Format: int32
-             * @description Higher runs first [default: 0].
-             */
-            priority?: number | null;
-        } | {
-            /** @enum {string} */
-            kind: "validate";
-            /**
-             * Format: int32
-             * @description Attempts before the job fails for good, 1-100 [default: 3].
-             */
-            max_attempts?: number | null;
-            /** @description The plan, as `POST /v1/plan` takes it. */
-            payload: components["schemas"]["PlanApiRequest"];
-            /**
-             * Format: int32
-             * @description Higher runs first [default: 0].
-             */
-            priority?: number | null;
-        } | {
-            /** @enum {string} */
-            kind: "roadmap";
-            /**
-             * Format: int32
-             * @description Attempts before the job fails for good, 1-100 [default: 3].
-             */
-            max_attempts?: number | null;
-            /** @description The job's parameters. */
-            payload: components["schemas"]["RoadmapPayload"];
             /**
              * Format: int32
              * @description Higher runs first [default: 0].
