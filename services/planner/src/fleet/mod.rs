@@ -679,9 +679,27 @@ fn first(itinerary: &Itinerary, others: &Reserved<'_>) -> Option<Conflict> {
     others.first_with(itinerary, MARGINS)
 }
 
-/// A fitted plan: its itinerary, the step each waypoint is reached at, and each wait (the step
-/// it is at, seconds, the robots it lets pass).
-pub type Fitted = (Itinerary, Vec<usize>, Vec<(usize, f64, Vec<String>)>);
+/// A fitted plan.
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    /// Its itinerary, waits included.
+    pub itinerary: Itinerary,
+    /// The step of the rehearsal each waypoint is reached at.
+    pub waypoint_steps: Vec<usize>,
+    /// Each wait, in the order of the steps it is at.
+    pub waits: Vec<FitWait>,
+}
+
+/// A wait of a fitted plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitWait {
+    /// The step of the rehearsal it is at (0: the start).
+    pub step: usize,
+    /// How long, seconds.
+    pub wait_s: f64,
+    /// The robots it lets pass.
+    pub for_robots: Vec<String>,
+}
 
 /// Fits a rehearsed plan (`steps` every `dt` seconds from the start, reaching `waypoints`)
 /// among `others`, as the module docs describe, the robot standing at its start for at least
@@ -719,19 +737,7 @@ pub fn fit(
     loop {
         let itinerary = draft.itinerary(template);
         let Some(c) = first(&itinerary, &committed) else {
-            let waits = draft
-                .waits
-                .iter()
-                .map(|(k, s)| {
-                    let robots = blockers
-                        .iter()
-                        .filter(|(at, _)| at == k)
-                        .flat_map(|(_, r)| r.clone())
-                        .collect::<Vec<_>>();
-                    (*k, *s, dedup(robots))
-                })
-                .collect();
-            return Ok((itinerary, at_waypoint, waits));
+            return Ok(fitted(itinerary, at_waypoint, &draft.waits, &blockers));
         };
         if let Some(b) = others
             .iter()
@@ -769,7 +775,15 @@ pub fn fit(
                 }
                 .itinerary(template);
                 if wait <= max_wait_s + 1e-9 && first(&itinerary, &committed).is_none() {
-                    return Ok((itinerary, at_waypoint, vec![(0, wait, dedup(in_the_way))]));
+                    return Ok(Fitted {
+                        itinerary,
+                        waypoint_steps: at_waypoint,
+                        waits: vec![FitWait {
+                            step: 0,
+                            wait_s: wait,
+                            for_robots: dedup(in_the_way),
+                        }],
+                    });
                 }
             }
             return Err(refused);
@@ -828,6 +842,36 @@ pub fn fit(
             .unwrap_or(stops[floor]);
         draft.add_wait(at, WAIT_STEP_S);
         blockers.push((at, vec![c.b_robot.clone()]));
+    }
+}
+
+/// The fit of `itinerary`, with `waits` (step, seconds) letting pass the robots `blockers`
+/// names at their steps.
+fn fitted(
+    itinerary: Itinerary,
+    waypoint_steps: Vec<usize>,
+    waits: &[(usize, f64)],
+    blockers: &[(usize, Vec<String>)],
+) -> Fitted {
+    let waits = waits
+        .iter()
+        .map(|&(step, wait_s)| {
+            let robots = blockers
+                .iter()
+                .filter(|(at, _)| *at == step)
+                .flat_map(|(_, r)| r.clone())
+                .collect::<Vec<_>>();
+            FitWait {
+                step,
+                wait_s,
+                for_robots: dedup(robots),
+            }
+        })
+        .collect();
+    Fitted {
+        itinerary,
+        waypoint_steps,
+        waits,
     }
 }
 

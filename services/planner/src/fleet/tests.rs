@@ -66,7 +66,7 @@ fn fit_b(
 /// every one of `others`.
 fn fits_b(start_ms: i64, steps: &[Pose2], waypoints: &[Point2], others: &[Itinerary]) -> Fitted {
     let fitted = fit_b(start_ms, steps, waypoints, others, 120.0, 0.0).expect("a fit");
-    assert!(first_conflict(&fitted.0, others).is_none());
+    assert!(first_conflict(&fitted.itinerary, others).is_none());
     fitted
 }
 
@@ -78,13 +78,20 @@ fn a_robot_crossing_anothers_path_waits_before_the_crossing() {
     let a = committed("A", &straight((-5.0, 0.0), (5.0, 0.0), 1.0, dt), dt, 0);
     let b_steps = straight((0.0, -5.0), (0.0, 5.0), 1.0, dt);
     let waypoints = [Point2::new(0.0, -3.0), Point2::new(0.0, 5.0)];
-    let (_, at, waits) = fits_b(0, &b_steps, &waypoints, std::slice::from_ref(&a));
+    let Fitted {
+        waypoint_steps: at,
+        waits,
+        ..
+    } = fits_b(0, &b_steps, &waypoints, std::slice::from_ref(&a));
     assert_eq!(at.len(), 2);
     assert_eq!(waits.len(), 1, "{waits:?}");
     // At the waypoint 2 m before the crossing, for A.
-    assert_eq!(waits[0].0, at[0]);
-    assert_eq!(waits[0].2, vec!["A".to_owned()]);
-    assert!(waits[0].1 >= 1.0 && waits[0].1 <= 10.0, "{waits:?}");
+    assert_eq!(waits[0].step, at[0]);
+    assert_eq!(waits[0].for_robots, vec!["A".to_owned()]);
+    assert!(
+        waits[0].wait_s >= 1.0 && waits[0].wait_s <= 10.0,
+        "{waits:?}"
+    );
 }
 
 #[test]
@@ -100,10 +107,10 @@ fn robots_sent_down_one_corridor_from_both_ends_do_not_meet_in_it() {
             .skip(1),
     );
     let waypoints = [Point2::new(10.0, 0.0), Point2::new(0.0, 0.0)];
-    let (_, _, waits) = fits_b(0, &b_steps, &waypoints, std::slice::from_ref(&a));
+    let Fitted { waits, .. } = fits_b(0, &b_steps, &waypoints, std::slice::from_ref(&a));
     // The corridor's end is in A's way (A arrives there): B waits at its start instead.
     assert_eq!(waits.len(), 1, "{waits:?}");
-    assert_eq!(waits[0].0, 0, "a later start: {waits:?}");
+    assert_eq!(waits[0].step, 0, "a later start: {waits:?}");
 }
 
 /// B must let C cross its way ahead; waiting at its start it would stand in A's way, who
@@ -117,7 +124,7 @@ fn a_robot_waits_ahead_rather_than_at_a_start_another_robot_passes_through() {
     let c = committed("C", &straight((6.0, -5.0), (6.0, 5.0), 1.0, dt), dt, 0);
     let a = committed("A", &straight((0.0, -3.5), (0.0, 5.0), 1.0, dt), dt, 0);
     // C alone: B waits at its start.
-    let (_, _, waits) = fit_b(
+    let Fitted { waits, .. } = fit_b(
         0,
         &b_steps,
         &waypoints,
@@ -126,23 +133,31 @@ fn a_robot_waits_ahead_rather_than_at_a_start_another_robot_passes_through() {
         0.0,
     )
     .unwrap();
-    assert_eq!(waits.first().map(|w| w.0), Some(0), "{waits:?}");
+    assert_eq!(waits.first().map(|w| w.step), Some(0), "{waits:?}");
     // With A through its start: B waits at the first waypoint, and nowhere else.
     let others = [c.clone(), a.clone()];
-    let (_, at, waits) = fits_b(0, &b_steps, &waypoints, &others);
+    let Fitted {
+        waypoint_steps: at,
+        waits,
+        ..
+    } = fits_b(0, &b_steps, &waypoints, &others);
     assert_eq!(
-        waits.iter().map(|w| w.0).collect::<Vec<_>>(),
+        waits.iter().map(|w| w.step).collect::<Vec<_>>(),
         vec![at[0]],
         "{waits:?}"
     );
-    assert!(waits[0].2.contains(&"C".to_owned()), "{waits:?}");
+    assert!(waits[0].for_robots.contains(&"C".to_owned()), "{waits:?}");
     // Told to stand at its start until A has passed through it, B has no fit: the
     // schedule holds a robot at its start while it waits there, and A meets it.
     let e = fit_b(0, &b_steps, &waypoints, &others, 120.0, 3.0).unwrap_err();
     assert!(e.robots.contains(&"A".to_owned()), "{e:?}");
     assert_eq!(e.earliest_start_unix_ms, None, "{e:?}");
     // Among C alone, a start 6 s later is standing at the start from the plan's start.
-    let (it, _, waits) = fit_b(
+    let Fitted {
+        itinerary: it,
+        waits,
+        ..
+    } = fit_b(
         0,
         &b_steps,
         &waypoints,
@@ -151,7 +166,7 @@ fn a_robot_waits_ahead_rather_than_at_a_start_another_robot_passes_through() {
         6.0,
     )
     .unwrap();
-    assert!(waits[0].0 == 0 && waits[0].1 >= 6.0, "{waits:?}");
+    assert!(waits[0].step == 0 && waits[0].wait_s >= 6.0, "{waits:?}");
     assert_eq!(it.start_unix_ms, 0);
     assert_eq!(it.pose_at(5_000), Some((0.0, 0.0)));
     assert!(first_conflict(&it, std::slice::from_ref(&c)).is_none());
@@ -185,10 +200,14 @@ fn a_robot_following_another_to_its_goal_waits_before_the_goal_until_it_is_free(
     let path = straight((0.0, 0.0), (10.0, 0.0), 1.0, dt);
     let a = committed("A", &path, dt, 0);
     let waypoints = [Point2::new(5.0, 0.0), Point2::new(10.0, 0.0)];
-    let (_, at, waits) = fits_b(3_000, &path, &waypoints, std::slice::from_ref(&a));
+    let Fitted {
+        waypoint_steps: at,
+        waits,
+        ..
+    } = fits_b(3_000, &path, &waypoints, std::slice::from_ref(&a));
     assert!(!waits.is_empty());
     assert!(
-        waits.iter().all(|w| w.0 != at[1]),
+        waits.iter().all(|w| w.step != at[1]),
         "never at the goal: {waits:?}"
     );
 }
@@ -244,7 +263,7 @@ fn a_robot_standing_in_the_way_with_no_plan_is_named_at_once() {
     assert!(e.message.contains("no plan of its own"), "{}", e.message);
     // 0.6 m between centres of 0.2 m robots: a 0.2 m gap, more than STILL_MARGIN_M and
     // less than ROBOT_MARGIN_M.
-    let (_, _, waits) = fits_b(0, &steps, &[Point2::new(10.0, 0.0)], &[standing(0.6)]);
+    let Fitted { waits, .. } = fits_b(0, &steps, &[Point2::new(10.0, 0.0)], &[standing(0.6)]);
     assert!(waits.is_empty(), "{waits:?}");
 }
 
