@@ -114,6 +114,57 @@ impl EdgeRolloutParams {
     }
 }
 
+/// An undirected roadmap edge as its driven directions sum it up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgeSummary {
+    /// The worse direction's success rate (`None`: neither direction was driven).
+    pub success: Option<f64>,
+    /// Mean simulated time of the successful rollouts of both directions, seconds.
+    pub mean_time_s: Option<f64>,
+    /// Whether the roadmap keeps the edge both ways (`None`: neither direction was driven).
+    pub kept: Option<bool>,
+}
+
+/// An [`EdgeReport`] by edge direction.
+#[derive(Debug)]
+pub struct EdgeIndex<'a> {
+    report: &'a EdgeReport,
+    by_direction: std::collections::HashMap<(usize, usize), &'a EdgeStat>,
+}
+
+impl EdgeIndex<'_> {
+    /// The edge between nodes `a` and `b`, both ways.
+    pub fn summary(&self, a: usize, b: usize) -> EdgeSummary {
+        let measured: Vec<&EdgeStat> = [(a, b), (b, a)]
+            .iter()
+            .filter_map(|d| self.by_direction.get(d).copied())
+            .collect();
+        if measured.is_empty() {
+            return EdgeSummary {
+                success: None,
+                mean_time_s: None,
+                kept: None,
+            };
+        }
+        let success = measured
+            .iter()
+            .map(|e| e.success_rate())
+            .fold(1.0, f64::min);
+        let (t, n) = measured
+            .iter()
+            .filter_map(|e| {
+                e.mean_time_s
+                    .map(|t| (t * f64::from(e.successes), e.successes))
+            })
+            .fold((0.0, 0u32), |(t, n), (et, es)| (t + et, n + es));
+        EdgeSummary {
+            success: Some(success),
+            mean_time_s: (n > 0).then(|| t / f64::from(n)),
+            kept: Some(measured.len() == 2 && measured.iter().all(|e| self.report.keeps(e))),
+        }
+    }
+}
+
 /// One edge direction as driven.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EdgeStat {
@@ -198,18 +249,28 @@ impl EdgeReport {
         if n == 0 { 0.0 } else { m as f64 / n as f64 }
     }
 
+    /// Whether the roadmap keeps the edge direction `e`: its success rate reaches the keep
+    /// threshold (the one rule every caller uses).
+    pub fn keeps(&self, e: &EdgeStat) -> bool {
+        e.success_rate() >= self.params.keep_threshold
+    }
+
     /// Edge directions whose success rate reaches the keep threshold.
     pub fn kept(&self) -> impl Iterator<Item = &EdgeStat> + '_ {
-        self.edges
-            .iter()
-            .filter(|e| e.success_rate() >= self.params.keep_threshold)
+        self.edges.iter().filter(|e| self.keeps(e))
     }
 
     /// Edge directions below the threshold: the ones the controller cannot drive.
     pub fn dropped(&self) -> impl Iterator<Item = &EdgeStat> + '_ {
-        self.edges
-            .iter()
-            .filter(|e| e.success_rate() < self.params.keep_threshold)
+        self.edges.iter().filter(|e| !self.keeps(e))
+    }
+
+    /// The report by edge direction, to sum up undirected edges ([`EdgeIndex::summary`]).
+    pub fn index(&self) -> EdgeIndex<'_> {
+        EdgeIndex {
+            report: self,
+            by_direction: self.edges.iter().map(|e| ((e.from, e.to), e)).collect(),
+        }
     }
 
     /// Mean simulated time per successful edge rollout, seconds.
@@ -479,4 +540,59 @@ pub fn reweight_with_unkept(
         .reweighted(|a, b, _| report.cost_with_unkept(a, b, RISK_M))
         .map(Arc::new)
         .map_err(|e| PlanError::Map(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stat(from: usize, to: usize, successes: u32, mean_time_s: Option<f64>) -> EdgeStat {
+        EdgeStat {
+            from,
+            to,
+            length_m: 1.0,
+            successes,
+            collisions: 10 - successes,
+            rollouts: 10,
+            mean_time_s,
+            min_clearance_m: 0.3,
+            near_misses: 0,
+        }
+    }
+
+    /// An edge is kept where both directions reach the threshold; its success is the worse
+    /// direction's and its time the mean over both directions' arrivals.
+    #[test]
+    fn an_edge_sums_up_both_directions_by_the_keep_rule() {
+        let report = EdgeReport {
+            edges: vec![
+                stat(0, 1, 10, Some(2.0)),
+                stat(1, 0, 9, Some(4.0)),
+                stat(1, 2, 10, Some(3.0)),
+                stat(2, 1, 8, None),
+                stat(2, 3, 10, Some(1.0)),
+            ],
+            params: EdgeRolloutParams {
+                keep_threshold: 0.9,
+                ..EdgeRolloutParams::default()
+            },
+            steps: 0,
+            handover_steps: 0,
+        };
+        let index = report.index();
+        let both = index.summary(1, 0);
+        assert_eq!(both.success, Some(0.9));
+        assert_eq!(both.kept, Some(true));
+        let mean = (2.0 * 10.0 + 4.0 * 9.0) / 19.0;
+        assert!((both.mean_time_s.unwrap() - mean).abs() < 1e-12);
+        let one_way = index.summary(1, 2);
+        assert_eq!(one_way.success, Some(0.8));
+        assert_eq!(one_way.kept, Some(false));
+        assert_eq!(one_way.mean_time_s, Some(3.0));
+        // Only one direction driven: not kept both ways.
+        assert_eq!(index.summary(3, 2).kept, Some(false));
+        assert_eq!(index.summary(0, 3).success, None);
+        assert_eq!(report.kept().count(), 4);
+        assert_eq!(report.dropped().count(), 1);
+    }
 }

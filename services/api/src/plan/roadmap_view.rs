@@ -3,7 +3,6 @@
 //! space, and, with a policy whose policy-aware roadmap is stored, each edge's measured success
 //! probability and time and whether the policy keeps it.
 
-use std::collections::HashMap;
 use std::sync::Arc;
 
 use axum::Json;
@@ -13,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::plan::{PlanErrorResponse, PlanRoutes};
-use planner::roadmaps::{StoredEdge, geometric_roadmap, nodes_fingerprint};
+use planner::roadmaps::{geometric_roadmap, nodes_fingerprint};
 
 /// Which roadmap.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -244,40 +243,21 @@ async fn roadmap_view(
             ),
             _ => None,
         };
-        let directions: HashMap<(usize, usize), &StoredEdge> = stored
-            .iter()
-            .flat_map(|s| s.edges.iter().map(|e| ((e.from, e.to), e)))
-            .collect();
-        let keep = rehearsal::EdgeRolloutParams::default().keep_threshold;
+        // The edges as the stored roadmap measured them, by the keep rule it was built with.
+        let report = stored.as_ref().map(|s| s.report());
+        let index = report.as_ref().map(rehearsal::EdgeReport::index);
         let nodes: Vec<[f64; 2]> = roadmap.nodes().map(|p| [p.x, p.y]).collect();
         let edges = roadmap
             .edges()
             .map(|(a, b)| {
-                let length_m = (nodes[a][0] - nodes[b][0]).hypot(nodes[a][1] - nodes[b][1]);
-                let measured: Vec<&StoredEdge> = [(a, b), (b, a)]
-                    .iter()
-                    .filter_map(|d| directions.get(d).copied())
-                    .collect();
-                let success = (!measured.is_empty()).then(|| {
-                    measured
-                        .iter()
-                        .map(|e| f64::from(e.successes) / f64::from(e.rollouts.max(1)))
-                        .fold(1.0, f64::min)
-                });
-                let (t, n) = measured
-                    .iter()
-                    .filter_map(|e| {
-                        e.mean_time_s
-                            .map(|t| (t * f64::from(e.successes), e.successes))
-                    })
-                    .fold((0.0, 0u32), |(t, n), (et, es)| (t + et, n + es));
+                let summary = index.as_ref().map(|i| i.summary(a, b));
                 EdgeView {
                     a,
                     b,
-                    length_m,
-                    success,
-                    mean_time_s: (n > 0).then(|| t / f64::from(n)),
-                    kept: success.map(|p| p >= keep - 1e-9 && measured.len() == 2),
+                    length_m: (nodes[a][0] - nodes[b][0]).hypot(nodes[a][1] - nodes[b][1]),
+                    success: summary.and_then(|s| s.success),
+                    mean_time_s: summary.and_then(|s| s.mean_time_s),
+                    kept: summary.and_then(|s| s.kept),
                 }
             })
             .collect();
