@@ -1,8 +1,9 @@
 //! The jobs and policies REST API: create, list, read and cancel jobs, stream a job's events
 //! (server-sent events, resumable with `Last-Event-ID`), list and download exported policies.
 //!
-//! Engineers create and cancel jobs; any valid token (robot or engineer) reads. Wire types live
-//! here and are converted from the queue's types.
+//! Engineers create and cancel jobs; any valid token (robot or engineer) reads. A new job is a
+//! [`jobs::JobRequest`] (its kind and typed payload) with how it is queued ([`NewJobRequest`]);
+//! a job is shown as a [`JobView`], converted from the queue's types.
 
 use std::convert::Infallible;
 use std::sync::Arc;

@@ -1,6 +1,6 @@
 //! `Accept` headers: media ranges with q-values and wildcards, and which of the media types a
 //! service offers a request takes. The SPARQL protocols (`knowledge`) and the plan endpoint
-//! (`worker`) negotiate through these.
+//! (`api`) negotiate through these.
 
 use crate::{ApiError, ErrorCode};
 
