@@ -62,7 +62,7 @@ const DIRECTION: &[(&str, &[&str])] = &[
             "wire",
         ],
     ),
-    ("fixtures", &["sim"]),
+    ("fixtures", &["queue", "sim"]),
     (
         "bench",
         &[

@@ -22,46 +22,29 @@ const LEASE: Duration = Duration::from_secs(30);
 /// Where each handler run stopped, and why.
 type Seen = Arc<Mutex<Vec<(Option<StopReason>, i64)>>>;
 
-macro_rules! backend {
-    ($backend:ident, $setup:path, [$($case:ident),* $(,)?]) => {
-        mod $backend {
-            $(
-                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-                async fn $case() {
-                    let Some(fixture) = $setup().await else { return };
-                    super::$case(fixture).await;
-                }
-            )*
-        }
-    };
-}
-
-macro_rules! conformance {
-    ($($case:ident),* $(,)?) => {
-        backend!(sqlite, crate::common::sqlite, [$($case),*]);
-        backend!(postgres, crate::common::postgres, [$($case),*]);
-    };
-}
-
-conformance!(
-    schema_is_migrated,
-    enqueue_claim_complete,
-    claim_order_and_delay,
-    stale_lease_writes_are_rejected,
-    expired_lease_is_reclaimed_as_an_attempt,
-    retries_back_off_exponentially_up_to_the_cap,
-    cancellation,
-    release_gives_the_attempt_back_and_keeps_the_checkpoint,
-    a_deferred_job_waits_the_first_backoff_without_using_an_attempt,
-    retention_deletes_old_finished_jobs_and_their_events,
-    events_are_ordered_and_resumable,
-    concurrent_claims_take_each_job_once,
-    workers_run_every_job_exactly_once,
-    runner_records_outcomes,
-    runner_cancel_request_stops_the_handler,
-    runner_shutdown_releases_and_another_worker_resumes,
-    runner_stops_a_handler_whose_lease_was_taken,
-    a_handler_that_lost_its_lease_cannot_install_files,
+fixtures::on_both_backends!(
+    crate::common::sqlite,
+    crate::common::postgres,
+    [
+        schema_is_migrated,
+        enqueue_claim_complete,
+        claim_order_and_delay,
+        stale_lease_writes_are_rejected,
+        expired_lease_is_reclaimed_as_an_attempt,
+        retries_back_off_exponentially_up_to_the_cap,
+        cancellation,
+        release_gives_the_attempt_back_and_keeps_the_checkpoint,
+        a_deferred_job_waits_the_first_backoff_without_using_an_attempt,
+        retention_deletes_old_finished_jobs_and_their_events,
+        events_are_ordered_and_resumable,
+        concurrent_claims_take_each_job_once,
+        workers_run_every_job_exactly_once,
+        runner_records_outcomes,
+        runner_cancel_request_stops_the_handler,
+        runner_shutdown_releases_and_another_worker_resumes,
+        runner_stops_a_handler_whose_lease_was_taken,
+        a_handler_that_lost_its_lease_cannot_install_files,
+    ]
 );
 
 fn is_lease_lost<T: std::fmt::Debug>(r: Result<T, QueueError>) -> bool {
@@ -612,16 +595,15 @@ fn fast_config(id: &str) -> WorkerConfig {
     }
 }
 
-async fn wait_until<F, Fut>(what: &str, mut check: F)
+/// Waits (a minute at most) until `check` holds, failing with `what`.
+async fn wait_until<F, Fut>(what: &str, check: F)
 where
     F: FnMut() -> Fut,
     Fut: Future<Output = bool>,
 {
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(60);
-    while !check().await {
-        assert!(tokio::time::Instant::now() < deadline, "timed out: {what}");
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
+    fixtures::wait::eventually(what, Duration::from_secs(60))
+        .until_async(check)
+        .await;
 }
 
 async fn finished(q: &Queue, n: u64) -> bool {

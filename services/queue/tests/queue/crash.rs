@@ -10,6 +10,7 @@
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
+use fixtures::job_database::FreshDatabase;
 use queue::{
     Checkpoint, JobContext, JobDatabase, JobState, NewJob, Queue, Worker, WorkerConfig, handler_fn,
 };
@@ -19,36 +20,19 @@ use uuid::Uuid;
 
 const TARGET: i64 = 80;
 
-macro_rules! backend {
-    ($backend:ident, $url:path) => {
-        mod $backend {
-            #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-            async fn sigkill_mid_job_resumes_from_the_last_checkpoint() {
-                let Some(url) = $url().await else { return };
-                super::sigkill_mid_job_resumes_from_the_last_checkpoint(url).await;
-            }
+fixtures::on_both_backends!(
+    crate::crash::fresh_sqlite,
+    fixtures::job_database::postgres,
+    [
+        sigkill_mid_job_resumes_from_the_last_checkpoint,
+        sigterm_releases_the_job_to_the_next_process,
+    ]
+);
 
-            #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-            async fn sigterm_releases_the_job_to_the_next_process() {
-                let Some(url) = $url().await else { return };
-                super::sigterm_releases_the_job_to_the_next_process(url).await;
-            }
-        }
-    };
+/// A fresh SQLite job database, as the backends' setups are: async, and `None` never.
+async fn fresh_sqlite() -> Option<FreshDatabase> {
+    Some(fixtures::job_database::sqlite())
 }
-
-async fn sqlite_url() -> Option<(String, Option<tempfile::TempDir>)> {
-    let dir = tempfile::tempdir().unwrap();
-    let url = format!("sqlite://{}", dir.path().join("jobs.sqlite").display());
-    Some((url, Some(dir)))
-}
-
-async fn postgres_url() -> Option<(String, Option<tempfile::TempDir>)> {
-    Some((crate::common::postgres_url().await?, None))
-}
-
-backend!(sqlite, super::sqlite_url);
-backend!(postgres, super::postgres_url);
 
 /// The worker process: runs until the job is finished or SIGTERM arrives.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -185,11 +169,10 @@ async fn finish_in_a_new_process(queue: &Queue, url: &str, id: Uuid) -> queue::J
     queue.get(id).await.unwrap().unwrap()
 }
 
-async fn sigkill_mid_job_resumes_from_the_last_checkpoint(
-    (url, _dir): (String, Option<tempfile::TempDir>),
-) {
-    let (queue, id) = enqueue(&url).await;
-    let mut first = spawn_child(&url, id);
+async fn sigkill_mid_job_resumes_from_the_last_checkpoint(fresh: FreshDatabase) {
+    let url = fresh.url.as_str();
+    let (queue, id) = enqueue(url).await;
+    let mut first = spawn_child(url, id);
     wait_for(&queue, id, "a checkpoint at step 20", &mut first, |j| {
         checkpoint_i(j) >= 20
     })
@@ -218,7 +201,7 @@ async fn sigkill_mid_job_resumes_from_the_last_checkpoint(
     // ...until it expires (here at once, as an operator would).
     assert!(queue.expire_lease(id).await.unwrap());
 
-    let job = finish_in_a_new_process(&queue, &url, id).await;
+    let job = finish_in_a_new_process(&queue, url, id).await;
     assert_eq!(job.state, JobState::Succeeded, "{job:?}");
     assert_eq!(job.attempt, 2, "the killed run counts as an attempt");
     let result = job.result.unwrap();
@@ -231,11 +214,10 @@ async fn sigkill_mid_job_resumes_from_the_last_checkpoint(
     assert_ne!(result["pid"], first.id());
 }
 
-async fn sigterm_releases_the_job_to_the_next_process(
-    (url, _dir): (String, Option<tempfile::TempDir>),
-) {
-    let (queue, id) = enqueue(&url).await;
-    let mut first = spawn_child(&url, id);
+async fn sigterm_releases_the_job_to_the_next_process(fresh: FreshDatabase) {
+    let url = fresh.url.as_str();
+    let (queue, id) = enqueue(url).await;
+    let mut first = spawn_child(url, id);
     wait_for(&queue, id, "progress past step 12", &mut first, |j| {
         j.progress
             .as_ref()
@@ -260,7 +242,7 @@ async fn sigterm_releases_the_job_to_the_next_process(
     );
     assert!(checkpoint >= 12);
 
-    let job = finish_in_a_new_process(&queue, &url, id).await;
+    let job = finish_in_a_new_process(&queue, url, id).await;
     assert_eq!((job.state, job.attempt), (JobState::Succeeded, 1));
     let result = job.result.unwrap();
     assert_eq!(result["sum"], TARGET * (TARGET + 1) / 2);

@@ -10,40 +10,23 @@ use std::time::Duration;
 use crate::common::{Fixture, START_MS, at, straight};
 use traffic::{Change, Itinerary, Removal, Schedule, TimedPose, TrafficError};
 
-macro_rules! backend {
-    ($backend:ident, $setup:path, [$($case:ident),* $(,)?]) => {
-        mod $backend {
-            $(
-                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-                async fn $case() {
-                    let Some(fixture) = $setup().await else { return };
-                    super::$case(fixture).await;
-                }
-            )*
-        }
-    };
-}
-
-macro_rules! conformance {
-    ($($case:ident),* $(,)?) => {
-        backend!(sqlite, crate::common::sqlite, [$($case),*]);
-        backend!(postgres, crate::common::postgres, [$($case),*]);
-    };
-}
-
-conformance!(
-    opening_again_migrates_nothing_and_the_queue_still_opens,
-    commit_then_snapshot,
-    a_stale_version_is_refused_and_nothing_changes,
-    a_robots_new_plan_replaces_its_previous_one_on_any_floor,
-    a_plan_id_of_another_robot_is_refused,
-    cancel_removes_the_itinerary_and_bumps_the_version,
-    progress_shifts_the_rest_of_the_schedule_by_the_delay,
-    progress_is_only_for_the_plans_own_robot,
-    expired_itineraries_leave_snapshots_and_are_purged,
-    bad_itineraries_are_refused_naming_what_is_wrong,
-    this_processs_changes_are_broadcast_in_order,
-    racing_commits_from_two_processes_elect_one_winner_per_version,
+fixtures::on_both_backends!(
+    crate::common::sqlite,
+    crate::common::postgres,
+    [
+        opening_again_migrates_nothing_and_the_queue_still_opens,
+        commit_then_snapshot,
+        a_stale_version_is_refused_and_nothing_changes,
+        a_robots_new_plan_replaces_its_previous_one_on_any_floor,
+        a_plan_id_of_another_robot_is_refused,
+        cancel_removes_the_itinerary_and_bumps_the_version,
+        progress_shifts_the_rest_of_the_schedule_by_the_delay,
+        progress_is_only_for_the_plans_own_robot,
+        expired_itineraries_leave_snapshots_and_are_purged,
+        bad_itineraries_are_refused_naming_what_is_wrong,
+        this_processs_changes_are_broadcast_in_order,
+        racing_commits_from_two_processes_elect_one_winner_per_version,
+    ]
 );
 
 async fn opening_again_migrates_nothing_and_the_queue_still_opens(f: Fixture) {

@@ -1,4 +1,5 @@
-//! Test fixtures: a fresh job database on each backend.
+//! Test fixtures: a fresh job database on each backend ([`fixtures::job_database`]), with a
+//! queue on its manual clock.
 //!
 //! PostgreSQL: one temporary cluster per test binary (started on first use, stopped by its
 //! watchdog when the binary exits), one fresh database per test. When the PostgreSQL binaries
@@ -6,35 +7,30 @@
 //! `MENTALSIM_REQUIRE_ALL=1` (which `scripts/test` sets) the PostgreSQL tests fail, as they do
 //! with the older `MENTALSIM_REQUIRE_POSTGRES=1`; in a clone of one's own they print why and
 //! return.
-#![allow(dead_code, clippy::unwrap_used)] // reason: shared by several modules, each using part; tests panic on failure
+#![allow(dead_code)] // reason: shared by several modules, each using part
 
-use std::sync::Arc;
+use fixtures::job_database::OpenedDatabase;
+pub use fixtures::job_database::START_MS;
+use queue::Queue;
 
-use queue::{JobDatabase, ManualClock, Queue};
-
-pub const START_MS: i64 = 1_700_000_000_000;
-
+/// A fresh job database (`db`, `url`, `clock`, through `Deref`) and a queue on it.
 pub struct Fixture {
-    pub db: JobDatabase,
-    pub url: String,
-    pub clock: Arc<ManualClock>,
+    opened: OpenedDatabase,
     /// A queue on the manual clock: time moves only by `clock.advance`.
     pub queue: Queue,
-    _fresh: Option<fixtures::job_database::FreshDatabase>,
+}
+
+impl std::ops::Deref for Fixture {
+    type Target = OpenedDatabase;
+    fn deref(&self) -> &OpenedDatabase {
+        &self.opened
+    }
 }
 
 impl Fixture {
-    async fn new(url: String, fresh: Option<fixtures::job_database::FreshDatabase>) -> Self {
-        let db = JobDatabase::connect(&url).await.unwrap();
-        let clock = Arc::new(ManualClock::new(START_MS));
-        let queue = Queue::new(db.clone()).with_clock(clock.clone());
-        Self {
-            db,
-            url,
-            clock,
-            queue,
-            _fresh: fresh,
-        }
+    fn new(opened: OpenedDatabase) -> Self {
+        let queue = Queue::new(opened.db.clone()).with_clock(opened.clock.clone());
+        Self { opened, queue }
     }
 
     /// A queue on the system clock, for tests that run real workers.
@@ -44,18 +40,11 @@ impl Fixture {
 }
 
 pub async fn sqlite() -> Option<Fixture> {
-    let fresh = fixtures::job_database::sqlite();
-    Some(Fixture::new(fresh.url.clone(), Some(fresh)).await)
-}
-
-/// A fresh database in the shared temporary cluster, or `None` (the test returns) when
-/// PostgreSQL is missing and [`fixtures::missing`] lets the test skip.
-pub async fn postgres_url() -> Option<String> {
-    let fresh = fixtures::job_database::postgres().await?;
-    Some(fresh.url)
+    Some(Fixture::new(fixtures::job_database::opened_sqlite().await?))
 }
 
 pub async fn postgres() -> Option<Fixture> {
-    let fresh = fixtures::job_database::postgres().await?;
-    Some(Fixture::new(fresh.url.clone(), Some(fresh)).await)
+    Some(Fixture::new(
+        fixtures::job_database::opened_postgres().await?,
+    ))
 }

@@ -1,4 +1,5 @@
-//! Test fixtures: a fresh job database with the schedule on each backend, and itineraries.
+//! Test fixtures: a fresh job database on each backend ([`fixtures::job_database`]) with the
+//! schedule on its manual clock, and itineraries.
 //!
 //! PostgreSQL: one temporary cluster per test binary (started on first use, stopped by its
 //! watchdog when the binary exits), one fresh database per test. When the PostgreSQL binaries
@@ -7,34 +8,32 @@
 //! `MENTALSIM_REQUIRE_POSTGRES=1`; in a clone of one's own they print why and return.
 #![allow(dead_code, clippy::unwrap_used)] // reason: shared by several modules, each using part; tests panic on failure
 
-use std::sync::Arc;
-
-use queue::{JobDatabase, ManualClock};
+use fixtures::job_database::OpenedDatabase;
+pub use fixtures::job_database::START_MS;
+use queue::JobDatabase;
 use traffic::{Itinerary, Schedule, TimedPose};
 
-pub const START_MS: i64 = 1_700_000_000_000;
-
+/// A fresh job database (`db`, `url`, `clock`, through `Deref`) and the schedule in it.
 pub struct Fixture {
-    pub db: JobDatabase,
-    pub url: String,
-    pub clock: Arc<ManualClock>,
+    opened: OpenedDatabase,
     /// The schedule on the manual clock: time moves only by `clock.advance` or `clock.set`.
     pub schedule: Schedule,
-    _fresh: Option<fixtures::job_database::FreshDatabase>,
+}
+
+impl std::ops::Deref for Fixture {
+    type Target = OpenedDatabase;
+    fn deref(&self) -> &OpenedDatabase {
+        &self.opened
+    }
 }
 
 impl Fixture {
-    async fn new(url: String, fresh: Option<fixtures::job_database::FreshDatabase>) -> Self {
-        let db = JobDatabase::connect(&url).await.unwrap();
-        let clock = Arc::new(ManualClock::new(START_MS));
-        let schedule = Schedule::open(&db).await.unwrap().with_clock(clock.clone());
-        Self {
-            db,
-            url,
-            clock,
-            schedule,
-            _fresh: fresh,
-        }
+    async fn new(opened: OpenedDatabase) -> Self {
+        let schedule = Schedule::open(&opened.db)
+            .await
+            .unwrap()
+            .with_clock(opened.clock.clone());
+        Self { opened, schedule }
     }
 
     /// Another handle on the same database through a pool of its own, as another process
@@ -49,20 +48,11 @@ impl Fixture {
 }
 
 pub async fn sqlite() -> Option<Fixture> {
-    let fresh = fixtures::job_database::sqlite();
-    Some(Fixture::new(fresh.url.clone(), Some(fresh)).await)
-}
-
-/// A fresh database in the shared temporary cluster, or `None` (the test returns) when
-/// PostgreSQL is missing and [`fixtures::missing`] lets the test skip.
-pub async fn postgres_url() -> Option<String> {
-    let fresh = fixtures::job_database::postgres().await?;
-    Some(fresh.url)
+    Some(Fixture::new(fixtures::job_database::opened_sqlite().await?).await)
 }
 
 pub async fn postgres() -> Option<Fixture> {
-    let fresh = fixtures::job_database::postgres().await?;
-    Some(Fixture::new(fresh.url.clone(), Some(fresh)).await)
+    Some(Fixture::new(fixtures::job_database::opened_postgres().await?).await)
 }
 
 /// Milliseconds `seconds` after `START_MS`.
