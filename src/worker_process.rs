@@ -161,7 +161,7 @@ async fn readyz(State(shared): State<Arc<Shared>>) -> Response {
     let jobs = health::job_database(shared.queue.get().await.map(Queue::database)).await;
     let knowledge = match shared.knowledge.ready().await {
         Ok(()) => Check::pass(),
-        Err((summary, reason)) => Check::fail_as(summary, reason),
+        Err(e) => Check::fail_as(e.summary, e.reason),
     }
     .with(Detail::Url(shared.knowledge.base().to_owned()));
     let mut readiness = Readiness::default()

@@ -133,6 +133,23 @@ impl std::fmt::Debug for HttpKnowledge {
     }
 }
 
+/// Why the knowledge service is not ready for a worker: a summary naming no URL or credential
+/// (what probes see), and the full reason (what the log has).
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{summary}: {reason}")]
+pub struct NotReady {
+    /// The summary.
+    pub summary: &'static str,
+    /// The full reason.
+    pub reason: String,
+}
+
+impl NotReady {
+    fn new(summary: &'static str, reason: String) -> Self {
+        Self { summary, reason }
+    }
+}
+
 impl HttpKnowledge {
     /// A client of the service at `base` (`http://host:port`), sending `token` as bearer.
     pub fn new(base: &str, token: Option<String>) -> Result<Self, reqwest::Error> {
@@ -156,25 +173,25 @@ impl HttpKnowledge {
     /// `GET {base}/readyz` answers 200, and the service accepts this worker's token (a
     /// worker without one would claim jobs only to fail each with a 401). The error is a
     /// summary naming no URL or credential, and the full reason.
-    pub async fn ready(&self) -> Result<(), (&'static str, String)> {
+    pub async fn ready(&self) -> Result<(), NotReady> {
         let url = format!("{}/readyz", self.base);
         match self.client.get(&url).send().await {
             Ok(r) if r.status().is_success() => {}
             Ok(r) => {
-                return Err((
+                return Err(NotReady::new(
                     "the knowledge service is not ready",
                     format!("{url} answered {}", r.status()),
                 ));
             }
             Err(e) => {
-                return Err((
+                return Err(NotReady::new(
                     "the knowledge service cannot be reached",
                     format!("cannot reach {url}: {e}"),
                 ));
             }
         }
         let Some(token) = &self.token else {
-            return Err((
+            return Err(NotReady::new(
                 "no knowledge token configured",
                 "no token for the knowledge service: set knowledge_token or knowledge_token_file"
                     .to_owned(),
@@ -184,15 +201,15 @@ impl HttpKnowledge {
         let url = format!("{}/sparql", self.base);
         match self.client.get(&url).bearer_auth(token).send().await {
             Ok(r) if r.status().is_success() => Ok(()),
-            Ok(r) if r.status() == reqwest::StatusCode::UNAUTHORIZED => Err((
+            Ok(r) if r.status() == reqwest::StatusCode::UNAUTHORIZED => Err(NotReady::new(
                 "the knowledge service rejects the worker's token",
                 format!("{url} answered 401 to the configured knowledge token"),
             )),
-            Ok(r) => Err((
+            Ok(r) => Err(NotReady::new(
                 "the knowledge service is not ready",
                 format!("{url} answered {}", r.status()),
             )),
-            Err(e) => Err((
+            Err(e) => Err(NotReady::new(
                 "the knowledge service cannot be reached",
                 format!("cannot reach {url}: {e}"),
             )),
