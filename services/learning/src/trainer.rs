@@ -4,20 +4,20 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::Instant;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, EnvError, NavEnv, Outcome, World};
 
 use crate::config::TrainConfig;
 use crate::evaluation::{BatchActor, EvalReport, Mission, evaluate_shielded, mission_set};
-use crate::observation::{ACTION_DIM, Scaling};
+use crate::observation::Scaling;
 use crate::policy::{PolicyError, PolicyMetadata, write_atomic, write_policy};
-use crate::replay::{Batch, ReplayBuffer};
+use crate::replay::ReplayBuffer;
 use crate::td3::{Learner, LearnerError};
+
+mod session;
 
 /// Name of the checkpoint directory inside a run's output directory.
 pub const CHECKPOINT_DIR: &str = "checkpoint";
@@ -630,209 +630,6 @@ impl Trainer {
             fraction_done: fraction,
             checkpoints_written: self.checkpoints_written,
         }
-    }
-
-    /// Trains until the budget is spent or `on_progress` (called a few times a second) returns
-    /// false. Checkpoints every `checkpoint_every_s` seconds and when it returns.
-    pub fn run(
-        &mut self,
-        budget: Budget,
-        on_progress: &mut dyn FnMut(&Progress) -> bool,
-    ) -> Result<(), TrainError> {
-        let session_start = Instant::now();
-        let wall_before = self.counters.wall_s;
-        let mut last_report = Instant::now();
-        let mut last_checkpoint = Instant::now();
-        let c = self.options.config.clone();
-        let dim = self.options.scaling.input_len();
-        let n = self.envs.len();
-        let mut actions = vec![0.0f32; n * ACTION_DIM];
-        let mut next = vec![0.0f32; dim];
-        let mut experts = vec![0.0f32; n * ACTION_DIM];
-        let follower = sim::FollowerParams::default();
-        let rpp_base = self
-            .learner
-            .residual()
-            .filter(|r| matches!(r, crate::observation::Residual::Rpp(_)));
-        let mut batch = Batch::default();
-        loop {
-            self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
-            let spent = budget.wall_s.is_some_and(|w| self.counters.wall_s >= w)
-                || budget
-                    .env_steps
-                    .is_some_and(|s| self.counters.env_steps >= s);
-            if spent {
-                break;
-            }
-            if last_report.elapsed().as_secs_f64() >= 0.25 {
-                last_report = Instant::now();
-                if !on_progress(&self.progress(&budget)) {
-                    break;
-                }
-            }
-            // The demonstrator's action in every environment's state (labels for the
-            // behaviour-cloning term): the classical follower on the straight segment to the
-            // goal, or a Regulated Pure Pursuit base's command, so that the warm start begins
-            // where the residual actor's base is.
-            for (i, (e, env)) in experts
-                .chunks_exact_mut(ACTION_DIM)
-                .zip(&self.envs)
-                .enumerate()
-            {
-                e.copy_from_slice(&match &rpp_base {
-                    Some(r) => r.output(&self.options.scaling, &self.inputs[i * dim..][..dim]),
-                    None => self.options.scaling.output_of(env.demonstration(&follower)),
-                });
-            }
-            let demonstrating = self.counters.env_steps < c.demo_steps;
-            // Algorithm 1, line 4: act (the noisy demonstrator first, when configured, then
-            // uniformly at random while the buffer warms up, then the actor with noise).
-            if demonstrating {
-                #[allow(clippy::cast_possible_truncation, reason = "noise is f32")]
-                for (k, (a, e)) in actions.iter_mut().zip(&experts).enumerate() {
-                    let z: f64 = self.rng.sample(StandardNormal);
-                    let v = e + (z * c.demo_noise) as f32;
-                    *a = if k % 2 == 0 {
-                        v.clamp(0.0, 1.0)
-                    } else {
-                        v.clamp(-1.0, 1.0)
-                    };
-                }
-            } else if self.counters.env_steps < c.demo_steps + c.random_steps {
-                for a in actions.chunks_exact_mut(ACTION_DIM) {
-                    a[0] = self.rng.random::<f32>();
-                    a[1] = self.rng.random::<f32>() * 2.0 - 1.0;
-                }
-            } else {
-                let mut out = Vec::with_capacity(n * ACTION_DIM);
-                self.learner.act(&self.inputs, n, &mut out);
-                #[allow(clippy::cast_possible_truncation, reason = "noise is f32")]
-                for (k, (a, y)) in actions.iter_mut().zip(&out).enumerate() {
-                    let z: f64 = self.rng.sample(StandardNormal);
-                    let v = y + (z * c.td3.exploration_noise) as f32;
-                    *a = if k % 2 == 0 {
-                        v.clamp(0.0, 1.0)
-                    } else {
-                        v.clamp(-1.0, 1.0)
-                    };
-                }
-            }
-            // Lines 5–7: step, store, reset finished episodes.
-            for i in 0..n {
-                let a = [actions[i * 2], actions[i * 2 + 1]];
-                let mut command = self.options.scaling.command(a);
-                if let Some(shield) = &self.shield {
-                    let seen = self
-                        .options
-                        .scaling
-                        .decode(&self.inputs[i * dim..(i + 1) * dim]);
-                    let angular_max = f64::from(self.options.scaling.angular_max);
-                    command = shield.filter(command, &seen, angular_max);
-                }
-                let r = self.envs[i].step(command);
-                self.options.scaling.encode_into(&r.observation, &mut next);
-                let terminal = matches!(r.info.outcome, Outcome::ReachedGoal | Outcome::Collision);
-                #[allow(
-                    clippy::cast_possible_truncation,
-                    reason = "rewards are f32 in the buffer"
-                )]
-                self.buffer.push(
-                    &self.inputs[i * dim..(i + 1) * dim],
-                    a,
-                    [experts[i * 2], experts[i * 2 + 1]],
-                    (r.reward * c.td3.reward_scale) as f32,
-                    &next,
-                    terminal,
-                );
-                self.returns[i] += r.reward;
-                self.counters.env_steps += 1;
-                if r.done {
-                    self.counters.episodes += 1;
-                    self.episodes.push(EpisodeRecord {
-                        episode: self.counters.episodes,
-                        env_steps: self.counters.env_steps,
-                        wall_s: wall_before + session_start.elapsed().as_secs_f64(),
-                        reward: self.returns[i],
-                        outcome: outcome_name(r.info.outcome).into(),
-                        steps: r.info.steps,
-                    });
-                    self.returns[i] = 0.0;
-                    self.advance_curriculum()?;
-                    let chain = r.info.outcome == Outcome::ReachedGoal
-                        && self.rng.random::<f64>() < c.chain_goals;
-                    let obs = if chain {
-                        self.envs[i].continue_random()?
-                    } else {
-                        self.move_env(i)?;
-                        self.envs[i].reset_random()?
-                    };
-                    self.options
-                        .scaling
-                        .encode_into(&obs, &mut self.inputs[i * dim..(i + 1) * dim]);
-                } else {
-                    self.inputs[i * dim..(i + 1) * dim].copy_from_slice(&next);
-                }
-            }
-            if demonstrating {
-                // No gradient steps while demonstrating: the demonstrations are data for the
-                // warm start, gathered at the simulator's speed.
-                continue;
-            }
-            if !self.counters.warm_started && c.demo_steps > 0 && c.bc_steps > 0 {
-                self.warm_start(&mut batch);
-            }
-            // Lines 8–17: gradient steps.
-            if self.buffer.len() >= c.td3.batch_size {
-                {
-                    self.counters.update_debt += n as f64 * c.updates_per_step;
-                }
-                while self.counters.update_debt >= 1.0 {
-                    self.buffer
-                        .sample_into(&mut self.rng, c.td3.batch_size, &mut batch);
-                    if self.counters.grad_steps < c.critic_warmup_steps
-                        && self.counters.warm_started
-                    {
-                        let _ = self.learner.critic_update(&batch, &mut self.rng);
-                    } else {
-                        let _ = self.learner.update(&batch, &mut self.rng);
-                    }
-                    self.counters.grad_steps += 1;
-                    self.counters.update_debt -= 1.0;
-                }
-            }
-            if self.counters.env_steps >= self.counters.next_eval {
-                self.counters.next_eval += c.eval_every;
-                self.evaluate_and_record(wall_before + session_start.elapsed().as_secs_f64())?;
-            }
-            if c.checkpoint_every_s > 0.0
-                && last_checkpoint.elapsed().as_secs_f64() >= c.checkpoint_every_s
-            {
-                self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
-                self.checkpoint()?;
-                last_checkpoint = Instant::now();
-            }
-        }
-        self.counters.wall_s = wall_before + session_start.elapsed().as_secs_f64();
-        self.checkpoint()?;
-        let _ = on_progress(&self.progress(&budget));
-        Ok(())
-    }
-
-    /// The warm start: `bc_steps` behaviour-cloning steps of the actor on the buffer (the
-    /// demonstrations so far), then the targets copied from the networks.
-    fn warm_start(&mut self, batch: &mut Batch) {
-        let c = &self.options.config;
-        let mut loss = None;
-        if self.buffer.len() >= c.td3.batch_size {
-            for _ in 0..c.bc_steps {
-                self.buffer
-                    .sample_into(&mut self.rng, c.td3.batch_size, batch);
-                loss = Some(self.learner.clone_step(batch));
-            }
-            self.learner.sync_targets();
-        }
-        self.counters.bc_loss = loss;
-        self.counters.warm_started = true;
     }
 
     /// With more training worlds than environments, moves environment `i` to a world drawn at
