@@ -630,86 +630,89 @@ impl Crowd {
         // Preferred velocities, and plans moved on by arrivals.
         let mut preferred = Vec::with_capacity(self.people.len());
         for i in 0..self.people.len() {
-            let mut p = self.people[i].clone();
-            if p.dwell > 0.0 {
-                p.dwell -= dt;
-                if p.dwell <= 0.0 {
-                    p.plan = self.next_plan(&t, p.plan);
-                }
-                preferred.push((0.0, 0.0));
-                self.people[i] = p;
-                continue;
-            }
-            let Some(mut target) = Crowd::target_of(&t, p.plan) else {
-                preferred.push((0.0, 0.0));
-                continue;
-            };
-            let goal = t.points[target];
-            let stuck = p.stuck > STUCK_S;
-            if norm(goal.0 - p.position.0, goal.1 - p.position.1) < ARRIVAL_M || stuck {
-                if let (Plan::Attractor { attractor }, false) = (p.plan, stuck) {
-                    p.dwell = t.attractors[attractor].1;
-                }
-                p.stuck = 0.0;
-                if stuck {
-                    p.plan = self.turn_back(world, &t, p.plan, p.position, target);
-                } else if p.dwell <= 0.0 {
-                    p.plan = self.next_plan(&t, p.plan);
-                }
-                match Crowd::target_of(&t, p.plan) {
-                    Some(next) if p.dwell <= 0.0 => target = next,
-                    _ => {
-                        preferred.push((0.0, 0.0));
-                        self.people[i] = p;
-                        continue;
-                    }
-                }
-            }
-            let goal = t.points[target];
-            let ahead = t
-                .field(world, target)
-                .lookahead_quick(p.position.0, p.position.1)
-                .unwrap_or(goal);
-            let (dx, dy) = (ahead.0 - p.position.0, ahead.1 - p.position.1);
-            let d = norm(dx, dy);
-            let left = norm(goal.0 - p.position.0, goal.1 - p.position.1);
-            // Slow down over the last metre, as people do.
-            let speed = p.speed * left.clamp(0.3, 1.0);
-            preferred.push(if d > 1e-9 {
-                // Keep right, a little: two people walking the same line head-on would
-                // otherwise meet exactly, where ORCA has no side to prefer and both stop.
-                let (s, c) = (-KEEP_RIGHT_RAD).sin_cos();
-                let (ux, uy) = (dx / d, dy / d);
-                ((c * ux - s * uy) * speed, (s * ux + c * uy) * speed)
-            } else {
-                (0.0, 0.0)
-            });
-            self.people[i] = p;
+            preferred.push(self.preferred_velocity(world, &t, i, dt));
         }
-        // Avoidance, all from the same state.
+        let velocities = self.avoiding_velocities(robot, &preferred, dt);
+        // Move, sliding along walls.
+        for (p, v) in self.people.iter_mut().zip(velocities) {
+            walk(world, robot, p, v, dt);
+        }
+    }
+
+    /// Person `i`'s preferred velocity this step: towards their target along its path field,
+    /// slowing over the last metre, or none while they linger. Moves their plan on when they
+    /// arrive, finish lingering or are stuck.
+    fn preferred_velocity(&mut self, world: &World, t: &Targets, i: usize, dt: f64) -> (f64, f64) {
+        let mut p = self.people[i].clone();
+        if p.dwell > 0.0 {
+            p.dwell -= dt;
+            if p.dwell <= 0.0 {
+                p.plan = self.next_plan(t, p.plan);
+            }
+            self.people[i] = p;
+            return (0.0, 0.0);
+        }
+        let Some(mut target) = Crowd::target_of(t, p.plan) else {
+            return (0.0, 0.0);
+        };
+        let goal = t.points[target];
+        let stuck = p.stuck > STUCK_S;
+        if norm(goal.0 - p.position.0, goal.1 - p.position.1) < ARRIVAL_M || stuck {
+            if let (Plan::Attractor { attractor }, false) = (p.plan, stuck) {
+                p.dwell = t.attractors[attractor].1;
+            }
+            p.stuck = 0.0;
+            if stuck {
+                p.plan = self.turn_back(world, t, p.plan, p.position, target);
+            } else if p.dwell <= 0.0 {
+                p.plan = self.next_plan(t, p.plan);
+            }
+            match Crowd::target_of(t, p.plan) {
+                Some(next) if p.dwell <= 0.0 => target = next,
+                _ => {
+                    self.people[i] = p;
+                    return (0.0, 0.0);
+                }
+            }
+        }
+        let goal = t.points[target];
+        let ahead = t
+            .field(world, target)
+            .lookahead_quick(p.position.0, p.position.1)
+            .unwrap_or(goal);
+        let (dx, dy) = (ahead.0 - p.position.0, ahead.1 - p.position.1);
+        let d = norm(dx, dy);
+        let left = norm(goal.0 - p.position.0, goal.1 - p.position.1);
+        // Slow down over the last metre, as people do.
+        let speed = p.speed * left.clamp(0.3, 1.0);
+        let velocity = if d > 1e-9 {
+            // Keep right, a little: two people walking the same line head-on would
+            // otherwise meet exactly, where ORCA has no side to prefer and both stop.
+            let (s, c) = (-KEEP_RIGHT_RAD).sin_cos();
+            let (ux, uy) = (dx / d, dy / d);
+            ((c * ux - s * uy) * speed, (s * ux + c * uy) * speed)
+        } else {
+            (0.0, 0.0)
+        };
+        self.people[i] = p;
+        velocity
+    }
+
+    /// Everyone's velocity this step: ORCA's answer to their `preferred` velocities among the
+    /// people within [`NEIGHBOUR_M`] and the robot, all from the same state.
+    fn avoiding_velocities(
+        &self,
+        robot: RobotDisc,
+        preferred: &[(f64, f64)],
+        dt: f64,
+    ) -> Vec<(f64, f64)> {
         let cfg = &self.config;
         let options = AvoidanceOptions {
             obstacle_margin: 0.0,
             time_horizon: f32_of(cfg.time_horizon),
             obstacle_time_horizon: f32_of(cfg.time_horizon),
         };
-        // A person takes `yield` of the avoidance with a moving robot (responsibility
-        // p / (p + r)), and all of it with one standing still, which takes none; people keep
-        // their personal space from it.
-        let standing = robot.velocity.0.hypot(robot.velocity.1) < ROBOT_STANDING_MS;
-        let robot_share = if cfg.yield_to_robot <= 0.0 {
-            f32::MAX
-        } else if standing {
-            0.0
-        } else {
-            f32_of((1.0 - cfg.yield_to_robot) / cfg.yield_to_robot)
-        };
-        let robot_agent = Agent {
-            position: vec2(robot.position),
-            velocity: vec2(robot.velocity),
-            radius: f32_of(robot.radius + PERSONAL_SPACE_M),
-            avoidance_responsibility: robot_share.max(1e-6),
-        };
+        let robot_agent = self.robot_agent(robot);
         let agents: Vec<Agent> = self
             .people
             .iter()
@@ -724,7 +727,7 @@ impl Crowd {
         let mut neighbours: Vec<Cow<'_, Agent>> = Vec::new();
         // Positions side by side: the search below reads every one for every person.
         let positions: Vec<(f64, f64)> = self.people.iter().map(|p| p.position).collect();
-        for (i, (p, pref)) in self.people.iter().zip(&preferred).enumerate() {
+        for (i, (p, pref)) in self.people.iter().zip(preferred).enumerate() {
             neighbours.clear();
             let near = |q: (f64, f64)| {
                 let (dx, dy) = (q.0 - p.position.0, q.1 - p.position.1);
@@ -758,40 +761,27 @@ impl Crowd {
                 (0.0, 0.0)
             });
         }
-        // Move, sliding along walls.
-        for (p, v) in self.people.iter_mut().zip(velocities) {
-            let from = p.position;
-            let candidates = [
-                (from.0 + v.0 * dt, from.1 + v.1 * dt),
-                (from.0 + v.0 * dt, from.1),
-                (from.0, from.1 + v.1 * dt),
-            ];
-            let step = norm(v.0, v.1) * dt;
-            let (to, room) = if p.room - step - ROOM_SLACK_M >= p.radius {
-                (candidates[0], p.room - step)
-            } else {
-                // A slide along a wall is not the velocity ORCA chose: it may not take the
-                // person nearer the robot once within its personal space.
-                let gap = |q: (f64, f64)| {
-                    norm(q.0 - robot.position.0, q.1 - robot.position.1) - robot.radius - p.radius
-                };
-                let keep = gap(from).min(PERSONAL_SPACE_M);
-                candidates
-                    .into_iter()
-                    .enumerate()
-                    .map(|(k, c)| (k, c, wall_room(world, c)))
-                    .find(|(k, c, room)| *room >= p.radius && (*k == 0 || gap(*c) >= keep))
-                    .map_or((from, p.room), |(_, c, room)| (c, room))
-            };
-            p.room = room;
-            p.velocity = ((to.0 - from.0) / dt, (to.1 - from.1) / dt);
-            let moved = norm(to.0 - from.0, to.1 - from.1);
-            if p.dwell <= 0.0 && moved < HEADWAY_SHARE * p.speed * dt {
-                p.stuck += dt;
-            } else {
-                p.stuck = 0.0;
-            }
-            p.position = to;
+        velocities
+    }
+
+    /// The robot as an ORCA agent, its disc grown by people's personal space. A person takes
+    /// `yield` of the avoidance with a moving robot (responsibility p / (p + r)), and all of it
+    /// with one standing still, which takes none.
+    fn robot_agent(&self, robot: RobotDisc) -> Agent {
+        let cfg = &self.config;
+        let standing = robot.velocity.0.hypot(robot.velocity.1) < ROBOT_STANDING_MS;
+        let robot_share = if cfg.yield_to_robot <= 0.0 {
+            f32::MAX
+        } else if standing {
+            0.0
+        } else {
+            f32_of((1.0 - cfg.yield_to_robot) / cfg.yield_to_robot)
+        };
+        Agent {
+            position: vec2(robot.position),
+            velocity: vec2(robot.velocity),
+            radius: f32_of(robot.radius + PERSONAL_SPACE_M),
+            avoidance_responsibility: robot_share.max(1e-6),
         }
     }
 
@@ -852,6 +842,44 @@ pub(crate) fn ray_circle(o: (f64, f64), d: (f64, f64), c: (f64, f64), r: f64) ->
     }
     let disc = b * b - cc;
     (disc >= 0.0).then(|| -b - disc.sqrt())
+}
+
+/// Moves person `p` on by `dt` seconds at velocity `v`, sliding along a wall it would come too
+/// close to (but not, within the robot's personal space, nearer the robot), and counts the time
+/// they have been held back.
+fn walk(world: &World, robot: RobotDisc, p: &mut Person, v: (f64, f64), dt: f64) {
+    let from = p.position;
+    let candidates = [
+        (from.0 + v.0 * dt, from.1 + v.1 * dt),
+        (from.0 + v.0 * dt, from.1),
+        (from.0, from.1 + v.1 * dt),
+    ];
+    let step = norm(v.0, v.1) * dt;
+    let (to, room) = if p.room - step - ROOM_SLACK_M >= p.radius {
+        (candidates[0], p.room - step)
+    } else {
+        // A slide along a wall is not the velocity ORCA chose: it may not take the
+        // person nearer the robot once within its personal space.
+        let gap = |q: (f64, f64)| {
+            norm(q.0 - robot.position.0, q.1 - robot.position.1) - robot.radius - p.radius
+        };
+        let keep = gap(from).min(PERSONAL_SPACE_M);
+        candidates
+            .into_iter()
+            .enumerate()
+            .map(|(k, c)| (k, c, wall_room(world, c)))
+            .find(|(k, c, room)| *room >= p.radius && (*k == 0 || gap(*c) >= keep))
+            .map_or((from, p.room), |(_, c, room)| (c, room))
+    };
+    p.room = room;
+    p.velocity = ((to.0 - from.0) / dt, (to.1 - from.1) / dt);
+    let moved = norm(to.0 - from.0, to.1 - from.1);
+    if p.dwell <= 0.0 && moved < HEADWAY_SHARE * p.speed * dt {
+        p.stuck += dt;
+    } else {
+        p.stuck = 0.0;
+    }
+    p.position = to;
 }
 
 /// Room around a point to walls and objects, metres (the robot's footprint clearance plus its

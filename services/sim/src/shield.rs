@@ -77,14 +77,17 @@ struct Scratch {
     points: Vec<Option<(f64, f64)>>,
     unknown: Vec<bool>,
     clusters: Vec<(usize, usize)>,
-    previous: Vec<((f64, f64), (f64, f64))>,
+    previous: Vec<Mover>,
 }
+
+/// A small thing a scan saw: its centroid and velocity, in that scan's robot frame.
+type Mover = ((f64, f64), (f64, f64));
 
 /// Things the laser sees move, from consecutive scans.
 #[derive(Clone, Debug, Default)]
 struct Motion {
     /// The last scan's small clusters: centroid and velocity in that scan's robot frame.
-    last: Vec<((f64, f64), (f64, f64))>,
+    last: Vec<Mover>,
     /// Velocity of each of the current scan's returns (beam order, returns only), robot frame.
     velocities: Vec<(f64, f64)>,
     /// Whether each of the current scan's returns is something the map does not know (all
@@ -100,6 +103,105 @@ struct Return {
     /// Something the map does not know: kept [`PERSON_MARGIN_M`] from, and, when it moves,
     /// avoided anywhere between where it is and where it would be (a walker may stop).
     unknown: bool,
+}
+
+/// The robot's motion since the last scan, from odometry: what turns the last scan's frame into
+/// this one's.
+struct EgoMotion {
+    /// Where the robot is now in the last scan's frame.
+    mx: f64,
+    my: f64,
+    /// Sine and cosine of minus its turn.
+    s: f64,
+    c: f64,
+}
+
+impl EgoMotion {
+    /// The motion over `dt` seconds at the velocity `obs` reports.
+    fn of(obs: &Observation, dt: f64) -> Self {
+        let (v, w) = (f64::from(obs.velocity[0]), f64::from(obs.velocity[1]));
+        let dtheta = w * dt;
+        let (mx, my) = (v * dt * (dtheta / 2.0).cos(), v * dt * (dtheta / 2.0).sin());
+        let (s, c) = (-dtheta).sin_cos();
+        Self { mx, my, s, c }
+    }
+
+    /// A point of the last scan's frame in this one's.
+    fn to_now(&self, p: (f64, f64)) -> (f64, f64) {
+        let (x, y) = (p.0 - self.mx, p.1 - self.my);
+        (self.c * x - self.s * y, self.s * x + self.c * y)
+    }
+
+    /// A direction of the last scan's frame in this one's.
+    fn rotate(&self, u: (f64, f64)) -> (f64, f64) {
+        (self.c * u.0 - self.s * u.1, self.s * u.0 + self.c * u.1)
+    }
+}
+
+/// Which returns the map does not explain (all `false` without a map).
+fn unknown_into(
+    points: &[Option<(f64, f64)>],
+    map: Option<(Pose2, &World)>,
+    unknown: &mut Vec<bool>,
+) {
+    unknown.clear();
+    match map {
+        Some((pose, world)) => {
+            let (sy, cy) = pose.yaw.sin_cos();
+            unknown.extend(points.iter().map(|p| {
+                p.is_some_and(|(x, y)| {
+                    let (wx, wy) = (pose.x + cy * x - sy * y, pose.y + sy * x + cy * y);
+                    !world.knows_within(wx, wy, UNKNOWN_M)
+                })
+            }));
+        }
+        None => unknown.resize(points.len(), false),
+    }
+}
+
+/// The returns of the cluster of `len` beams from `start` (all present: a missing one ends a
+/// cluster).
+fn members(
+    points: &[Option<(f64, f64)>],
+    start: usize,
+    len: usize,
+) -> impl Iterator<Item = &(f64, f64)> {
+    points[start..start + len].iter().flatten()
+}
+
+/// The centroid of a cluster's returns.
+fn centroid(points: &[Option<(f64, f64)>], start: usize, len: usize) -> (f64, f64) {
+    let n = len as f64;
+    (
+        members(points, start, len).map(|p| p.0).sum::<f64>() / n,
+        members(points, start, len).map(|p| p.1).sum::<f64>() / n,
+    )
+}
+
+/// The smoothed velocity of a small thing at `centroid`, from the nearest of the last scan's
+/// (`previous`: centroid and velocity, in this scan's frame) when it is near enough to be the
+/// same thing, capped at [`MOVER_MAX_SPEED`]; else standing.
+fn matched_velocity(previous: &[Mover], centroid: (f64, f64), dt: f64) -> (f64, f64) {
+    let mut velocity = (0.0, 0.0);
+    let nearest = previous.iter().min_by(|a, b| {
+        let d = |q: &(f64, f64)| crate::norm(q.0 - centroid.0, q.1 - centroid.1);
+        d(&a.0).total_cmp(&d(&b.0))
+    });
+    if let Some((q, u)) = nearest
+        && crate::norm(q.0 - centroid.0, q.1 - centroid.1) <= MOVER_MAX_STEP_M
+    {
+        let raw = ((centroid.0 - q.0) / dt, (centroid.1 - q.1) / dt);
+        let k = MOVER_SMOOTHING;
+        velocity = (k * raw.0 + (1.0 - k) * u.0, k * raw.1 + (1.0 - k) * u.1);
+        let speed = crate::norm(velocity.0, velocity.1);
+        if speed > MOVER_MAX_SPEED {
+            velocity = (
+                velocity.0 * MOVER_MAX_SPEED / speed,
+                velocity.1 * MOVER_MAX_SPEED / speed,
+            );
+        }
+    }
+    velocity
 }
 
 impl Shield {
@@ -149,80 +251,10 @@ impl Shield {
             mut clusters,
             mut previous,
         } = std::mem::take(&mut self.scratch);
-        points.clear();
-        points.extend(obs.ranges.iter().zip(&self.dirs).map(|(r, (c, s))| {
-            let r = f64::from(*r);
-            (r < self.range_max - 1e-3).then(|| (self.origin.0 + r * c, self.origin.1 + r * s))
-        }));
-        // Which returns the map does not explain.
-        unknown.clear();
-        match map {
-            Some((pose, world)) => {
-                let (sy, cy) = pose.yaw.sin_cos();
-                unknown.extend(points.iter().map(|p| {
-                    p.is_some_and(|(x, y)| {
-                        let (wx, wy) = (pose.x + cy * x - sy * y, pose.y + sy * x + cy * y);
-                        !world.knows_within(wx, wy, UNKNOWN_M)
-                    })
-                }));
-            }
-            None => unknown.resize(points.len(), false),
-        }
-        // Clusters: runs of returns with no gap between neighbours. Far away, neighbouring beams
-        // hit one surface further apart than a gap near by: the gap allowed grows with the
-        // spacing of the beams there, so a wall stays one (wide) thing. A cluster is a run of
-        // consecutive beams (a beam without a return ends it): its first beam and its length.
-        let spacing = self.spacing;
-        clusters.clear();
-        let mut last: Option<(f64, f64)> = None;
-        for (i, p) in points.iter().enumerate() {
-            let gap_allowed = |p: (f64, f64)| {
-                let r = crate::norm(p.0 - self.origin.0, p.1 - self.origin.1);
-                CLUSTER_GAP_M.max(1.5 * r * spacing)
-            };
-            // On a map, what it knows and what it does not are different things.
-            let same_kind = i > 0 && unknown[i] == unknown[i - 1];
-            match (p, last) {
-                (Some(p), Some(q))
-                    if (map.is_none() || same_kind)
-                        && crate::norm(p.0 - q.0, p.1 - q.1) <= gap_allowed(*p) =>
-                {
-                    if let Some((_, len)) = clusters.last_mut() {
-                        *len += 1;
-                    }
-                }
-                (Some(_), _) => clusters.push((i, 1)),
-                (None, _) => {}
-            }
-            last = *p;
-        }
-        // The returns of a cluster (all present: a missing one ends a cluster).
-        let members = |start: usize, len: usize| points[start..start + len].iter().flatten();
-        let range_of = |p: (f64, f64)| crate::norm(p.0 - self.origin.0, p.1 - self.origin.1);
-        // A thing in front of what is behind it: the beams either side of it reach farther
-        // (or nothing). The end of a wall seen at a grazing angle is not: the wall goes on
-        // nearer on one side.
-        let in_front = |first: usize, len: usize| {
-            let near = members(first, len)
-                .map(|p| range_of(*p))
-                .fold(f64::INFINITY, f64::min);
-            let beyond = |j: Option<usize>| {
-                j.and_then(|j| points.get(j).copied().flatten())
-                    .is_none_or(|q| range_of(q) > near + CLUSTER_GAP_M)
-            };
-            beyond(first.checked_sub(1)) && beyond(Some(first + len))
-        };
-        // The robot's motion since the last scan, from odometry: the last scan's frame seen
-        // from this one.
-        let (v, w) = (f64::from(obs.velocity[0]), f64::from(obs.velocity[1]));
-        let dtheta = w * dt;
-        let (mx, my) = (v * dt * (dtheta / 2.0).cos(), v * dt * (dtheta / 2.0).sin());
-        let (s, c) = (-dtheta).sin_cos();
-        let to_now = |p: (f64, f64)| {
-            let (x, y) = (p.0 - mx, p.1 - my);
-            (c * x - s * y, s * x + c * y)
-        };
-        let rotate = |u: (f64, f64)| (c * u.0 - s * u.1, s * u.0 + c * u.1);
+        self.points_into(obs, &mut points);
+        unknown_into(&points, map, &mut unknown);
+        self.clusters_into(&points, &unknown, map.is_some(), &mut clusters);
+        let ego = EgoMotion::of(obs, dt);
         // The last scan's buffers are refilled with this one's.
         let Motion {
             last: mut now_small,
@@ -230,7 +262,11 @@ impl Shield {
             unknown: mut unknown_returns,
         } = std::mem::take(&mut self.motion);
         previous.clear();
-        previous.extend(now_small.iter().map(|(p, u)| (to_now(*p), rotate(*u))));
+        previous.extend(
+            now_small
+                .iter()
+                .map(|(p, u)| (ego.to_now(*p), ego.rotate(*u))),
+        );
         now_small.clear();
         velocities.clear();
         for &(start, len) in &clusters {
@@ -241,33 +277,12 @@ impl Shield {
                 unknown[start]
             } else {
                 crate::norm(first.0 - end.0, first.1 - end.1) <= MOVER_MAX_WIDTH_M
-                    && in_front(start, len)
+                    && self.in_front(&points, start, len)
             };
-            let n = len as f64;
-            let centroid = (
-                members(start, len).map(|p| p.0).sum::<f64>() / n,
-                members(start, len).map(|p| p.1).sum::<f64>() / n,
-            );
+            let centroid = centroid(&points, start, len);
             let mut velocity = (0.0, 0.0);
             if small && dt > 0.0 {
-                let nearest = previous.iter().min_by(|a, b| {
-                    let d = |q: &(f64, f64)| crate::norm(q.0 - centroid.0, q.1 - centroid.1);
-                    d(&a.0).total_cmp(&d(&b.0))
-                });
-                if let Some((q, u)) = nearest
-                    && crate::norm(q.0 - centroid.0, q.1 - centroid.1) <= MOVER_MAX_STEP_M
-                {
-                    let raw = ((centroid.0 - q.0) / dt, (centroid.1 - q.1) / dt);
-                    let k = MOVER_SMOOTHING;
-                    velocity = (k * raw.0 + (1.0 - k) * u.0, k * raw.1 + (1.0 - k) * u.1);
-                    let speed = crate::norm(velocity.0, velocity.1);
-                    if speed > MOVER_MAX_SPEED {
-                        velocity = (
-                            velocity.0 * MOVER_MAX_SPEED / speed,
-                            velocity.1 * MOVER_MAX_SPEED / speed,
-                        );
-                    }
-                }
+                velocity = matched_velocity(&previous, centroid, dt);
                 now_small.push((centroid, velocity));
             }
             let moving = crate::norm(velocity.0, velocity.1) >= MOVER_MIN_SPEED;
@@ -295,6 +310,71 @@ impl Shield {
             velocities,
             unknown: unknown_returns,
         };
+    }
+
+    /// The scan's returns in the robot frame, in beam order (`None` where a beam hit nothing).
+    fn points_into(&self, obs: &Observation, points: &mut Vec<Option<(f64, f64)>>) {
+        points.clear();
+        points.extend(obs.ranges.iter().zip(&self.dirs).map(|(r, (c, s))| {
+            let r = f64::from(*r);
+            (r < self.range_max - 1e-3).then(|| (self.origin.0 + r * c, self.origin.1 + r * s))
+        }));
+    }
+
+    /// Clusters: runs of returns with no gap between neighbours. Far away, neighbouring beams
+    /// hit one surface further apart than a gap near by: the gap allowed grows with the spacing
+    /// of the beams there, so a wall stays one (wide) thing. A cluster is a run of consecutive
+    /// beams (a beam without a return ends it): its first beam and its length. `on_map`, what
+    /// the map knows and what it does not are different things.
+    fn clusters_into(
+        &self,
+        points: &[Option<(f64, f64)>],
+        unknown: &[bool],
+        on_map: bool,
+        clusters: &mut Vec<(usize, usize)>,
+    ) {
+        let spacing = self.spacing;
+        clusters.clear();
+        let mut last: Option<(f64, f64)> = None;
+        for (i, p) in points.iter().enumerate() {
+            let gap_allowed = |p: (f64, f64)| {
+                let r = self.range_of(p);
+                CLUSTER_GAP_M.max(1.5 * r * spacing)
+            };
+            let same_kind = i > 0 && unknown[i] == unknown[i - 1];
+            match (p, last) {
+                (Some(p), Some(q))
+                    if (!on_map || same_kind)
+                        && crate::norm(p.0 - q.0, p.1 - q.1) <= gap_allowed(*p) =>
+                {
+                    if let Some((_, len)) = clusters.last_mut() {
+                        *len += 1;
+                    }
+                }
+                (Some(_), _) => clusters.push((i, 1)),
+                (None, _) => {}
+            }
+            last = *p;
+        }
+    }
+
+    /// Distance of a point in the robot frame from the laser.
+    fn range_of(&self, p: (f64, f64)) -> f64 {
+        crate::norm(p.0 - self.origin.0, p.1 - self.origin.1)
+    }
+
+    /// Whether the cluster of `len` returns from beam `first` is a thing in front of what is
+    /// behind it: the beams either side of it reach farther (or nothing). The end of a wall
+    /// seen at a grazing angle is not: the wall goes on nearer on one side.
+    fn in_front(&self, points: &[Option<(f64, f64)>], first: usize, len: usize) -> bool {
+        let near = members(points, first, len)
+            .map(|p| self.range_of(*p))
+            .fold(f64::INFINITY, f64::min);
+        let beyond = |j: Option<usize>| {
+            j.and_then(|j| points.get(j).copied().flatten())
+                .is_none_or(|q| self.range_of(q) > near + CLUSTER_GAP_M)
+        };
+        beyond(first.checked_sub(1)) && beyond(Some(first + len))
     }
 
     /// Forgets what it saw move (a new drive).
