@@ -5,7 +5,7 @@ use std::collections::HashSet;
 use std::fmt::Write as _;
 
 use crate::library::{self, Model};
-use crate::spec::{Occupancy, Pose2, Pose3, WorldSpec};
+use crate::spec::{FloorMap, ObjectSpec, Occupancy, Pose2, Pose3, WallSpec, WorldSpec};
 
 use super::actors::people_actors;
 use super::layout::RobotLayout;
@@ -88,6 +88,36 @@ pub fn world_sdf_with_robot(spec: &WorldSpec, start: Pose2) -> String {
 pub(super) fn world_document(spec: &WorldSpec, robot_at: Option<Pose2>) -> String {
     let mut s = String::new();
     let mut names = HashSet::new();
+    write_preamble(&mut s, spec);
+    names.insert("ground_plane".to_owned());
+    // The robot keeps its name (its topics are named after it): objects give way.
+    let robot = robot_at.map(|start| (RobotLayout::new(&spec.robot), start));
+    if let Some((layout, _)) = &robot {
+        names.insert(layout.name.clone());
+    }
+    if let Some(floor) = &spec.floor {
+        write_map_walls(&mut s, floor, &mut names);
+    }
+    if !spec.walls.is_empty() {
+        write_boundary_walls(&mut s, &spec.walls, &mut names);
+    }
+    for o in &spec.objects {
+        write_object(&mut s, o, &mut names);
+    }
+    if let Some((layout, start)) = &robot {
+        let model = robot_model(&spec.robot, layout, Some(*start));
+        for line in model.lines() {
+            let _ = writeln!(s, "    {line}");
+        }
+    }
+    s.push_str(&people_actors(spec));
+    s.push_str("  </world>\n</sdf>\n");
+    s
+}
+
+/// The document's opening up to the world's contents: the world, its systems, the sun and the
+/// ground plane.
+fn write_preamble(s: &mut String, spec: &WorldSpec) {
     let world_name = world_name(spec);
     let _ = writeln!(s, r#"<?xml version="1.0" ?>"#);
     let _ = writeln!(s, r#"<sdf version="1.9">"#);
@@ -116,127 +146,118 @@ pub(super) fn world_document(spec: &WorldSpec, robot_at: Option<Pose2>) -> Strin
     </model>
 "#,
     );
-    names.insert("ground_plane".to_owned());
-    // The robot keeps its name (its topics are named after it): objects give way.
-    let robot = robot_at.map(|start| (RobotLayout::new(&spec.robot), start));
-    if let Some((layout, _)) = &robot {
-        names.insert(layout.name.clone());
-    }
-    if let Some(floor) = &spec.floor {
-        let g = &floor.grid;
-        let name = unique_name(&format!("{}_walls", floor.id), &mut names);
-        let _ = writeln!(s, r#"    <model name="{}">"#, xml(&name));
-        let _ = writeln!(s, "      <static>true</static>");
-        // The model frame is the grid's origin corner; boxes are placed in cells from there.
+}
+
+/// The metric map's solid cells as one static model of wall boxes (merged into rectangles).
+fn write_map_walls(s: &mut String, floor: &FloorMap, names: &mut HashSet<String>) {
+    let g = &floor.grid;
+    let name = unique_name(&format!("{}_walls", floor.id), names);
+    let _ = writeln!(s, r#"    <model name="{}">"#, xml(&name));
+    let _ = writeln!(s, "      <static>true</static>");
+    // The model frame is the grid's origin corner; boxes are placed in cells from there.
+    let _ = writeln!(
+        s,
+        "      <pose>{} {} 0 0 0 {}</pose>",
+        g.origin.x, g.origin.y, g.origin.yaw
+    );
+    let _ = writeln!(s, r#"      <link name="link">"#);
+    let h = floor.wall_height;
+    for (k, [c, r, w, hh]) in solid_rectangles(g).into_iter().enumerate() {
+        let (x, y, sx, sy) = (
+            (c as f64 + w as f64 / 2.0) * g.resolution,
+            (r as f64 + hh as f64 / 2.0) * g.resolution,
+            w as f64 * g.resolution,
+            hh as f64 * g.resolution,
+        );
+        let geom = format!("<box><size>{sx} {sy} {h}</size></box>");
         let _ = writeln!(
             s,
-            "      <pose>{} {} 0 0 0 {}</pose>",
-            g.origin.x, g.origin.y, g.origin.yaw
+            r#"        <collision name="c{k}"><pose>{x} {y} {} 0 0 0</pose><geometry>{geom}</geometry></collision>"#,
+            h / 2.0
         );
-        let _ = writeln!(s, r#"      <link name="link">"#);
-        let h = floor.wall_height;
-        for (k, [c, r, w, hh]) in solid_rectangles(g).into_iter().enumerate() {
-            let (x, y, sx, sy) = (
-                (c as f64 + w as f64 / 2.0) * g.resolution,
-                (r as f64 + hh as f64 / 2.0) * g.resolution,
-                w as f64 * g.resolution,
-                hh as f64 * g.resolution,
-            );
-            let geom = format!("<box><size>{sx} {sy} {h}</size></box>");
-            let _ = writeln!(
-                s,
-                r#"        <collision name="c{k}"><pose>{x} {y} {} 0 0 0</pose><geometry>{geom}</geometry></collision>"#,
-                h / 2.0
-            );
-            let _ = writeln!(
-                s,
-                r#"        <visual name="v{k}"><pose>{x} {y} {} 0 0 0</pose><geometry>{geom}</geometry><material><ambient>0.6 0.6 0.6 1</ambient><diffuse>0.7 0.7 0.7 1</diffuse></material></visual>"#,
-                h / 2.0
-            );
-        }
-        let _ = writeln!(s, "      </link>\n    </model>");
-    }
-    if !spec.walls.is_empty() {
-        let name = unique_name("boundary_walls", &mut names);
-        let _ = writeln!(s, r#"    <model name="{}">"#, xml(&name));
-        let _ = writeln!(s, "      <static>true</static>\n      <link name=\"link\">");
-        for (k, w) in spec.walls.iter().enumerate() {
-            let (dx, dy) = (w.end[0] - w.start[0], w.end[1] - w.start[1]);
-            let len = dx.hypot(dy).max(w.thickness);
-            let pose = Pose3::new(
-                (w.start[0] + w.end[0]) / 2.0,
-                (w.start[1] + w.end[1]) / 2.0,
-                w.height / 2.0,
-                dy.atan2(dx),
-            );
-            let geom = format!("<box><size>{len} {} {}</size></box>", w.thickness, w.height);
-            let _ = writeln!(
-                s,
-                r#"        <collision name="c{k}"><pose>{}</pose><geometry>{geom}</geometry></collision>"#,
-                pose6(&pose)
-            );
-            let _ = writeln!(
-                s,
-                r#"        <visual name="v{k}"><pose>{}</pose><geometry>{geom}</geometry></visual>"#,
-                pose6(&pose)
-            );
-        }
-        let _ = writeln!(s, "      </link>\n    </model>");
-    }
-    for o in &spec.objects {
-        let name = unique_name(&o.id, &mut names);
-        let kind = match library::model_for(o) {
-            Model::Library(m) => format!("library model `{}`", m.name()),
-            Model::Placeholder => format!(
-                "placeholder {} of class {}",
-                o.shape.name(),
-                o.class.as_deref().unwrap_or("unknown")
-            ),
-        };
-        let _ = writeln!(s, r#"    <model name="{}">"#, xml(&name));
         let _ = writeln!(
             s,
-            "      <!-- {} : {} -->",
-            xml(&o.id).replace("--", "- -"),
-            xml(&kind).replace("--", "- -")
+            r#"        <visual name="v{k}"><pose>{x} {y} {} 0 0 0</pose><geometry>{geom}</geometry><material><ambient>0.6 0.6 0.6 1</ambient><diffuse>0.7 0.7 0.7 1</diffuse></material></visual>"#,
+            h / 2.0
         );
-        let _ = writeln!(s, "      <static>true</static>");
-        let _ = writeln!(s, "      <pose>{}</pose>", pose6(&o.pose));
-        let _ = writeln!(s, r#"      <link name="link">"#);
-        // Parts are placed in the world by the library; SDF wants them in the model frame.
-        let (sn, cs) = o.pose.yaw.sin_cos();
-        for p in library::parts(o) {
-            let (dx, dy) = (p.pose.x - o.pose.x, p.pose.y - o.pose.y);
-            let local = Pose3::new(
-                cs * dx + sn * dy,
-                -sn * dx + cs * dy,
-                p.pose.z - o.pose.z,
-                0.0,
-            );
-            let geom = sdf_geometry(p.shape, p.size);
-            let _ = writeln!(
-                s,
-                r#"        <collision name="{n}_collision"><pose>{}</pose><geometry>{geom}</geometry></collision>"#,
-                pose6(&local),
-                n = p.name
-            );
-            let _ = writeln!(
-                s,
-                r#"        <visual name="{n}_visual"><pose>{}</pose><geometry>{geom}</geometry>{}</visual>"#,
-                pose6(&local),
-                sdf_material(p.colour),
-                n = p.name
-            );
-        }
-        let _ = writeln!(s, "      </link>\n    </model>");
     }
-    if let Some((layout, start)) = &robot {
-        let model = robot_model(&spec.robot, layout, Some(*start));
-        for line in model.lines() {
-            let _ = writeln!(s, "    {line}");
-        }
+    let _ = writeln!(s, "      </link>\n    </model>");
+}
+
+/// The boundary walls as one static model of boxes.
+fn write_boundary_walls(s: &mut String, walls: &[WallSpec], names: &mut HashSet<String>) {
+    let name = unique_name("boundary_walls", names);
+    let _ = writeln!(s, r#"    <model name="{}">"#, xml(&name));
+    let _ = writeln!(s, "      <static>true</static>\n      <link name=\"link\">");
+    for (k, w) in walls.iter().enumerate() {
+        let (dx, dy) = (w.end[0] - w.start[0], w.end[1] - w.start[1]);
+        let len = dx.hypot(dy).max(w.thickness);
+        let pose = Pose3::new(
+            (w.start[0] + w.end[0]) / 2.0,
+            (w.start[1] + w.end[1]) / 2.0,
+            w.height / 2.0,
+            dy.atan2(dx),
+        );
+        let geom = format!("<box><size>{len} {} {}</size></box>", w.thickness, w.height);
+        let _ = writeln!(
+            s,
+            r#"        <collision name="c{k}"><pose>{}</pose><geometry>{geom}</geometry></collision>"#,
+            pose6(&pose)
+        );
+        let _ = writeln!(
+            s,
+            r#"        <visual name="v{k}"><pose>{}</pose><geometry>{geom}</geometry></visual>"#,
+            pose6(&pose)
+        );
     }
-    s.push_str(&people_actors(spec));
-    s.push_str("  </world>\n</sdf>\n");
-    s
+    let _ = writeln!(s, "      </link>\n    </model>");
+}
+
+/// An object as a static model: a library model's parts, or a placeholder's one primitive.
+fn write_object(s: &mut String, o: &ObjectSpec, names: &mut HashSet<String>) {
+    let name = unique_name(&o.id, names);
+    let kind = match library::model_for(o) {
+        Model::Library(m) => format!("library model `{}`", m.name()),
+        Model::Placeholder => format!(
+            "placeholder {} of class {}",
+            o.shape.name(),
+            o.class.as_deref().unwrap_or("unknown")
+        ),
+    };
+    let _ = writeln!(s, r#"    <model name="{}">"#, xml(&name));
+    let _ = writeln!(
+        s,
+        "      <!-- {} : {} -->",
+        xml(&o.id).replace("--", "- -"),
+        xml(&kind).replace("--", "- -")
+    );
+    let _ = writeln!(s, "      <static>true</static>");
+    let _ = writeln!(s, "      <pose>{}</pose>", pose6(&o.pose));
+    let _ = writeln!(s, r#"      <link name="link">"#);
+    // Parts are placed in the world by the library; SDF wants them in the model frame.
+    let (sn, cs) = o.pose.yaw.sin_cos();
+    for p in library::parts(o) {
+        let (dx, dy) = (p.pose.x - o.pose.x, p.pose.y - o.pose.y);
+        let local = Pose3::new(
+            cs * dx + sn * dy,
+            -sn * dx + cs * dy,
+            p.pose.z - o.pose.z,
+            0.0,
+        );
+        let geom = sdf_geometry(p.shape, p.size);
+        let _ = writeln!(
+            s,
+            r#"        <collision name="{n}_collision"><pose>{}</pose><geometry>{geom}</geometry></collision>"#,
+            pose6(&local),
+            n = p.name
+        );
+        let _ = writeln!(
+            s,
+            r#"        <visual name="{n}_visual"><pose>{}</pose><geometry>{geom}</geometry>{}</visual>"#,
+            pose6(&local),
+            sdf_material(p.colour),
+            n = p.name
+        );
+    }
+    let _ = writeln!(s, "      </link>\n    </model>");
 }

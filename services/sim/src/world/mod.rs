@@ -226,117 +226,22 @@ impl World {
             }
         };
         let (pw, ph) = (frame.pw, frame.ph);
-        let mut walls = vec![false; pw * ph];
-        // The border, and every map cell that is not free (ROS trinary semantics).
-        for x in 0..pw {
-            walls[x] = true;
-            walls[(ph - 1) * pw + x] = true;
-        }
-        for y in 0..ph {
-            walls[y * pw] = true;
-            walls[y * pw + pw - 1] = true;
-        }
-        if let Some(floor) = &spec.floor {
-            let g = &floor.grid;
-            for (row, cells) in g.cells.chunks(g.width).enumerate() {
-                let base = (row + 1) * pw + 1;
-                for (col, cell) in cells.iter().enumerate() {
-                    walls[base + col] = *cell != Occupancy::Free;
-                }
-            }
-        }
-        for wall in &spec.walls {
-            rasterise_wall(&frame, wall, &mut walls);
-        }
+        let walls = wall_cells(&frame, &spec);
         let wall_feature = feature_transform(&walls, pw, ph);
-
         let solids: Vec<Solid> = parts.iter().map(Solid::from_part).collect();
         let robot = &spec.robot;
         let laser_z = robot.laser.mount.z;
-        let mut laser_rects = Vec::new();
-        let mut collision_rects = Vec::new();
-        let mut collision_cells = Vec::new();
-        for (i, s) in solids.iter().enumerate() {
-            let id = as_u32(i);
-            if s.zmin <= laser_z && laser_z <= s.zmax {
-                laser_rects.push((id, frame.cell_rect(s.rect, 0.0)));
-            }
-            if s.zmin < robot.height && s.zmax > 0.0 {
-                collision_rects.push((
-                    id,
-                    frame.cell_rect(s.rect, robot.footprint_radius + CLEARANCE_REACH),
-                ));
-                collision_cells.push(frame.cell_rect(s.rect, 0.0));
-            }
-        }
-
-        // Laser codes: walls, object cells, and elsewhere the safe jump to the nearest of either.
-        let laser_feature = if laser_rects.is_empty() {
-            None
-        } else {
-            let mut mask = walls.clone();
-            for (_, r) in &laser_rects {
-                fill_rect(&mut mask, pw, r);
-            }
-            Some(feature_transform(&mask, pw, ph))
-        };
-        let mut laser_code = vec![0u8; pw * ph];
-        {
-            let feature = laser_feature.as_ref().unwrap_or(&wall_feature);
-            for (i, code) in laser_code.iter_mut().enumerate() {
-                *code = if walls[i] {
-                    BLOCKED
-                } else {
-                    jump_code(i, feature[i], pw)
-                };
-            }
-            for (_, r) in &laser_rects {
-                for y in r[1]..=r[3] {
-                    for x in r[0]..=r[2] {
-                        let c = &mut laser_code[y * pw + x];
-                        if *c != BLOCKED {
-                            *c = OBJECT;
-                        }
-                    }
-                }
-            }
-        }
-        let laser_buckets = Buckets::build(LASER_BUCKET_SHIFT, pw, ph, &laser_rects);
-        let collision_buckets = Buckets::build(COLLISION_BUCKET_SHIFT, pw, ph, &collision_rects);
-
-        // The free region: cells whose whole square keeps the footprint plus margin clear of
-        // walls and of the bounding rectangles of objects within the robot's height.
-        let clear_feature = if collision_cells.is_empty() {
-            None
-        } else {
-            let mut mask = walls.clone();
-            for r in &collision_cells {
-                fill_rect(&mut mask, pw, r);
-            }
-            Some(feature_transform(&mask, pw, ph))
-        };
-        let feature = clear_feature.as_ref().unwrap_or(&wall_feature);
-        // Centre distance D to the nearest blocked centre bounds the distance from any point of
-        // this cell to any blocked square from below by D - √2 cells.
-        let need = (robot.footprint_radius + options.sampling_margin) * frame.inv_res
-            + std::f64::consts::SQRT_2;
-        let navigable: Vec<bool> = (0..pw * ph)
-            .map(|i| {
-                !walls[i]
-                    && (feature[i] == NO_FEATURE
-                        || centre_distance(i, feature[i] as usize, pw) >= need)
-            })
-            .collect();
-        let regions = grid::regions::label(&navigable, pw, ph);
-        let cells = regions
-            .largest()
-            .map_or_else(Vec::new, |r| regions.cells(r));
-        let mut member = vec![0u64; (pw * ph).div_ceil(64)];
-        for &c in &cells {
-            member[c as usize >> 6] |= 1 << (c & 63);
-        }
-        drop(navigable);
-
+        let rects = SolidRects::of(&frame, &solids, robot);
+        let laser_code = laser_codes(&walls, &wall_feature, &rects.laser, pw, ph);
+        let laser_buckets = Buckets::build(LASER_BUCKET_SHIFT, pw, ph, &rects.laser);
+        let collision_buckets = Buckets::build(COLLISION_BUCKET_SHIFT, pw, ph, &rects.collision);
+        let region = free_region(
+            &walls,
+            &wall_feature,
+            &rects.collision_cells,
+            &frame,
+            robot.footprint_radius + options.sampling_margin,
+        );
         Ok(Arc::new(World {
             robot_radius: robot.footprint_radius,
             robot_height: robot.height,
@@ -349,7 +254,7 @@ impl World {
             solids,
             laser_buckets,
             collision_buckets,
-            region: FreeRegion { cells, member },
+            region,
             people_targets: std::sync::OnceLock::new(),
             geometry_key: std::sync::OnceLock::new(),
         }))
@@ -581,6 +486,150 @@ impl World {
         self.region
             .contains_index((row + 1) * self.frame.pw + col + 1)
     }
+}
+
+/// The padded grid's blocked cells: the border, every map cell that is not free (ROS trinary
+/// semantics) and the rasterised walls.
+fn wall_cells(frame: &Frame, spec: &WorldSpec) -> Vec<bool> {
+    let (pw, ph) = (frame.pw, frame.ph);
+    let mut walls = vec![false; pw * ph];
+    for x in 0..pw {
+        walls[x] = true;
+        walls[(ph - 1) * pw + x] = true;
+    }
+    for y in 0..ph {
+        walls[y * pw] = true;
+        walls[y * pw + pw - 1] = true;
+    }
+    if let Some(floor) = &spec.floor {
+        let g = &floor.grid;
+        for (row, cells) in g.cells.chunks(g.width).enumerate() {
+            let base = (row + 1) * pw + 1;
+            for (col, cell) in cells.iter().enumerate() {
+                walls[base + col] = *cell != Occupancy::Free;
+            }
+        }
+    }
+    for wall in &spec.walls {
+        rasterise_wall(frame, wall, &mut walls);
+    }
+    walls
+}
+
+/// The cell rectangles of the solids the laser and the footprint meet.
+struct SolidRects {
+    /// Solids at the laser's height: id and cells.
+    laser: Vec<(u32, [usize; 4])>,
+    /// Solids within the robot's height: id and cells, grown by its footprint radius and
+    /// [`CLEARANCE_REACH`].
+    collision: Vec<(u32, [usize; 4])>,
+    /// The cells of the same solids, not grown.
+    collision_cells: Vec<[usize; 4]>,
+}
+
+impl SolidRects {
+    fn of(frame: &Frame, solids: &[Solid], robot: &crate::spec::RobotSpec) -> Self {
+        let laser_z = robot.laser.mount.z;
+        let mut rects = SolidRects {
+            laser: Vec::new(),
+            collision: Vec::new(),
+            collision_cells: Vec::new(),
+        };
+        for (i, s) in solids.iter().enumerate() {
+            let id = as_u32(i);
+            if s.zmin <= laser_z && laser_z <= s.zmax {
+                rects.laser.push((id, frame.cell_rect(s.rect, 0.0)));
+            }
+            if s.zmin < robot.height && s.zmax > 0.0 {
+                rects.collision.push((
+                    id,
+                    frame.cell_rect(s.rect, robot.footprint_radius + CLEARANCE_REACH),
+                ));
+                rects.collision_cells.push(frame.cell_rect(s.rect, 0.0));
+            }
+        }
+        rects
+    }
+}
+
+/// Laser codes: walls, object cells, and elsewhere the safe jump to the nearest of either.
+fn laser_codes(
+    walls: &[bool],
+    wall_feature: &[u32],
+    laser_rects: &[(u32, [usize; 4])],
+    pw: usize,
+    ph: usize,
+) -> Vec<u8> {
+    let laser_feature = if laser_rects.is_empty() {
+        None
+    } else {
+        let mut mask = walls.to_vec();
+        for (_, r) in laser_rects {
+            fill_rect(&mut mask, pw, r);
+        }
+        Some(feature_transform(&mask, pw, ph))
+    };
+    let mut laser_code = vec![0u8; pw * ph];
+    let feature = laser_feature.as_deref().unwrap_or(wall_feature);
+    for (i, code) in laser_code.iter_mut().enumerate() {
+        *code = if walls[i] {
+            BLOCKED
+        } else {
+            jump_code(i, feature[i], pw)
+        };
+    }
+    for (_, r) in laser_rects {
+        for y in r[1]..=r[3] {
+            for x in r[0]..=r[2] {
+                let c = &mut laser_code[y * pw + x];
+                if *c != BLOCKED {
+                    *c = OBJECT;
+                }
+            }
+        }
+    }
+    laser_code
+}
+
+/// The free region: the largest 4-connected set of cells whose whole square keeps a disc of
+/// `keep_m` (the footprint plus the sampling margin) clear of walls and of the bounding
+/// rectangles `collision_cells` of objects within the robot's height.
+fn free_region(
+    walls: &[bool],
+    wall_feature: &[u32],
+    collision_cells: &[[usize; 4]],
+    frame: &Frame,
+    keep_m: f64,
+) -> FreeRegion {
+    let (pw, ph) = (frame.pw, frame.ph);
+    let clear_feature = if collision_cells.is_empty() {
+        None
+    } else {
+        let mut mask = walls.to_vec();
+        for r in collision_cells {
+            fill_rect(&mut mask, pw, r);
+        }
+        Some(feature_transform(&mask, pw, ph))
+    };
+    let feature = clear_feature.as_deref().unwrap_or(wall_feature);
+    // Centre distance D to the nearest blocked centre bounds the distance from any point of
+    // this cell to any blocked square from below by D - √2 cells.
+    let need = keep_m * frame.inv_res + std::f64::consts::SQRT_2;
+    let navigable: Vec<bool> = (0..pw * ph)
+        .map(|i| {
+            !walls[i]
+                && (feature[i] == NO_FEATURE || centre_distance(i, feature[i] as usize, pw) >= need)
+        })
+        .collect();
+    let regions = grid::regions::label(&navigable, pw, ph);
+    let cells = regions
+        .largest()
+        .map_or_else(Vec::new, |r| regions.cells(r));
+    let mut member = vec![0u64; (pw * ph).div_ceil(64)];
+    for &c in &cells {
+        member[c as usize >> 6] |= 1 << (c & 63);
+    }
+    FreeRegion { cells, member }
 }
 
 /// Laser jump code for a free cell whose nearest blocked cell is `feature`.
