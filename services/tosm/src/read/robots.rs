@@ -12,6 +12,14 @@ use crate::model::{
 };
 use crate::vocab as v;
 
+/// What a wheel's classes say it is.
+#[derive(Copy, Clone)]
+struct WheelKind {
+    active: bool,
+    passive: bool,
+    caster: bool,
+}
+
 impl<'g> Reader<'g> {
     pub(super) fn robot(&mut self, iri: &str) -> Option<Robot> {
         let before = self.problems.len();
@@ -78,6 +86,9 @@ impl<'g> Reader<'g> {
         Some(robot)
     }
 
+    /// Reads part `iri` of `robot` into `out` by its class: a joint, wheel, structural part,
+    /// laser range finder or camera; anything else (or a part the graph does not describe)
+    /// is a problem.
     pub(super) fn robot_part(&mut self, robot: &str, iri: &str, out: &mut Robot) {
         let types = self.types(iri);
         let is = |r: &Self, c: NamedNodeRef<'_>| types.iter().any(|t| r.is_subclass(t, c));
@@ -100,26 +111,13 @@ impl<'g> Reader<'g> {
             return;
         }
         if is(self, v::WHEEL) {
-            let active = is(self, v::ACTIVE_WHEEL);
-            let passive = is(self, v::PASSIVE_WHEEL);
-            if active == passive {
-                self.problem(
-                    iri,
-                    rdf::TYPE,
-                    "a wheel must be exactly one of tosm:ActiveWheel and tosm:PassiveWheel",
-                );
-            }
-            let part = self.part(iri, true);
-            let radius = self.positive(iri, v::WHEEL_RADIUS_M, true);
-            let width = self.positive(iri, v::WHEEL_WIDTH_M, false);
-            if let (Some(part), Some(radius)) = (part, radius) {
-                out.wheels.push(Wheel {
-                    part,
-                    active,
-                    caster: is(self, v::CASTER_WHEEL),
-                    radius,
-                    width,
-                });
+            let kind = WheelKind {
+                active: is(self, v::ACTIVE_WHEEL),
+                passive: is(self, v::PASSIVE_WHEEL),
+                caster: is(self, v::CASTER_WHEEL),
+            };
+            if let Some(w) = self.wheel(iri, kind) {
+                out.wheels.push(w);
             }
             return;
         }
@@ -130,47 +128,8 @@ impl<'g> Reader<'g> {
             return;
         }
         if is(self, v::LASER_RANGE_FINDER) {
-            let part = self.part(iri, false);
-            let range_min = self.non_negative(iri, v::RANGE_MIN_M, true);
-            let range_max = self.positive(iri, v::RANGE_MAX_M, true);
-            let view_angle = self.positive(iri, v::VIEW_ANGLE_RAD, true);
-            let samples = self.count(iri, v::SAMPLE_COUNT, true);
-            let angular_resolution = self.positive(iri, v::ANGULAR_RESOLUTION_RAD, true);
-            let rate_hz = self.positive(iri, v::FRAME_RATE_HZ, false);
-            if let (Some(min), Some(max)) = (range_min, range_max)
-                && min >= max
-            {
-                self.problem(
-                    iri,
-                    v::RANGE_MAX_M,
-                    format!("must exceed rangeMinM ({min}), found {max}"),
-                );
-                return;
-            }
-            if let (
-                Some(part),
-                Some(range_min),
-                Some(range_max),
-                Some(view_angle),
-                Some(samples),
-                Some(angular_resolution),
-            ) = (
-                part,
-                range_min,
-                range_max,
-                view_angle,
-                samples,
-                angular_resolution,
-            ) {
-                out.lasers.push(Laser {
-                    part,
-                    range_min,
-                    range_max,
-                    view_angle,
-                    samples,
-                    angular_resolution,
-                    rate_hz,
-                });
+            if let Some(l) = self.laser(iri) {
+                out.lasers.push(l);
             }
             return;
         }
@@ -182,42 +141,8 @@ impl<'g> Reader<'g> {
             } else {
                 CameraKind::Mono
             };
-            let part = self.part(iri, false);
-            let width_px = self.count(iri, v::IMAGE_WIDTH_PX, true);
-            let height_px = self.count(iri, v::IMAGE_HEIGHT_PX, true);
-            let fps = self.positive(iri, v::FRAME_RATE_HZ, true);
-            let horizontal_fov = self.positive(iri, v::HORIZONTAL_FOV_RAD, true);
-            let vertical_fov = self.positive(iri, v::VERTICAL_FOV_RAD, false);
-            let depth = kind != CameraKind::Mono;
-            let range_min = self.non_negative(iri, v::RANGE_MIN_M, depth);
-            let range_max = self.positive(iri, v::RANGE_MAX_M, depth);
-            let depth_range = match (range_min, range_max) {
-                (Some(min), Some(max)) if min >= max => {
-                    self.problem(
-                        iri,
-                        v::RANGE_MAX_M,
-                        format!("must exceed rangeMinM ({min}), found {max}"),
-                    );
-                    return;
-                }
-                (Some(min), Some(max)) => Some((min, max)),
-                _ => None,
-            };
-            let baseline = self.positive(iri, v::BASELINE_M, false);
-            if let (Some(part), Some(width_px), Some(height_px), Some(fps), Some(horizontal_fov)) =
-                (part, width_px, height_px, fps, horizontal_fov)
-            {
-                out.cameras.push(Camera {
-                    part,
-                    kind,
-                    width_px,
-                    height_px,
-                    fps,
-                    horizontal_fov,
-                    vertical_fov,
-                    depth_range,
-                    baseline,
-                });
+            if let Some(c) = self.camera(iri, kind) {
+                out.cameras.push(c);
             }
             return;
         }
@@ -228,6 +153,96 @@ impl<'g> Reader<'g> {
                 "is a part of robot <{robot}> but not a structural part, wheel, joint, camera or laser range finder"
             ),
         );
+    }
+
+    /// Wheel `iri`, whose classes say `kind`: exactly one of active and passive.
+    fn wheel(&mut self, iri: &str, kind: WheelKind) -> Option<Wheel> {
+        if kind.active == kind.passive {
+            self.problem(
+                iri,
+                rdf::TYPE,
+                "a wheel must be exactly one of tosm:ActiveWheel and tosm:PassiveWheel",
+            );
+        }
+        let part = self.part(iri, true);
+        let radius = self.positive(iri, v::WHEEL_RADIUS_M, true);
+        let width = self.positive(iri, v::WHEEL_WIDTH_M, false);
+        Some(Wheel {
+            part: part?,
+            active: kind.active,
+            caster: kind.caster,
+            radius: radius?,
+            width,
+        })
+    }
+
+    /// Laser range finder `iri`: its range (the minimum below the maximum), view angle,
+    /// samples and resolution, and its rate when given.
+    fn laser(&mut self, iri: &str) -> Option<Laser> {
+        let part = self.part(iri, false);
+        let range_min = self.non_negative(iri, v::RANGE_MIN_M, true);
+        let range_max = self.positive(iri, v::RANGE_MAX_M, true);
+        let view_angle = self.positive(iri, v::VIEW_ANGLE_RAD, true);
+        let samples = self.count(iri, v::SAMPLE_COUNT, true);
+        let angular_resolution = self.positive(iri, v::ANGULAR_RESOLUTION_RAD, true);
+        let rate_hz = self.positive(iri, v::FRAME_RATE_HZ, false);
+        if let (Some(min), Some(max)) = (range_min, range_max)
+            && min >= max
+        {
+            self.problem(
+                iri,
+                v::RANGE_MAX_M,
+                format!("must exceed rangeMinM ({min}), found {max}"),
+            );
+            return None;
+        }
+        Some(Laser {
+            part: part?,
+            range_min: range_min?,
+            range_max: range_max?,
+            view_angle: view_angle?,
+            samples: samples?,
+            angular_resolution: angular_resolution?,
+            rate_hz,
+        })
+    }
+
+    /// Camera `iri` of `kind`: its image, frame rate and fields of view, and for a depth
+    /// camera its depth range (the minimum below the maximum).
+    fn camera(&mut self, iri: &str, kind: CameraKind) -> Option<Camera> {
+        let part = self.part(iri, false);
+        let width_px = self.count(iri, v::IMAGE_WIDTH_PX, true);
+        let height_px = self.count(iri, v::IMAGE_HEIGHT_PX, true);
+        let fps = self.positive(iri, v::FRAME_RATE_HZ, true);
+        let horizontal_fov = self.positive(iri, v::HORIZONTAL_FOV_RAD, true);
+        let vertical_fov = self.positive(iri, v::VERTICAL_FOV_RAD, false);
+        let depth = kind != CameraKind::Mono;
+        let range_min = self.non_negative(iri, v::RANGE_MIN_M, depth);
+        let range_max = self.positive(iri, v::RANGE_MAX_M, depth);
+        let depth_range = match (range_min, range_max) {
+            (Some(min), Some(max)) if min >= max => {
+                self.problem(
+                    iri,
+                    v::RANGE_MAX_M,
+                    format!("must exceed rangeMinM ({min}), found {max}"),
+                );
+                return None;
+            }
+            (Some(min), Some(max)) => Some((min, max)),
+            _ => None,
+        };
+        let baseline = self.positive(iri, v::BASELINE_M, false);
+        Some(Camera {
+            part: part?,
+            kind,
+            width_px: width_px?,
+            height_px: height_px?,
+            fps: fps?,
+            horizontal_fov: horizontal_fov?,
+            vertical_fov,
+            depth_range,
+            baseline,
+        })
     }
 
     pub(super) fn part(&mut self, iri: &str, structural: bool) -> Option<Part> {
