@@ -181,7 +181,12 @@ async fn without_a_policy_the_follower_validates_and_the_note_says_why() {
     q.controller = Some(ControllerChoice::Hybrid);
     let e = f.planner.plan(q, rehearsal::Stop::new()).await.unwrap_err();
     assert!(
-        matches!(e, PlanFailure::Unprocessable(planner::Unusable::NoPolicyFor { controller: "hybrid" })),
+        matches!(
+            e,
+            PlanFailure::Unprocessable(planner::Unusable::NoPolicyFor {
+                controller: "hybrid"
+            })
+        ),
         "{e}"
     );
     assert_eq!(outcome.floor, FLOOR0);

@@ -54,8 +54,8 @@ pub use controller::{
 };
 pub use edges::{
     EdgeIndex, EdgeReport, EdgeRolloutParams, EdgeStat, EdgeSummary, NEAR_MISS_M, UNKEPT_PENALTY_M,
-    drive_edges,
-    drive_some_edges, first_attempt_roadmap, policy_roadmap, reweight, reweight_with_unkept,
+    drive_edges, drive_some_edges, first_attempt_roadmap, policy_roadmap, reweight,
+    reweight_with_unkept,
 };
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
