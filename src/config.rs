@@ -249,6 +249,62 @@ const NOT_KEYS: &[&str] = &[
     "sparql_url",
 ];
 
+/// Where each key's value came from, to name it in errors: the merged layers' metadata.
+struct Sources<'a>(&'a Figment);
+
+impl Sources<'_> {
+    /// The layer that set `key`: the exact environment variable, the file, or the defaults.
+    fn of(&self, key: &str) -> String {
+        self.0
+            .find_metadata(key)
+            .map(|m| match &m.source {
+                _ if m.name.contains("environment") => {
+                    format!("environment variable MENTALSIM_{}", key.to_uppercase())
+                }
+                Some(s) => format!("{} ({s})", m.name),
+                None => m.name.to_string(),
+            })
+            .unwrap_or_else(|| "defaults".to_owned())
+    }
+
+    /// The error for `key`'s value, with `problem` and where the value came from.
+    fn invalid(&self, key: &'static str, problem: String) -> ConfigError {
+        ConfigError::Invalid {
+            key,
+            problem,
+            source_name: self.of(key),
+        }
+    }
+
+    /// Checks that `key`'s `value` is a positive, finite number of seconds.
+    fn positive_seconds(&self, key: &'static str, value: f64) -> Result<(), ConfigError> {
+        if value.is_finite() && value > 0.0 {
+            Ok(())
+        } else {
+            Err(self.invalid(
+                key,
+                format!("must be a positive number of seconds, got {value}"),
+            ))
+        }
+    }
+}
+
+/// What is wrong with `url` as the address of an HTTP service (an http:// or https:// URL with
+/// a host), if anything.
+fn http_url_problem(url: &str) -> Option<String> {
+    let parsed = reqwest::Url::parse(url).map_err(|e| e.to_string());
+    match parsed {
+        Ok(u) if matches!(u.scheme(), "http" | "https") && u.has_host() => None,
+        Ok(u) => Some(format!(
+            "must be an http:// or https:// URL with a host, got {url:?} (scheme {})",
+            u.scheme()
+        )),
+        Err(e) => Some(format!(
+            "must be an http:// or https:// URL, got {url:?}: {e}"
+        )),
+    }
+}
+
 impl Config {
     /// Merges the layers. `file` is the optional TOML file (`--config` or `MENTALSIM_CONFIG`).
     pub fn load(file: Option<&Path>, overrides: &Overrides) -> Result<Self, ConfigError> {
@@ -284,57 +340,55 @@ impl Config {
         Ok(figment)
     }
 
+    /// Checks the merged values; the first problem found is the error, naming its key and the
+    /// layer that set it.
     fn validate(&self, figment: &Figment) -> Result<(), ConfigError> {
-        let source = |key: &str| {
-            figment
-                .find_metadata(key)
-                .map(|m| match &m.source {
-                    _ if m.name.contains("environment") => {
-                        format!("environment variable MENTALSIM_{}", key.to_uppercase())
-                    }
-                    Some(s) => format!("{} ({s})", m.name),
-                    None => m.name.to_string(),
-                })
-                .unwrap_or_else(|| "defaults".to_owned())
-        };
-        let positive = |key: &'static str, value: f64| {
-            if value.is_finite() && value > 0.0 {
-                Ok(())
-            } else {
-                Err(ConfigError::Invalid {
-                    key,
-                    problem: format!("must be a positive number of seconds, got {value}"),
-                    source_name: source(key),
-                })
-            }
-        };
-        positive("request_timeout_s", self.request_timeout_s)?;
-        positive("shutdown_grace_s", self.shutdown_grace_s)?;
-        positive("query_deadline_s", self.query_deadline_s)?;
-        positive("header_read_timeout_s", self.header_read_timeout_s)?;
+        let sources = Sources(figment);
+        self.validate_timeouts(&sources)?;
+        self.validate_tokens(&sources)?;
+        self.validate_limits(&sources)?;
+        self.validate_stores(&sources)?;
+        self.validate_jobs(&sources)
+    }
+
+    /// The HTTP timeouts: positive, and the generic request timeout no shorter than the query
+    /// deadline.
+    fn validate_timeouts(&self, sources: &Sources<'_>) -> Result<(), ConfigError> {
+        sources.positive_seconds("request_timeout_s", self.request_timeout_s)?;
+        sources.positive_seconds("shutdown_grace_s", self.shutdown_grace_s)?;
+        sources.positive_seconds("query_deadline_s", self.query_deadline_s)?;
+        sources.positive_seconds("header_read_timeout_s", self.header_read_timeout_s)?;
         if self.request_timeout_s < self.query_deadline_s {
-            return Err(ConfigError::Invalid {
-                key: "request_timeout_s",
-                problem: format!(
+            return Err(sources.invalid(
+                "request_timeout_s",
+                format!(
                     "({}) must be at least query_deadline_s ({}), or queries are cut by the \
                      generic timeout before their own deadline reports them",
                     self.request_timeout_s, self.query_deadline_s
                 ),
-                source_name: source("request_timeout_s"),
-            });
+            ));
         }
+        Ok(())
+    }
+
+    /// Every bearer token is at least 16 characters long.
+    fn validate_tokens(&self, sources: &Sources<'_>) -> Result<(), ConfigError> {
         for (i, t) in self.tokens.iter().enumerate() {
             if t.token.len() < 16 {
-                return Err(ConfigError::Invalid {
-                    key: "tokens",
-                    problem: format!(
+                return Err(sources.invalid(
+                    "tokens",
+                    format!(
                         "entry {i} ({}) has a token shorter than 16 characters",
                         t.name
                     ),
-                    source_name: source("tokens"),
-                });
+                ));
             }
         }
+        Ok(())
+    }
+
+    /// The body, result and connection limits have their least useful values.
+    fn validate_limits(&self, sources: &Sources<'_>) -> Result<(), ConfigError> {
         for (key, value, least) in [
             ("body_limit_bytes", self.body_limit_bytes, 1024),
             ("small_body_limit_bytes", self.small_body_limit_bytes, 1024),
@@ -344,113 +398,95 @@ impl Config {
             ("robot_max_result_bytes", self.robot_max_result_bytes, 1024),
         ] {
             if value < least {
-                return Err(ConfigError::Invalid {
-                    key,
-                    problem: format!("must be at least {least}, got {value}"),
-                    source_name: source(key),
-                });
+                return Err(sources.invalid(key, format!("must be at least {least}, got {value}")));
             }
         }
+        Ok(())
+    }
+
+    /// Where things are kept: a data directory, a remote graph store's URLs (an update URL
+    /// only beside a store URL), the job database's and the knowledge service's URLs.
+    fn validate_stores(&self, sources: &Sources<'_>) -> Result<(), ConfigError> {
         if self.data_dir.as_os_str().is_empty() {
-            return Err(ConfigError::Invalid {
-                key: "data_dir",
-                problem: "must not be empty".to_owned(),
-                source_name: source("data_dir"),
-            });
+            return Err(sources.invalid("data_dir", "must not be empty".to_owned()));
         }
         for (key, url) in [
             ("store_url", &self.store_url),
             ("store_update_url", &self.store_update_url),
         ] {
-            if let Some(url) = url {
-                let parsed = reqwest::Url::parse(url).map_err(|e| e.to_string());
-                let problem = match parsed {
-                    Ok(u) if matches!(u.scheme(), "http" | "https") && u.has_host() => None,
-                    Ok(u) => Some(format!(
-                        "must be an http:// or https:// URL with a host, got {url:?} (scheme {})",
-                        u.scheme()
-                    )),
-                    Err(e) => Some(format!(
-                        "must be an http:// or https:// URL, got {url:?}: {e}"
-                    )),
-                };
-                if let Some(problem) = problem {
-                    return Err(ConfigError::Invalid {
-                        key,
-                        problem,
-                        source_name: source(key),
-                    });
-                }
+            if let Some(url) = url
+                && let Some(problem) = http_url_problem(url)
+            {
+                return Err(sources.invalid(key, problem));
             }
         }
         if self.store_update_url.is_some() && self.store_url.is_none() {
-            return Err(ConfigError::Invalid {
-                key: "store_update_url",
-                problem: "is set but store_url is not; set both or neither".to_owned(),
-                source_name: source("store_update_url"),
-            });
+            return Err(sources.invalid(
+                "store_update_url",
+                "is set but store_url is not; set both or neither".to_owned(),
+            ));
         }
         if let Some(url) = &self.database_url
             && queue::Backend::of_url(url).is_none()
         {
-            return Err(ConfigError::Invalid {
-                key: "database_url",
-                problem: format!(
+            return Err(sources.invalid(
+                "database_url",
+                format!(
                     "must be a sqlite:, postgres:// or postgresql:// URL, got {:?}",
                     queue::database::redact_url(url)
                 ),
-                source_name: source("database_url"),
-            });
+            ));
         }
         if let Some(url) = &self.knowledge_url
             && !(url.starts_with("http://") || url.starts_with("https://"))
         {
-            return Err(ConfigError::Invalid {
-                key: "knowledge_url",
-                problem: format!("must be an http:// or https:// URL, got {url:?}"),
-                source_name: source("knowledge_url"),
-            });
+            return Err(sources.invalid(
+                "knowledge_url",
+                format!("must be an http:// or https:// URL, got {url:?}"),
+            ));
         }
-        positive("job_lease_s", self.job_lease_s)?;
-        positive("job_heartbeat_s", self.job_heartbeat_s)?;
-        positive("job_retry_base_s", self.job_retry_base_s)?;
-        positive("job_retry_cap_s", self.job_retry_cap_s)?;
+        Ok(())
+    }
+
+    /// The job queue's timing (positive; heartbeats inside a lease; a retry cap no smaller
+    /// than its base), the retention and the worker concurrency.
+    fn validate_jobs(&self, sources: &Sources<'_>) -> Result<(), ConfigError> {
+        sources.positive_seconds("job_lease_s", self.job_lease_s)?;
+        sources.positive_seconds("job_heartbeat_s", self.job_heartbeat_s)?;
+        sources.positive_seconds("job_retry_base_s", self.job_retry_base_s)?;
+        sources.positive_seconds("job_retry_cap_s", self.job_retry_cap_s)?;
         if self.job_heartbeat_s >= self.job_lease_s {
-            return Err(ConfigError::Invalid {
-                key: "job_heartbeat_s",
-                problem: format!(
+            return Err(sources.invalid(
+                "job_heartbeat_s",
+                format!(
                     "({}) must be below job_lease_s ({}), or leases run out between heartbeats",
                     self.job_heartbeat_s, self.job_lease_s
                 ),
-                source_name: source("job_heartbeat_s"),
-            });
+            ));
         }
         if self.job_retry_cap_s < self.job_retry_base_s {
-            return Err(ConfigError::Invalid {
-                key: "job_retry_cap_s",
-                problem: format!(
+            return Err(sources.invalid(
+                "job_retry_cap_s",
+                format!(
                     "({}) must be at least job_retry_base_s ({})",
                     self.job_retry_cap_s, self.job_retry_base_s
                 ),
-                source_name: source("job_retry_cap_s"),
-            });
+            ));
         }
         if !(self.job_retention_days.is_finite() && self.job_retention_days > 0.0) {
-            return Err(ConfigError::Invalid {
-                key: "job_retention_days",
-                problem: format!(
+            return Err(sources.invalid(
+                "job_retention_days",
+                format!(
                     "must be a positive number of days, got {}",
                     self.job_retention_days
                 ),
-                source_name: source("job_retention_days"),
-            });
+            ));
         }
         if self.worker_concurrency > 256 {
-            return Err(ConfigError::Invalid {
-                key: "worker_concurrency",
-                problem: format!("must be at most 256, got {}", self.worker_concurrency),
-                source_name: source("worker_concurrency"),
-            });
+            return Err(sources.invalid(
+                "worker_concurrency",
+                format!("must be at most 256, got {}", self.worker_concurrency),
+            ));
         }
         Ok(())
     }
@@ -825,6 +861,109 @@ mod tests {
             jail.set_env("MENTALSIM_WORKER_CONCURRENCY", "many");
             let err = load(None, Overrides::default()).unwrap_err();
             assert!(err.contains("worker_concurrency"), "{err}");
+            Ok(())
+        });
+    }
+
+    /// Every check names its key, the problem and the layer that set the value; the first
+    /// problem found is the one reported. Pinned message by message.
+    #[test]
+    fn every_check_names_key_problem_and_layer() {
+        let cases: &[(&str, &str, &str)] = &[
+            (
+                "shutdown_grace_s = 0",
+                "shutdown_grace_s",
+                "must be a positive number of seconds, got 0",
+            ),
+            (
+                "request_timeout_s = 10.0\nquery_deadline_s = 20.0",
+                "request_timeout_s",
+                "(10) must be at least query_deadline_s (20), or queries are cut by the generic \
+                 timeout before their own deadline reports them",
+            ),
+            (
+                "[[tokens]]\ntoken = \"short\"\nname = \"bot\"\nrole = \"robot\"",
+                "tokens",
+                "entry 0 (bot) has a token shorter than 16 characters",
+            ),
+            (
+                "max_in_flight = 0",
+                "max_in_flight",
+                "must be at least 1, got 0",
+            ),
+            (
+                "robot_max_result_bytes = 10",
+                "robot_max_result_bytes",
+                "must be at least 1024, got 10",
+            ),
+            ("data_dir = \"\"", "data_dir", "must not be empty"),
+            (
+                "store_url = \"ftp://x\"",
+                "store_url",
+                "must be an http:// or https:// URL with a host, got \"ftp://x\" (scheme ftp)",
+            ),
+            (
+                "store_update_url = \"not a url\"",
+                "store_update_url",
+                "must be an http:// or https:// URL, got \"not a url\": relative URL without a \
+                 base",
+            ),
+            (
+                "store_update_url = \"http://x/update\"",
+                "store_update_url",
+                "is set but store_url is not; set both or neither",
+            ),
+            (
+                "database_url = \"mysql://u:secret@h/db\"",
+                "database_url",
+                "must be a sqlite:, postgres:// or postgresql:// URL, got \"mysql://u:***@h/db\"",
+            ),
+            (
+                "knowledge_url = \"knowledge:8080\"",
+                "knowledge_url",
+                "must be an http:// or https:// URL, got \"knowledge:8080\"",
+            ),
+            (
+                "job_lease_s = -1.0",
+                "job_lease_s",
+                "must be a positive number of seconds, got -1",
+            ),
+            (
+                "job_retry_base_s = 10.0\njob_retry_cap_s = 5.0",
+                "job_retry_cap_s",
+                "(5) must be at least job_retry_base_s (10)",
+            ),
+            (
+                "job_retention_days = -2.0",
+                "job_retention_days",
+                "must be a positive number of days, got -2",
+            ),
+            (
+                "worker_concurrency = 300",
+                "worker_concurrency",
+                "must be at most 256, got 300",
+            ),
+            (
+                "max_in_flight = 0\njob_lease_s = -1.0",
+                "max_in_flight",
+                "must be at least 1, got 0",
+            ),
+        ];
+        Jail::expect_with(|jail| {
+            jail.clear_env();
+            for (toml, key, problem) in cases {
+                jail.create_file("c.toml", toml)?;
+                assert_eq!(
+                    load(Some("c.toml"), Overrides::default()).unwrap_err(),
+                    format!("invalid configuration: `{key}` {problem} (set by TOML file (c.toml))")
+                );
+            }
+            jail.set_env("MENTALSIM_WORKER_CONCURRENCY", "257");
+            assert_eq!(
+                load(None, Overrides::default()).unwrap_err(),
+                "invalid configuration: `worker_concurrency` must be at most 256, got 257 (set by \
+                 environment variable MENTALSIM_WORKER_CONCURRENCY)"
+            );
             Ok(())
         });
     }
