@@ -5,7 +5,7 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 
 use prm::Point2;
-use sim::{Action, EnvConfig, NavEnv, Outcome, Pose2, World};
+use sim::{Action, EnvConfig, NavEnv, Observation, Outcome, Pose2, StepResult, World};
 
 use crate::controller::Controller;
 use crate::error::{BlockedReason, Endpoint, PlanError, invalid};
@@ -171,427 +171,702 @@ pub fn drive(
     legs: &[Vec<Point2>],
     controller: &mut dyn Controller,
     limits: DriveLimits,
-    mut replanner: Option<&mut Replanner<'_>>,
+    replanner: Option<&mut Replanner<'_>>,
 ) -> Result<DriveRun, PlanError> {
-    // (waypoint, goal index when it ends a leg)
-    let mut queue: VecDeque<(Point2, Option<usize>)> = legs
-        .iter()
-        .enumerate()
-        .flat_map(|(i, leg)| {
-            let last = leg.len().saturating_sub(1);
-            leg.iter()
-                .enumerate()
-                .map(move |(k, &p)| (p, (k == last).then_some(i)))
+    let mut drive = Drive::start(
+        world, env_config, start, legs, controller, limits, replanner,
+    )?;
+    loop {
+        if let Some(ended) = drive.step()? {
+            return Ok(drive.finish(ended));
+        }
+    }
+}
+
+/// How a drive ended, and why in words.
+struct Ended {
+    outcome: AttemptOutcome,
+    reason: String,
+}
+
+impl Ended {
+    fn stalled(reason: String) -> Self {
+        Self {
+            outcome: AttemptOutcome::Stalled,
+            reason,
+        }
+    }
+}
+
+/// A waypoint of a drive, and the index of the goal it is when it ends a leg.
+#[derive(Clone, Copy, Debug)]
+struct Waypoint {
+    at: Point2,
+    goal: Option<usize>,
+}
+
+/// The waypoints a drive has yet to reach: the one it drives to, and those after it, leg after
+/// leg.
+struct Route {
+    current: Waypoint,
+    queue: VecDeque<Waypoint>,
+}
+
+impl Route {
+    /// The waypoints of `legs` in order, each leg's last one its goal; `None` without any.
+    fn new(legs: &[Vec<Point2>]) -> Option<Self> {
+        let mut queue: VecDeque<Waypoint> = legs
+            .iter()
+            .enumerate()
+            .flat_map(|(i, leg)| {
+                let last = leg.len().saturating_sub(1);
+                leg.iter().enumerate().map(move |(k, &at)| Waypoint {
+                    at,
+                    goal: (k == last).then_some(i),
+                })
+            })
+            .collect();
+        let current = queue.pop_front()?;
+        Some(Self { current, queue })
+    }
+
+    /// The current waypoint as the simulation takes a goal.
+    fn target(&self) -> (f64, f64) {
+        (self.current.at.x, self.current.at.y)
+    }
+
+    /// The current waypoint and the rest of its leg, through the leg's goal.
+    fn rest_of_leg(&self) -> Vec<Point2> {
+        let mut out = vec![self.current.at];
+        if self.current.goal.is_none() {
+            for w in &self.queue {
+                out.push(w.at);
+                if w.goal.is_some() {
+                    break;
+                }
+            }
+        }
+        out
+    }
+
+    /// The goal of the current leg and its index: the current waypoint or a later one.
+    fn leg_goal(&self) -> Option<(Point2, usize)> {
+        match self.current.goal {
+            Some(i) => Some((self.current.at, i)),
+            None => self.queue.iter().find_map(|w| w.goal.map(|i| (w.at, i))),
+        }
+    }
+
+    /// Moves on to the next waypoint; `false` when there is none (the current one stays).
+    fn advance(&mut self) -> bool {
+        match self.queue.pop_front() {
+            Some(next) => {
+                self.current = next;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Replaces the rest of the current leg by `fresh` (a replanned path, its last point the
+    /// goal `goal_index`) and moves on to its first point: `false` when there is none (the
+    /// current waypoint then stays).
+    fn replace_rest_of_leg(&mut self, fresh: &[Point2], goal_index: usize) -> bool {
+        // The waypoints after the current one up to and including the leg's goal; the current
+        // one is replaced by the fresh path's first point below.
+        if self.current.goal.is_none() {
+            while let Some(w) = self.queue.pop_front() {
+                if w.goal.is_some() {
+                    break;
+                }
+            }
+        }
+        let last = fresh.len().saturating_sub(1);
+        for (k, &at) in fresh.iter().enumerate().rev() {
+            self.queue.push_front(Waypoint {
+                at,
+                goal: (k == last).then_some(goal_index),
+            });
+        }
+        self.advance()
+    }
+}
+
+/// The waypoint timer: control steps driven towards the current waypoint since the timer last
+/// restarted.
+struct WaypointTimer {
+    steps: u64,
+    /// Steps it allows.
+    limit: u64,
+    /// The waypoint the robot drove to at the last step counted, and the closest it has come
+    /// to it since the timer last restarted.
+    approach: (Point2, f64),
+}
+
+impl WaypointTimer {
+    fn new(limits: &DriveLimits, dt: f64) -> Self {
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "the timeout is checked to lie in (0, 600] s"
+        )]
+        let limit = ((limits.waypoint_timeout_s / dt).ceil() as u64).max(1);
+        Self {
+            steps: 0,
+            limit,
+            approach: (Point2::new(f64::NAN, f64::NAN), f64::INFINITY),
+        }
+    }
+
+    fn restart(&mut self) {
+        self.steps = 0;
+    }
+
+    fn expired(&self) -> bool {
+        self.steps >= self.limit
+    }
+
+    /// Counts a step driven towards `waypoint` that ended at `pose`.
+    fn count(&mut self, pose: Pose2, waypoint: Point2, recoveries: Option<&RecoveryParams>) {
+        self.steps += 1;
+        // Among people (where the drive has recoveries), the waypoint's timer runs from the
+        // robot's last approach to it, as Nav2's progress checker counts progress: a robot
+        // creeping behind a person walking slowly the same way gets there, and one that no
+        // longer comes closer (blocked, or circling) times out as before.
+        if let Some(params) = recoveries {
+            if self.approach.0 != waypoint {
+                self.approach = (waypoint, f64::INFINITY);
+            }
+            let d = (pose.x - waypoint.x).hypot(pose.y - waypoint.y);
+            if d < self.approach.1 - params.required_movement_m {
+                self.approach.1 = d;
+                self.steps = 0;
+            }
+        }
+    }
+}
+
+/// The progress checker's anchor: where the robot last stood when it had moved far enough,
+/// and at which step.
+#[derive(Clone, Copy)]
+struct Anchor {
+    pose: Pose2,
+    step: u64,
+}
+
+/// What a drive measures as it goes.
+struct Measured {
+    /// Control steps driven.
+    steps: u64,
+    /// Of those, the steps a fallback inside the controller drove.
+    handover_steps: u64,
+    /// Simulated time at the last step, seconds.
+    time_s: f64,
+    min_clearance: f64,
+    min_person: Option<f64>,
+    min_robot: Option<f64>,
+    /// The laser ranges at every pose, when traced.
+    ranges: Vec<Vec<f32>>,
+    social: SocialTracker,
+}
+
+/// One drive under way: the simulation, the waypoints left, the timers and recoveries, and
+/// what it measured so far. [`drive`] steps it until it ends.
+struct Drive<'d, 'r> {
+    world: &'d Arc<World>,
+    env_config: &'d EnvConfig,
+    limits: DriveLimits,
+    controller: &'d mut dyn Controller,
+    replanner: Option<&'d mut Replanner<'r>>,
+    env: NavEnv,
+    /// What the controller sees at the next step.
+    obs: Observation,
+    route: Route,
+    /// The control period, seconds.
+    dt: f64,
+    timer: WaypointTimer,
+    anchor: Anchor,
+    /// When the robot may set off again, seconds since the start ([`DriveLimits::holds`]).
+    hold_until: f64,
+    /// The recovery under way, if one is.
+    recovering: Option<Active>,
+    /// The recoveries tried, in order.
+    recoveries: Vec<RecoveryEvent>,
+    replans: u32,
+    /// Waypoints reached, and the junctions of replanned routes ([`DriveRun::reached`]).
+    reached: Vec<Point2>,
+    goal_indices: Vec<usize>,
+    measured: Measured,
+}
+
+impl<'d, 'r> Drive<'d, 'r> {
+    /// The simulation reset at `start`, heading for the first waypoint; the controller told
+    /// the first leg.
+    fn start(
+        world: &'d Arc<World>,
+        env_config: &'d EnvConfig,
+        start: Pose2,
+        legs: &[Vec<Point2>],
+        controller: &'d mut dyn Controller,
+        limits: DriveLimits,
+        replanner: Option<&'d mut Replanner<'r>>,
+    ) -> Result<Self, PlanError> {
+        let Some(route) = Route::new(legs) else {
+            return Err(invalid("goals", "must hold at least one goal"));
+        };
+        let mut env = NavEnv::new(Arc::clone(world), env_config.clone(), limits.sim_seed)
+            .map_err(|e| invalid("policy", e.to_string()))?;
+        env.set_other_robots(limits.others.clone());
+        let mut obs = env
+            .reset(start, route.target())
+            .map_err(|e| env_error(Endpoint::Start, e))?;
+        if limits.initial_velocity != Action::default() {
+            obs = env.set_velocity(limits.initial_velocity);
+        }
+        controller.start_path(start, &route.rest_of_leg());
+        let dt = env_config.control_period;
+        let measured = Measured {
+            steps: 0,
+            handover_steps: 0,
+            time_s: 0.0,
+            min_clearance: world.clearance(start.x, start.y),
+            min_person: (!env.people().is_empty()).then_some(f64::INFINITY),
+            min_robot: env.other_robots().map(|_| f64::INFINITY),
+            ranges: if limits.trace {
+                vec![obs.ranges.clone()]
+            } else {
+                Vec::new()
+            },
+            social: SocialTracker::default(),
+        };
+        Ok(Self {
+            world,
+            env_config,
+            timer: WaypointTimer::new(&limits, dt),
+            hold_until: limits.holds.first().copied().unwrap_or(0.0),
+            limits,
+            controller,
+            replanner,
+            env,
+            obs,
+            route,
+            dt,
+            anchor: Anchor {
+                pose: start,
+                step: 0,
+            },
+            recovering: None,
+            recoveries: Vec::new(),
+            replans: 0,
+            reached: Vec::new(),
+            goal_indices: Vec::new(),
+            measured,
         })
-        .collect();
-    let Some(mut current) = queue.pop_front() else {
-        return Err(invalid("goals", "must hold at least one goal"));
-    };
-    let mut env = NavEnv::new(Arc::clone(world), env_config.clone(), limits.sim_seed)
-        .map_err(|e| invalid("policy", e.to_string()))?;
-    env.set_other_robots(limits.others.clone());
-    let mut obs = env
-        .reset(start, (current.0.x, current.0.y))
-        .map_err(|e| env_error(Endpoint::Start, e))?;
-    if limits.initial_velocity != Action::default() {
-        obs = env.set_velocity(limits.initial_velocity);
     }
-    controller.start_path(start, &rest_of_leg(current, &queue));
-    let dt = env_config.control_period;
-    #[allow(
-        clippy::cast_possible_truncation,
-        clippy::cast_sign_loss,
-        reason = "the timeout is checked to lie in (0, 600] s"
-    )]
-    let timer_steps = ((limits.waypoint_timeout_s / dt).ceil() as u64).max(1);
-    let radius = world.spec().robot.footprint_radius;
-    let angular_max = env_config.limits.angular_max;
-    let mut steps_on_waypoint = 0u64;
-    // The current waypoint, and the closest the robot has come to it since its timer last
-    // restarted.
-    let mut approach = (Point2::new(f64::NAN, f64::NAN), f64::INFINITY);
-    let (mut steps, mut handover_steps) = (0u64, 0u64);
-    let mut min_clearance = world.clearance(start.x, start.y);
-    let mut min_person = (!env.people().is_empty()).then_some(f64::INFINITY);
-    let mut min_robot = env.other_robots().map(|_| f64::INFINITY);
-    let mut hold_until = limits.holds.first().copied().unwrap_or(0.0);
-    let mut replans = 0u32;
-    let mut reached = Vec::new();
-    let mut goal_indices = Vec::new();
-    let mut time_s;
-    let mut ranges = Vec::new();
-    let mut social = SocialTracker::default();
-    let mut recoveries: Vec<RecoveryEvent> = Vec::new();
-    let mut recovering: Option<Active> = None;
-    // The progress checker: where the robot last stood when it had moved far enough, and when.
-    let mut anchor = (start, 0u64);
-    if limits.trace {
-        ranges.push(obs.ranges.clone());
-    }
-    let (outcome, reason) = loop {
-        if steps_on_waypoint.is_multiple_of(64) && limits.stop.requested() {
+
+    /// One control step: the action, the simulation's step, what it measured, and what the
+    /// drive does about how the step ended; the end of the drive when it ended.
+    fn step(&mut self) -> Result<Option<Ended>, PlanError> {
+        if self.timer.steps.is_multiple_of(64) && self.limits.stop.requested() {
             return Err(PlanError::Stopped);
         }
-        let pose = env.pose();
-        // A robot told to wait stands still; a recovery under way drives instead of the
-        // controller.
+        let pose = self.env.pose();
+        let holding = self.holding();
+        let (action, in_recovery) = self.action(pose, holding);
+        let step = self.simulate(action, pose);
+        if !in_recovery && !holding {
+            self.timer.count(
+                step.info.pose,
+                self.route.current.at,
+                self.limits.recoveries.as_ref(),
+            );
+        }
+        match self.outcome(&step, in_recovery, holding) {
+            Outcome::Collision => Ok(Some(self.collision(&step, in_recovery))),
+            Outcome::ReachedGoal => self.reach_waypoint(),
+            Outcome::TimeLimit | Outcome::Running => {
+                self.obs = step.observation;
+                self.drive_on(holding)
+            }
+        }
+    }
+
+    /// Whether the robot is told to wait (it stands still, and the waypoint timer and the
+    /// progress checker wait with it).
+    fn holding(&self) -> bool {
         #[allow(clippy::cast_precision_loss, reason = "step counts are far below 2^52")]
-        let holding = (steps as f64) * dt + 1e-9 < hold_until;
-        let mut action = holding.then(Action::default);
-        if !holding && let (Some(active), Some(params)) = (&mut recovering, &limits.recoveries) {
-            match active.command(
-                params,
-                pose,
-                (world, &|x, y| env.moving_clearance_at(x, y)),
-                angular_max,
-                dt,
-            ) {
-                Ok(a) => action = Some(a),
-                Err(why) => {
-                    if let Some(e) = recoveries.last_mut() {
-                        e.outcome = why.to_owned();
-                    }
-                    recovering = None;
-                    anchor = (pose, steps);
-                    steps_on_waypoint = 0;
-                    controller.start_path(pose, &rest_of_leg(current, &queue));
-                }
-            }
+        let now = (self.measured.steps as f64) * self.dt;
+        now + 1e-9 < self.hold_until
+    }
+
+    /// What the robot does at this step, and whether a recovery commands it: it stands still
+    /// when told to wait; a recovery under way drives instead of the controller.
+    fn action(&mut self, pose: Pose2, holding: bool) -> (Action, bool) {
+        if holding {
+            return (Action::default(), false);
         }
-        let in_recovery = action.is_some() && !holding;
-        let action = match action {
-            Some(a) => a,
-            None => {
-                let a = controller.command(&obs, pose, (current.0.x, current.0.y));
-                if controller.handed_over() {
-                    handover_steps += 1;
-                }
-                a
-            }
+        if let Some(a) = self.recovery_command(pose) {
+            return (a, true);
+        }
+        let a = self
+            .controller
+            .command(&self.obs, pose, self.route.target());
+        if self.controller.handed_over() {
+            self.measured.handover_steps += 1;
+        }
+        (a, false)
+    }
+
+    /// The command of the recovery under way; `None` without one, or when it has just ended
+    /// (the controller then drives on from where the robot stands).
+    fn recovery_command(&mut self, pose: Pose2) -> Option<Action> {
+        let (Some(active), Some(params)) = (&mut self.recovering, &self.limits.recoveries) else {
+            return None;
         };
-        steps += 1;
-        let step = env.step(action);
-        if limits.trace {
-            ranges.push(step.observation.ranges.clone());
+        let env = &self.env;
+        match active.command(
+            params,
+            pose,
+            (self.world, &|x, y| env.moving_clearance_at(x, y)),
+            self.env_config.limits.angular_max,
+            self.dt,
+        ) {
+            Ok(a) => Some(a),
+            Err(why) => {
+                if let Some(e) = self.recoveries.last_mut() {
+                    e.outcome = why.to_owned();
+                }
+                self.recovering = None;
+                self.anchor = Anchor {
+                    pose,
+                    step: self.measured.steps,
+                };
+                self.timer.restart();
+                self.controller.start_path(pose, &self.route.rest_of_leg());
+                None
+            }
         }
-        time_s = step.info.time_s;
+    }
+
+    /// Steps the simulation from `from` with `action` and records what the step measured:
+    /// time, clearances, the laser (when traced) and the social metrics.
+    fn simulate(&mut self, action: Action, from: Pose2) -> StepResult {
+        let m = &mut self.measured;
+        m.steps += 1;
+        let step = self.env.step(action);
+        if self.limits.trace {
+            m.ranges.push(step.observation.ranges.clone());
+        }
+        m.time_s = step.info.time_s;
         if step.info.min_clearance.is_finite() {
-            min_clearance = min_clearance.min(step.info.min_clearance);
+            m.min_clearance = m.min_clearance.min(step.info.min_clearance);
         }
-        if let Some(m) = &mut min_person {
-            *m = m.min(step.info.person_clearance);
+        if let Some(c) = &mut m.min_person {
+            *c = c.min(step.info.person_clearance);
         }
-        if let Some(m) = &mut min_robot {
-            *m = m.min(step.info.robot_clearance);
+        if let Some(c) = &mut m.min_robot {
+            *c = c.min(step.info.robot_clearance);
         }
-        let people: Vec<((f64, f64), f64)> = env
+        let people: Vec<((f64, f64), f64)> = self
+            .env
             .people()
             .iter()
             .map(|q| (q.position, q.radius))
             .collect();
-        social.moved(
-            (step.info.pose.x - pose.x).hypot(step.info.pose.y - pose.y),
-            sim::kinematics::wrap_angle(step.info.pose.yaw - pose.yaw),
-            (env_config.limits.linear_max, angular_max),
+        let limits = &self.env_config.limits;
+        m.social.moved(
+            (step.info.pose.x - from.x).hypot(step.info.pose.y - from.y),
+            sim::kinematics::wrap_angle(step.info.pose.yaw - from.yaw),
+            (limits.linear_max, limits.angular_max),
         );
-        social.step(
+        m.social.step(
             (step.info.pose.x, step.info.pose.y),
-            radius,
+            self.world.spec().robot.footprint_radius,
             step.info.executed.linear,
-            dt,
+            self.dt,
             &people,
         );
-        if !in_recovery && !holding {
-            steps_on_waypoint += 1;
-            // Among people (where the drive has recoveries), the waypoint's timer runs from
-            // the robot's last approach to it, as Nav2's progress checker counts progress: a
-            // robot creeping behind a person walking slowly the same way gets there, and one
-            // that no longer comes closer (blocked, or circling) times out as before.
-            if let Some(params) = &limits.recoveries {
-                if approach.0 != current.0 {
-                    approach = (current.0, f64::INFINITY);
-                }
-                let p = step.info.pose;
-                let d = (p.x - current.0.x).hypot(p.y - current.0.y);
-                if d < approach.1 - params.required_movement_m {
-                    approach.1 = d;
-                    steps_on_waypoint = 0;
-                }
-            }
-        }
-        let mut outcome = step.info.outcome;
-        // A waypoint the controller drove past counts as reached (never a leg's goal).
+        step
+    }
+
+    /// How the step ended for the drive: the simulation's outcome, except that a waypoint the
+    /// controller drove past counts as reached (never a leg's goal).
+    fn outcome(&self, step: &StepResult, in_recovery: bool, holding: bool) -> Outcome {
+        let outcome = step.info.outcome;
         if outcome == Outcome::Running
             && !in_recovery
             && !holding
-            && current.1.is_none()
-            && controller.passed(step.info.pose, current.0)
+            && self.route.current.goal.is_none()
+            && self
+                .controller
+                .passed(step.info.pose, self.route.current.at)
         {
-            outcome = Outcome::ReachedGoal;
-        }
-        match outcome {
-            Outcome::Collision => {
-                let p = step.info.pose;
-                let robot = step
-                    .info
-                    .nearest_robot
-                    .filter(|_| step.info.robot_clearance < env_config.collision_clearance)
-                    .and_then(|i| env.other_robots().map(|o| o.robots()[i].name.clone()));
-                let with = if step.info.person_clearance < env_config.collision_clearance {
-                    PERSON_COLLISION.to_owned()
-                } else if let Some(name) = robot {
-                    format!("{ROBOT_COLLISION} {name}")
-                } else {
-                    "collision".to_owned()
-                };
-                let mut contact = if with == PERSON_COLLISION {
-                    person_contact(&env, step.observation.velocity[0])
-                } else {
-                    String::new()
-                };
-                if in_recovery {
-                    if let Some(e) = recoveries.last_mut() {
-                        e.outcome = "collided".to_owned();
-                        contact.push_str(&format!(", during the {} recovery", e.kind.as_str()));
-                    }
-                } else if controller.handed_over() {
-                    contact.push_str(", the fallback driving");
-                }
-                break (
-                    AttemptOutcome::Collision,
-                    format!(
-                        "{with} at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2}){contact}",
-                        p.x,
-                        p.y,
-                        time_s,
-                        reached.len() + 1,
-                        current.0.x,
-                        current.0.y
-                    ),
-                );
-            }
-            Outcome::ReachedGoal => {
-                reached.push(current.0);
-                // Holds are times since the start: a waypoint reached while the robot still
-                // stands waiting (one within reach of its start) does not end that wait.
-                hold_until =
-                    hold_until.max(limits.holds.get(reached.len()).copied().unwrap_or(0.0));
-                if current.1.is_some() {
-                    goal_indices.push(reached.len() - 1);
-                }
-                if recovering.take().is_some()
-                    && let Some(e) = recoveries.last_mut()
-                {
-                    e.outcome = "the waypoint was reached".to_owned();
-                }
-                match queue.pop_front() {
-                    None => break (AttemptOutcome::Reached, "every goal reached".to_owned()),
-                    Some(next) => {
-                        let new_leg = current.1.is_some();
-                        current = next;
-                        obs = env
-                            .set_goal((current.0.x, current.0.y))
-                            .map_err(|e| env_error(Endpoint::Waypoint, e))?;
-                        steps_on_waypoint = 0;
-                        if new_leg {
-                            controller.start_path(env.pose(), &rest_of_leg(current, &queue));
-                        }
-                    }
-                }
-            }
-            Outcome::TimeLimit | Outcome::Running => {
-                obs = step.observation;
-                let p = env.pose();
-                if holding {
-                    anchor = (p, steps);
-                    continue;
-                }
-                // The progress checker, and a recovery when the robot is stuck.
-                if (p.x - anchor.0.x).hypot(p.y - anchor.0.y)
-                    > limits
-                        .recoveries
-                        .as_ref()
-                        .map_or(f64::INFINITY, |r| r.required_movement_m)
-                {
-                    anchor = (p, steps);
-                }
-                if let Some(params) = &limits.recoveries
-                    && recovering.is_none()
-                    && (steps - anchor.1) as f64 * dt >= params.movement_time_allowance_s
-                    && recoveries.len()
-                        < usize::try_from(params.max_recoveries).unwrap_or(usize::MAX)
-                    && !params.sequence.is_empty()
-                {
-                    let kind = params.sequence[recoveries.len() % params.sequence.len()];
-                    let mut event = RecoveryEvent {
-                        kind,
-                        at_s: time_s,
-                        position: Point2::new(p.x, p.y),
-                        outcome: "done".to_owned(),
-                    };
-                    anchor = (p, steps);
-                    steps_on_waypoint = 0;
-                    if kind == RecoveryKind::Reroute {
-                        let blocked = Point2::new(
-                            p.x + (radius + 0.5) * p.yaw.cos(),
-                            p.y + (radius + 0.5) * p.yaw.sin(),
-                        );
-                        let goal = leg_goal(current, &queue);
-                        match (replanner.as_mut(), goal) {
-                            (Some(replan), Some((goal, goal_index))) => {
-                                match replan(Point2::new(p.x, p.y), goal, Some(blocked)) {
-                                    Ok(fresh) => {
-                                        // The junction: the route goes on from here.
-                                        reached.push(Point2::new(p.x, p.y));
-                                        drop_rest_of_leg(&mut current, &mut queue);
-                                        push_path(&mut queue, &fresh, goal_index);
-                                        if let Some(next) = queue.pop_front() {
-                                            current = next;
-                                            obs = env
-                                                .set_goal((current.0.x, current.0.y))
-                                                .map_err(|e| env_error(Endpoint::Waypoint, e))?;
-                                        }
-                                        controller.start_path(p, &rest_of_leg(current, &queue));
-                                    }
-                                    Err(why) => event.outcome = why,
-                                }
-                            }
-                            _ => event.outcome = "no roadmap to re-route on".to_owned(),
-                        }
-                    } else {
-                        let bearing = f64::from(obs.goal_angle);
-                        recovering = Some(Active::start(kind, params, p, bearing, angular_max, dt));
-                    }
-                    recoveries.push(event);
-                    continue;
-                }
-                if steps_on_waypoint < timer_steps {
-                    continue;
-                }
-                let late = format!(
-                    "waypoint {} ({:.2}, {:.2}) not reached within {} s from ({:.2}, {:.2}){}",
-                    reached.len() + 1,
-                    current.0.x,
-                    current.0.y,
-                    limits.waypoint_timeout_s,
-                    p.x,
-                    p.y,
-                    person_contact(&env, obs.velocity[0])
-                );
-                let Some(replan) = replanner.as_mut() else {
-                    break (AttemptOutcome::Stalled, late);
-                };
-                if replans >= limits.max_replans {
-                    break (
-                        AttemptOutcome::Stalled,
-                        format!("{late}; {replans} replans already spent"),
-                    );
-                }
-                replans += 1;
-                let Some((goal, goal_index)) = leg_goal(current, &queue) else {
-                    break (AttemptOutcome::Stalled, late);
-                };
-                let fresh = match replan(Point2::new(p.x, p.y), goal, None) {
-                    Ok(w) => w,
-                    Err(why) => break (AttemptOutcome::Stalled, format!("{late}; {why}")),
-                };
-                reached.push(Point2::new(p.x, p.y));
-                drop_rest_of_leg(&mut current, &mut queue);
-                push_path(&mut queue, &fresh, goal_index);
-                let Some(next) = queue.pop_front() else {
-                    break (AttemptOutcome::Stalled, late);
-                };
-                current = next;
-                obs = env
-                    .set_goal((current.0.x, current.0.y))
-                    .map_err(|e| env_error(Endpoint::Waypoint, e))?;
-                steps_on_waypoint = 0;
-                controller.start_path(p, &rest_of_leg(current, &queue));
-            }
-        }
-    };
-    let reason = if recoveries.is_empty() {
-        reason
-    } else {
-        format!(
-            "{reason}; recoveries: {}",
-            crate::recovery::describe(&recoveries)
-        )
-    };
-    let trajectory = env.trajectory().to_vec();
-    let distance_m = trajectory
-        .windows(2)
-        .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
-        .sum();
-    Ok(DriveRun {
-        outcome,
-        reason,
-        time_s,
-        distance_m,
-        min_clearance_m: min_clearance,
-        replans,
-        reached,
-        goal_indices,
-        end_pose: env.pose(),
-        trajectory,
-        ranges,
-        steps,
-        handover_steps,
-        min_robot_clearance_m: min_robot,
-        min_person_clearance_m: min_person,
-        social: social.metrics(),
-        recoveries,
-    })
-}
-
-/// The current waypoint and the rest of its leg, through the leg's goal.
-fn rest_of_leg(
-    current: (Point2, Option<usize>),
-    queue: &VecDeque<(Point2, Option<usize>)>,
-) -> Vec<Point2> {
-    let mut out = vec![current.0];
-    if current.1.is_none() {
-        for &(p, g) in queue {
-            out.push(p);
-            if g.is_some() {
-                break;
-            }
+            Outcome::ReachedGoal
+        } else {
+            outcome
         }
     }
-    out
-}
 
-/// The goal of the current leg and its index: the current waypoint or a later one.
-fn leg_goal(
-    current: (Point2, Option<usize>),
-    queue: &VecDeque<(Point2, Option<usize>)>,
-) -> Option<(Point2, usize)> {
-    match current.1 {
-        Some(i) => Some((current.0, i)),
-        None => queue.iter().find_map(|&(q, gi)| gi.map(|i| (q, i))),
-    }
-}
-
-/// Drops the waypoints after `current` up to and including the leg's goal (a replanned path
-/// takes their place; the current waypoint is replaced by the caller).
-fn drop_rest_of_leg(
-    current: &mut (Point2, Option<usize>),
-    queue: &mut VecDeque<(Point2, Option<usize>)>,
-) {
-    if current.1.is_none() {
-        while let Some((_, gi)) = queue.pop_front() {
-            if gi.is_some() {
-                break;
+    /// The end of a drive that touched something: what, where and when, and who was driving.
+    fn collision(&mut self, step: &StepResult, in_recovery: bool) -> Ended {
+        let p = step.info.pose;
+        let touching = self.env_config.collision_clearance;
+        let robot = step
+            .info
+            .nearest_robot
+            .filter(|_| step.info.robot_clearance < touching)
+            .and_then(|i| self.env.other_robots().map(|o| o.robots()[i].name.clone()));
+        let with = if step.info.person_clearance < touching {
+            PERSON_COLLISION.to_owned()
+        } else if let Some(name) = robot {
+            format!("{ROBOT_COLLISION} {name}")
+        } else {
+            "collision".to_owned()
+        };
+        let mut contact = if with == PERSON_COLLISION {
+            person_contact(&self.env, step.observation.velocity[0])
+        } else {
+            String::new()
+        };
+        if in_recovery {
+            if let Some(e) = self.recoveries.last_mut() {
+                e.outcome = "collided".to_owned();
+                contact.push_str(&format!(", during the {} recovery", e.kind.as_str()));
             }
+        } else if self.controller.handed_over() {
+            contact.push_str(", the fallback driving");
+        }
+        let w = self.route.current.at;
+        Ended {
+            outcome: AttemptOutcome::Collision,
+            reason: format!(
+                "{with} at ({:.2}, {:.2}) after {:.1} s, driving to waypoint {} ({:.2}, {:.2}){contact}",
+                p.x,
+                p.y,
+                self.measured.time_s,
+                self.reached.len() + 1,
+                w.x,
+                w.y
+            ),
         }
     }
-}
 
-/// Puts `fresh` in front of the queue, its last point the goal `goal_index`.
-fn push_path(queue: &mut VecDeque<(Point2, Option<usize>)>, fresh: &[Point2], goal_index: usize) {
-    let last = fresh.len().saturating_sub(1);
-    for (k, &w) in fresh.iter().enumerate().rev() {
-        queue.push_front((w, (k == last).then_some(goal_index)));
+    /// The current waypoint reached: on to the next one (the controller told the next leg
+    /// after a goal), or the end of the drive after the last.
+    fn reach_waypoint(&mut self) -> Result<Option<Ended>, PlanError> {
+        self.reached.push(self.route.current.at);
+        // Holds are times since the start: a waypoint reached while the robot still stands
+        // waiting (one within reach of its start) does not end that wait.
+        let hold = self.limits.holds.get(self.reached.len()).copied();
+        self.hold_until = self.hold_until.max(hold.unwrap_or(0.0));
+        let new_leg = self.route.current.goal.is_some();
+        if new_leg {
+            self.goal_indices.push(self.reached.len() - 1);
+        }
+        if self.recovering.take().is_some()
+            && let Some(e) = self.recoveries.last_mut()
+        {
+            e.outcome = "the waypoint was reached".to_owned();
+        }
+        if !self.route.advance() {
+            return Ok(Some(Ended {
+                outcome: AttemptOutcome::Reached,
+                reason: "every goal reached".to_owned(),
+            }));
+        }
+        self.head_for_current()?;
+        self.timer.restart();
+        if new_leg {
+            self.controller
+                .start_path(self.env.pose(), &self.route.rest_of_leg());
+        }
+        Ok(None)
+    }
+
+    /// Points the simulation's goal at the current waypoint.
+    fn head_for_current(&mut self) -> Result<(), PlanError> {
+        self.obs = self
+            .env
+            .set_goal(self.route.target())
+            .map_err(|e| env_error(Endpoint::Waypoint, e))?;
+        Ok(())
+    }
+
+    /// A step that ended on the way: the progress checker (a recovery when the robot is
+    /// stuck), then the waypoint timer (a replan when it ran out).
+    fn drive_on(&mut self, holding: bool) -> Result<Option<Ended>, PlanError> {
+        let p = self.env.pose();
+        let here = Anchor {
+            pose: p,
+            step: self.measured.steps,
+        };
+        if holding {
+            self.anchor = here;
+            return Ok(None);
+        }
+        let required_m = self
+            .limits
+            .recoveries
+            .as_ref()
+            .map_or(f64::INFINITY, |r| r.required_movement_m);
+        if (p.x - self.anchor.pose.x).hypot(p.y - self.anchor.pose.y) > required_m {
+            self.anchor = here;
+        }
+        if let Some(kind) = self.recovery_due() {
+            self.start_recovery(kind, p)?;
+            return Ok(None);
+        }
+        if !self.timer.expired() {
+            return Ok(None);
+        }
+        self.replan_late(p)
+    }
+
+    /// The recovery to try next, when the robot has not moved far enough for long enough, no
+    /// recovery is under way and the drive may try one more.
+    fn recovery_due(&self) -> Option<RecoveryKind> {
+        let params = self.limits.recoveries.as_ref()?;
+        #[allow(clippy::cast_precision_loss, reason = "step counts are far below 2^52")]
+        let still_s = (self.measured.steps - self.anchor.step) as f64 * self.dt;
+        let due = self.recovering.is_none()
+            && still_s >= params.movement_time_allowance_s
+            && self.recoveries.len() < usize::try_from(params.max_recoveries).unwrap_or(usize::MAX)
+            && !params.sequence.is_empty();
+        due.then(|| params.sequence[self.recoveries.len() % params.sequence.len()])
+    }
+
+    /// Starts the recovery `kind` where the robot stands at `p`: a re-route at once, the
+    /// others over the next steps.
+    fn start_recovery(&mut self, kind: RecoveryKind, p: Pose2) -> Result<(), PlanError> {
+        let mut event = RecoveryEvent {
+            kind,
+            at_s: self.measured.time_s,
+            position: Point2::new(p.x, p.y),
+            outcome: "done".to_owned(),
+        };
+        self.anchor = Anchor {
+            pose: p,
+            step: self.measured.steps,
+        };
+        self.timer.restart();
+        if kind == RecoveryKind::Reroute {
+            event.outcome = self.reroute(p)?;
+        } else if let Some(params) = &self.limits.recoveries {
+            let bearing = f64::from(self.obs.goal_angle);
+            let angular_max = self.env_config.limits.angular_max;
+            self.recovering = Some(Active::start(
+                kind,
+                params,
+                p,
+                bearing,
+                angular_max,
+                self.dt,
+            ));
+        }
+        self.recoveries.push(event);
+        Ok(())
+    }
+
+    /// The re-route recovery: the rest of the leg replanned from `p` avoiding the roadmap's
+    /// edges past the spot just ahead of the robot. Its outcome in words.
+    fn reroute(&mut self, p: Pose2) -> Result<String, PlanError> {
+        let ahead = self.world.spec().robot.footprint_radius + 0.5;
+        let blocked = Point2::new(p.x + ahead * p.yaw.cos(), p.y + ahead * p.yaw.sin());
+        let (Some(replan), Some((goal, goal_index))) =
+            (self.replanner.as_mut(), self.route.leg_goal())
+        else {
+            return Ok("no roadmap to re-route on".to_owned());
+        };
+        let fresh = match replan(Point2::new(p.x, p.y), goal, Some(blocked)) {
+            Ok(fresh) => fresh,
+            Err(why) => return Ok(why),
+        };
+        // The junction: the route goes on from here.
+        self.reached.push(Point2::new(p.x, p.y));
+        if self.route.replace_rest_of_leg(&fresh, goal_index) {
+            self.head_for_current()?;
+        }
+        self.controller.start_path(p, &self.route.rest_of_leg());
+        Ok("done".to_owned())
+    }
+
+    /// The waypoint timer ran out with the robot at `p`: the rest of the leg replanned from
+    /// there, or the end of a stalled drive (no replanner, no replans left, no way).
+    fn replan_late(&mut self, p: Pose2) -> Result<Option<Ended>, PlanError> {
+        let w = self.route.current.at;
+        let late = format!(
+            "waypoint {} ({:.2}, {:.2}) not reached within {} s from ({:.2}, {:.2}){}",
+            self.reached.len() + 1,
+            w.x,
+            w.y,
+            self.limits.waypoint_timeout_s,
+            p.x,
+            p.y,
+            person_contact(&self.env, self.obs.velocity[0])
+        );
+        let Some(replan) = self.replanner.as_mut() else {
+            return Ok(Some(Ended::stalled(late)));
+        };
+        if self.replans >= self.limits.max_replans {
+            let spent = self.replans;
+            return Ok(Some(Ended::stalled(format!(
+                "{late}; {spent} replans already spent"
+            ))));
+        }
+        self.replans += 1;
+        let Some((goal, goal_index)) = self.route.leg_goal() else {
+            return Ok(Some(Ended::stalled(late)));
+        };
+        let fresh = match replan(Point2::new(p.x, p.y), goal, None) {
+            Ok(w) => w,
+            Err(why) => return Ok(Some(Ended::stalled(format!("{late}; {why}")))),
+        };
+        self.reached.push(Point2::new(p.x, p.y));
+        if !self.route.replace_rest_of_leg(&fresh, goal_index) {
+            return Ok(Some(Ended::stalled(late)));
+        }
+        self.head_for_current()?;
+        self.timer.restart();
+        self.controller.start_path(p, &self.route.rest_of_leg());
+        Ok(None)
+    }
+
+    /// What the drive measured, once it has `ended`.
+    fn finish(self, ended: Ended) -> DriveRun {
+        let reason = if self.recoveries.is_empty() {
+            ended.reason
+        } else {
+            format!(
+                "{}; recoveries: {}",
+                ended.reason,
+                crate::recovery::describe(&self.recoveries)
+            )
+        };
+        let trajectory = self.env.trajectory().to_vec();
+        let distance_m = trajectory
+            .windows(2)
+            .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+            .sum();
+        let m = self.measured;
+        DriveRun {
+            outcome: ended.outcome,
+            reason,
+            time_s: m.time_s,
+            distance_m,
+            min_clearance_m: m.min_clearance,
+            replans: self.replans,
+            reached: self.reached,
+            goal_indices: self.goal_indices,
+            end_pose: self.env.pose(),
+            trajectory,
+            ranges: m.ranges,
+            steps: m.steps,
+            handover_steps: m.handover_steps,
+            min_robot_clearance_m: m.min_robot,
+            min_person_clearance_m: m.min_person,
+            social: m.social.metrics(),
+            recoveries: self.recoveries,
+        }
     }
 }
 
