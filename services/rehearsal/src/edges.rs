@@ -398,7 +398,7 @@ where
             },
             |controller, &(a, b)| {
                 let (pa, pb) = (nodes[a], nodes[b]);
-                let waypoints = crate::executor::subdivide(pa, vec![pb], max_segment_m);
+                let waypoints = crate::paths::subdivide(pa, vec![pb], max_segment_m);
                 let others: Vec<usize> =
                     neighbours[a].iter().copied().filter(|&w| w != b).collect();
                 let mut stat = EdgeStat {

@@ -16,17 +16,19 @@ use std::sync::Arc;
 
 use grid::seed::mix;
 use learning::Policy;
-use prm::{Point2, PrmParams, QueryError, QueryOptions, Roadmap};
+use prm::{Point2, PrmParams, QueryOptions, Roadmap};
 use sim::{Action, EnvConfig, NoiseConfig, Pose2, World};
 
 use crate::cache::{RoadmapCache, SpaceEntry};
 pub use crate::checks::check_request;
-use crate::checks::{blocked_error, check_goals, segment_clear, start_entry};
+use crate::checks::{check_goals, start_entry};
 use crate::controller::{ClassicalFollower, Controller, PolicyController, ShieldedFollower};
 pub use crate::drive::{
     DriveLimits, DriveRun, PERSON_COLLISION, ROBOT_COLLISION, Replanner, drive, hit_person,
 };
-use crate::error::{Endpoint, PlanError, invalid};
+use crate::error::{PlanError, invalid};
+pub use crate::paths::REROUTE_PENALTY_M;
+use crate::paths::{LegPath, LegQuery, clear_of_standing, plan_leg, replan};
 use crate::recovery::{RecoveryEvent, RecoveryParams};
 use crate::social::SocialMetrics;
 use crate::timed::TimedAmong;
@@ -168,16 +170,16 @@ pub fn validate_with_fallback(
     fallback: Option<&mut dyn Controller>,
     policy_roadmap: Option<&Arc<Roadmap>>,
 ) -> Result<PlanReport, PlanError> {
-    let mut details = Vec::new();
-    validate_inner(
+    validate_detailed(
         world,
         roadmaps,
         map_version,
         request,
-        (controller, fallback),
+        controller,
+        fallback,
         policy_roadmap,
-        &mut details,
     )
+    .result
 }
 
 /// What an attempt measured beyond its [`AttemptReport`]: the social metrics and the
@@ -211,261 +213,455 @@ pub fn validate_detailed(
     fallback: Option<&mut dyn Controller>,
     policy_roadmap: Option<&Arc<Roadmap>>,
 ) -> Detailed {
-    let mut attempts = Vec::new();
-    let result = validate_inner(
+    let floor = Floor {
         world,
         roadmaps,
         map_version,
-        request,
-        (controller, fallback),
-        policy_roadmap,
-        &mut attempts,
-    );
-    Detailed { result, attempts }
+    };
+    match Validation::new(floor, request, controller, fallback, policy_roadmap) {
+        Ok(validation) => validation.run(),
+        Err(e) => Detailed {
+            result: Err(e),
+            attempts: Vec::new(),
+        },
+    }
 }
 
-fn validate_inner(
-    world: &Arc<World>,
-    roadmaps: &RoadmapCache,
-    map_version: &str,
-    request: &PlanRequest,
-    (controller, fallback): (&mut dyn Controller, Option<&mut dyn Controller>),
-    policy_roadmap: Option<&Arc<Roadmap>>,
-    details: &mut Vec<AttemptDetails>,
-) -> Result<PlanReport, PlanError> {
-    let opts = &request.options;
-    check_request(request)?;
-    let policy_roadmap = policy_roadmap.filter(|_| opts.roadmap != RoadmapChoice::Geometric);
-    let primary_kind = controller.kind();
-    let controller_description = controller.description();
-    let mut drivers = vec![Driver::new(world, opts, controller)?];
-    if let Some(f) = fallback {
-        drivers.push(Driver::new(world, opts, f)?);
-    }
-    let inflation = prm::Inflation {
-        robot_radius_m: world.spec().robot.footprint_radius,
-        safety_margin_m: opts.safety_margin_m,
-    };
-    let space = roadmaps.config_space(map_version, world, inflation)?;
-    let cs = &*space.cspace;
-    let start = request.start;
-    let clearance = drivers
-        .iter()
-        .map(|d| d.env.collision_clearance)
-        .fold(0.0, f64::max);
-    let entry = start_entry(world, cs, start, clearance)?;
-    let goals = &request.goals;
-    check_goals(cs, entry.unwrap_or(Point2::new(start.x, start.y)), goals)?;
-    // Around robots standing on the floor the roadmap loses the edges that pass them and may
-    // not densify: a denser one keeps the ways between them.
-    let samples = opts
-        .samples
-        .unwrap_or_else(|| prm::optimal_samples(space.free_area_m2))
-        * if opts.standing.is_empty() {
-            1
-        } else {
-            STANDING_DENSITY
-        };
+/// Where a validation plans: the world, and the roadmap cache with the world's map version.
+#[derive(Clone, Copy)]
+struct Floor<'v> {
+    world: &'v Arc<World>,
+    roadmaps: &'v RoadmapCache,
+    map_version: &'v str,
+}
 
-    let n_drivers = drivers.len();
-    let mut attempts = Vec::new();
-    let mut validated: Vec<ValidatedLeg> = Vec::with_capacity(goals.len());
-    let mut pose = start;
-    for (leg, &goal) in goals.iter().enumerate() {
+/// A validation under way ([`validate_with_fallback`]): what every leg shares, and what the
+/// legs validated so far gave.
+struct Validation<'v, 'c> {
+    floor: Floor<'v>,
+    request: &'v PlanRequest,
+    /// The policy-aware roadmap the primary controller plans on, unless the request asks for
+    /// the geometric roadmap.
+    policy_roadmap: Option<&'v Arc<Roadmap>>,
+    /// The primary controller's kind and description, as the report names it.
+    primary: ControllerKind,
+    description: String,
+    /// The primary controller, then the fallback if there is one.
+    drivers: Vec<Driver<'c>>,
+    space: Arc<SpaceEntry>,
+    inflation: prm::Inflation,
+    /// The start's way out of the safety margin, if it needs one.
+    entry: Option<Point2>,
+    /// Samples of each geometric roadmap.
+    samples: usize,
+    /// Where the robot stands when the next leg sets off.
+    pose: Pose2,
+    /// Every attempt driven so far, in order, and what each measured beyond its report.
+    attempts: Vec<AttemptReport>,
+    details: Vec<AttemptDetails>,
+    validated: Vec<ValidatedLeg>,
+}
+
+/// The roadmap of one attempt, as the report names it.
+struct AttemptRoadmap {
+    /// Without the edges passing robots standing on the floor ([`clear_of_standing`]).
+    roadmap: Arc<Roadmap>,
+    cached: bool,
+    seed: u64,
+    kind: RoadmapKind,
+}
+
+impl<'v, 'c> Validation<'v, 'c> {
+    /// The checks before any driving (the request's values, the start and every goal in the
+    /// floor's configuration space) and the controllers attached to the world.
+    // The two controllers may be borrowed for different lifetimes: the fallback's borrow is
+    // shortened to `'c` where `Driver::new` takes it (inside an `Option` it would not be).
+    fn new<'f: 'c>(
+        floor: Floor<'v>,
+        request: &'v PlanRequest,
+        controller: &'c mut dyn Controller,
+        fallback: Option<&'f mut dyn Controller>,
+        policy_roadmap: Option<&'v Arc<Roadmap>>,
+    ) -> Result<Self, PlanError> {
+        let Floor {
+            world,
+            roadmaps,
+            map_version,
+        } = floor;
+        let opts = &request.options;
+        check_request(request)?;
+        let policy_roadmap = policy_roadmap.filter(|_| opts.roadmap != RoadmapChoice::Geometric);
+        let primary = controller.kind();
+        let description = controller.description();
+        let mut drivers = vec![Driver::new(world, opts, controller)?];
+        if let Some(f) = fallback {
+            drivers.push(Driver::new(world, opts, f)?);
+        }
+        let inflation = prm::Inflation {
+            robot_radius_m: world.spec().robot.footprint_radius,
+            safety_margin_m: opts.safety_margin_m,
+        };
+        let space = roadmaps.config_space(map_version, world, inflation)?;
+        let cs = &*space.cspace;
+        let start = request.start;
+        let clearance = drivers
+            .iter()
+            .map(|d| d.env.collision_clearance)
+            .fold(0.0, f64::max);
+        let entry = start_entry(world, cs, start, clearance)?;
+        check_goals(
+            cs,
+            entry.unwrap_or(Point2::new(start.x, start.y)),
+            &request.goals,
+        )?;
+        // Around robots standing on the floor the roadmap loses the edges that pass them and may
+        // not densify: a denser one keeps the ways between them.
+        let samples = opts
+            .samples
+            .unwrap_or_else(|| prm::optimal_samples(space.free_area_m2))
+            * if opts.standing.is_empty() {
+                1
+            } else {
+                STANDING_DENSITY
+            };
+        Ok(Self {
+            floor,
+            request,
+            policy_roadmap,
+            primary,
+            description,
+            drivers,
+            space,
+            inflation,
+            entry,
+            samples,
+            pose: start,
+            attempts: Vec::new(),
+            details: Vec::new(),
+            validated: Vec::with_capacity(request.goals.len()),
+        })
+    }
+
+    /// Validates every leg in turn, then reports the plan.
+    fn run(mut self) -> Detailed {
+        let legs = self.validate_legs();
+        let attempts = std::mem::take(&mut self.details);
+        Detailed {
+            result: legs.and_then(|()| self.report()),
+            attempts,
+        }
+    }
+
+    /// Each leg validated from where the previous one's validating run ended.
+    fn validate_legs(&mut self) -> Result<(), PlanError> {
+        for leg in 0..self.request.goals.len() {
+            let validated = self.validate_leg(leg)?;
+            self.pose = validated.run.end_pose;
+            self.validated.push(validated);
+        }
+        Ok(())
+    }
+
+    /// The first attempt that validates `leg`: the primary controller's attempts, then the
+    /// fallback's.
+    fn validate_leg(&mut self, leg: usize) -> Result<ValidatedLeg, PlanError> {
+        for d in 0..self.drivers.len() {
+            if let Some(validated) = self.attempts_of(d, leg)? {
+                return Ok(validated);
+            }
+        }
+        Err(PlanError::NotValidated {
+            attempts: std::mem::take(&mut self.attempts),
+        })
+    }
+
+    /// Whether driver `d` plans on the policy-aware roadmap.
+    fn on_policy_roadmap(&self, d: usize) -> bool {
+        d == 0 && self.policy_roadmap.is_some()
+    }
+
+    /// Up to `max_attempts` attempts of driver `d` at `leg`: the validating run, or `None`
+    /// when none validated it (or, on the policy-aware roadmap, no route joins the leg and
+    /// the fallback is to plan it).
+    fn attempts_of(&mut self, d: usize, leg: usize) -> Result<Option<ValidatedLeg>, PlanError> {
+        let request = self.request;
+        let opts = &request.options;
+        // On the policy-aware roadmap only driven edges join the roadmap's nodes. `policy`
+        // never densifies; `auto` densifies where they join no route (a start or goal that
+        // no node within reach sees in a straight line, a gap the build left), as the
+        // start and goal links, which no rollout drove either.
+        // Nor where robots stand on the floor: new edges would not know to keep clear of them.
+        let query = QueryOptions {
+            no_densify: (self.on_policy_roadmap(d) && opts.roadmap == RoadmapChoice::Policy)
+                || !opts.standing.is_empty(),
+            ..QueryOptions::default()
+        };
+        for attempt in 1..=opts.max_attempts {
+            if request.stop.requested() {
+                return Err(PlanError::Stopped);
+            }
+            let roadmap = self.attempt_roadmap(d, attempt)?;
+            let Some(path) = self.plan(d, leg, &roadmap.roadmap, query)? else {
+                return Ok(None);
+            };
+            let run = self.drive_attempt(d, leg, attempt, &roadmap.roadmap, &path, query)?;
+            self.record(d, leg, attempt, &roadmap, &path, &run);
+            if run.outcome == AttemptOutcome::Reached {
+                return Ok(Some(self.validated_leg(d, &roadmap, &path, run)));
+            }
+        }
+        Ok(None)
+    }
+
+    /// The roadmap of driver `d`'s `attempt`: the policy-aware roadmap, or the geometric one
+    /// of the attempt's seed (from the cache, or built); clear of robots standing on the floor.
+    fn attempt_roadmap(&self, d: usize, attempt: u32) -> Result<AttemptRoadmap, PlanError> {
+        let opts = &self.request.options;
+        let (roadmap, cached, seed, kind) = match self.policy_roadmap.filter(|_| d == 0) {
+            Some(r) => (Arc::clone(r), true, r.params().seed, RoadmapKind::Policy),
+            None => {
+                let seed = opts.seed.wrapping_add(u64::from(attempt - 1)) ^ opts.roadmap_salt;
+                let params = PrmParams {
+                    samples: self.samples,
+                    seed,
+                    ..PrmParams::default()
+                };
+                let (r, cached) = self.floor.roadmaps.roadmap_until(
+                    self.floor.map_version,
+                    &self.space,
+                    &params,
+                    &self.request.stop,
+                )?;
+                (r, cached, seed, RoadmapKind::Geometric)
+            }
+        };
+        Ok(AttemptRoadmap {
+            roadmap: clear_of_standing(roadmap, opts, self.floor.world)?,
+            cached,
+            seed,
+            kind,
+        })
+    }
+
+    /// The roadmap path of `leg` for driver `d` on `roadmap`, timed among the fleet's plans
+    /// when there are any; `None` when no kept edge of the policy-aware roadmap joins the leg
+    /// and the fallback is to plan it on the geometric roadmap (without one, that is the
+    /// answer).
+    fn plan(
+        &self,
+        d: usize,
+        leg: usize,
+        roadmap: &Roadmap,
+        query: QueryOptions,
+    ) -> Result<Option<LegPath>, PlanError> {
+        let opts = &self.request.options;
+        let driver = &self.drivers[d];
+        // Among the fleet's plans, the route that arrives first, timed from when the leg sets
+        // off.
+        let timed = opts.reserved.as_deref().map(|reserved| TimedAmong {
+            reserved,
+            radius_m: self.floor.world.spec().robot.footprint_radius,
+            speed_m_s: ROUTE_SPEED_SHARE * driver.env.limits.linear_max.abs().max(0.1),
+            t0_s: self.validated.iter().map(|v| v.run.time_s).sum(),
+        });
         // Where the roadmap path of this leg starts: the start (or its way out of the margin),
         // then the previous goal; the robot itself starts where the last leg left it.
-        let (from, leg_entry) = if leg == 0 {
-            (None, entry)
+        let goals = &self.request.goals;
+        let (from, entry) = if leg == 0 {
+            (None, self.entry)
         } else {
             (Some(goals[leg - 1]), None)
         };
-        let mut done = None;
-        'drivers: for (d, driver) in drivers.iter_mut().enumerate() {
-            let on_policy_roadmap = d == 0 && policy_roadmap.is_some();
-            // On the policy-aware roadmap only driven edges join the roadmap's nodes. `policy`
-            // never densifies; `auto` densifies where they join no route (a start or goal that
-            // no node within reach sees in a straight line, a gap the build left), as the
-            // start and goal links, which no rollout drove either.
-            // Nor where robots stand on the floor: new edges would not know to keep clear of them.
-            let query = QueryOptions {
-                no_densify: (on_policy_roadmap && opts.roadmap == RoadmapChoice::Policy)
-                    || !opts.standing.is_empty(),
-                ..QueryOptions::default()
-            };
-            for attempt in 1..=opts.max_attempts {
-                if request.stop.requested() {
-                    return Err(PlanError::Stopped);
-                }
-                let (roadmap, cached, seed, kind) = match policy_roadmap.filter(|_| d == 0) {
-                    Some(r) => (Arc::clone(r), true, r.params().seed, RoadmapKind::Policy),
-                    None => {
-                        let seed =
-                            opts.seed.wrapping_add(u64::from(attempt - 1)) ^ opts.roadmap_salt;
-                        let params = PrmParams {
-                            samples,
-                            seed,
-                            ..PrmParams::default()
-                        };
-                        let (r, cached) =
-                            roadmaps.roadmap_until(map_version, &space, &params, &request.stop)?;
-                        (r, cached, seed, RoadmapKind::Geometric)
-                    }
-                };
-                let roadmap = clear_of_standing(roadmap, opts, world)?;
-                // Among the fleet's plans, the route that arrives first, timed from when the
-                // leg sets off.
-                let timed = opts.reserved.as_deref().map(|reserved| TimedAmong {
-                    reserved,
-                    radius_m: world.spec().robot.footprint_radius,
-                    speed_m_s: ROUTE_SPEED_SHARE * driver.env.limits.linear_max.abs().max(0.1),
-                    t0_s: validated.iter().map(|v| v.run.time_s).sum(),
-                });
-                let legs = plan_leg(
-                    &roadmap,
-                    opts,
-                    timed.as_ref().map(|t| t as &dyn prm::Reservations),
-                    LegQuery {
-                        robot: pose,
-                        from,
-                        entry: leg_entry,
-                        goal,
-                        goal_index: leg,
-                        query,
-                    },
-                    driver.max_segment_m,
-                );
-                let legs = match legs {
-                    Ok(l) => l,
-                    // No kept edge of the policy-aware roadmap joins the leg: the fallback
-                    // plans it on the geometric roadmap; without one it is the answer.
-                    Err(PlanError::Unreachable { .. })
-                        if on_policy_roadmap
-                            && n_drivers > 1
-                            && opts.roadmap == RoadmapChoice::Auto =>
-                    {
-                        continue 'drivers;
-                    }
-                    Err(e) => return Err(e),
-                };
-                driver.controller.start_attempt(attempt);
-                let max_segment_m = driver.max_segment_m;
-                let replanner: &mut Replanner<'_> =
-                    &mut |p: Point2, g: Point2, blocked: Option<Point2>| {
-                        replan(&roadmap, opts, world, (p, g), blocked, max_segment_m, query)
-                    };
-                let run = drive(
-                    world,
-                    &driver.env,
-                    pose,
-                    std::slice::from_ref(&legs.waypoints),
-                    &mut *driver.controller,
-                    DriveLimits {
-                        waypoint_timeout_s: opts.waypoint_timeout_s,
-                        max_replans: opts.max_replans,
-                        sim_seed: leg_seed(opts.seed, attempt, leg),
-                        initial_velocity: Action::default(),
-                        stop: request.stop.clone(),
-                        trace: opts.trace,
-                        recoveries: recoveries_for(opts),
-                        others: None,
-                        holds: Vec::new(),
-                    },
-                    Some(replanner),
-                )?;
-                // A leg's run knows only its own goal: number it in the plan.
-                let goals_reached = if run.outcome == AttemptOutcome::Reached {
-                    leg + 1
-                } else {
-                    leg
-                };
-                details.push(AttemptDetails {
-                    social: run.social,
-                    recoveries: run.recoveries.clone(),
-                });
-                attempts.push(AttemptReport {
-                    attempt,
-                    leg,
-                    controller: driver.controller.kind(),
-                    roadmap_seed: seed,
-                    outcome: run.outcome,
-                    reason: run.reason.clone(),
-                    simulated_time_s: run.time_s,
-                    distance_m: run.distance_m,
-                    min_clearance_m: run.min_clearance_m,
-                    replans: run.replans,
-                    waypoints_reached: validated.iter().map(|v| v.run.reached.len()).sum::<usize>()
-                        + run.reached.len(),
-                    goals_reached,
-                    prm_path_length_m: legs.length_m,
-                    end_pose: run.end_pose,
-                    handover_share: run.handover_share(),
-                    min_person_clearance_m: run.min_person_clearance_m,
-                    trace: opts.trace.then(|| {
-                        attempt_trace(&run, &legs.waypoints, driver.env.control_period, opts)
-                    }),
-                });
-                if run.outcome == AttemptOutcome::Reached {
-                    done = Some(ValidatedLeg {
-                        run,
-                        controller: driver.controller.kind(),
-                        by_fallback: d > 0,
-                        prm_path_length_m: legs.length_m,
-                        roadmap: RoadmapInfo {
-                            samples: roadmap.params().samples,
-                            nodes: roadmap.nodes().count(),
-                            seed,
-                            inflation_m: inflation.total_m(),
-                            cached,
-                            kind,
-                        },
-                    });
-                    break 'drivers;
-                }
+        let planned = plan_leg(
+            roadmap,
+            opts,
+            timed.as_ref().map(|t| t as &dyn prm::Reservations),
+            LegQuery {
+                robot: self.pose,
+                from,
+                entry,
+                goal: goals[leg],
+                goal_index: leg,
+                query,
+            },
+            driver.max_segment_m,
+        );
+        match planned {
+            Ok(path) => Ok(Some(path)),
+            Err(PlanError::Unreachable { .. })
+                if self.on_policy_roadmap(d)
+                    && self.drivers.len() > 1
+                    && opts.roadmap == RoadmapChoice::Auto =>
+            {
+                Ok(None)
             }
+            Err(e) => Err(e),
         }
-        let Some(leg_run) = done else {
-            return Err(PlanError::NotValidated { attempts });
-        };
-        pose = leg_run.run.end_pose;
-        validated.push(leg_run);
     }
-    let draws = if opts.people_draws > 0 && opts.people.any() {
-        Some(drive_draws(
+
+    /// Driver `d`'s `attempt` at `leg`: `path` driven from where the robot stands, replanned on
+    /// `roadmap` when a waypoint's timer runs out.
+    fn drive_attempt(
+        &mut self,
+        d: usize,
+        leg: usize,
+        attempt: u32,
+        roadmap: &Roadmap,
+        path: &LegPath,
+        query: QueryOptions,
+    ) -> Result<DriveRun, PlanError> {
+        let (world, request) = (self.floor.world, self.request);
+        let opts = &request.options;
+        let driver = &mut self.drivers[d];
+        driver.controller.start_attempt(attempt);
+        let max_segment_m = driver.max_segment_m;
+        let replanner: &mut Replanner<'_> = &mut |p: Point2, g: Point2, blocked: Option<Point2>| {
+            replan(roadmap, opts, world, (p, g), blocked, max_segment_m, query)
+        };
+        drive(
             world,
-            &mut drivers,
-            start,
-            &validated,
-            request,
-        )?)
-    } else {
-        None
-    };
-    let roadmap = validated[0].roadmap.clone();
-    let mut report = assemble(
-        start,
-        primary_kind,
-        controller_description,
-        opts,
-        validated,
-        attempts,
-        roadmap,
-    );
-    report.control_period_s = drivers[0].env.control_period;
-    report.people_draws = draws;
-    if opts.trace {
-        let laser = &world.spec().robot.laser;
-        report.laser = Some(LaserTrace {
-            angles_rad: laser
-                .beam_angles(drivers[0].env.beams)
-                .unwrap_or_default()
-                .into_iter()
-                .map(|a| a + laser.mount.yaw)
-                .collect(),
-            max_range_m: laser.range_max,
-            control_period_s: drivers[0].env.control_period,
+            &driver.env,
+            self.pose,
+            std::slice::from_ref(&path.waypoints),
+            &mut *driver.controller,
+            DriveLimits {
+                waypoint_timeout_s: opts.waypoint_timeout_s,
+                max_replans: opts.max_replans,
+                sim_seed: leg_seed(opts.seed, attempt, leg),
+                initial_velocity: Action::default(),
+                stop: request.stop.clone(),
+                trace: opts.trace,
+                recoveries: recoveries_for(opts),
+                others: None,
+                holds: Vec::new(),
+            },
+            Some(replanner),
+        )
+    }
+
+    /// The report of an attempt, and what it measured beyond it.
+    fn record(
+        &mut self,
+        d: usize,
+        leg: usize,
+        attempt: u32,
+        roadmap: &AttemptRoadmap,
+        path: &LegPath,
+        run: &DriveRun,
+    ) {
+        let opts = &self.request.options;
+        let driver = &self.drivers[d];
+        // A leg's run knows only its own goal: number it in the plan.
+        let goals_reached = if run.outcome == AttemptOutcome::Reached {
+            leg + 1
+        } else {
+            leg
+        };
+        self.details.push(AttemptDetails {
+            social: run.social,
+            recoveries: run.recoveries.clone(),
+        });
+        self.attempts.push(AttemptReport {
+            attempt,
+            leg,
+            controller: driver.controller.kind(),
+            roadmap_seed: roadmap.seed,
+            outcome: run.outcome,
+            reason: run.reason.clone(),
+            simulated_time_s: run.time_s,
+            distance_m: run.distance_m,
+            min_clearance_m: run.min_clearance_m,
+            replans: run.replans,
+            waypoints_reached: self
+                .validated
+                .iter()
+                .map(|v| v.run.reached.len())
+                .sum::<usize>()
+                + run.reached.len(),
+            goals_reached,
+            prm_path_length_m: path.length_m,
+            end_pose: run.end_pose,
+            handover_share: run.handover_share(),
+            min_person_clearance_m: run.min_person_clearance_m,
+            trace: opts
+                .trace
+                .then(|| attempt_trace(run, &path.waypoints, driver.env.control_period, opts)),
         });
     }
-    Ok(report)
+
+    /// The validating `run` of driver `d`, with the roadmap it was planned on.
+    fn validated_leg(
+        &self,
+        d: usize,
+        roadmap: &AttemptRoadmap,
+        path: &LegPath,
+        run: DriveRun,
+    ) -> ValidatedLeg {
+        ValidatedLeg {
+            run,
+            controller: self.drivers[d].controller.kind(),
+            by_fallback: d > 0,
+            prm_path_length_m: path.length_m,
+            roadmap: RoadmapInfo {
+                samples: roadmap.roadmap.params().samples,
+                nodes: roadmap.roadmap.nodes().count(),
+                seed: roadmap.seed,
+                inflation_m: self.inflation.total_m(),
+                cached: roadmap.cached,
+                kind: roadmap.kind,
+            },
+        }
+    }
+
+    /// The plan's report once every leg is validated: the validated legs driven again among
+    /// fresh draws of people when asked, and the laser's geometry when traced.
+    fn report(mut self) -> Result<PlanReport, PlanError> {
+        let (world, request) = (self.floor.world, self.request);
+        let opts = &request.options;
+        let draws = if opts.people_draws > 0 && opts.people.any() {
+            Some(drive_draws(
+                world,
+                &mut self.drivers,
+                request.start,
+                &self.validated,
+                request,
+            )?)
+        } else {
+            None
+        };
+        let roadmap = self.validated[0].roadmap.clone();
+        let mut report = assemble(
+            request.start,
+            self.primary,
+            self.description,
+            opts,
+            self.validated,
+            self.attempts,
+            roadmap,
+        );
+        let env = &self.drivers[0].env;
+        report.control_period_s = env.control_period;
+        report.people_draws = draws;
+        if opts.trace {
+            report.laser = Some(laser_trace(world, env));
+        }
+        Ok(report)
+    }
+}
+
+/// The laser as a traced report shows it: the beams `env` reads, in the robot's frame.
+fn laser_trace(world: &World, env: &EnvConfig) -> LaserTrace {
+    let laser = &world.spec().robot.laser;
+    LaserTrace {
+        angles_rad: laser
+            .beam_angles(env.beams)
+            .unwrap_or_default()
+            .into_iter()
+            .map(|a| a + laser.mount.yaw)
+            .collect(),
+        max_range_m: laser.range_max,
+        control_period_s: env.control_period,
+    }
 }
 
 /// An attempt's drive as [`PlanOptions::trace`] reports it, thinned by the trajectory stride.
@@ -691,102 +887,6 @@ fn max_segment(env: &EnvConfig, opts: &PlanOptions) -> f64 {
     (0.5 * env.limits.linear_max * opts.waypoint_timeout_s).max(0.5)
 }
 
-/// `points` after `from`, with evenly spaced points inserted in every segment longer than
-/// `max_m`.
-pub(crate) fn subdivide(from: Point2, points: Vec<Point2>, max_m: f64) -> Vec<Point2> {
-    let mut out = Vec::with_capacity(points.len());
-    let mut prev = from;
-    for p in points {
-        let d = prev.distance(p);
-        #[allow(
-            clippy::cast_possible_truncation,
-            clippy::cast_sign_loss,
-            reason = "a map-sized distance over at least 0.5 m: a small positive count"
-        )]
-        let pieces = (d / max_m).ceil().max(1.0) as usize;
-        for k in 1..pieces {
-            let t = k as f64 / pieces as f64;
-            out.push(Point2::new(
-                prev.x + t * (p.x - prev.x),
-                prev.y + t * (p.y - prev.y),
-            ));
-        }
-        out.push(p);
-        prev = p;
-    }
-    out
-}
-
-/// What one leg plans from and to.
-struct LegQuery {
-    /// Where the robot stands.
-    robot: Pose2,
-    /// The previous goal, for every leg but the first (the robot stands within the goal
-    /// tolerance of it): the roadmap path starts there.
-    from: Option<Point2>,
-    /// For the first leg, the start's way out of the safety margin, if it needs one.
-    entry: Option<Point2>,
-    goal: Point2,
-    goal_index: usize,
-    /// How to search (a policy-aware roadmap is not densified: new edges would be undriven).
-    query: QueryOptions,
-}
-
-/// The waypoints of one leg after the robot's position, the last one its goal.
-struct LegPath {
-    waypoints: Vec<Point2>,
-    length_m: f64,
-}
-
-fn plan_leg(
-    roadmap: &Roadmap,
-    opts: &PlanOptions,
-    reserved: Option<&dyn prm::Reservations>,
-    q: LegQuery,
-    max_segment_m: f64,
-) -> Result<LegPath, PlanError> {
-    let s = Point2::new(q.robot.x, q.robot.y);
-    let origin = q.from.or(q.entry).unwrap_or(s);
-    let which = match q.goal_index {
-        0 => Endpoint::Start,
-        i => Endpoint::Goal(i - 1),
-    };
-    // A route timed among the fleet's plans that finds no way through them (every way
-    // waits too long somewhere) is the shortest one: the fit makes it wait.
-    let mut plan = roadmap
-        .query_among(origin, q.goal, q.query, reserved)
-        .or_else(|e| match (e, reserved) {
-            (QueryError::Unreachable { .. } | QueryError::NotConnected, Some(_)) => {
-                roadmap.query(origin, q.goal, q.query)
-            }
-            (e, _) => Err(e),
-        })
-        .map_err(|e| match e {
-            QueryError::Unreachable { .. } | QueryError::NotConnected => PlanError::Unreachable {
-                goal_index: q.goal_index,
-                goal: q.goal,
-                from: which,
-            },
-            other => blocked_error(Endpoint::Goal(q.goal_index), other),
-        })?;
-    if opts.shortcut {
-        plan = roadmap.shortcut(&plan);
-    }
-    let length_m = q.entry.map_or(0.0, |e| e.distance(s)) + plan.length_m;
-    let mut leg: Vec<Point2> = plan.waypoints.into_iter().skip(1).collect();
-    if let Some(e) = q.entry {
-        leg.insert(0, e);
-    }
-    if leg.is_empty() {
-        // Start and goal coincide: the goal is still a waypoint to reach.
-        leg.push(q.goal);
-    }
-    Ok(LegPath {
-        waypoints: subdivide(q.from.unwrap_or(s), leg, max_segment_m),
-        length_m,
-    })
-}
-
 /// The checks a rehearsal of `request` makes before it drives, alone: the robot fits at its
 /// start (or escapes to free space nearby), every goal is free and reachable from the one
 /// before. Cheap once the floor's configuration space is in `roadmaps`. The error is the one the
@@ -823,101 +923,11 @@ const ROUTE_SPEED_SHARE: f64 = 0.75;
 /// on.
 pub const STANDING_DENSITY: usize = 4;
 
-/// `roadmap` without the edges passing a robot standing still (`opts.standing`) closer than its
-/// radius plus this robot's plus the safety margin, or with them costing
-/// `opts.standing_pass_m` more.
-fn clear_of_standing(
-    roadmap: Arc<Roadmap>,
-    opts: &PlanOptions,
-    world: &World,
-) -> Result<Arc<Roadmap>, PlanError> {
-    if opts.standing.is_empty() {
-        return Ok(roadmap);
-    }
-    let reach = world.spec().robot.footprint_radius + opts.safety_margin_m;
-    let nodes: Vec<Point2> = roadmap.nodes().collect();
-    let kept = roadmap
-        .reweighted(|u, v, w| {
-            let passes = opts
-                .standing
-                .iter()
-                .any(|&(c, r)| c.distance_to_segment(nodes[u], nodes[v]) < r + reach);
-            match (passes, opts.standing_pass_m) {
-                (false, _) => Some(w),
-                (true, pass) if pass.is_finite() => Some(w + pass),
-                (true, _) => None,
-            }
-        })
-        .map_err(|e| PlanError::Map(format!("keeping clear of standing robots: {e}")))?;
-    Ok(Arc::new(kept))
-}
-
-/// Metres a re-route recovery adds to the roadmap edges passing the blocked spot: the search
-/// takes them only where no other route is within that detour.
-pub const REROUTE_PENALTY_M: f64 = 50.0;
-
 /// The recoveries of a validation's drives: Nav2's ([`RecoveryParams::default`]) among people,
 /// where robots stall beside people standing still; none in an empty building, where the
 /// controllers' stalls are the waypoint timer's and the replanner's to resolve.
 pub fn recoveries_for(opts: &PlanOptions) -> Option<RecoveryParams> {
     opts.people.any().then(RecoveryParams::default)
-}
-
-/// A fresh roadmap path from where the robot stands to `goal`, or why there is none; with
-/// `blocked`, on the roadmap whose edges passing within the re-route radius of that spot cost
-/// [`REROUTE_PENALTY_M`] more.
-fn replan(
-    roadmap: &Roadmap,
-    opts: &PlanOptions,
-    world: &World,
-    (from, goal): (Point2, Point2),
-    blocked: Option<Point2>,
-    max_segment_m: f64,
-    query: QueryOptions,
-) -> Result<Vec<Point2>, String> {
-    let avoiding;
-    let roadmap = match blocked {
-        None => roadmap,
-        Some(b) => {
-            let nodes: Vec<Point2> = roadmap.nodes().collect();
-            let radius = RecoveryParams::default().reroute_radius_m;
-            avoiding = roadmap
-                .reweighted(|u, v, w| {
-                    let near = b.distance_to_segment(nodes[u], nodes[v]) < radius;
-                    Some(if near { w + REROUTE_PENALTY_M } else { w })
-                })
-                .map_err(|e| format!("re-routing failed: {e}"))?;
-            &avoiding
-        }
-    };
-    let cs = roadmap.cspace();
-    // A robot pushed closer to a wall than the margin first drives back into free space.
-    let entry = if cs.is_free(from) {
-        None
-    } else {
-        let q = cs
-            .nearest_free(from)
-            .filter(|&q| q.distance(from) <= START_ESCAPE_M && segment_clear(world, from, q, 0.0))
-            .ok_or_else(|| {
-                format!(
-                    "no free space within {START_ESCAPE_M} m of ({:.2}, {:.2}) to replan from",
-                    from.x, from.y
-                )
-            })?;
-        Some(q)
-    };
-    let mut plan = roadmap
-        .query(entry.unwrap_or(from), goal, query)
-        .map_err(|e| format!("replanning failed: {e}"))?;
-    if opts.shortcut {
-        plan = roadmap.shortcut(&plan);
-    }
-    let mut out: Vec<Point2> = entry.into_iter().collect();
-    out.extend(plan.waypoints.into_iter().skip(1));
-    if out.is_empty() {
-        out.push(goal);
-    }
-    Ok(subdivide(from, out, max_segment_m))
 }
 
 fn polyline_length(start: Pose2, points: &[Point2]) -> f64 {

@@ -1,16 +1,21 @@
 //! Rehearsal: a plan driven in the mental simulation before the robot moves — the hybrid PRM-RL
-//! executor of the paper's §4.2.2. No IO, no async, no libtorch: callers (the plan endpoint and
-//! the `validate` jobs of `worker`, the navigation benchmark) call [`validate`] on a blocking
-//! thread with the mission's world, a shared [`RoadmapCache`] and, when the robot has one, its
-//! exported policy (`learning::Policy`, pure Rust).
+//! executor of the paper's §4.2.2. No IO, no async, no libtorch: the planner
+//! (`planner::Planner::plan`, behind `POST /v1/plan` and the `validate` jobs alike) calls
+//! [`validate_with_fallback`] on a blocking thread with the mission's world, a shared
+//! [`RoadmapCache`] and the controller it picked (a policy is a `learning::Policy`, pure Rust)
+//! with the follower as fallback, then drives the plan among the fleet with [`drive_among`]; the
+//! benchmarks call [`validate_detailed`] and [`drive_edges`].
 //!
 //! - [`types`]: what the executor takes and returns ([`PlanRequest`], [`PlanReport`]), plain
-//!   values without serde; the HTTP edge converts its wire types;
+//!   values without serde; the `wire` crate converts the HTTP edge's types;
 //! - [`error`]: [`PlanError`], one variant per cause, the point concerned an [`Endpoint`];
 //! - [`controller`]: the [`Controller`] trait, the policy behind its [`Shield`], and the
 //!   classical follower;
-//! - [`executor`]: roadmap query, replanning, re-sampling on failure; [`drive`](mod@drive):
-//!   one simulated drive (waypoint timer, recoveries, social metrics);
+//! - [`executor`]: the validation leg by leg (attempts on re-sampled roadmaps, the fallback,
+//!   draws of people), its checks of a request and its roadmap paths and replans (private
+//!   modules `checks` and `paths`); [`drive`](mod@drive): one simulated drive (waypoint timer,
+//!   replanning, recoveries, social metrics);
+//! - [`among`]: a validated plan driven again among other robots moving on their schedules;
 //! - [`nav2`]: Nav2's Regulated Pure Pursuit and MPPI on the smoothed roadmap path, behind the
 //!   shield, and [`ControllerChoice`], every controller by name;
 //! - [`recovery`]: Nav2's recovery behaviours for a robot that stalls; [`social`]: intrusions
@@ -22,7 +27,7 @@
 //! - [`planning_grid`](mod@planning_grid): the planning grid of a built world.
 
 // Casts that can lose a sign, wrap or truncate hide bugs: each one here says why it cannot.
-// (`planning` and `bench` do not yet; `cast_precision_loss` stays off everywhere: counts far
+// (Not every crate warns of them yet; `cast_precision_loss` stays off everywhere: counts far
 // below 2^52 convert to f64 exactly.)
 #![warn(
     clippy::cast_possible_truncation,
@@ -39,6 +44,7 @@ pub mod edges;
 pub mod error;
 pub mod executor;
 pub mod nav2;
+mod paths;
 pub mod planning_grid;
 pub mod recovery;
 pub mod social;
