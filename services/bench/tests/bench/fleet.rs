@@ -208,13 +208,27 @@ fn more_robots_than_the_rooms_park_are_refused() {
     assert!(err.contains("--robots 24"), "{err}");
 }
 
+/// Runs of [`robots_standing_in_each_others_way_make_way`], and how many of them must bring
+/// every robot through.
+const MAKE_WAY_RUNS: usize = 8;
+const MAKE_WAY_THROUGH_AT_LEAST: usize = 4;
+
 /// Ten robots standing at random in the small shared bookstore, several in each other's only
 /// way with no plan yet: one of each such pair makes way (its route goes first to a place
 /// off the other's), instead of both waiting for the other's plan until refused, and every
 /// robot waiting behind them with them. Before, 1 of 10 was planned with this seed, in every
-/// run; since, all 10 in most runs, but not in every one: the plans run concurrently, and
-/// where a cycle's robots are still trying routes around each other when the others' waits
-/// run out, some are refused as before. So up to four runs, one with every robot through.
+/// run.
+///
+/// Since, all 10 in most runs but not in every one, and no order or seed makes a run repeat:
+/// making way resolves a cycle of robots asking *at once* (asked one at a time, in any order,
+/// the robot standing in the first plan's way is refused and 1 of 10 is planned, as before),
+/// and the plans wait for each other on the wall clock (`standing_wait_s`), so where a
+/// cycle's robots are still trying routes around each other when the others' waits run out,
+/// some are refused as before. So the test states a rate: of 8 runs, at least half plan
+/// every robot and bring at least 9 of 10 through; measured, 48 of 56 runs did (86%, seven
+/// runs of this test, alone and beside the crate's other tests), where this fails about once
+/// in 500 (binomial, 8 runs at 86%), and without making way none would. No run, good or bad,
+/// may bring two robots into contact.
 #[test]
 fn robots_standing_in_each_others_way_make_way() {
     let Some(yaml) = fixtures::shared_fixture(
@@ -227,16 +241,25 @@ fn robots_standing_in_each_others_way_make_way() {
     o.maps = yaml.parent().expect("the map's directory").to_path_buf();
     o.people = 2.0;
     o.seed = 2;
-    let mut runs = Vec::new();
-    for _ in 0..4 {
-        let r = run_fleet_bench(&o).expect("runs").remove(0);
-        assert_eq!(r.robots, 10, "{r:?}");
-        assert_eq!(r.robot_collisions, 0, "{r:?}");
-        let through = r.planned == 10 && r.joint_success_rate >= 0.9;
-        runs.push((r.planned, r.joint_success_rate, r.refusals));
-        if through {
-            return;
-        }
-    }
-    panic!("no run planned every robot: {runs:?}");
+    let runs: Vec<_> = (0..MAKE_WAY_RUNS)
+        .map(|_| {
+            let r = run_fleet_bench(&o).expect("runs").remove(0);
+            assert_eq!(r.robots, 10, "{r:?}");
+            assert_eq!(r.robot_collisions, 0, "{r:?}");
+            (r.planned, r.joint_success_rate, r.refusals)
+        })
+        .collect();
+    let through = runs
+        .iter()
+        .filter(|(planned, arrived, _)| *planned == 10 && *arrived >= 0.9)
+        .count();
+    eprintln!(
+        "{through} of {MAKE_WAY_RUNS} runs planned every robot: {:?}",
+        runs.iter().map(|r| (r.0, r.1)).collect::<Vec<_>>()
+    );
+    assert!(
+        through >= MAKE_WAY_THROUGH_AT_LEAST,
+        "{through} of {MAKE_WAY_RUNS} runs planned every robot and brought 9 of 10 through, \
+         fewer than {MAKE_WAY_THROUGH_AT_LEAST} (planned, arrived, refusals): {runs:?}"
+    );
 }
