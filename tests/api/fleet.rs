@@ -12,11 +12,11 @@ use crate::plan::{centroid, free_near, plan};
 const FIRST: &str = "https://mentalsim.dev/data/robots/differential-robot";
 const SECOND: &str = "https://mentalsim.dev/data/robots/second-robot";
 const ENGINEER: &str = "fleet-engineer-token-0001";
-const FIRST_ROBOT: &str = "fleet-first-robot-token-01";
+pub(crate) const FIRST_ROBOT: &str = "fleet-first-robot-token-01";
 const SECOND_ROBOT: &str = "fleet-second-robot-token-1";
 
 /// An app whose tokens name the two robots, on `database_url` when given.
-async fn fleet_app(database_url: Option<String>) -> TestApp {
+pub(crate) async fn fleet_app(database_url: Option<String>) -> TestApp {
     let temp = tempfile::tempdir().expect("temporary directory");
     let data_dir = temp.path().join("data");
     let mut app = spawn_app_with(
@@ -60,7 +60,7 @@ async fn add_second_robot(app: &TestApp) {
 }
 
 /// The same route for `robot`, setting off at `start_ms`.
-fn route(robot: &str, from: (f64, f64), to: (f64, f64), start_ms: i64, options: Value) -> Value {
+pub(crate) fn route(robot: &str, from: (f64, f64), to: (f64, f64), start_ms: i64, options: Value) -> Value {
     let mut o =
         json!({"seed": 4, "trajectory_stride": 0, "people": "none", "start_time_ms": start_ms});
     for (k, v) in options.as_object().unwrap() {
@@ -74,7 +74,7 @@ fn route(robot: &str, from: (f64, f64), to: (f64, f64), start_ms: i64, options: 
     })
 }
 
-fn now_ms() -> i64 {
+pub(crate) fn now_ms() -> i64 {
     i64::try_from(
         std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -85,7 +85,7 @@ fn now_ms() -> i64 {
 }
 
 /// The floor's committed plans.
-async fn traffic(app: &TestApp, robot_token: &str) -> Value {
+pub(crate) async fn traffic(app: &TestApp, robot_token: &str) -> Value {
     let (status, body) = app
         .json_as(
             robot_token,

@@ -15,3 +15,4 @@ mod knowledge;
 mod people;
 mod plan;
 mod remote_store;
+mod revisions;

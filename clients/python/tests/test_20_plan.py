@@ -202,10 +202,22 @@ def test_a_plan_takes_its_place_in_the_floors_traffic(robot: Client, engineer: C
     assert seen.plan_id == s.plan_id and seen.version > first.version and seen.itinerary is not None
     live.close()
     assert [p.plan_id for p in committed.plans if p.robot.endswith("differential-robot")] == [s.plan_id]
+    # The plan as its robot follows it: revision 1, tagged; unchanged while that tag is its.
+    status = robot.plan_status(s.plan_id)
+    assert status is not None and status.plan.revision == 1 and status.etag is not None
+    assert status.acknowledged_revision == 1 and status.revisable_until_unix_ms <= status.departs_unix_ms
+    assert robot.plan_status(s.plan_id, etag=status.etag) is None
+    watch = robot.watch_plan(s.plan_id, poll_s=1.0)
+    assert next(watch).plan.revision == 1
+    with pytest.raises(MentalsimError) as never:
+        robot.report_progress(s.plan_id, start.x, start.y, revision=2)
+    assert never.value.status == 409 and never.value.field == "revision"
     # Still at its start 5 s after setting off: the rest of its schedule shifts.
-    late = engineer.report_progress(s.plan_id, start.x, start.y, time_ms=s.start_time_ms + 5000)
-    assert late.plan_id == s.plan_id and late.delay_s > 0
+    late = engineer.report_progress(s.plan_id, start.x, start.y, time_ms=s.start_time_ms + 5000, revision=1)
+    assert late.plan_id == s.plan_id and late.delay_s > 0 and late.revision == 1
     assert engineer.cancel_plan(s.plan_id).plan_id == s.plan_id
+    # The watch ends with the plan.
+    assert list(watch) == []
     assert all(p.plan_id != s.plan_id for p in robot.traffic(kitchen, "R-001").plans)
     with pytest.raises(MentalsimError) as gone:
         engineer.cancel_plan(s.plan_id)

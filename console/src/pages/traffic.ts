@@ -247,7 +247,7 @@ class TrafficPage {
     }
     const outcomes = new Map((replay?.joint ?? []).map((j) => [j.robot, j]));
     table.append(h('table', null,
-      h('thead', null, h('tr', null, ['robot', 'plan', 'sets off', 'arrives', 'delay', 'waits', replay ? 'joint run' : 'expires', ''].map((c) => h('th', null, c)))),
+      h('thead', null, h('tr', null, ['robot', 'plan', 'revision', 'sets off', 'arrives', 'delay', 'waits', replay ? 'joint run' : 'expires', ''].map((c) => h('th', null, c)))),
       h('tbody', null, rows.map((s) => this.planRow(s, outcomes.get(s.it.robot)))),
     ));
   }
@@ -259,6 +259,7 @@ class TrafficPage {
     return h('tr', { 'data-plan': it.plan_id },
       h('td', null, h('span', { class: 'sw', style: `background:${s.colour}`, 'aria-hidden': 'true' }), ' ', localName(it.robot)),
       h('td', null, h('code', null, it.plan_id)),
+      h('td', null, String(it.revision ?? 1)),
       h('td', null, t(startMs(it))),
       h('td', null, t(endMs(it))),
       h('td', null, `${fmt(it.delay_s, 1)} s`),
@@ -317,7 +318,7 @@ class TrafficPage {
     });
   }
 
-  /** `snapshot` (the floor's traffic), `committed` and `progressed` (an itinerary), `removed`. */
+  /** `snapshot` (the floor's traffic), `committed`, `revised` and `progressed` (an itinerary), `removed`. */
   private onEvent(e: SseEvent): void {
     if (!this.alive || this.replay) return;
     let d: Record<string, unknown>;
@@ -330,10 +331,11 @@ class TrafficPage {
     if (e.event === 'snapshot') {
       this.setPlans((d as unknown as FloorTraffic).plans);
       this.changed('Snapshot received.');
-    } else if (e.event === 'committed' || e.event === 'progressed') {
+    } else if (e.event === 'committed' || e.event === 'revised' || e.event === 'progressed') {
       const it = d.itinerary as Itinerary;
       this.put(it);
-      this.changed(`${e.event === 'committed' ? 'Committed' : 'Progress of'} ${localName(it.robot)} at ${new Date().toLocaleTimeString()}.`);
+      const what = { committed: 'Committed', revised: `Revision ${it.revision} of`, progressed: 'Progress of' }[e.event];
+      this.changed(`${what} ${localName(it.robot)}'s plan at ${new Date().toLocaleTimeString()}.`);
     } else if (e.event === 'removed') {
       this.plans.delete(String(d.plan_id));
       this.changed(`${localName(String(d.robot))}'s plan ${d.reason === 'replaced' ? 'replaced' : 'cancelled'} at ${new Date().toLocaleTimeString()}.`);

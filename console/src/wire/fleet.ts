@@ -177,7 +177,8 @@ export interface paths {
         /**
          * The floor's traffic as server-sent events, for a live view: first a `snapshot` (what
          *     `GET /v1/places/{id}/traffic` answers), then every change as it happens: `committed`,
-         *     `removed` (cancelled or replaced) and `progressed` (`data`: the change as JSON, with its
+         *     `revised` (a plan's new revision, before its robot set off), `removed` (cancelled or
+         *     replaced) and `progressed` (`data`: the change as JSON, with its
          *     `kind`). Each event's `id` is the floor's version after it. Changes made by another API
          *     process sharing the job database show as a new `snapshot` within a second, as does a reader
          *     that fell behind. An itinerary leaves at its `expires_unix_ms` without an event.
@@ -235,7 +236,11 @@ export interface paths {
             path?: never;
             cookie?: never;
         };
-        get?: never;
+        /**
+         * A committed plan, its revision and whether it may still be revised; with `If-None-Match`
+         *     (its `ETag`) and `wait_s`, a long poll for the next revision.
+         */
+        get: operations["get_plan"];
         put?: never;
         post?: never;
         /** Cancels a committed plan: its robot's place in the schedule is freed at once. */
@@ -619,6 +624,12 @@ export interface components {
              * @description The radius of a disc covering the robot's footprint, metres.
              */
             radius_m: number;
+            /**
+             * Format: int32
+             * @description The plan's revision: 1 when committed, one more each time the service revised its
+             *     timing or route before the robot set off. Drive the newest.
+             */
+            revision: number;
             /** @description The robot driving it. A robot has at most one itinerary: a new one replaces the old. */
             robot: string;
             /**
@@ -1152,6 +1163,29 @@ export interface components {
             /** @description When the robot reaches each waypoint, ms since the Unix epoch (index as `waypoints`). */
             waypoint_times_ms: number[];
         };
+        /** @description A committed plan as its robot follows it. */
+        PlanStatus: {
+            /**
+             * Format: int32
+             * @description The revision its robot last acknowledged (`revision` of a progress report).
+             */
+            acknowledged_revision: number;
+            /**
+             * Format: int64
+             * @description When the robot is to leave its start, ms since the Unix epoch (its delay included).
+             */
+            departs_unix_ms: number;
+            /** @description The plan as committed now (`revision`: the one to drive). */
+            plan: components["schemas"]["Itinerary"];
+            /**
+             * Format: int64
+             * @description Until when the service may still revise the plan, ms since the Unix epoch: its
+             *     departure less its tolerance and the time a revision takes to reach the robot.
+             */
+            revisable_until_unix_ms: number;
+            /** @description Whether the robot may have set off: from then on the plan is never revised. */
+            set_off: boolean;
+        };
         /** @description A wait in a plan, so that other robots can pass. */
         PlanWait: {
             /** @description The robots it lets pass (IRIs). */
@@ -1222,6 +1256,12 @@ export interface components {
         };
         /** @description Where a robot is on its plan, and when. */
         Progress: {
+            /**
+             * Format: int32
+             * @description The revision of the plan the robot drives: it acknowledges that revision (it learnt of
+             *     it). A revision the plan never had is refused (409) [default: none acknowledged].
+             */
+            revision?: number | null;
             /**
              * Format: int64
              * @description When the robot was there, ms since the Unix epoch [default: now].
@@ -2329,6 +2369,77 @@ export interface operations {
             503: components["responses"]["ServiceUnavailable"];
         };
     };
+    get_plan: {
+        parameters: {
+            query?: {
+                /**
+                 * @description With `If-None-Match` naming the plan's current revision: wait up to this many seconds,
+                 *     in [0, 30], for another revision (or the plan's end) before answering 304 [default: 0].
+                 */
+                wait_s?: number;
+            };
+            header?: {
+                /** @description The `ETag` of the revision the robot has: 304 while it is the plan's */
+                "If-None-Match"?: string | null;
+            };
+            path: {
+                /** @description The plan's id (`schedule.plan_id` of its answer) */
+                id: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description The plan as committed now; `ETag` names its revision */
+            200: {
+                headers: {
+                    /** @description W/"<revision>-<plan>" */
+                    etag?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PlanStatus"];
+                };
+            };
+            /** @description Still the revision `If-None-Match` names (after waiting up to `wait_s`) */
+            304: {
+                headers: {
+                    etag?: string;
+                    [name: string]: unknown;
+                };
+                content?: never;
+            };
+            401: components["responses"]["Unauthorized"];
+            /** @description No such committed plan (or it expired, was cancelled or replaced) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorBody"];
+                };
+            };
+            /** @description `If-None-Match` names a revision the plan never had */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorBody"];
+                };
+            };
+            /** @description `If-None-Match` is not a plan's tag, or another plan's; `wait_s` out of range */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorBody"];
+                };
+            };
+            503: components["responses"]["ServiceUnavailable"];
+        };
+    };
     cancel_plan: {
         parameters: {
             query?: never;
@@ -2388,7 +2499,7 @@ export interface operations {
             };
         };
         responses: {
-            /** @description The plan as now scheduled (`delay_s`: how late the robot is) */
+            /** @description The plan as now scheduled (`delay_s`: how late the robot is; `revision`: the one to drive, newer than the report's where the plan was revised) */
             200: {
                 headers: {
                     [name: string]: unknown;
@@ -2418,6 +2529,15 @@ export interface operations {
             };
             /** @description No such committed plan (or it expired) */
             404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorBody"];
+                };
+            };
+            /** @description `revision` acknowledges a revision the plan never had (`field`: `revision`) */
+            409: {
                 headers: {
                     [name: string]: unknown;
                 };

@@ -20,6 +20,8 @@ use utoipa::{IntoParams, ToSchema};
 
 use crate::streams::{StreamLimits, StreamPermit};
 
+pub(crate) mod plans;
+
 /// The state of the traffic routes.
 pub struct TrafficRoutes {
     /// Who may do what.
@@ -46,7 +48,7 @@ pub fn router(state: Arc<TrafficRoutes>) -> Router {
         .route("/v1/places/{id}/traffic", get(floor_traffic))
         .route("/v1/places/{id}/traffic/events", get(floor_traffic_events))
         .route("/v1/places/{id}/traffic/standing", post(stand))
-        .route("/v1/plans/{id}", delete(cancel_plan))
+        .route("/v1/plans/{id}", delete(cancel_plan).get(plans::get_plan))
         .route("/v1/plans/{id}/progress", post(report_progress))
         .with_state(state)
 }
@@ -82,6 +84,10 @@ pub struct Progress {
     /// When the robot was there, ms since the Unix epoch [default: now].
     #[serde(default)]
     pub time_ms: Option<i64>,
+    /// The revision of the plan the robot drives: it acknowledges that revision (it learnt of
+    /// it). A revision the plan never had is refused (409) [default: none acknowledged].
+    #[serde(default)]
+    pub revision: Option<u32>,
 }
 
 /// Where a robot stands with no plan (an idle robot, as a fleet adapter reports it).
@@ -112,6 +118,10 @@ fn default_stand_s() -> f64 {
 fn traffic_error(e: TrafficError) -> ApiError {
     match e {
         TrafficError::Invalid(m) => ApiError::new(ErrorCode::Unprocessable, m),
+        e @ TrafficError::UnknownRevision { .. } => {
+            ApiError::new(ErrorCode::Conflict, e.to_string()).with_field("revision".to_owned())
+        }
+        e @ TrafficError::SetOff { .. } => ApiError::new(ErrorCode::Conflict, e.to_string()),
         e @ TrafficError::NotFound { .. } => ApiError::new(ErrorCode::NotFound, e.to_string()),
         e @ TrafficError::NotYourPlan { .. } => ApiError::new(ErrorCode::Forbidden, e.to_string()),
         e @ (TrafficError::VersionChanged { .. } | TrafficError::PlanIdTaken { .. }) => {
@@ -224,7 +234,8 @@ async fn floor_snapshot(schedule: &Schedule, floor: String) -> Result<FloorTraff
 
 /// The floor's traffic as server-sent events, for a live view: first a `snapshot` (what
 /// `GET /v1/places/{id}/traffic` answers), then every change as it happens: `committed`,
-/// `removed` (cancelled or replaced) and `progressed` (`data`: the change as JSON, with its
+/// `revised` (a plan's new revision, before its robot set off), `removed` (cancelled or
+/// replaced) and `progressed` (`data`: the change as JSON, with its
 /// `kind`). Each event's `id` is the floor's version after it. Changes made by another API
 /// process sharing the job database show as a new `snapshot` within a second, as does a reader
 /// that fell behind. An itinerary leaves at its `expires_unix_ms` without an event.
@@ -296,6 +307,7 @@ struct TrafficCursor {
 fn change_event(change: &Change) -> Event {
     let kind = match change {
         Change::Committed { .. } => "committed",
+        Change::Revised { .. } => "revised",
         Change::Removed { .. } => "removed",
         Change::Progressed { .. } => "progressed",
     };
@@ -449,11 +461,12 @@ async fn cancel_plan(
     params(("id" = String, Path, description = "The plan's id")),
     request_body = Progress,
     responses(
-        (status = 200, description = "The plan as now scheduled (`delay_s`: how late the robot is)", body = wire::itinerary::Itinerary),
+        (status = 200, description = "The plan as now scheduled (`delay_s`: how late the robot is; `revision`: the one to drive, newer than the report's where the plan was revised)", body = wire::itinerary::Itinerary),
         (status = 400, description = "Malformed body", body = edge::ErrorBody),
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, description = "Another robot's plan", body = edge::ErrorBody),
         (status = 404, description = "No such committed plan (or it expired)", body = edge::ErrorBody),
+        (status = 409, description = "`revision` acknowledges a revision the plan never had (`field`: `revision`)", body = edge::ErrorBody),
         (status = 413, response = edge::error::responses::PayloadTooLarge),
         (status = 415, response = edge::error::responses::UnsupportedMediaType),
         (status = 422, description = "A position or time that is not a number", body = edge::ErrorBody),
@@ -477,8 +490,14 @@ async fn report_progress(
     let schedule = schedule(&api).await?;
     let at = progress.time_ms.unwrap_or_else(|| schedule.now_ms());
     let updated = schedule
-        .progress(&id, &plan.robot, at, progress.x, progress.y)
+        .progress(
+            &id,
+            &plan.robot,
+            at,
+            (progress.x, progress.y),
+            progress.revision,
+        )
         .await
         .map_err(traffic_error)?;
-    Ok(Json(updated.into()))
+    Ok(Json(updated.itinerary.into()))
 }

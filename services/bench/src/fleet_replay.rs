@@ -136,6 +136,7 @@ mod tests {
             tolerance_s: 2.0,
             expires_unix_ms: 100_000,
             delay_s: 0.0,
+            revision: 1,
         };
         let steps: Vec<sim::Pose2> = (0..=31)
             .map(|k| sim::Pose2::new(f64::from(k) * 0.1, 0.0, 0.0))

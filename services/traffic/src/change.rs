@@ -40,6 +40,14 @@ pub enum Change {
         /// Why.
         reason: Removal,
     },
+    /// A plan was revised before its robot set off: its new itinerary (`itinerary.revision`
+    /// is the new revision). The plans one revision changes carry the same version.
+    Revised {
+        /// The floor's version after the revision.
+        version: i64,
+        /// The revised itinerary.
+        itinerary: Itinerary,
+    },
     /// A robot reported progress: its itinerary's delay (and expiry) changed.
     Progressed {
         /// The floor's version after the report.
@@ -53,9 +61,9 @@ impl Change {
     /// The floor changed.
     pub fn floor(&self) -> &str {
         match self {
-            Self::Committed { itinerary, .. } | Self::Progressed { itinerary, .. } => {
-                &itinerary.floor
-            }
+            Self::Committed { itinerary, .. }
+            | Self::Revised { itinerary, .. }
+            | Self::Progressed { itinerary, .. } => &itinerary.floor,
             Self::Removed { floor, .. } => floor,
         }
     }
@@ -64,6 +72,7 @@ impl Change {
     pub fn version(&self) -> i64 {
         match self {
             Self::Committed { version, .. }
+            | Self::Revised { version, .. }
             | Self::Removed { version, .. }
             | Self::Progressed { version, .. } => *version,
         }

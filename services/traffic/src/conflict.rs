@@ -492,6 +492,7 @@ mod tests {
             tolerance_s: 1.0,
             expires_unix_ms: add_seconds(start, duration),
             delay_s: 0.0,
+            revision: 1,
         }
     }
 

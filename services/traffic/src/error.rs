@@ -43,6 +43,30 @@ pub enum TrafficError {
         /// The robot holding it.
         owner: String,
     },
+    /// A revision of a plan whose robot may have set off: it drives the plan as it is.
+    #[error(
+        "plan {plan_id:?} cannot be revised: its robot {robot:?} may have set off (it was told to leave at {departs_unix_ms} ms, Unix time)"
+    )]
+    SetOff {
+        /// The plan id.
+        plan_id: String,
+        /// Its robot.
+        robot: String,
+        /// When the robot was told to leave its start, Unix milliseconds.
+        departs_unix_ms: i64,
+    },
+    /// A progress report acknowledged a revision the plan never had.
+    #[error(
+        "plan {plan_id:?} is at revision {current}: revision {acknowledged} was never sent, so it cannot be acknowledged"
+    )]
+    UnknownRevision {
+        /// The plan id.
+        plan_id: String,
+        /// The revision acknowledged.
+        acknowledged: u32,
+        /// The plan's revision.
+        current: u32,
+    },
     /// A stored row could not be read back (its trajectory JSON is damaged).
     #[error("plan {plan_id:?}: corrupt row in the traffic schedule: {message}")]
     Corrupt {

@@ -51,7 +51,20 @@ pub struct Itinerary {
     /// The delay observed from the robot's progress, seconds: every time of the trajectory is
     /// this much later (negative: earlier).
     pub delay_s: f64,
+    /// The plan's revision: 1 when committed, one more with each revision of its timing or
+    /// route before its robot sets off ([`crate::Schedule::revise`]). What a caller puts here
+    /// is ignored: the schedule numbers them.
+    #[serde(default = "first_revision")]
+    pub revision: u32,
 }
+
+fn first_revision() -> u32 {
+    1
+}
+
+/// How far from its first position the robot has left it, metres: below this it still stands
+/// at its start (a wait there is poses at one place).
+const LEFT_START_M: f64 = 1e-3;
 
 impl Itinerary {
     /// Where the schedule puts the robot at `unix_ms`: the trajectory interpolated linearly
@@ -84,6 +97,28 @@ impl Itinerary {
     /// `unix_ms`, with the delay taken into account.
     pub fn schedule_s(&self, unix_ms: i64) -> f64 {
         seconds_between(self.start_unix_ms, unix_ms) - self.delay_s
+    }
+
+    /// The trajectory time the robot leaves its first position at (the end of its wait at the
+    /// start), seconds after the start before the delay; the last pose's time for an itinerary
+    /// that stands.
+    pub fn departure_s(&self) -> f64 {
+        let Some(first) = self.trajectory.first() else {
+            return 0.0;
+        };
+        let leaves = self
+            .trajectory
+            .iter()
+            .position(|p| (p.x - first.x).hypot(p.y - first.y) > LEFT_START_M);
+        match leaves {
+            Some(k) => self.trajectory[k.saturating_sub(1)].t_s,
+            None => self.trajectory.last().map_or(0.0, |p| p.t_s),
+        }
+    }
+
+    /// When the robot sets off from its start, with the delay, Unix milliseconds.
+    pub fn departs_unix_ms(&self) -> i64 {
+        add_seconds(self.start_unix_ms, self.departure_s() + self.delay_s)
     }
 
     /// When the robot reaches its last pose, with the delay, Unix milliseconds.

@@ -5,7 +5,9 @@
 //!   observed delay) and [`Itinerary::pose_at`].
 //! - [`Schedule`]: per floor, every robot's committed itinerary and a version; optimistic
 //!   commits against that version ([`Schedule::commit`]), cancels, progress reports that shift
-//!   a robot's schedule by its observed delay, snapshots, and this process's [`Change`]s.
+//!   a robot's schedule by its observed delay, snapshots, and this process's [`Change`]s;
+//!   revisions of plans whose robots have not set off ([`Schedule::revise`], [`Planned`]),
+//!   acknowledged with the robot's progress.
 //! - [`first_conflict`] and [`conflicts`]: the earliest time two robots may come too close,
 //!   each anywhere within its tolerance of its schedule ([`Conflict`]).
 //!
@@ -26,6 +28,7 @@ mod error;
 mod itinerary;
 #[cfg(feature = "store")]
 mod progress;
+mod revision;
 #[cfg(feature = "store")]
 mod schedule;
 
@@ -34,5 +37,6 @@ pub use change::{Change, Removal};
 pub use conflict::{Conflict, Margins, Reserved, conflicts, first_conflict};
 pub use error::TrafficError;
 pub use itinerary::{Itinerary, MAX_HORIZON_S, MAX_NAME_BYTES, MAX_POSES, TimedPose};
+pub use revision::{Planned, REVISION_NOTICE_S};
 #[cfg(feature = "store")]
 pub use schedule::Schedule;

@@ -180,6 +180,7 @@ mod tests {
             tolerance_s: 1.0,
             expires_unix_ms: START + 60_000,
             delay_s: 0.0,
+            revision: 1,
         }
     }
 

@@ -43,6 +43,9 @@ pub struct Itinerary {
     /// The delay observed from the robot's progress, seconds: every time of the trajectory is
     /// this much later (negative: earlier).
     pub delay_s: f64,
+    /// The plan's revision: 1 when committed, one more each time the service revised its
+    /// timing or route before the robot set off. Drive the newest.
+    pub revision: u32,
 }
 
 impl From<traffic::TimedPose> for TimedPose {
@@ -68,6 +71,7 @@ impl From<traffic::Itinerary> for Itinerary {
             tolerance_s: i.tolerance_s,
             expires_unix_ms: i.expires_unix_ms,
             delay_s: i.delay_s,
+            revision: i.revision,
         }
     }
 }

@@ -87,6 +87,7 @@ OPERATIONS: Final[dict[str, Operation]] = dict(
         _op("floor_traffic", "GET", "/v1/places/{id}/traffic", "fleet", query=("robot",)),
         _op("floor_traffic_events", "GET", "/v1/places/{id}/traffic/events", "fleet", query=("robot",), accept=("text/event-stream",)),
         _op("stand", "POST", "/v1/places/{id}/traffic/standing", "fleet", body="Standing", body_type=JSON),
+        _op("get_plan", "GET", "/v1/plans/{id}", "fleet", query=("wait_s",), headers=("If-None-Match",)),
         _op("cancel_plan", "DELETE", "/v1/plans/{id}", "fleet"),
         _op("report_progress", "POST", "/v1/plans/{id}/progress", "fleet", body="Progress", body_type=JSON),
         _op("create_job", "POST", "/v1/jobs", "fleet", body="NewJobRequest", body_type=JSON),

@@ -26,6 +26,7 @@ from .models import (
     FloorTraffic,
     TrafficEvent,
     Itinerary,
+    PlanStatus,
     ImportedMap,
     Job,
     JobEvent,
@@ -633,13 +634,65 @@ class Client:
         the schedule is freed at once. Answers the plan as it was committed."""
         return Itinerary.from_json(self._object("cancel_plan", path={"id": plan_id}))
 
-    def report_progress(self, plan_id: str, x: float, y: float, *, time_ms: int | None = None) -> Itinerary:
+    def report_progress(
+        self,
+        plan_id: str,
+        x: float,
+        y: float,
+        *,
+        time_ms: int | None = None,
+        revision: int | None = None,
+    ) -> Itinerary:
         """Reports where the plan's robot is (at ``time_ms``, default now): the rest of its
-        schedule shifts by its observed delay (``Itinerary.delay_s``)."""
+        schedule shifts by its observed delay (``Itinerary.delay_s``). ``revision``: the revision
+        the robot drives, which acknowledges it (409 for one the plan never had). The answer's
+        ``revision`` is the plan's: newer than the robot's where it was revised meanwhile."""
         body: JsonObject = {"x": x, "y": y}
         if time_ms is not None:
             body["time_ms"] = time_ms
+        if revision is not None:
+            body["revision"] = revision
         return Itinerary.from_json(self._object("report_progress", path={"id": plan_id}, json_body=body))
+
+    def plan_status(self, plan_id: str, *, etag: str | None = None, wait_s: float | None = None) -> PlanStatus | None:
+        """A committed plan as its robot follows it: its revision, what the robot acknowledged,
+        whether it may still be revised. With ``etag`` (a ``PlanStatus.etag``): ``None`` while
+        that is still the plan's revision, after waiting up to ``wait_s`` seconds (at most 30)
+        for a new one."""
+        headers = {"If-None-Match": etag} if etag is not None else None
+        response = self._send(
+            "get_plan",
+            path={"id": plan_id},
+            query={"wait_s": wait_s},
+            headers=headers,
+        )
+        if response.status_code == 304:
+            return None
+        try:
+            body = response.json()
+        except ValueError as e:
+            raise MentalsimError(response.status_code, "bad_response", f"the answer is not JSON: {e}", operation="get_plan") from e
+        if not isinstance(body, dict):
+            raise MentalsimError(response.status_code, "bad_response", "expected a JSON object", operation="get_plan")
+        return PlanStatus.from_json(body, response.headers.get("etag"))
+
+    def watch_plan(self, plan_id: str, *, poll_s: float = 25.0) -> Generator[PlanStatus, None, None]:
+        """The plan's revisions as they happen: first the plan as it is, then each new revision
+        (a long poll on ``GET /v1/plans/{id}``, ``poll_s`` seconds at a time, at most 30). Ends
+        when the plan does (cancelled, replaced or expired: 404). Acknowledge what it yields with
+        ``report_progress(..., revision=status.plan.revision)``."""
+        etag: str | None = None
+        while True:
+            try:
+                status = self.plan_status(plan_id, etag=etag, wait_s=poll_s if etag else None)
+            except MentalsimError as e:
+                if e.status == 404:
+                    return
+                raise
+            if status is None:
+                continue
+            etag = status.etag
+            yield status
 
     # ---- jobs ----
 

@@ -582,6 +582,9 @@ class Itinerary:
     expires_unix_ms: int
     #: How late the robot is (its progress reports), seconds.
     delay_s: float
+    #: The plan's revision: 1 when committed, one more each time the service revised it before
+    #: the robot set off. Drive the newest.
+    revision: int
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> Itinerary:
@@ -595,6 +598,37 @@ class Itinerary:
             _float(d, "tolerance_s"),
             _int(d, "expires_unix_ms"),
             _float(d, "delay_s"),
+            _int(d, "revision"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PlanStatus:
+    """A committed plan as its robot follows it (schema ``PlanStatus``), with the entity tag of
+    its revision (``etag``, for ``If-None-Match``)."""
+
+    plan: Itinerary
+    #: The revision the robot last acknowledged in a progress report.
+    acknowledged_revision: int
+    #: Whether the robot may have set off: from then on the plan is never revised.
+    set_off: bool
+    departs_unix_ms: int
+    #: Until when the service may still revise the plan, Unix ms.
+    revisable_until_unix_ms: int
+    etag: str | None = None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any], etag: str | None = None) -> PlanStatus:
+        set_off = d.get("set_off")
+        if not isinstance(set_off, bool):
+            raise ResponseShapeError(f"`set_off`: expected a boolean, got {set_off!r}")
+        return cls(
+            Itinerary.from_json(_obj(d.get("plan"), "plan")),
+            _int(d, "acknowledged_revision"),
+            set_off,
+            _int(d, "departs_unix_ms"),
+            _int(d, "revisable_until_unix_ms"),
+            etag,
         )
 
 
@@ -618,8 +652,8 @@ class FloorTraffic:
 @dataclass(frozen=True, slots=True)
 class TrafficEvent:
     """One event of a floor's traffic stream. ``kind`` is ``snapshot`` (``traffic`` holds every
-    plan committed on the floor), ``committed`` or ``progressed`` (``itinerary`` is the plan as
-    now scheduled), or ``removed`` (``plan_id``, ``robot`` and ``reason``: ``cancelled`` or
+    plan committed on the floor), ``committed``, ``revised`` (a new revision before the robot set
+    off) or ``progressed`` (``itinerary`` is the plan as now scheduled), or ``removed`` (``plan_id``, ``robot`` and ``reason``: ``cancelled`` or
     ``replaced``). ``version`` is the floor's version after it."""
 
     kind: str
@@ -634,7 +668,7 @@ class TrafficEvent:
     def from_sse(cls, version: int, kind: str, d: Mapping[str, Any]) -> TrafficEvent:
         if kind == "snapshot":
             return cls(kind, version, traffic=FloorTraffic.from_json(d))
-        if kind in ("committed", "progressed"):
+        if kind in ("committed", "revised", "progressed"):
             it = Itinerary.from_json(_obj(d.get("itinerary"), "itinerary"))
             return cls(kind, version, itinerary=it, plan_id=it.plan_id, robot=it.robot)
         return cls(kind, version, plan_id=_str(d, "plan_id"), robot=_str(d, "robot"), reason=_str(d, "reason"))

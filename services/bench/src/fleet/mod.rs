@@ -861,6 +861,7 @@ mod tests {
             tolerance_s: 1.0,
             expires_unix_ms: start_unix_ms + 5_000,
             delay_s: 0.0,
+            revision: 1,
         }
     }
 

@@ -312,6 +312,7 @@ impl Planner {
             tolerance_s: entry.options.tolerance_s,
             expires_unix_ms: entry.requested_unix_ms,
             delay_s: 0.0,
+            revision: 1,
         };
         let candidates = yielding::SET_OFF_DELAYS_S.map(|delay| {
             yielding::prefix(
@@ -547,6 +548,7 @@ fn standing_at(
         tolerance_s: 0.0,
         expires_unix_ms: from_ms + (for_s * 1000.0).round() as i64,
         delay_s: 0.0,
+        revision: 1,
     }
 }
 
@@ -706,6 +708,7 @@ mod tests {
             tolerance_s: 2.0,
             expires_unix_ms: start_ms + 40_000,
             delay_s: 0.0,
+            revision: 1,
         }
     }
 

@@ -29,6 +29,7 @@ fn template(robot: &str, start_ms: i64) -> Itinerary {
         tolerance_s: 1.0,
         expires_unix_ms: start_ms + 5_000,
         delay_s: 0.0,
+        revision: 1,
     }
 }
 

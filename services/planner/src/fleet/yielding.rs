@@ -344,6 +344,7 @@ mod tests {
             tolerance_s: 2.0,
             expires_unix_ms: 0,
             delay_s: 0.0,
+            revision: 1,
         };
         let steps: Vec<sim::Pose2> = (0..=20)
             .map(|k| sim::Pose2::new(0.1 * k as f64, 0.0, 0.0))

@@ -18,17 +18,31 @@ struct Migration {
     sql: &'static str,
 }
 
-const SQLITE: &[Migration] = &[Migration {
-    version: 1,
-    description: "schedule",
-    sql: include_str!("../../migrations/sqlite/0001_schedule.sql"),
-}];
+const SQLITE: &[Migration] = &[
+    Migration {
+        version: 1,
+        description: "schedule",
+        sql: include_str!("../../migrations/sqlite/0001_schedule.sql"),
+    },
+    Migration {
+        version: 2,
+        description: "revisions",
+        sql: include_str!("../../migrations/sqlite/0002_revisions.sql"),
+    },
+];
 
-const POSTGRES: &[Migration] = &[Migration {
-    version: 1,
-    description: "schedule",
-    sql: include_str!("../../migrations/postgres/0001_schedule.sql"),
-}];
+const POSTGRES: &[Migration] = &[
+    Migration {
+        version: 1,
+        description: "schedule",
+        sql: include_str!("../../migrations/postgres/0001_schedule.sql"),
+    },
+    Migration {
+        version: 2,
+        description: "revisions",
+        sql: include_str!("../../migrations/postgres/0002_revisions.sql"),
+    },
+];
 
 const BOOKKEEPING: &str = "CREATE TABLE IF NOT EXISTS traffic_migrations (
     version     BIGINT PRIMARY KEY,

@@ -29,6 +29,7 @@ use tokio::sync::broadcast;
 use crate::change::Change;
 use crate::error::TrafficError;
 use crate::itinerary::Itinerary;
+use crate::revision::Planned;
 use rows::{COLUMNS, ItineraryRow};
 
 /// The advisory lock class of the schedule on PostgreSQL ("traf"); its object ids: 0 for
@@ -202,6 +203,24 @@ impl Schedule {
                 .map_err(|e| self.db_err(e))?
         });
         row.map(ItineraryRow::into_itinerary).transpose()
+    }
+
+    /// Plan `plan_id` as committed (its itinerary and revision, what its robot acknowledged),
+    /// unless it is unknown, cancelled, replaced or expired.
+    pub async fn plan(&self, plan_id: &str) -> Result<Option<Planned>, TrafficError> {
+        let now = self.now_ms();
+        let select = format!(
+            "SELECT {COLUMNS} FROM traffic_itineraries WHERE plan_id = $1 AND expires_ms >= $2"
+        );
+        let row: Option<ItineraryRow> = on_pool!(self, |pool, pg| {
+            sqlx::query_as(&select)
+                .bind(plan_id)
+                .bind(now)
+                .fetch_optional(pool)
+                .await
+                .map_err(|e| self.db_err(e))?
+        });
+        row.map(ItineraryRow::into_planned).transpose()
     }
 
     fn db_err(&self, source: sqlx::Error) -> TrafficError {

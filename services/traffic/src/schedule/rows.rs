@@ -2,10 +2,12 @@
 
 use crate::error::TrafficError;
 use crate::itinerary::{Itinerary, TimedPose};
+use crate::revision::Planned;
 
 /// The columns [`ItineraryRow`] reads, in a `SELECT` or `RETURNING` list.
 pub(super) const COLUMNS: &str = "plan_id, floor, robot, start_ms, expires_ms, delay_s, \
-                                  tolerance_s, radius_m, progress_t_s, trajectory";
+                                  tolerance_s, radius_m, progress_t_s, trajectory, \
+                                  revision, acknowledged";
 
 /// A row of `traffic_itineraries`.
 #[derive(Debug, sqlx::FromRow)]
@@ -22,6 +24,10 @@ pub(super) struct ItineraryRow {
     pub progress_t_s: Option<f64>,
     /// JSON: `[[t_s, x, y, yaw], ...]`.
     pub trajectory: String,
+    /// The plan's revision.
+    pub revision: i64,
+    /// The revision its robot last acknowledged.
+    pub acknowledged: i64,
 }
 
 impl ItineraryRow {
@@ -32,6 +38,7 @@ impl ItineraryRow {
                 plan_id: self.plan_id.clone(),
                 message: format!("trajectory: {e}"),
             })?;
+        let revision = self.revision_number(self.revision, "revision")?;
         Ok(Itinerary {
             plan_id: self.plan_id,
             robot: self.robot,
@@ -45,6 +52,25 @@ impl ItineraryRow {
             tolerance_s: self.tolerance_s,
             expires_unix_ms: self.expires_ms,
             delay_s: self.delay_s,
+            revision,
+        })
+    }
+
+    /// The row as a [`Planned`]: the itinerary and what its robot acknowledged.
+    pub fn into_planned(self) -> Result<Planned, TrafficError> {
+        let acknowledged = self.revision_number(self.acknowledged, "acknowledged")?;
+        let progress_t_s = self.progress_t_s;
+        Ok(Planned {
+            acknowledged,
+            progress_t_s,
+            itinerary: self.into_itinerary()?,
+        })
+    }
+
+    fn revision_number(&self, n: i64, column: &str) -> Result<u32, TrafficError> {
+        u32::try_from(n).map_err(|_| TrafficError::Corrupt {
+            plan_id: self.plan_id.clone(),
+            message: format!("{column} is {n}, not a revision number"),
         })
     }
 }

@@ -1,5 +1,6 @@
-//! The schedule's writes: [`Schedule::commit`], [`Schedule::cancel`] and
-//! [`Schedule::progress`], each one transaction under the write lock (see the parent module).
+//! The schedule's writes: [`Schedule::commit`], [`Schedule::cancel`],
+//! [`Schedule::progress`] and [`Schedule::revise`], each one transaction under the write lock
+//! (see the parent module).
 
 use super::rows::{COLUMNS, ItineraryRow, trajectory_text};
 use super::{LOCK_CLASS, Schedule, on_pool};
@@ -7,6 +8,7 @@ use crate::change::{Change, Removal};
 use crate::error::TrafficError;
 use crate::itinerary::{Itinerary, MAX_HORIZON_S, add_seconds};
 use crate::progress::match_progress;
+use crate::revision::Planned;
 
 /// The advisory lock's object id for writes (migrations use 0).
 const WRITE_LOCK: i32 = 1;
@@ -236,17 +238,21 @@ impl Schedule {
     /// shifts the rest of the itinerary; its expiry moves by the change in delay. Bumps the
     /// floor's version and returns the updated itinerary.
     ///
+    /// `acknowledged`: the revision the robot drives (it learnt of it); the plan's
+    /// `acknowledged` becomes it (never lower than before).
+    ///
     /// Errors: [`TrafficError::NotFound`] (unknown, cancelled or expired),
     /// [`TrafficError::NotYourPlan`] (another robot's plan), [`TrafficError::Invalid`] (a
-    /// position that is not finite).
+    /// position that is not finite), [`TrafficError::UnknownRevision`] (an acknowledged
+    /// revision the plan never had).
     pub async fn progress(
         &self,
         plan_id: &str,
         robot: &str,
         at_unix_ms: i64,
-        x: f64,
-        y: f64,
-    ) -> Result<Itinerary, TrafficError> {
+        (x, y): (f64, f64),
+        acknowledged: Option<u32>,
+    ) -> Result<Planned, TrafficError> {
         if !(x.is_finite() && y.is_finite()) {
             return Err(TrafficError::Invalid(format!(
                 "the reported position ({x}, {y}) is not finite"
@@ -255,7 +261,7 @@ impl Schedule {
         let now = self.now_ms();
         let err = |e| self.db_err(e);
         let select = format!("SELECT {COLUMNS} FROM traffic_itineraries WHERE plan_id = $1");
-        let (itinerary, version) = on_pool!(self, |pool, pg| {
+        let (planned, version) = on_pool!(self, |pool, pg| {
             let mut tx = begin_write!(self, pool, pg, now);
             let row: Option<ItineraryRow> = sqlx::query_as(&select)
                 .bind(plan_id)
@@ -274,8 +280,22 @@ impl Schedule {
                     owner: row.robot,
                 });
             }
-            let last_match = row.progress_t_s;
-            let mut itinerary = row.into_itinerary()?;
+            let Planned {
+                mut itinerary,
+                acknowledged: before,
+                progress_t_s: last_match,
+            } = row.into_planned()?;
+            let acknowledged = match acknowledged {
+                Some(a) if a > itinerary.revision || a == 0 => {
+                    return Err(TrafficError::UnknownRevision {
+                        plan_id: plan_id.to_owned(),
+                        acknowledged: a,
+                        current: itinerary.revision,
+                    });
+                }
+                Some(a) => a.max(before),
+                None => before,
+            };
             let matched =
                 match_progress(&itinerary, last_match, at_unix_ms, x, y).ok_or_else(|| {
                     TrafficError::Corrupt {
@@ -289,13 +309,14 @@ impl Schedule {
             itinerary.delay_s = delay;
             sqlx::query(
                 "UPDATE traffic_itineraries SET delay_s = $2, progress_t_s = $3, \
-                 expires_ms = $4, updated_ms = $5 WHERE plan_id = $1",
+                 expires_ms = $4, updated_ms = $5, acknowledged = $6 WHERE plan_id = $1",
             )
             .bind(plan_id)
             .bind(delay)
             .bind(matched.t_s)
             .bind(itinerary.expires_unix_ms)
             .bind(now)
+            .bind(i64::from(acknowledged))
             .execute(&mut *tx)
             .await
             .map_err(err)?;
@@ -305,19 +326,184 @@ impl Schedule {
                 .await
                 .map_err(err)?;
             tx.commit().await.map_err(err)?;
-            (itinerary, version)
+            let planned = Planned {
+                itinerary,
+                acknowledged,
+                progress_t_s: Some(matched.t_s),
+            };
+            (planned, version)
         });
         tracing::debug!(
             plan_id,
             robot,
-            delay_s = itinerary.delay_s,
+            delay_s = planned.itinerary.delay_s,
+            acknowledged = planned.acknowledged,
             version,
             "itinerary progressed"
         );
         self.publish(vec![Change::Progressed {
             version,
-            itinerary: itinerary.clone(),
+            itinerary: planned.itinerary.clone(),
         }]);
-        Ok(itinerary)
+        Ok(planned)
     }
+
+    /// Revises plans of one floor whose robots have not set off, in one transaction, if the
+    /// floor is still at `expected_version`: each itinerary of `revised` replaces the one
+    /// committed under its plan id (same robot, same floor, starting where it stood), with the
+    /// revision one more, no delay and no progress matched yet. Returns the floor's new version
+    /// and the revised itineraries. The schedule holds the old plans or all the new ones, never
+    /// a mix.
+    ///
+    /// Errors: [`TrafficError::Invalid`] (an itinerary that fails [`Itinerary::check`], none,
+    /// two for one plan, plans of several floors, another robot or floor than the plan's, or a
+    /// start away from where the robot stands), [`TrafficError::NotFound`],
+    /// [`TrafficError::SetOff`] (see [`Planned::set_off`]),
+    /// [`TrafficError::VersionChanged`].
+    pub async fn revise(
+        &self,
+        revised: Vec<Itinerary>,
+        expected_version: i64,
+    ) -> Result<(i64, Vec<Itinerary>), TrafficError> {
+        let floor = check_revisions(&revised)?;
+        let now = self.now_ms();
+        let err = |e| self.db_err(e);
+        let select = format!("SELECT {COLUMNS} FROM traffic_itineraries WHERE plan_id = $1");
+        let texts = revised
+            .iter()
+            .map(|it| trajectory_text(&it.trajectory))
+            .collect::<Result<Vec<_>, _>>()?;
+        let (version, out) = on_pool!(self, |pool, pg| {
+            let mut tx = begin_write!(self, pool, pg, now);
+            let mut out = Vec::with_capacity(revised.len());
+            for (new, text) in revised.iter().zip(&texts) {
+                let row: Option<ItineraryRow> = sqlx::query_as(&select)
+                    .bind(&new.plan_id)
+                    .fetch_optional(&mut *tx)
+                    .await
+                    .map_err(err)?;
+                let Some(row) = row else {
+                    return Err(TrafficError::NotFound {
+                        plan_id: new.plan_id.clone(),
+                    });
+                };
+                let old = row.into_planned()?;
+                check_revisable(&old, new, now)?;
+                let revision = old.itinerary.revision.saturating_add(1);
+                sqlx::query(
+                    "UPDATE traffic_itineraries SET start_ms = $2, expires_ms = $3, delay_s = 0, \
+                     tolerance_s = $4, radius_m = $5, progress_t_s = NULL, trajectory = $6, \
+                     revision = $7, updated_ms = $8 WHERE plan_id = $1",
+                )
+                .bind(&new.plan_id)
+                .bind(new.start_unix_ms)
+                .bind(new.expires_unix_ms)
+                .bind(new.tolerance_s)
+                .bind(new.radius_m)
+                .bind(text)
+                .bind(i64::from(revision))
+                .bind(now)
+                .execute(&mut *tx)
+                .await
+                .map_err(err)?;
+                out.push(Itinerary {
+                    delay_s: 0.0,
+                    revision,
+                    ..new.clone()
+                });
+            }
+            let bumped: Option<i64> = sqlx::query_scalar(BUMP_IF)
+                .bind(floor)
+                .bind(expected_version)
+                .fetch_optional(&mut *tx)
+                .await
+                .map_err(err)?;
+            let Some(version) = bumped else {
+                let current: Option<i64> = sqlx::query_scalar(VERSION)
+                    .bind(floor)
+                    .fetch_optional(&mut *tx)
+                    .await
+                    .map_err(err)?;
+                return Err(TrafficError::VersionChanged {
+                    floor: floor.to_owned(),
+                    expected: expected_version,
+                    now: current.unwrap_or(0),
+                });
+            };
+            tx.commit().await.map_err(err)?;
+            (version, out)
+        });
+        tracing::info!(
+            floor,
+            version,
+            plans = ?out.iter().map(|it| (&it.plan_id, it.revision)).collect::<Vec<_>>(),
+            "plans revised"
+        );
+        self.publish(
+            out.iter()
+                .map(|itinerary| Change::Revised {
+                    version,
+                    itinerary: itinerary.clone(),
+                })
+                .collect(),
+        );
+        Ok((version, out))
+    }
+}
+
+/// The floor of a batch of revisions, after checking each itinerary and that the batch holds
+/// at least one, one per plan, all on one floor.
+fn check_revisions(revised: &[Itinerary]) -> Result<&str, TrafficError> {
+    let invalid = |m: String| Err(TrafficError::Invalid(m));
+    let Some(first) = revised.first() else {
+        return invalid("a revision needs at least one itinerary".to_owned());
+    };
+    for (i, it) in revised.iter().enumerate() {
+        it.check()?;
+        if it.floor != first.floor {
+            return invalid(format!(
+                "one revision is of one floor: plan {:?} is on {:?}, plan {:?} on {:?}",
+                first.plan_id, first.floor, it.plan_id, it.floor
+            ));
+        }
+        if revised[..i].iter().any(|o| o.plan_id == it.plan_id) {
+            return invalid(format!("plan {:?} is revised twice at once", it.plan_id));
+        }
+    }
+    Ok(&first.floor)
+}
+
+/// Whether `new` may replace `old` now: the same robot and floor, a robot that has not set
+/// off, and a start where the robot stands (within its radius).
+fn check_revisable(old: &Planned, new: &Itinerary, now: i64) -> Result<(), TrafficError> {
+    let it = &old.itinerary;
+    if it.robot != new.robot || it.floor != new.floor {
+        return Err(TrafficError::Invalid(format!(
+            "plan {:?} is {:?}'s on {:?}: a revision cannot give it to {:?} on {:?}",
+            it.plan_id, it.robot, it.floor, new.robot, new.floor
+        )));
+    }
+    if old.set_off(now) {
+        return Err(TrafficError::SetOff {
+            plan_id: it.plan_id.clone(),
+            robot: it.robot.clone(),
+            departs_unix_ms: it.departs_unix_ms(),
+        });
+    }
+    let (Some(a), Some(b)) = (it.trajectory.first(), new.trajectory.first()) else {
+        return Ok(());
+    };
+    if (a.x - b.x).hypot(a.y - b.y) > it.radius_m {
+        return Err(TrafficError::Invalid(format!(
+            "the revision of plan {:?} starts at ({:.2}, {:.2}), but its robot stands at ({:.2}, {:.2})",
+            it.plan_id, b.x, b.y, a.x, a.y
+        )));
+    }
+    if new.expires_unix_ms < now {
+        return Err(TrafficError::Invalid(format!(
+            "the revision of plan {:?} expires at {} ms, already past (now {now})",
+            it.plan_id, new.expires_unix_ms
+        )));
+    }
+    Ok(())
 }

@@ -37,6 +37,7 @@ fn drive(robot: &str, from: [f64; 2], to: [f64; 2], start_s: f64) -> Itinerary {
         tolerance_s: 0.0,
         expires_unix_ms: ms(start, length),
         delay_s: 0.0,
+        revision: 1,
     }
 }
 

@@ -26,6 +26,9 @@ fixtures::on_both_backends!(
         bad_itineraries_are_refused_naming_what_is_wrong,
         this_processs_changes_are_broadcast_in_order,
         racing_commits_from_two_processes_elect_one_winner_per_version,
+        revisions_replace_plans_whose_robots_have_not_set_off_all_or_none,
+        a_revision_of_a_robot_that_set_off_is_refused,
+        progress_acknowledges_revisions_it_was_sent_and_no_others,
     ]
 );
 
@@ -159,7 +162,11 @@ async fn progress_shifts_the_rest_of_the_schedule_by_the_delay(f: Fixture) {
     s.commit(plan.clone(), 0).await.unwrap();
     f.clock.set(at(5.0));
     // At x = 3 m 5 s after the start: scheduled at 3 s, so 2 s late.
-    let late = s.progress("p1", "r1", at(5.0), 3.0, 0.05).await.unwrap();
+    let late = s
+        .progress("p1", "r1", at(5.0), (3.0, 0.05), None)
+        .await
+        .unwrap()
+        .itinerary;
     assert!((late.delay_s - 2.0).abs() < 1e-6, "{late:?}");
     assert_eq!(late.expires_unix_ms, plan.expires_unix_ms + 2_000);
     assert_eq!(late.trajectory, plan.trajectory);
@@ -171,7 +178,11 @@ async fn progress_shifts_the_rest_of_the_schedule_by_the_delay(f: Fixture) {
     assert_eq!(s.get("p1").await.unwrap(), Some(late));
     // It catches up: at 7 m at 8 s, 1 s late; searched forward from the last report.
     f.clock.set(at(8.0));
-    let caught_up = s.progress("p1", "r1", at(8.0), 7.0, 0.0).await.unwrap();
+    let caught_up = s
+        .progress("p1", "r1", at(8.0), (7.0, 0.0), None)
+        .await
+        .unwrap()
+        .itinerary;
     assert!((caught_up.delay_s - 1.0).abs() < 1e-6, "{caught_up:?}");
     assert_eq!(caught_up.expires_unix_ms, plan.expires_unix_ms + 1_000);
     assert_eq!(s.version("f1").await.unwrap(), 3);
@@ -182,7 +193,7 @@ async fn progress_is_only_for_the_plans_own_robot(f: Fixture) {
     s.commit(straight("p1", "r1", "f1", [0.0, 0.0], [10.0, 0.0]), 0)
         .await
         .unwrap();
-    match s.progress("p1", "r2", at(1.0), 1.0, 0.0).await {
+    match s.progress("p1", "r2", at(1.0), (1.0, 0.0), None).await {
         Err(TrafficError::NotYourPlan {
             plan_id,
             robot,
@@ -193,12 +204,15 @@ async fn progress_is_only_for_the_plans_own_robot(f: Fixture) {
         ),
         other => panic!("{other:?}"),
     }
-    match s.progress("p9", "r1", at(1.0), 1.0, 0.0).await {
+    match s.progress("p9", "r1", at(1.0), (1.0, 0.0), None).await {
         Err(TrafficError::NotFound { plan_id }) => assert_eq!(plan_id, "p9"),
         other => panic!("{other:?}"),
     }
     for (x, y) in [(f64::NAN, 0.0), (0.0, f64::INFINITY)] {
-        let err = s.progress("p1", "r1", at(1.0), x, y).await.unwrap_err();
+        let err = s
+            .progress("p1", "r1", at(1.0), (x, y), None)
+            .await
+            .unwrap_err();
         assert!(matches!(err, TrafficError::Invalid(_)), "{err:?}");
     }
     // Nothing of this changed the floor.
@@ -220,7 +234,7 @@ async fn expired_itineraries_leave_snapshots_and_are_purged(f: Fixture) {
     f.clock.set(at(11.0));
     assert_eq!(s.get("p1").await.unwrap(), None);
     assert!(matches!(
-        s.progress("p1", "r1", at(11.0), 5.0, 0.0).await,
+        s.progress("p1", "r1", at(11.0), (5.0, 0.0), None).await,
         Err(TrafficError::NotFound { .. })
     ));
     // The next commit purges the row: its plan id is free again (another robot's now).
@@ -331,7 +345,11 @@ async fn this_processs_changes_are_broadcast_in_order(f: Fixture) {
     let b = straight("p2", "r1", "f2", [0.0, 0.0], [5.0, 0.0]);
     s.commit(b.clone(), 0).await.unwrap();
     f.clock.set(at(2.0));
-    let progressed = s.progress("p2", "r1", at(2.0), 1.0, 0.0).await.unwrap();
+    let progressed = s
+        .progress("p2", "r1", at(2.0), (1.0, 0.0), None)
+        .await
+        .unwrap()
+        .itinerary;
     s.cancel("p2").await.unwrap();
     let mut seen = Vec::new();
     while let Ok(change) = changes.try_recv() {
@@ -459,4 +477,190 @@ async fn racing_commits_from_two_processes_elect_one_winner_per_version(f: Fixtu
         all.sort();
         assert_eq!(robots, all);
     }
+}
+
+/// `straight`, told to start `start_s` after `START_MS` (standing at its start until then).
+fn later(plan_id: &str, robot: &str, from: [f64; 2], to: [f64; 2], start_s: f64) -> Itinerary {
+    let mut it = straight(plan_id, robot, "f1", from, to);
+    for p in &mut it.trajectory {
+        p.t_s += start_s;
+    }
+    it.trajectory.insert(
+        0,
+        TimedPose {
+            t_s: 0.0,
+            ..it.trajectory[0]
+        },
+    );
+    it.expires_unix_ms = at(it.trajectory.last().unwrap().t_s + 60.0);
+    it
+}
+
+async fn revisions_replace_plans_whose_robots_have_not_set_off_all_or_none(f: Fixture) {
+    let s = &f.schedule;
+    let a = later("p1", "r1", [0.0, 0.0], [5.0, 0.0], 20.0);
+    let b = later("p2", "r2", [0.0, 3.0], [5.0, 3.0], 30.0);
+    s.commit(a.clone(), 0).await.unwrap();
+    s.commit(b.clone(), 1).await.unwrap();
+    let mut changes = s.changes();
+    // Both earlier, in one revision, against the version they were read at.
+    let sooner_a = later("p1", "r1", [0.0, 0.0], [5.0, 0.0], 10.0);
+    let sooner_b = later("p2", "r2", [0.0, 3.0], [5.0, 3.0], 12.0);
+    let (version, revised) = s
+        .revise(vec![sooner_a.clone(), sooner_b.clone()], 2)
+        .await
+        .unwrap();
+    assert_eq!(version, 3);
+    assert_eq!(
+        revised.iter().map(|it| it.revision).collect::<Vec<_>>(),
+        [2, 2]
+    );
+    let read = s.plan("p1").await.unwrap().unwrap();
+    assert_eq!(
+        read.itinerary,
+        Itinerary {
+            revision: 2,
+            ..sooner_a.clone()
+        }
+    );
+    assert_eq!(
+        read.acknowledged, 1,
+        "the robot has not acknowledged it yet"
+    );
+    assert_eq!(read.itinerary.departs_unix_ms(), at(10.0));
+    let seen: Vec<_> = std::iter::from_fn(|| changes.try_recv().ok()).collect();
+    assert_eq!(
+        seen,
+        revised
+            .iter()
+            .map(|it| Change::Revised {
+                version: 3,
+                itinerary: it.clone()
+            })
+            .collect::<Vec<_>>()
+    );
+    // A stale version changes nothing; nor does a batch with one bad plan (all or none).
+    let stale = s.revise(vec![a.clone()], 2).await.unwrap_err();
+    assert!(
+        matches!(stale, TrafficError::VersionChanged { now: 3, .. }),
+        "{stale:?}"
+    );
+    let elsewhere = later("p2", "r2", [4.0, 3.0], [5.0, 3.0], 12.0);
+    let err = s.revise(vec![a.clone(), elsewhere], 3).await.unwrap_err();
+    assert!(
+        matches!(&err, TrafficError::Invalid(m) if m.contains("p2") && m.contains("stands at")),
+        "{err:?}"
+    );
+    let unknown = s
+        .revise(
+            vec![a.clone(), later("p9", "r9", [0.0, 6.0], [5.0, 6.0], 10.0)],
+            3,
+        )
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(&unknown, TrafficError::NotFound { plan_id } if plan_id == "p9"),
+        "{unknown:?}"
+    );
+    let twice = s.revise(vec![a.clone(), a.clone()], 3).await.unwrap_err();
+    assert!(
+        matches!(&twice, TrafficError::Invalid(m) if m.contains("twice")),
+        "{twice:?}"
+    );
+    let thief = Itinerary {
+        robot: "r2".into(),
+        ..a.clone()
+    };
+    let err = s.revise(vec![thief], 3).await.unwrap_err();
+    assert!(
+        matches!(&err, TrafficError::Invalid(m) if m.contains("r1")),
+        "{err:?}"
+    );
+    assert_eq!(s.version("f1").await.unwrap(), 3);
+    assert_eq!(s.plan("p1").await.unwrap().unwrap().itinerary.revision, 2);
+    // Another process sees the revision.
+    let other = f.another_process().await;
+    assert_eq!(
+        other.plan("p2").await.unwrap().unwrap().itinerary.revision,
+        2
+    );
+    // A new commit of the robot starts again at revision 1.
+    s.commit(b.clone(), 3).await.unwrap();
+    assert_eq!(s.plan("p2").await.unwrap().unwrap().itinerary.revision, 1);
+}
+
+async fn a_revision_of_a_robot_that_set_off_is_refused(f: Fixture) {
+    let s = &f.schedule;
+    let a = later("p1", "r1", [0.0, 0.0], [5.0, 0.0], 10.0);
+    s.commit(a.clone(), 0).await.unwrap();
+    // Told to leave at 10 s, within 1 s of tolerance: at 7.9 s a revision may still reach it,
+    // from 8 s on (tolerance and notice) not.
+    f.clock.set(at(7.9));
+    assert!(!s.plan("p1").await.unwrap().unwrap().set_off(at(7.9)));
+    let (version, _) = s.revise(vec![a.clone()], 1).await.unwrap();
+    f.clock.set(at(8.0));
+    let err = s.revise(vec![a.clone()], version).await.unwrap_err();
+    match err {
+        TrafficError::SetOff {
+            plan_id,
+            departs_unix_ms,
+            ..
+        } => {
+            assert_eq!((plan_id.as_str(), departs_unix_ms), ("p1", at(10.0)));
+        }
+        other => panic!("{other:?}"),
+    }
+    // A progress report that matches it past its start: set off, whatever the clock says.
+    let b = later("p2", "r2", [0.0, 3.0], [5.0, 3.0], 10.0);
+    s.commit(b.clone(), version).await.unwrap();
+    f.clock.set(at(2.0));
+    let moved = s
+        .progress("p2", "r2", at(2.0), (2.0, 3.0), None)
+        .await
+        .unwrap();
+    assert!(moved.set_off(at(2.0)), "{moved:?}");
+    let version = s.version("f1").await.unwrap();
+    assert!(matches!(
+        s.revise(vec![b], version).await,
+        Err(TrafficError::SetOff { .. })
+    ));
+}
+
+async fn progress_acknowledges_revisions_it_was_sent_and_no_others(f: Fixture) {
+    let s = &f.schedule;
+    let a = later("p1", "r1", [0.0, 0.0], [5.0, 0.0], 20.0);
+    s.commit(a.clone(), 0).await.unwrap();
+    s.revise(vec![later("p1", "r1", [0.0, 0.0], [5.0, 0.0], 15.0)], 1)
+        .await
+        .unwrap();
+    f.clock.set(at(1.0));
+    for never in [0, 3] {
+        match s
+            .progress("p1", "r1", at(1.0), (0.0, 0.0), Some(never))
+            .await
+        {
+            Err(TrafficError::UnknownRevision {
+                plan_id,
+                acknowledged,
+                current,
+            }) => {
+                assert_eq!((plan_id.as_str(), acknowledged, current), ("p1", never, 2));
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+    let acked = s
+        .progress("p1", "r1", at(1.0), (0.0, 0.0), Some(2))
+        .await
+        .unwrap();
+    assert_eq!((acked.acknowledged, acked.itinerary.revision), (2, 2));
+    // Standing at its start before its time is on time, and not set off.
+    assert!(!acked.set_off(at(1.0)), "{acked:?}");
+    // An older acknowledgement does not take it back.
+    let again = s
+        .progress("p1", "r1", at(1.0), (0.0, 0.0), Some(1))
+        .await
+        .unwrap();
+    assert_eq!(again.acknowledged, 2);
+    assert_eq!(s.plan("p1").await.unwrap().unwrap().acknowledged, 2);
 }

@@ -226,6 +226,7 @@ impl Joining<'_> {
             tolerance_s: options.tolerance_s + fleet::FIT_SLACK_S,
             expires_unix_ms: start + (options.hold_s * 1000.0).round() as i64,
             delay_s: 0.0,
+            revision: 1,
         };
         let (steps, start_wait_s, max_wait_s) = match &self.basis {
             Some(b) => (&b.steps, 0.0, options.max_wait_s - b.waited_s()),

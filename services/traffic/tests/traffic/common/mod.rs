@@ -98,5 +98,6 @@ pub fn straight(
         tolerance_s: 1.0,
         expires_unix_ms: at(length + 60.0),
         delay_s: 0.0,
+        revision: 1,
     }
 }

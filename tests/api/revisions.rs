@@ -1,0 +1,182 @@
+//! Plan revisions through the real service: `GET /v1/plans/{id}` tags a plan with its
+//! revision (`ETag`, `If-None-Match`, 304, a long poll with `wait_s`), a revision made by
+//! another process sharing the job database reaches a robot waiting on its plan, and progress
+//! reports acknowledge the revisions they were sent and no others.
+
+use std::time::{Duration, Instant};
+
+use reqwest::Method;
+use serde_json::{Value, json};
+
+use crate::fleet::{FIRST_ROBOT, fleet_app, now_ms, route, traffic};
+use crate::helpers::TestApp;
+use crate::plan::{centroid, free_near, plan};
+
+/// `GET /v1/plans/{id}` as the first robot, with `If-None-Match` when given: status, `ETag`
+/// and body (`Null` for a 304).
+async fn get_plan(
+    app: &TestApp,
+    id: &str,
+    if_none_match: Option<&str>,
+    query: &str,
+) -> (u16, String, Value) {
+    let mut request = app
+        .client
+        .get(format!("{}/v1/plans/{id}{query}", app.address))
+        .bearer_auth(FIRST_ROBOT);
+    if let Some(tag) = if_none_match {
+        request = request.header("if-none-match", tag);
+    }
+    let r = request.send().await.unwrap();
+    let status = r.status().as_u16();
+    let etag = r
+        .headers()
+        .get("etag")
+        .map(|v| v.to_str().unwrap().to_owned())
+        .unwrap_or_default();
+    let body = r.text().await.unwrap();
+    let body = if body.is_empty() {
+        Value::Null
+    } else {
+        serde_json::from_str(&body).unwrap()
+    };
+    (status, etag, body)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_revision_reaches_the_robot_waiting_on_its_plan_and_is_acknowledged() {
+    let shared = tempfile::tempdir().unwrap();
+    let url = format!("sqlite://{}", shared.path().join("jobs.db").display());
+    let app = fleet_app(Some(url.clone())).await;
+    let from = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let to = free_near(&app, centroid(&app, "F0-hall").await).await;
+    // Told to set off in 30 s: revisable until then, less its tolerance and the notice.
+    let (status, answer) = plan(
+        &app,
+        &route("R-001", from, to, now_ms() + 30_000, json!({})),
+    )
+    .await;
+    assert_eq!(status, 200, "{answer}");
+    let id = answer["schedule"]["plan_id"].as_str().unwrap().to_owned();
+
+    let (status, tag, first) = get_plan(&app, &id, None, "").await;
+    assert_eq!(status, 200, "{first}");
+    assert_eq!(first["plan"]["revision"], 1, "{first}");
+    assert_eq!(first["acknowledged_revision"], 1, "{first}");
+    assert_eq!(first["set_off"], false, "{first}");
+    assert!(tag.starts_with("W/\"1-"), "{tag}");
+    assert!(
+        first["revisable_until_unix_ms"].as_i64().unwrap()
+            < first["departs_unix_ms"].as_i64().unwrap()
+    );
+    let (status, again, body) = get_plan(&app, &id, Some(&tag), "").await;
+    assert_eq!(
+        (status, again.as_str(), body),
+        (304, tag.as_str(), Value::Null)
+    );
+
+    // Bad input, each named.
+    let foreign = format!("W/\"1-{}\"", "0".repeat(16));
+    for (tag, status, says) in [
+        (foreign.as_str(), 422, "another plan"),
+        ("\"yesterday\"", 422, "not a plan's entity tag"),
+        (&tag.replacen("W/\"1-", "W/\"7-", 1), 409, "never sent"),
+    ] {
+        let (got, _, body) = get_plan(&app, &id, Some(tag), "").await;
+        assert_eq!(got, status, "{tag}: {body}");
+        assert!(
+            body["error"]["message"].as_str().unwrap().contains(says),
+            "{body}"
+        );
+        assert_eq!(body["error"]["field"], "If-None-Match", "{body}");
+    }
+    let (got, _, body) = get_plan(&app, &id, None, "?wait_s=99").await;
+    assert_eq!(
+        (got, &body["error"]["field"]),
+        (422, &json!("wait_s")),
+        "{body}"
+    );
+    let (got, _, _) = get_plan(&app, "plan-nope", None, "").await;
+    assert_eq!(got, 404);
+
+    // The robot waits on its plan; another process revises it (the same route 5 s later).
+    let waiting = {
+        let (address, client, id, tag) = (
+            app.address.clone(),
+            app.client.clone(),
+            id.clone(),
+            tag.clone(),
+        );
+        tokio::spawn(async move {
+            let r = client
+                .get(format!("{address}/v1/plans/{id}?wait_s=20"))
+                .bearer_auth(FIRST_ROBOT)
+                .header("if-none-match", tag)
+                .send()
+                .await
+                .unwrap();
+            (
+                r.status().as_u16(),
+                Instant::now(),
+                r.json::<Value>().await.ok(),
+            )
+        })
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let db = queue::JobDatabase::connect(&url).await.unwrap();
+    let elsewhere = traffic::Schedule::open(&db).await.unwrap();
+    let planned = elsewhere.plan(&id).await.unwrap().unwrap();
+    let mut later = planned.itinerary.clone();
+    later.start_unix_ms += 5_000;
+    later.expires_unix_ms += 5_000;
+    let version = elsewhere.version(&later.floor).await.unwrap();
+    let (_, revised) = elsewhere
+        .revise(vec![later.clone()], version)
+        .await
+        .unwrap();
+    let revised_at = Instant::now();
+    let (status, answered_at, body) = waiting.await.unwrap();
+    let body = body.unwrap();
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["plan"]["revision"], 2, "{body}");
+    assert_eq!(body["plan"]["start_unix_ms"], later.start_unix_ms, "{body}");
+    eprintln!(
+        "the revision reached the waiting robot {:.0} ms after it was committed (another process)",
+        answered_at.duration_since(revised_at).as_secs_f64() * 1000.0
+    );
+    assert_eq!(revised[0].revision, 2);
+    let floor = traffic(&app, FIRST_ROBOT).await;
+    let shown = floor["plans"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["plan_id"] == id.as_str())
+        .unwrap()
+        .clone();
+    assert_eq!(shown["revision"], 2, "{floor}");
+
+    // Progress acknowledges what it was sent, and nothing newer.
+    let progress = |revision: u32| {
+        app.request(Method::POST, &format!("/v1/plans/{id}/progress"))
+            .bearer_auth(FIRST_ROBOT)
+            .json(&json!({"x": from.0, "y": from.1, "revision": revision}))
+            .send()
+    };
+    let r = progress(3).await.unwrap();
+    assert_eq!(r.status(), 409);
+    let body: Value = r.json().await.unwrap();
+    assert_eq!(body["error"]["field"], "revision", "{body}");
+    assert!(
+        body["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("never sent"),
+        "{body}"
+    );
+    let r = progress(2).await.unwrap();
+    assert_eq!(r.status(), 200);
+    let (_, tag2, status) = get_plan(&app, &id, None, "").await;
+    assert_eq!(status["acknowledged_revision"], 2, "{status}");
+    assert!(tag2.starts_with("W/\"2-"), "{tag2}");
+    app.stop().await;
+}
