@@ -190,19 +190,7 @@ impl Schedule {
 
     /// The itinerary of plan `plan_id`, unless it is unknown, cancelled, replaced or expired.
     pub async fn get(&self, plan_id: &str) -> Result<Option<Itinerary>, TrafficError> {
-        let now = self.now_ms();
-        let select = format!(
-            "SELECT {COLUMNS} FROM traffic_itineraries WHERE plan_id = $1 AND expires_ms >= $2"
-        );
-        let row: Option<ItineraryRow> = on_pool!(self, |pool, pg| {
-            sqlx::query_as(&select)
-                .bind(plan_id)
-                .bind(now)
-                .fetch_optional(pool)
-                .await
-                .map_err(|e| self.db_err(e))?
-        });
-        row.map(ItineraryRow::into_itinerary).transpose()
+        Ok(self.plan(plan_id).await?.map(|p| p.itinerary))
     }
 
     /// Plan `plan_id` as committed (its itinerary and revision, what its robot acknowledged),
