@@ -178,5 +178,55 @@ async fn a_revision_reaches_the_robot_waiting_on_its_plan_and_is_acknowledged() 
     let (_, tag2, status) = get_plan(&app, &id, None, "").await;
     assert_eq!(status["acknowledged_revision"], 2, "{status}");
     assert!(tag2.starts_with("W/\"2-"), "{tag2}");
+    assert_eq!(
+        status["passes_after"],
+        json!([]),
+        "alone on the floor: {status}"
+    );
+    assert!(status["may_go_until_t_s"].is_null(), "{status}");
+
+    // Another robot's plan (committed by the other process) through where the first one
+    // starts, after it left: it passes after the first robot there, and may go only up to
+    // there until the first one reports it has passed.
+    let mut crossing = later.clone();
+    crossing.plan_id = "plan-crossing".to_owned();
+    crossing.robot = "https://example.org/robots/visitor".to_owned();
+    crossing.start_unix_ms = later.start_unix_ms + 20_000;
+    crossing.expires_unix_ms = later.expires_unix_ms + 20_000;
+    let version = elsewhere.version(&later.floor).await.unwrap();
+    elsewhere.commit(crossing, version).await.unwrap();
+    let id2 = "plan-crossing".to_owned();
+    let (_, _, follows) = get_plan(&app, &id2, None, "").await;
+    let passes = follows["passes_after"].as_array().unwrap();
+    assert!(!passes.is_empty(), "{follows}");
+    assert!(
+        passes
+            .iter()
+            .all(|p| p["plan_id"] == id.as_str() && p["passed"] == false),
+        "{follows}"
+    );
+    let until = follows["may_go_until_t_s"].as_f64().unwrap();
+    assert!(
+        (until - passes[0]["t_s"].as_f64().unwrap()).abs() < 1e-9,
+        "{follows}"
+    );
+    // The first robot reports it is at its goal, on time: the second may go all the way.
+    let end = shown["trajectory"].as_array().unwrap().last().unwrap()["t_s"]
+        .as_f64()
+        .unwrap();
+    #[allow(clippy::cast_possible_truncation)] // reason: seconds of a test plan
+    let arrived_ms = later.start_unix_ms + (end * 1000.0) as i64;
+    let r = app
+        .request(Method::POST, &format!("/v1/plans/{id}/progress"))
+        .bearer_auth(FIRST_ROBOT)
+        .json(&json!({"x": to.0, "y": to.1, "time_ms": arrived_ms, "revision": 2}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    let (_, _, released) = get_plan(&app, &id2, None, "").await;
+    let passes = released["passes_after"].as_array().unwrap();
+    assert!(passes.iter().all(|p| p["passed"] == true), "{released}");
+    assert!(released["may_go_until_t_s"].is_null(), "{released}");
     app.stop().await;
 }

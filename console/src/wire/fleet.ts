@@ -799,6 +799,30 @@ export interface components {
              */
             priority?: number | null;
         };
+        /** @description A place where a plan passes after another. */
+        PassingView: {
+            /** @description Whether the other robot has passed (its progress reports matched it beyond the place). */
+            passed: boolean;
+            /** @description The plan passing first. */
+            plan_id: string;
+            /** @description Its robot. */
+            robot: string;
+            /**
+             * Format: double
+             * @description This plan's trajectory time there, seconds.
+             */
+            t_s: number;
+            /**
+             * Format: double
+             * @description Where the paths first overlap, metres.
+             */
+            x: number;
+            /**
+             * Format: double
+             * @description Where the paths first overlap, metres.
+             */
+            y: number;
+        };
         /** @description Who walks about in a rehearsal: `"auto"`, `"none"` or people per 100 m² of free region. */
         PeopleChoice: components["schemas"]["PeopleMode"] | number;
         /** @description The validated plan driven again among fresh draws of the people. */
@@ -1175,6 +1199,18 @@ export interface components {
              * @description When the robot is to leave its start, ms since the Unix epoch (its delay included).
              */
             departs_unix_ms: number;
+            /**
+             * Format: double
+             * @description How far the robot may go now, seconds of its trajectory's time (before its delay): up
+             *     to the first meeting whose other robot has not reported passing it; absent: to its goal.
+             *     A robot that keeps to it never meets another, however late either is.
+             */
+            may_go_until_t_s?: number | null;
+            /**
+             * @description Where the plan meets another plan that passes there first (in the committed
+             *     schedule's order, which delays do not change), along the plan.
+             */
+            passes_after: components["schemas"]["PassingView"][];
             /** @description The plan as committed now (`revision`: the one to drive). */
             plan: components["schemas"]["Itinerary"];
             /**

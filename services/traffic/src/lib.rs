@@ -7,7 +7,8 @@
 //!   commits against that version ([`Schedule::commit`]), cancels, progress reports that shift
 //!   a robot's schedule by its observed delay, snapshots, and this process's [`Change`]s;
 //!   revisions of plans whose robots have not set off ([`Schedule::revise`], [`Planned`]),
-//!   acknowledged with the robot's progress.
+//!   acknowledged with the robot's progress; [`passings`]: the order plans pass where they
+//!   meet, so a robot waits for the robots before it, not for the clock.
 //! - [`first_conflict`] and [`conflicts`]: the earliest time two robots may come too close,
 //!   each anywhere within its tolerance of its schedule ([`Conflict`]).
 //!
@@ -26,6 +27,7 @@ mod change;
 mod conflict;
 mod error;
 mod itinerary;
+mod precedence;
 #[cfg(feature = "store")]
 mod progress;
 mod revision;
@@ -37,6 +39,7 @@ pub use change::{Change, Removal};
 pub use conflict::{Conflict, Margins, Reserved, conflicts, first_conflict};
 pub use error::TrafficError;
 pub use itinerary::{Itinerary, MAX_HORIZON_S, MAX_NAME_BYTES, MAX_POSES, TimedPose};
+pub use precedence::{Passing, may_go_until_s, passings};
 pub use revision::{Planned, REVISION_NOTICE_S};
 #[cfg(feature = "store")]
 pub use schedule::Schedule;

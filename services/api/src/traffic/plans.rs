@@ -23,6 +23,9 @@ use super::{TrafficRoutes, schedule, traffic_error};
 
 /// The longest a `GET /v1/plans/{id}` waits for a revision, seconds.
 pub const MAX_WAIT_S: f64 = 30.0;
+/// Paths closer than both robots' radii and this gap meet, metres: the margin the fleet's
+/// plans keep while both move.
+const PASSING_GAP_M: f64 = planner::fleet::ROBOT_MARGIN_M;
 /// How often a waiting request looks at the schedule for revisions made by other processes.
 const POLL: Duration = Duration::from_millis(200);
 
@@ -49,6 +52,43 @@ pub struct PlanStatus {
     /// Until when the service may still revise the plan, ms since the Unix epoch: its
     /// departure less its tolerance and the time a revision takes to reach the robot.
     pub revisable_until_unix_ms: i64,
+    /// Where the plan meets another plan that passes there first (in the committed
+    /// schedule's order, which delays do not change), along the plan.
+    pub passes_after: Vec<PassingView>,
+    /// How far the robot may go now, seconds of its trajectory's time (before its delay): up
+    /// to the first meeting whose other robot has not reported passing it; absent: to its goal.
+    /// A robot that keeps to it never meets another, however late either is.
+    pub may_go_until_t_s: Option<f64>,
+}
+
+/// A place where a plan passes after another.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct PassingView {
+    /// The plan passing first.
+    pub plan_id: String,
+    /// Its robot.
+    pub robot: String,
+    /// Where the paths first overlap, metres.
+    pub x: f64,
+    /// Where the paths first overlap, metres.
+    pub y: f64,
+    /// This plan's trajectory time there, seconds.
+    pub t_s: f64,
+    /// Whether the other robot has passed (its progress reports matched it beyond the place).
+    pub passed: bool,
+}
+
+impl From<traffic::Passing> for PassingView {
+    fn from(p: traffic::Passing) -> Self {
+        Self {
+            plan_id: p.plan_id,
+            robot: p.robot,
+            x: p.x,
+            y: p.y,
+            t_s: p.t_s,
+            passed: p.passed,
+        }
+    }
 }
 
 impl From<Planned> for PlanStatus {
@@ -59,6 +99,8 @@ impl From<Planned> for PlanStatus {
             set_off: false,
             departs_unix_ms: p.itinerary.departs_unix_ms(),
             revisable_until_unix_ms: p.latest_revision_unix_ms(),
+            passes_after: Vec::new(),
+            may_go_until_t_s: None,
             plan: p.itinerary.into(),
         }
     }
@@ -191,8 +233,15 @@ pub(super) async fn get_plan(
         if !unchanged {
             let now = schedule.now_ms();
             let set_off = planned.set_off(now);
+            let on_floor = schedule
+                .plans_on(&planned.itinerary.floor)
+                .await
+                .map_err(traffic_error)?;
+            let passings = traffic::passings(&planned.itinerary, &on_floor, PASSING_GAP_M);
             let status = PlanStatus {
                 set_off,
+                may_go_until_t_s: traffic::may_go_until_s(&passings),
+                passes_after: passings.into_iter().map(Into::into).collect(),
                 ..PlanStatus::from(planned)
             };
             return Ok(tagged(Json(status).into_response(), &id, revision));

@@ -211,6 +211,25 @@ impl Schedule {
         row.map(ItineraryRow::into_planned).transpose()
     }
 
+    /// Every plan on `floor` not expired now, with what its robot acknowledged and where its
+    /// last progress report matched it (by start, then plan id).
+    pub async fn plans_on(&self, floor: &str) -> Result<Vec<Planned>, TrafficError> {
+        let now = self.now_ms();
+        let select = format!(
+            "SELECT {COLUMNS} FROM traffic_itineraries WHERE floor = $1 AND expires_ms >= $2 \
+             ORDER BY start_ms, plan_id"
+        );
+        let rows: Vec<ItineraryRow> = on_pool!(self, |pool, pg| {
+            sqlx::query_as(&select)
+                .bind(floor)
+                .bind(now)
+                .fetch_all(pool)
+                .await
+                .map_err(|e| self.db_err(e))?
+        });
+        rows.into_iter().map(ItineraryRow::into_planned).collect()
+    }
+
     fn db_err(&self, source: sqlx::Error) -> TrafficError {
         TrafficError::Database {
             url: self.url.to_string(),
