@@ -4,6 +4,7 @@
 
 use std::time::{Duration, Instant};
 
+use fixtures::wait::consistently;
 use reqwest::Method;
 use serde_json::{Value, json};
 
@@ -283,8 +284,16 @@ async fn cancelling_a_running_training_stops_its_trainer() {
     );
     // The trainer stopped: its progress no longer moves, its checkpoint is removed.
     let steps = job["progress"]["env_steps"].clone();
-    tokio::time::sleep(Duration::from_secs(3)).await;
-    assert_eq!(get_job(&app, &id).await["progress"]["env_steps"], steps);
+    consistently(
+        format!("the cancelled training's env_steps staying at {steps}"),
+        Duration::from_secs(3),
+    )
+    .every(Duration::from_millis(100))
+    .holds_async(|| async {
+        let now = get_job(&app, &id).await["progress"]["env_steps"].clone();
+        if now == steps { Ok(()) } else { Err(now) }
+    })
+    .await;
     assert!(!app.data_dir.join("checkpoints").join(&id).exists());
     // A finished job cannot be cancelled again; an unknown one does not exist.
     let again = app

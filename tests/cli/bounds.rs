@@ -4,34 +4,12 @@
 
 use std::io::Write;
 use std::net::TcpStream;
-use std::process::Stdio;
 use std::time::{Duration, Instant};
 
+use fixtures::wait::consistently;
 use serde_json::{Value, json};
 
-use super::mentalsim;
-use super::worker::{Killer as Children, printed_url};
-
-/// `mentalsim serve` on a fresh data directory: its URL and admin token.
-fn serve(dir: &std::path::Path, children: &mut Children) -> (String, String) {
-    let data = dir.join("data");
-    let child = mentalsim()
-        .args(["serve", "--bind", "127.0.0.1:0", "--data-dir"])
-        .arg(&data)
-        .env("MENTALSIM_WORKER_CONCURRENCY", "0")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    children.0.push(child);
-    let last = children.0.len() - 1;
-    let url = printed_url(&mut children.0[last]);
-    let token = std::fs::read_to_string(data.join("admin.token"))
-        .unwrap()
-        .trim()
-        .to_owned();
-    (url, token)
-}
+use super::served::{Serve, Worker};
 
 /// The value of the gauge `name` in the service's `/metrics` (0 when absent).
 fn gauge(client: &::reqwest::blocking::Client, url: &str, name: &str) -> f64 {
@@ -80,12 +58,13 @@ fn free_point(client: &::reqwest::blocking::Client, url: &str, token: &str, plac
 
 #[test]
 fn a_plan_whose_client_hangs_up_stops_rehearsing() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut children = Children(Vec::new());
-    let (url, token) = serve(dir.path(), &mut children);
+    let service = Serve::new()
+        .env("MENTALSIM_WORKER_CONCURRENCY", "0")
+        .start();
+    let (url, token) = (&service.url, &service.token);
     let client = ::reqwest::blocking::Client::new();
-    let a = free_point(&client, &url, &token, "F0-living-room");
-    let b = free_point(&client, &url, &token, "F0-hall");
+    let a = free_point(&client, url, token, "F0-living-room");
+    let b = free_point(&client, url, token, "F0-hall");
     // A plan that takes long: a thousand goals back and forth across the floor.
     let goals: Vec<Value> = (0..1000)
         .map(|i| if i % 2 == 0 { b.clone() } else { a.clone() })
@@ -107,20 +86,22 @@ fn a_plan_whose_client_hangs_up_stops_rehearsing() {
     )
     .unwrap();
     let deadline = Instant::now() + Duration::from_secs(30);
-    while gauge(&client, &url, "plan_rehearsals_running") < 1.0 {
+    while gauge(&client, url, "plan_rehearsals_running") < 1.0 {
         assert!(Instant::now() < deadline, "the rehearsal never started");
         std::thread::sleep(Duration::from_millis(10));
     }
     // Let it run a little, then hang up.
-    std::thread::sleep(Duration::from_millis(300));
-    assert_eq!(
-        gauge(&client, &url, "plan_rehearsals_running"),
-        1.0,
-        "the plan ended before the hang-up: make it longer"
-    );
+    consistently(
+        "the rehearsal running until the hang-up (if not, make the plan longer)",
+        Duration::from_millis(300),
+    )
+    .holds(|| match gauge(&client, url, "plan_rehearsals_running") {
+        1.0 => Ok(()),
+        running => Err(format!("plan_rehearsals_running {running}")),
+    });
     let hung_up = Instant::now();
     drop(stream);
-    while gauge(&client, &url, "plan_rehearsals_running") > 0.0 {
+    while gauge(&client, url, "plan_rehearsals_running") > 0.0 {
         assert!(
             hung_up.elapsed() < Duration::from_secs(2),
             "the rehearsal went on after its client hung up"
@@ -135,9 +116,11 @@ fn a_plan_whose_client_hangs_up_stops_rehearsing() {
 
 #[test]
 fn a_worker_the_knowledge_service_would_refuse_is_not_ready() {
+    let service = Serve::new()
+        .env("MENTALSIM_WORKER_CONCURRENCY", "0")
+        .start();
+    let url = &service.url;
     let dir = tempfile::tempdir().unwrap();
-    let mut children = Children(Vec::new());
-    let (url, _token) = serve(dir.path(), &mut children);
     let client = ::reqwest::blocking::Client::new();
     for (case, token) in [
         ("no knowledge token configured", None),
@@ -146,26 +129,18 @@ fn a_worker_the_knowledge_service_would_refuse_is_not_ready() {
             Some("not-the-token-of-this-service"),
         ),
     ] {
-        let mut worker = mentalsim();
-        worker
-            .args(["worker", "--bind", "127.0.0.1:0", "--concurrency", "1"])
-            .args(["--knowledge-url", &url, "--data-dir"])
-            .arg(dir.path().join(format!("worker-{}", token.is_some())))
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null());
+        let mut worker = Worker::new(url, dir.path().join(format!("worker-{}", token.is_some())));
         if let Some(t) = token {
-            worker.env("MENTALSIM_KNOWLEDGE_TOKEN", t);
+            worker = worker.env("MENTALSIM_KNOWLEDGE_TOKEN", t);
         }
-        children.0.push(worker.spawn().unwrap());
-        let last = children.0.len() - 1;
-        let health = printed_url(&mut children.0[last]);
-        let ready = client.get(format!("{health}/readyz")).send().unwrap();
+        let worker = worker.start();
+        let ready = client.get(format!("{}/readyz", worker.url)).send().unwrap();
         assert_eq!(ready.status(), 503, "{case}");
         let body: Value = ready.json().unwrap();
         let reason = body["reason"].as_str().unwrap();
         assert!(reason.contains(case), "{case}: {body}");
         // The probe names the component, not where it is.
-        assert!(!reason.contains(&url), "{body}");
+        assert!(!reason.contains(url.as_str()), "{body}");
         assert!(!body.to_string().contains("/worker-"), "{body}");
     }
 }

@@ -6,60 +6,17 @@
 //! store that reopens intact, a training that goes back to the queue and resumes.
 
 use std::collections::BTreeSet;
-use std::io::{BufRead, BufReader};
-use std::path::Path;
-use std::process::{Child, Stdio};
+use std::process::Stdio;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use ::reqwest::blocking::Client;
+use fixtures::wait::consistently;
 use serde_json::{Value, json};
 
-use super::mentalsim;
+use super::served::Serve;
 
 const INFERRED: &str = "https://mentalsim.dev/graph/inferred";
-
-struct Killed(Option<Child>);
-
-impl Drop for Killed {
-    fn drop(&mut self) {
-        if let Some(child) = &mut self.0 {
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-    }
-}
-
-fn start(data: &Path) -> (Killed, String, String) {
-    start_with(data, &[("MENTALSIM_WORKER_CONCURRENCY", "0")])
-}
-
-fn start_with(data: &Path, env: &[(&str, &str)]) -> (Killed, String, String) {
-    let mut child = mentalsim()
-        .args(["serve", "--bind", "127.0.0.1:0", "--data-dir"])
-        .arg(data)
-        .envs(env.iter().copied())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut reader = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    let url = loop {
-        line.clear();
-        assert!(reader.read_line(&mut line).unwrap() > 0, "no URL printed");
-        if let Some(url) = line.split_whitespace().find(|w| w.starts_with("http://")) {
-            break url.to_owned();
-        }
-    };
-    // Keep draining stdout so the child never blocks on a full pipe.
-    std::thread::spawn(move || for _ in reader.lines() {});
-    let token = std::fs::read_to_string(data.join("admin.token"))
-        .unwrap()
-        .trim()
-        .to_owned();
-    (Killed(Some(child)), url, token)
-}
 
 /// The sorted N-Triples lines of `graph`.
 fn graph_lines(
@@ -88,7 +45,11 @@ fn graph_lines(
 fn acknowledged_writes_survive_sigkill_and_inference_matches_the_asserted_graphs() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    let (mut server, url, token) = start(&data);
+    let mut server = Serve::new()
+        .data_dir(&data)
+        .env("MENTALSIM_WORKER_CONCURRENCY", "0")
+        .start();
+    let (url, token) = (&server.url, &server.token);
     let client = ::reqwest::blocking::Client::builder()
         .timeout(Duration::from_secs(30))
         .build()
@@ -147,19 +108,21 @@ fn acknowledged_writes_survive_sigkill_and_inference_matches_the_asserted_graphs
         assert!(Instant::now() < deadline, "the writes never got going");
         std::thread::sleep(Duration::from_millis(2));
     }
-    let mut child = server.0.take().unwrap();
-    child.kill().unwrap(); // SIGKILL
-    child.wait().unwrap();
+    server.kill_now(); // SIGKILL
     for w in writers {
         w.join().unwrap();
     }
     let acknowledged = acknowledged.lock().unwrap().clone();
     assert!(acknowledged.len() < 200, "the kill came after every write");
 
-    let (_server, url, token) = start(&data);
+    let server = Serve::new()
+        .data_dir(&data)
+        .env("MENTALSIM_WORKER_CONCURRENCY", "0")
+        .start();
+    let (url, token) = (&server.url, &server.token);
     for what in &acknowledged {
         if let Some(graph) = what.strip_prefix("graph:") {
-            let lines = graph_lines(&client, &url, &token, graph);
+            let lines = graph_lines(&client, url, token, graph);
             assert_eq!(lines.len(), 2, "acknowledged write {graph} lost: {lines:?}");
         } else if let Some(id) = what.strip_prefix("object:") {
             let ask = format!(
@@ -167,7 +130,7 @@ fn acknowledged_writes_survive_sigkill_and_inference_matches_the_asserted_graphs
             );
             let answer: Value = client
                 .post(format!("{url}/sparql"))
-                .bearer_auth(&token)
+                .bearer_auth(token)
                 .header("content-type", "application/sparql-query")
                 .header("accept", "application/sparql-results+json")
                 .body(ask)
@@ -179,11 +142,11 @@ fn acknowledged_writes_survive_sigkill_and_inference_matches_the_asserted_graphs
         }
     }
     // The inferred graph after the restart equals a fresh rebuild's (a write triggers one).
-    let inferred = graph_lines(&client, &url, &token, INFERRED);
+    let inferred = graph_lines(&client, url, token, INFERRED);
     let scratch = client
         .put(format!("{url}/store"))
         .query(&[("graph", "urn:x:scratch")])
-        .bearer_auth(&token)
+        .bearer_auth(token)
         .header("content-type", "text/turtle")
         .body("<urn:x:a> <urn:x:b> <urn:x:c> .")
         .send()
@@ -192,11 +155,11 @@ fn acknowledged_writes_survive_sigkill_and_inference_matches_the_asserted_graphs
     let deleted = client
         .delete(format!("{url}/store"))
         .query(&[("graph", "urn:x:scratch")])
-        .bearer_auth(&token)
+        .bearer_auth(token)
         .send()
         .unwrap();
     assert!(deleted.status().is_success());
-    let rebuilt = graph_lines(&client, &url, &token, INFERRED);
+    let rebuilt = graph_lines(&client, url, token, INFERRED);
     assert_eq!(
         inferred.symmetric_difference(&rebuilt).count(),
         0,
@@ -372,23 +335,22 @@ fn a_full_disk_gets_clear_errors_keeps_the_store_intact_and_training_resumes_whe
 
     // 1. No reserve: writes run into the full disk itself (RocksDB's log append fails).
     {
-        let (_server, url, token) = start_with(
-            &data,
-            &[
-                ("MENTALSIM_WORKER_CONCURRENCY", "0"),
-                ("MENTALSIM_MIN_FREE_BYTES", "0"),
-            ],
-        );
-        assert_eq!(import_map(&client, &url, &token, "before").0, 201);
+        let server = Serve::new()
+            .data_dir(&data)
+            .env("MENTALSIM_WORKER_CONCURRENCY", "0")
+            .env("MENTALSIM_MIN_FREE_BYTES", "0")
+            .start();
+        let (url, token) = (&server.url, &server.token);
+        assert_eq!(import_map(&client, url, token, "before").0, 201);
         disk.fill(Some(96 * 1024));
         let update = triples(900); // 57 kB: passes the free-space check, not RocksDB's log
-        let (status, body) = sparql_update(&client, &url, &token, &update);
+        let (status, body) = sparql_update(&client, url, token, &update);
         assert_eq!(
             (status, &body["error"]["code"]),
             (507, &json!("storage_full")),
             "{body}"
         );
-        let (status, body) = import_map(&client, &url, &token, "during");
+        let (status, body) = import_map(&client, url, token, "during");
         assert_eq!(
             (status, &body["error"]["code"]),
             (507, &json!("storage_full")),
@@ -398,37 +360,36 @@ fn a_full_disk_gets_clear_errors_keeps_the_store_intact_and_training_resumes_whe
             "update and map import on a full disk: {status} storage_full\n"
         ));
         // Reads go on.
-        assert_eq!(count(&client, &url, &token, "urn:x:full"), 0);
+        assert_eq!(count(&client, url, token, "urn:x:full"), 0);
         disk.fill(None);
         // Space is back: the store reopens and takes writes again.
-        let (status, body) = sparql_update(&client, &url, &token, &update);
+        let (status, body) = sparql_update(&client, url, token, &update);
         assert_eq!(status, 204, "{body}");
-        assert_eq!(import_map(&client, &url, &token, "after").0, 201);
-        assert_eq!(count(&client, &url, &token, "urn:x:full"), 900);
+        assert_eq!(import_map(&client, url, token, "after").0, 201);
+        assert_eq!(count(&client, url, token, "urn:x:full"), 900);
     }
 
     // 2. A restart finds the store intact; with a reserve, a training on a filling disk goes
     // back to the queue (its attempt not counted) and resumes from its checkpoint.
-    let (_server, url, token) = start_with(
-        &data,
-        &[
-            ("MENTALSIM_WORKER_CONCURRENCY", "1"),
-            ("MENTALSIM_MIN_FREE_BYTES", &(24u64 << 20).to_string()),
-            ("MENTALSIM_JOB_RETRY_BASE_S", "1"),
-        ],
-    );
-    assert_eq!(count(&client, &url, &token, "urn:x:full"), 900);
+    let server = Serve::new()
+        .data_dir(&data)
+        .env("MENTALSIM_WORKER_CONCURRENCY", "1")
+        .env("MENTALSIM_MIN_FREE_BYTES", (24u64 << 20).to_string())
+        .env("MENTALSIM_JOB_RETRY_BASE_S", "1")
+        .start();
+    let (url, token) = (&server.url, &server.token);
+    assert_eq!(count(&client, url, token, "urn:x:full"), 900);
     for floor in ["before", "after"] {
         let r = client
             .get(format!("{url}/v1/places/{floor}"))
-            .bearer_auth(&token)
+            .bearer_auth(token)
             .send()
             .unwrap();
         assert_eq!(r.status(), 200, "floor {floor} lost");
     }
     let submitted: Value = client
         .post(format!("{url}/v1/jobs"))
-        .bearer_auth(&token)
+        .bearer_auth(token)
         .json(&json!({
             "kind": "train",
             "payload": {
@@ -452,18 +413,18 @@ fn a_full_disk_gets_clear_errors_keeps_the_store_intact_and_training_resumes_whe
         assert!(
             Instant::now() < deadline,
             "no checkpoint: {:#}",
-            job(&client, &url, &token, &id)
+            job(&client, url, token, &id)
         );
         std::thread::sleep(Duration::from_millis(50));
     }
     disk.fill(Some(8 << 20)); // under the reserve, still room for the job database
-    let deferred = wait_job(&client, &url, &token, &id, Duration::from_secs(30), |j| {
+    let deferred = wait_job(&client, url, token, &id, Duration::from_secs(30), |j| {
         j["state"] == "queued"
             && j["error"]
                 .as_str()
                 .is_some_and(|e| e.contains("disk space"))
     });
-    let (status, body) = import_map(&client, &url, &token, "later");
+    let (status, body) = import_map(&client, url, token, "later");
     assert_eq!(
         (status, &body["error"]["code"]),
         (507, &json!("storage_full")),
@@ -474,10 +435,21 @@ fn a_full_disk_gets_clear_errors_keeps_the_store_intact_and_training_resumes_whe
         deferred["error"]
     ));
     // Stays queued while the disk is full (it is claimed, sees no room, goes back).
-    std::thread::sleep(Duration::from_secs(3));
-    assert_ne!(job(&client, &url, &token, &id)["state"], "succeeded");
+    consistently(
+        "the training not finishing while the disk is full",
+        Duration::from_secs(3),
+    )
+    .every(Duration::from_millis(100))
+    .holds(|| {
+        let j = job(&client, url, token, &id);
+        if j["state"] == "succeeded" {
+            Err(j)
+        } else {
+            Ok(())
+        }
+    });
     disk.fill(None);
-    let finished = wait_job(&client, &url, &token, &id, Duration::from_secs(240), |j| {
+    let finished = wait_job(&client, url, token, &id, Duration::from_secs(240), |j| {
         j["state"] != "queued" && j["state"] != "running"
     });
     assert_eq!(finished["state"], "succeeded", "{finished:#}");
@@ -489,6 +461,6 @@ fn a_full_disk_gets_clear_errors_keeps_the_store_intact_and_training_resumes_whe
         finished["result"]["sessions"].as_u64().unwrap_or(0) >= 2,
         "the training did not resume from its checkpoint: {finished:#}"
     );
-    assert_eq!(import_map(&client, &url, &token, "later").0, 201);
+    assert_eq!(import_map(&client, url, token, "later").0, 201);
     eprint!("{rows}");
 }

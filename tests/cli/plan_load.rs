@@ -1,17 +1,13 @@
 //! `mentalsim bench plan-load` against a real service started by the test: plans answered
 //! under concurrent clients, with the service's and the load generator's CPU time per plan.
 
-use super::{Served, mentalsim, serve};
+use super::mentalsim;
+use super::served::Serve;
 
 #[test]
 fn plan_load_measures_a_running_service_and_its_cpu_time_per_plan() {
-    let Served {
-        mut child,
-        url,
-        dir,
-        _stdout,
-    } = serve(&[]);
-    let token = std::fs::read_to_string(dir.path().join("data/admin.token")).unwrap();
+    let mut service = Serve::new().check_ready().start();
+    let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("plan-load.json");
     let out = mentalsim()
         .args([
@@ -23,9 +19,9 @@ fn plan_load_measures_a_running_service_and_its_cpu_time_per_plan() {
             "2",
             "--url",
         ])
-        .arg(&url)
-        .args(["--token", token.trim(), "--server-pid"])
-        .arg(child.id().to_string())
+        .arg(&service.url)
+        .args(["--token", &service.token, "--server-pid"])
+        .arg(service.pid().to_string())
         .arg("--json")
         .arg(&json)
         .output()
@@ -60,14 +56,13 @@ fn plan_load_measures_a_running_service_and_its_cpu_time_per_plan() {
             "1",
             "--url",
         ])
-        .arg(&url)
-        .args(["--token", token.trim(), "--server-pid", "4194305"])
+        .arg(&service.url)
+        .args(["--token", &service.token, "--server-pid", "4194305"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("--server-pid 4194305"), "{stderr}");
 
-    child.kill().unwrap();
-    child.wait().unwrap();
+    service.kill_now();
 }

@@ -3,112 +3,31 @@
 //! HTTP, it becomes ready, claims a training created through the service's API, completes it,
 //! and stops cleanly on SIGTERM.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
-use nix::sys::signal::{Signal, kill};
-use nix::unistd::Pid;
 use serde_json::{Value, json};
 
-use super::mentalsim;
-
-/// Reads the child's stdout until a line with an `http://` URL, and returns that URL.
-pub(super) fn printed_url(child: &mut Child) -> String {
-    let stdout = child.stdout.take().unwrap();
-    let mut reader = BufReader::new(stdout);
-    let mut line = String::new();
-    for _ in 0..10 {
-        line.clear();
-        reader.read_line(&mut line).unwrap();
-        if let Some(url) = line.split_whitespace().find(|w| w.starts_with("http://")) {
-            return url.to_owned();
-        }
-    }
-    panic!("no URL printed; last line: {line}");
-}
-
-fn stop(child: &mut Child, what: &str) {
-    kill(
-        Pid::from_raw(i32::try_from(child.id()).unwrap()),
-        Signal::SIGTERM,
-    )
-    .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(40);
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            assert!(status.success(), "{what} exit status: {status}");
-            return;
-        }
-        assert!(Instant::now() < deadline, "{what} did not stop within 40 s");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
-/// Kills the children when dropped (a failed assertion must not leave servers behind).
-pub(super) struct Killer(pub(super) Vec<Child>);
-
-impl Drop for Killer {
-    fn drop(&mut self) {
-        for child in &mut self.0 {
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-    }
-}
+use super::served::{Serve, Worker};
 
 #[test]
 fn a_worker_process_completes_a_training_created_through_the_service() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    let mut children = Killer(Vec::new());
-    let serve = mentalsim()
-        .args(["serve", "--bind", "127.0.0.1:0", "--data-dir"])
-        .arg(&data)
+    let mut service = Serve::new()
+        .data_dir(&data)
         .env("MENTALSIM_WORKER_CONCURRENCY", "0")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    children.0.push(serve);
-    let service = printed_url(&mut children.0[0]);
-    let token = std::fs::read_to_string(data.join("admin.token"))
-        .unwrap()
-        .trim()
-        .to_owned();
+        .start();
 
-    let worker = mentalsim()
-        .args(["worker", "--bind", "127.0.0.1:0", "--concurrency", "1"])
-        .arg("--knowledge-url")
-        .arg(&service)
-        .arg("--database-url")
-        .arg(format!("sqlite://{}", data.join("jobs.sqlite").display()))
-        .arg("--data-dir")
-        .arg(dir.path().join("worker"))
+    let mut worker = Worker::new(&service.url, dir.path().join("worker"))
+        .database_url(format!("sqlite://{}", data.join("jobs.sqlite").display()))
         .env("MENTALSIM_KNOWLEDGE_TOKEN_FILE", data.join("admin.token"))
         .env("MENTALSIM_POLICIES_DIR", data.join("policies"))
         .env("MENTALSIM_CHECKPOINTS_DIR", data.join("checkpoints"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    children.0.push(worker);
-    let health = printed_url(&mut children.0[1]);
+        .start();
+    worker.wait_ready(Duration::from_secs(60));
+    let (url, health, token) = (&service.url, &worker.url, &service.token);
 
     let client = reqwest::blocking::Client::new();
-    let deadline = Instant::now() + Duration::from_secs(60);
-    loop {
-        let ready = client.get(format!("{health}/readyz")).send();
-        if ready.as_ref().is_ok_and(|r| r.status() == 200) {
-            break;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "the worker never became ready: {:?}",
-            ready.map(|r| r.text())
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    }
     let healthz: Value = client
         .get(format!("{health}/healthz"))
         .send()
@@ -118,8 +37,8 @@ fn a_worker_process_completes_a_training_created_through_the_service() {
     assert_eq!(healthz["role"], "worker");
 
     let created = client
-        .post(format!("{service}/v1/jobs"))
-        .bearer_auth(&token)
+        .post(format!("{url}/v1/jobs"))
+        .bearer_auth(token)
         .json(&json!({
             "kind": "train",
             "payload": {
@@ -139,8 +58,8 @@ fn a_worker_process_completes_a_training_created_through_the_service() {
     let deadline = Instant::now() + Duration::from_secs(240);
     let job = loop {
         let job: Value = client
-            .get(format!("{service}/v1/jobs/{id}"))
-            .bearer_auth(&token)
+            .get(format!("{url}/v1/jobs/{id}"))
+            .bearer_auth(token)
             .send()
             .unwrap()
             .json()
@@ -162,8 +81,8 @@ fn a_worker_process_completes_a_training_created_through_the_service() {
     );
     let policy_id = job["result"]["policy_id"].as_str().unwrap();
     let policies: Vec<Value> = client
-        .get(format!("{service}/v1/policies"))
-        .bearer_auth(&token)
+        .get(format!("{url}/v1/policies"))
+        .bearer_auth(token)
         .send()
         .unwrap()
         .json()
@@ -173,6 +92,6 @@ fn a_worker_process_completes_a_training_created_through_the_service() {
         "{policies:?}"
     );
 
-    stop(&mut children.0[1], "mentalsim worker");
-    stop(&mut children.0[0], "mentalsim serve");
+    worker.stop(Duration::from_secs(40));
+    service.stop(Duration::from_secs(40));
 }
