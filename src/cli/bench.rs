@@ -233,6 +233,13 @@ pub struct FleetArgs {
     /// do (one roadmap and the same draws for all), instead of one seed each.
     #[arg(long)]
     pub same_seed: bool,
+    /// The reference beside the run: the same missions planned first-come, one robot after
+    /// another, in K orders (the first by robot index, the others shuffled by seeds derived
+    /// from --seed), each on a fresh schedule and driven jointly; reports each order's
+    /// makespan and the best among those that brought every robot through. 0 to skip; at most
+    /// 24. Each order costs about one run planned in turn.
+    #[arg(long, value_name = "K", default_value_t = 4)]
+    pub orders: usize,
     /// Writes the rows as JSON (one object per map and scenario).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -535,6 +542,7 @@ fn fleet(args: FleetArgs) -> anyhow::Result<()> {
         max_wait_s,
         order_seed,
         same_seed,
+        orders,
         json,
         replay,
     } = args;
@@ -549,6 +557,7 @@ fn fleet(args: FleetArgs) -> anyhow::Result<()> {
         max_wait_s,
         order_seed,
         same_seed,
+        orders,
     })?;
     println!("{}", bench::fleet::markdown(&rows));
     for r in &rows {

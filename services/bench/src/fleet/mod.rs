@@ -18,11 +18,11 @@ use std::time::{Instant, SystemTime};
 
 use planner::fleet::{Committed, FleetFuture};
 use planner::{
-    FleetOptions, FleetSchedule, FloorDatabase, KnowledgeSource, PlanOutcome, PlanPeople,
-    PlanQuery, Planner, PolicyStore, RoadmapStore, SourceError, SourceFuture,
+    FleetSchedule, FloorDatabase, KnowledgeSource, PlanOutcome, PlanQuery, Planner, SourceError,
+    SourceFuture,
 };
 use rayon::prelude::*;
-use rehearsal::{AttemptOutcome, PlanOptions, PlanRequest};
+use rehearsal::AttemptOutcome;
 use sim::{Pose2, World};
 use tosm::OccupancyGrid;
 use traffic::Itinerary;
@@ -30,6 +30,10 @@ use traffic::Itinerary;
 use crate::error::BenchError;
 
 mod floors;
+mod prepared;
+mod reference;
+
+use prepared::{Prepared, prepare};
 
 pub use floors::{CORRIDOR_WIDTH_M, CROSSING_ARM_M, DOOR_WALL_M};
 
@@ -107,7 +111,13 @@ pub struct FleetBenchOptions {
     /// Every robot asks with the same `options.seed` (as robots sending the default options
     /// do: one roadmap, the same draws), not one seed each.
     pub same_seed: bool,
+    /// The reference beside the run: the same missions planned first-come, one robot after
+    /// another, in this many orders (0: none), each on a fresh schedule and driven jointly as
+    /// the run is. At most [`MAX_ORDERS`].
+    pub orders: usize,
 }
+
+pub use reference::MAX_ORDERS;
 
 /// One map and scenario.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -152,6 +162,21 @@ pub struct FleetRow {
     pub sum_alone_s: f64,
     /// Total waiting the schedule gave the robots, seconds.
     pub waits_s: f64,
+    /// A lower bound on the makespan: [`Self::makespan_alone_s`] (docs/benchmarks.md, `bench
+    /// fleet`, on what it bounds).
+    pub makespan_lower_bound_s: f64,
+    /// Orders the same missions were planned in first-come (`--orders`).
+    pub first_come_orders: usize,
+    /// Each order's makespan (its arrived robots' last arrival), seconds: order 0 by robot
+    /// index, the others shuffled by seeds derived from `--seed`.
+    pub first_come_makespans_s: Vec<f64>,
+    /// Each order's robots that arrived in its joint run.
+    pub first_come_arrived: Vec<usize>,
+    /// The least makespan among the orders in which every robot was planned and arrived;
+    /// `None` where no order brought every robot through (or no orders were run).
+    pub best_first_come_makespan_s: Option<f64>,
+    /// `makespan_s / best_first_come_makespan_s`, where there is a best.
+    pub makespan_vs_best_first_come: Option<f64>,
     /// Drives among the fleet the plans took, refused ones included (each plan at least one
     /// unless alone on the floor): what a plan costs beyond its validating rehearsal.
     pub drives_among_fleet: u32,
@@ -304,6 +329,7 @@ pub fn run_fleet_bench(opts: &FleetBenchOptions) -> Result<Vec<FleetRow>, BenchE
             opts.people
         )));
     }
+    reference::check(opts)?;
     let floors: Vec<(String, PathBuf, OccupancyGrid, Option<floors::Layout>)> =
         match floors::generated(opts.scenario) {
             Some((grid, layout)) => {
@@ -419,11 +445,27 @@ async fn plan_at_once_again(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> 
 /// its way asks again later); answers in the queries' order, a robot's latency the time of
 /// both its requests.
 async fn plan_in_turn(planner: &Arc<Planner>, queries: Vec<PlanQuery>, seed: u64) -> Vec<Answer> {
-    let mut order: Vec<usize> = (0..queries.len()).collect();
+    let order = shuffled(queries.len(), seed);
+    plan_in_order(planner, queries, order).await
+}
+
+/// `0..n` shuffled by `seed` (Fisher–Yates).
+fn shuffled(n: usize, seed: u64) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..n).collect();
     for i in (1..order.len()).rev() {
         let j = (grid::seed::nth(seed, i as u64) % (i as u64 + 1)) as usize;
         order.swap(i, j);
     }
+    order
+}
+
+/// The queries asked one after another in `order` (indices into `queries`), each one refused
+/// asked again once after all the others; answers in the queries' order.
+async fn plan_in_order(
+    planner: &Arc<Planner>,
+    queries: Vec<PlanQuery>,
+    order: Vec<usize>,
+) -> Vec<Answer> {
     let mut queries: Vec<Option<PlanQuery>> = queries.into_iter().map(Some).collect();
     let mut answers: Vec<Option<Answer>> = (0..queries.len()).map(|_| None).collect();
     let mut again = Vec::new();
@@ -490,6 +532,37 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[i.min(sorted.len() - 1)]
 }
 
+/// A joint run: every plan of `planned` among all the others `committed`, as the schedule
+/// holds them (`held_from: None`), or with each robot standing at its start from `held_from`
+/// until its plan starts (`Some(t0)`).
+fn joint_run(
+    planned: &[PlanOutcome],
+    committed: &[Itinerary],
+    held_from: Option<i64>,
+) -> Vec<Result<rehearsal::AmongReport, String>> {
+    planned
+        .par_iter()
+        .map(|o| {
+            let others: Vec<Itinerary> = committed
+                .iter()
+                .filter(|i| i.robot != o.robot)
+                .map(|i| held_from.map_or_else(|| i.clone(), |t0| standing_from(i, t0)))
+                .collect();
+            o.rehearse_among(&others).map_err(|e| e.to_string())
+        })
+        .collect()
+}
+
+/// The times of the robots of a joint run that arrived, seconds.
+fn arrival_times(joint: &[Result<rehearsal::AmongReport, String>]) -> Vec<f64> {
+    joint
+        .iter()
+        .filter_map(|j| j.as_ref().ok())
+        .filter(|r| r.outcome == AttemptOutcome::Reached)
+        .map(|r| r.time_s)
+        .collect()
+}
+
 fn run_floor(
     opts: &FleetBenchOptions,
     name: &str,
@@ -497,163 +570,35 @@ fn run_floor(
     grid: OccupancyGrid,
     layout: Option<&floors::Layout>,
 ) -> Result<FleetRow, BenchError> {
-    let floor_iri = knowledge::maps::floor_iri(&knowledge::maps::name_for_path(yaml));
-    let ttl = String::from_utf8_lossy(&opts.robot_ttl).into_owned();
-    // One database (and world) per robot, built side by side before anything is timed.
-    let dbs: Vec<(String, Arc<FloorDatabase>)> = (0..opts.robots)
-        .into_par_iter()
-        .map(|k| {
-            let iri = format!("{}-{k}", opts.robot_iri);
-            let turtle = ttl.replace(&opts.robot_iri, &iri);
-            let graph = knowledge::maps::on_demand_database(
-                yaml,
-                grid.clone(),
-                &[],
-                turtle.as_bytes(),
-                &iri,
-            )?;
-            let db = Arc::new(FloorDatabase::new(
-                graph,
-                iri.clone(),
-                floor_iri.clone(),
-                "bench",
-            ));
-            db.world().map_err(|e| BenchError::Format {
-                path: yaml.to_path_buf(),
-                message: e.to_string(),
-            })?;
-            Ok((iri, db))
-        })
-        .collect::<Result<_, BenchError>>()?;
-    let world = dbs[0].1.world().map_err(|e| BenchError::Format {
-        path: yaml.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    let radius = world.spec().robot.footprint_radius;
-    floors::check_robot(
-        opts.scenario,
-        radius,
-        PlanOptions::default().safety_margin_m,
-    )?;
-    let missions = missions(opts.scenario, layout, &world, opts.robots, opts.seed)?;
-    let policies =
-        tempfile::tempdir().map_err(crate::error::io_err(Path::new("temporary directory")))?;
+    let floor = prepare(opts, name, yaml, grid, layout)?;
     let schedule = Arc::new(MemorySchedule::default());
-    let planner = Arc::new(
-        Planner::new(
-            Arc::new(Floor(dbs.iter().cloned().collect())),
-            PolicyStore::new(policies.path()),
-            Arc::new(rehearsal::RoadmapCache::default()),
-            RoadmapStore::new(policies.path().join("roadmaps")),
-            Arc::new(NoBuilds),
-        )
-        .with_fleet(Arc::clone(&schedule) as Arc<dyn FleetSchedule>),
-    );
-    // The floor's configuration space, once, before the clock runs: every robot's world has
-    // the same geometry, so all of them plan on it (as robots of one model do in the service).
-    let space = rehearsal::config_space(
-        &world,
-        planner.roadmaps(),
-        world.geometry_key(),
-        PlanOptions::default().safety_margin_m,
-    )
-    .map_err(|source| BenchError::Rehearsal {
-        map: name.to_owned(),
-        source,
-    })?;
-    // The floor's people too (where they walk and each target's path field), shared by every
-    // robot's world alike: a service that has planned among people on the floor has them.
-    if opts.people > 0.0 {
-        world.people_targets().prepare(&world);
-    }
-    let people = sim::PeopleConfig {
-        density: opts.people,
-        ..sim::PeopleConfig::default()
-    };
+    let planner = floor.planner(Some(&schedule));
     let t0 = now_ms() + 60_000;
-    let queries: Vec<PlanQuery> = missions
-        .iter()
-        .zip(&dbs)
-        .enumerate()
-        .map(|(k, ((start, goal), (iri, _)))| PlanQuery {
-            robot: iri.clone(),
-            place: floor_iri.clone(),
-            request: PlanRequest {
-                start: *start,
-                goals: vec![*goal],
-                options: PlanOptions {
-                    // Each robot its own roadmap and draws, unless every robot asks as a fleet
-                    // sending the default options does: one seed, one roadmap for all.
-                    seed: if opts.same_seed {
-                        opts.seed
-                    } else {
-                        opts.seed.wrapping_add(k as u64)
-                    },
-                    people: people.clone(),
-                    ..PlanOptions::default()
-                },
-                stop: rehearsal::Stop::default(),
-            },
-            people: PlanPeople::AsGiven,
-            policy: None,
-            controller: None,
-            fleet: FleetOptions {
-                start_unix_ms: Some(t0),
-                max_wait_s: opts.max_wait_s,
-                // Asked one at a time, nobody else is planning while a plan waits: refused
-                // at once, it asks again after the others.
-                standing_wait_s: if opts.order_seed.is_some() {
-                    0.0
-                } else {
-                    FleetOptions::default().standing_wait_s
-                },
-                ..FleetOptions::default()
-            },
-        })
-        .collect();
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .map_err(crate::error::io_err(Path::new("tokio runtime")))?;
+    let queries = floor.queries(opts, t0, opts.order_seed.is_some());
+    floor.stand_all(opts, &planner, &queries, t0, yaml)?;
     let asked = queries.clone();
-    // Every robot is on the floor before any asks for a plan, and the schedule knows where
-    // it stands (as a fleet adapter reports its idle robots): until its plan is committed,
-    // no other plan drives through it, in whatever order they ask.
-    let stand_for_s = opts.max_wait_s + FleetOptions::default().tolerance_s + 1.0;
-    for q in &asked {
-        runtime
-            .block_on(planner.stand(&q.robot, &q.place, q.request.start, Some(t0), stand_for_s))
-            .map_err(|e| BenchError::Format {
-                path: yaml.to_path_buf(),
-                message: format!("{} cannot stand at its start: {e}", q.robot),
-            })?;
-    }
     let answers = match opts.order_seed {
-        None => runtime.block_on(plan_at_once_again(&planner, queries)),
-        Some(seed) => runtime.block_on(plan_in_turn(&planner, queries, seed)),
+        None => floor
+            .runtime
+            .block_on(plan_at_once_again(&planner, queries)),
+        Some(seed) => floor
+            .runtime
+            .block_on(plan_in_turn(&planner, queries, seed)),
     };
     // The same missions planned alone (no schedule: nobody else on the floor), after the
     // clock: the baseline of the makespan and the sum of times. A plan among the fleet may
     // take a detour around robots standing in its way; alone it does not. Both on the same
     // roadmap: among robots standing the planner samples a denser one.
-    let dense =
-        Some(prm::optimal_samples(space.free_area_m2) * rehearsal::executor::STANDING_DENSITY);
     let asked: Vec<PlanQuery> = asked
         .into_iter()
         .map(|mut q| {
-            q.request.options.samples = dense;
+            q.request.options.samples = Some(floor.dense_samples);
             q
         })
         .collect();
-    let alone_planner = Arc::new(Planner::new(
-        Arc::new(Floor(dbs.iter().cloned().collect())),
-        PolicyStore::new(policies.path()),
-        Arc::clone(planner.roadmaps()),
-        RoadmapStore::new(policies.path().join("roadmaps")),
-        Arc::new(NoBuilds),
-    ));
-    let alone_plans: HashMap<String, (f64, f64)> = runtime
-        .block_on(plan_at_once(&alone_planner, asked))
+    let alone_plans: HashMap<String, (f64, f64)> = floor
+        .runtime
+        .block_on(plan_at_once(&floor.planner(None), asked))
         .into_iter()
         .filter_map(|(_, a)| a.ok())
         .map(|o| {
@@ -679,36 +624,40 @@ fn run_floor(
             Err(e) => refusals.push(e),
         }
     }
-    // The joint run: every committed plan among all the others, as the schedule holds them
-    // (`held_from: None`), or with each robot standing at its start from the time every robot
-    // was asked to set off until its plan starts (`Some(t0)`).
     let committed = schedule.all();
-    let joint_run = |held_from: Option<i64>| -> Vec<Result<rehearsal::AmongReport, String>> {
-        planned
-            .par_iter()
-            .map(|o| {
-                let others: Vec<Itinerary> = committed
-                    .iter()
-                    .filter(|i| i.robot != o.robot)
-                    .map(|i| held_from.map_or_else(|| i.clone(), |t0| standing_from(i, t0)))
-                    .collect();
-                o.rehearse_among(&others).map_err(|e| e.to_string())
-            })
-            .collect()
-    };
-    let joint = joint_run(None);
-    let arrived_with_starts_held = joint_run(Some(t0))
-        .iter()
-        .filter(|j| {
-            j.as_ref()
-                .is_ok_and(|r| r.outcome == AttemptOutcome::Reached)
-        })
-        .count();
-    let (mut arrived, mut collisions, mut stalls, mut deadlocks) = (0usize, 0usize, 0usize, 0usize);
-    let (mut makespan, mut sum) = (0.0f64, 0.0f64);
+    let joint = joint_run(&planned, &committed, None);
+    let arrived_with_starts_held = arrival_times(&joint_run(&planned, &committed, Some(t0))).len();
+    let mut row = joint_row(opts, &floor, name, &planned, &joint, &alone_plans);
+    row.refusals = refusals;
+    row.joint_success_starts_held_rate =
+        arrived_with_starts_held as f64 / floor.missions.len() as f64;
+    for r in &mut row.per_robot {
+        r.latency_ms = latency_of.get(&r.robot).copied().unwrap_or(f64::NAN);
+    }
+    row.latency_p50_ms = percentile(&latencies, 0.5);
+    row.latency_p95_ms = percentile(&latencies, 0.95);
+    // The reference beside it, after the run's clock: the same missions first-come in
+    // `--orders` orders.
+    let first_come = reference::first_come(opts, &floor, yaml)?;
+    first_come.fill(&mut row);
+    Ok(row)
+}
+
+/// The row of a joint run of `planned` (`joint`, in the same order) against the robots'
+/// plans alone on the map `name`: all but the refusals, latencies, the run with starts held
+/// and the reference, which the caller fills in.
+fn joint_row(
+    opts: &FleetBenchOptions,
+    floor: &Prepared,
+    name: &str,
+    planned: &[PlanOutcome],
+    joint: &[Result<rehearsal::AmongReport, String>],
+    alone_plans: &HashMap<String, (f64, f64)>,
+) -> FleetRow {
+    let (mut collisions, mut stalls, mut deadlocks) = (0usize, 0usize, 0usize);
     let (mut makespan_alone, mut sum_alone) = (0.0f64, 0.0f64);
     let mut joint_failures = Vec::new();
-    for (o, j) in planned.iter().zip(&joint) {
+    for (o, j) in planned.iter().zip(joint) {
         let alone = alone_plans
             .get(&o.robot)
             .map(|a| a.0)
@@ -716,16 +665,13 @@ fn run_floor(
         makespan_alone = makespan_alone.max(alone);
         sum_alone += alone;
         match j {
-            Ok(r) if r.outcome == AttemptOutcome::Reached => {
-                arrived += 1;
-                makespan = makespan.max(r.time_s);
-                sum += r.time_s;
-                continue;
-            }
+            Ok(r) if r.outcome == AttemptOutcome::Reached => continue,
             Ok(r) if r.met_robot().is_some() => collisions += 1,
             Ok(r) if r.outcome == AttemptOutcome::Stalled => {
                 stalls += 1;
-                if r.min_robot_clearance_m.is_some_and(|c| c < 2.0 * radius) {
+                if r.min_robot_clearance_m
+                    .is_some_and(|c| c < 2.0 * floor.radius)
+                {
                     deadlocks += 1;
                 }
             }
@@ -739,16 +685,18 @@ fn run_floor(
             joint_failures.push(format!("{}: {}", o.robot, r.reason));
         }
     }
+    let arrivals = arrival_times(joint);
+    let makespan = arrivals.iter().copied().fold(0.0f64, f64::max);
     let per_robot = planned
         .iter()
-        .zip(&joint)
+        .zip(joint)
         .map(|(o, j)| {
             let reached = j
                 .as_ref()
                 .ok()
                 .filter(|r| r.outcome == AttemptOutcome::Reached);
             FleetRobotRow {
-                latency_ms: latency_of.get(&o.robot).copied().unwrap_or(f64::NAN),
+                latency_ms: f64::NAN,
                 robot: o.robot.clone(),
                 alone_s: alone_plans.get(&o.robot).map(|a| a.0),
                 joint_s: reached.map(|r| r.time_s),
@@ -764,29 +712,24 @@ fn run_floor(
             }
         })
         .collect();
-    let waits_s: f64 = planned
-        .iter()
-        .filter_map(|o| o.fleet.as_ref())
-        .flat_map(|f| f.waits.iter().map(|w| w.wait_s))
-        .sum();
-    let replay = crate::fleet_replay::joint_replay(
-        name,
-        opts.scenario.as_str(),
-        &floor_iri,
-        &planned,
-        &joint,
-    );
-    Ok(FleetRow {
-        replay,
+    let robots = floor.missions.len();
+    FleetRow {
+        replay: crate::fleet_replay::joint_replay(
+            name,
+            opts.scenario.as_str(),
+            &floor.floor_iri,
+            planned,
+            joint,
+        ),
         map: name.to_owned(),
         scenario: opts.scenario.as_str().to_owned(),
-        robots: missions.len(),
+        robots,
         people: opts.people,
         planned: planned.len(),
-        refusals,
+        refusals: Vec::new(),
         joint_failures,
-        joint_success_rate: arrived as f64 / missions.len() as f64,
-        joint_success_starts_held_rate: arrived_with_starts_held as f64 / missions.len() as f64,
+        joint_success_rate: arrivals.len() as f64 / robots as f64,
+        joint_success_starts_held_rate: f64::NAN,
         robot_collisions: collisions,
         stalls,
         deadlocks,
@@ -797,28 +740,41 @@ fn run_floor(
         } else {
             f64::NAN
         },
-        sum_of_times_s: sum,
+        sum_of_times_s: arrivals.iter().sum(),
         sum_alone_s: sum_alone,
-        waits_s,
+        waits_s: planned
+            .iter()
+            .filter_map(|o| o.fleet.as_ref())
+            .flat_map(|f| f.waits.iter().map(|w| w.wait_s))
+            .sum(),
+        makespan_lower_bound_s: makespan_alone,
+        first_come_orders: 0,
+        first_come_makespans_s: Vec::new(),
+        first_come_arrived: Vec::new(),
+        best_first_come_makespan_s: None,
+        makespan_vs_best_first_come: None,
         drives_among_fleet: planned
             .iter()
             .filter_map(|o| o.fleet.as_ref())
             .map(|f| f.drives)
             .sum(),
-        latency_p50_ms: percentile(&latencies, 0.5),
-        latency_p95_ms: percentile(&latencies, 0.95),
+        latency_p50_ms: f64::NAN,
+        latency_p95_ms: f64::NAN,
         per_robot,
-    })
+    }
 }
 
-/// The rows as a Markdown table.
+/// The rows as a Markdown table, then each row's first-come orders (`--orders`).
 pub fn markdown(rows: &[FleetRow]) -> String {
     let mut md = String::from(
-        "| map | scenario | robots | people/100 m² | planned | joint success | with starts held | robot collisions | stalls | deadlocks | makespan (s) | alone (s) | ratio | waits (s) | latency p50 / p95 (ms) |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| map | scenario | robots | people/100 m² | planned | joint success | with starts held | robot collisions | stalls | deadlocks | makespan (s) | alone (s) | ratio | best first-come (s) | vs best | waits (s) | latency p50 / p95 (ms) |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
+    let or_dash = |v: Option<f64>, places: usize| {
+        v.map_or_else(|| "–".to_owned(), |v| format!("{v:.places$}"))
+    };
     for r in rows {
         md.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:.0}% | {:.0}% | {} | {} | {} | {:.1} | {:.1} | {:.2} | {:.1} | {:.0} / {:.0} |\n",
+            "| {} | {} | {} | {} | {} | {:.0}% | {:.0}% | {} | {} | {} | {:.1} | {:.1} | {:.2} | {} | {} | {:.1} | {:.0} / {:.0} |\n",
             r.map,
             r.scenario,
             r.robots,
@@ -832,11 +788,14 @@ pub fn markdown(rows: &[FleetRow]) -> String {
             r.makespan_s,
             r.makespan_alone_s,
             r.makespan_ratio,
+            or_dash(r.best_first_come_makespan_s, 1),
+            or_dash(r.makespan_vs_best_first_come, 2),
             r.waits_s,
             r.latency_p50_ms,
             r.latency_p95_ms
         ));
     }
+    md.push_str(&reference::markdown_lines(rows));
     md
 }
 

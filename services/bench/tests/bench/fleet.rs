@@ -27,6 +27,7 @@ fn scenario(scenario: Scenario, robots: usize) -> FleetBenchOptions {
         max_wait_s: 600.0,
         order_seed: None,
         same_seed: false,
+        orders: 0,
     }
 }
 
@@ -102,6 +103,63 @@ fn bad_options_are_refused_naming_them() {
             .to_string()
             .contains("--max-wait-s")
     );
+    let mut o = options(2);
+    o.orders = bench::fleet::MAX_ORDERS + 1;
+    let err = run_fleet_bench(&o).unwrap_err().to_string();
+    assert!(err.contains("--orders must lie in [0, 24]"), "{err}");
+}
+
+/// The reference beside a run (`--orders`): four robots through the corridor, planned at
+/// once, then first-come in three orders; the best of those is one of them and no later than
+/// any that brought every robot through, the run is read against it, and the lower bound
+/// (the makespan alone) is below both.
+#[test]
+fn the_first_come_reference_is_read_beside_the_run() {
+    let mut o = options(4);
+    o.orders = 3;
+    let rows = run_fleet_bench(&o).expect("runs");
+    let r = &rows[0];
+    assert_eq!(r.first_come_orders, 3);
+    assert_eq!(r.first_come_makespans_s.len(), 3, "{r:?}");
+    assert_eq!(r.first_come_arrived.len(), 3, "{r:?}");
+    assert!(r.first_come_arrived.iter().all(|&a| a <= 4), "{r:?}");
+    let best = r
+        .best_first_come_makespan_s
+        .expect("an order that brought every robot through");
+    let through: Vec<f64> = r
+        .first_come_makespans_s
+        .iter()
+        .zip(&r.first_come_arrived)
+        .filter(|(_, a)| **a == 4)
+        .map(|(m, _)| *m)
+        .collect();
+    assert!(through.contains(&best), "{r:?}");
+    assert!(through.iter().all(|&m| best <= m), "{r:?}");
+    let vs = r.makespan_vs_best_first_come.expect("a ratio");
+    assert!((vs - r.makespan_s / best).abs() < 1e-12, "{r:?}");
+    assert_eq!(r.makespan_lower_bound_s, r.makespan_alone_s);
+    assert!(r.makespan_lower_bound_s > 0.0, "{r:?}");
+    assert!(r.makespan_lower_bound_s <= best, "{r:?}");
+    if r.joint_success_rate == 1.0 {
+        assert!(r.makespan_lower_bound_s <= r.makespan_s, "{r:?}");
+    }
+    let md = markdown(&rows);
+    assert!(md.contains("first-come in 3 orders"), "{md}");
+    let json = serde_json::to_value(&rows).expect("json");
+    for key in [
+        "first_come_orders",
+        "first_come_makespans_s",
+        "best_first_come_makespan_s",
+        "makespan_vs_best_first_come",
+        "makespan_lower_bound_s",
+    ] {
+        assert!(json[0].get(key).is_some(), "no {key} in {json}");
+    }
+    // Without orders there is no reference, and the table says so.
+    let rows = run_fleet_bench(&options(2)).expect("runs");
+    assert_eq!(rows[0].first_come_orders, 0);
+    assert!(rows[0].best_first_come_makespan_s.is_none());
+    assert!(rows[0].makespan_vs_best_first_come.is_none());
 }
 
 /// The outcome for a generated floor: every robot planned and arrived in the joint
