@@ -91,16 +91,17 @@ impl From<traffic::Passing> for PassingView {
     }
 }
 
-impl From<Planned> for PlanStatus {
-    fn from(p: Planned) -> Self {
+impl PlanStatus {
+    /// Plan `p` at `now_unix_ms`, among the plans on its floor (`on_floor`, itself included).
+    fn of(p: Planned, now_unix_ms: i64, on_floor: &[Planned]) -> Self {
+        let passings = traffic::passings(&p.itinerary, on_floor, PASSING_GAP_M);
         Self {
             acknowledged_revision: p.acknowledged,
-            // Set off by the schedule's own rule, at the time it is read.
-            set_off: false,
+            set_off: p.set_off(now_unix_ms),
             departs_unix_ms: p.itinerary.departs_unix_ms(),
             revisable_until_unix_ms: p.latest_revision_unix_ms(),
-            passes_after: Vec::new(),
-            may_go_until_t_s: None,
+            may_go_until_t_s: traffic::may_go_until_s(&passings),
+            passes_after: passings.into_iter().map(Into::into).collect(),
             plan: p.itinerary.into(),
         }
     }
@@ -231,19 +232,11 @@ pub(super) async fn get_plan(
             Known::Revision(r) => r == revision,
         };
         if !unchanged {
-            let now = schedule.now_ms();
-            let set_off = planned.set_off(now);
             let on_floor = schedule
                 .plans_on(&planned.itinerary.floor)
                 .await
                 .map_err(traffic_error)?;
-            let passings = traffic::passings(&planned.itinerary, &on_floor, PASSING_GAP_M);
-            let status = PlanStatus {
-                set_off,
-                may_go_until_t_s: traffic::may_go_until_s(&passings),
-                passes_after: passings.into_iter().map(Into::into).collect(),
-                ..PlanStatus::from(planned)
-            };
+            let status = PlanStatus::of(planned, schedule.now_ms(), &on_floor);
             return Ok(tagged(Json(status).into_response(), &id, revision));
         }
         let left = deadline.saturating_duration_since(Instant::now());
