@@ -60,7 +60,13 @@ async fn add_second_robot(app: &TestApp) {
 }
 
 /// The same route for `robot`, setting off at `start_ms`.
-pub(crate) fn route(robot: &str, from: (f64, f64), to: (f64, f64), start_ms: i64, options: Value) -> Value {
+pub(crate) fn route(
+    robot: &str,
+    from: (f64, f64),
+    to: (f64, f64),
+    start_ms: i64,
+    options: Value,
+) -> Value {
     let mut o =
         json!({"seed": 4, "trajectory_stride": 0, "people": "none", "start_time_ms": start_ms});
     for (k, v) in options.as_object().unwrap() {
