@@ -2445,6 +2445,15 @@ export interface operations {
                 };
                 content?: never;
             };
+            /** @description A malformed query (`wait_s` not a number) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorBody"];
+                };
+            };
             401: components["responses"]["Unauthorized"];
             /** @description No such committed plan (or it expired, was cancelled or replaced) */
             404: {

@@ -180,6 +180,7 @@ fn known_revision(headers: &HeaderMap, plan_id: &str) -> Result<Known, ApiError>
         (status = 200, description = "The plan as committed now; `ETag` names its revision", body = PlanStatus,
             headers(("etag" = String, description = "W/\"<revision>-<plan>\""))),
         (status = 304, description = "Still the revision `If-None-Match` names (after waiting up to `wait_s`)", headers(("etag" = String))),
+        (status = 400, description = "A malformed query (`wait_s` not a number)", body = edge::ErrorBody),
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 404, description = "No such committed plan (or it expired, was cancelled or replaced)", body = edge::ErrorBody),
         (status = 409, description = "`If-None-Match` names a revision the plan never had", body = edge::ErrorBody),
