@@ -58,3 +58,34 @@ pub fn fleet(
         schedule,
     }
 }
+
+/// How long one round of the idle-time improver works on one floor, at most.
+const IMPROVE_ROUND: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// The idle-time improver (`planner::Planner::improve`): every `every`, each floor this
+/// process planned on, for at most [`IMPROVE_ROUND`]; until `stopping`. It waits behind every
+/// plan for the cores and gives way to them.
+pub async fn improve_fleet(
+    planner: Arc<Planner>,
+    every: std::time::Duration,
+    stopping: tokio_util::sync::CancellationToken,
+) {
+    loop {
+        tokio::select! {
+            () = stopping.cancelled() => return,
+            () = tokio::time::sleep(every) => {}
+        }
+        for floor in planner.revisable_floors() {
+            match planner.improve(&floor, IMPROVE_ROUND).await {
+                Ok(done) if done.kept > 0 => tracing::debug!(
+                    floor,
+                    revisions = done.kept,
+                    tried = done.tried,
+                    "idle-time improver"
+                ),
+                Ok(_) => {}
+                Err(e) => tracing::warn!(floor, error = %e, "the idle-time improver failed"),
+            }
+        }
+    }
+}

@@ -115,6 +115,9 @@ pub struct Config {
     pub job_retry_cap_s: f64,
     /// Finished jobs are deleted this many days after they finished.
     pub job_retention_days: f64,
+    /// Seconds between the idle-time improver's rounds over the floors this process planned
+    /// on (`serve`; 0: never revise a committed plan).
+    pub fleet_improve_every_s: f64,
     /// Where exported policies go [default: `<data_dir>/policies`].
     pub policies_dir: Option<PathBuf>,
     /// Where training checkpoints go [default: `<data_dir>/checkpoints`]; shared by all
@@ -152,6 +155,7 @@ impl Default for Config {
             knowledge_token: None,
             knowledge_token_file: None,
             worker_concurrency: 1,
+            fleet_improve_every_s: 1.0,
             job_lease_s: 30.0,
             job_heartbeat_s: 10.0,
             job_retry_base_s: 5.0,
@@ -479,6 +483,17 @@ impl Config {
                 format!(
                     "must be a positive number of days, got {}",
                     self.job_retention_days
+                ),
+            ));
+        }
+        if !(self.fleet_improve_every_s.is_finite()
+            && (0.0..=3600.0).contains(&self.fleet_improve_every_s))
+        {
+            return Err(sources.invalid(
+                "fleet_improve_every_s",
+                format!(
+                    "must lie in [0, 3600] seconds (0: off), got {}",
+                    self.fleet_improve_every_s
                 ),
             ));
         }

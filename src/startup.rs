@@ -206,6 +206,13 @@ impl Application {
             std::time::Duration::from_secs(3600),
             stopping.clone(),
         ));
+        let improver = (self.config.fleet_improve_every_s > 0.0).then(|| {
+            tokio::spawn(crate::assembly::improve_fleet(
+                Arc::clone(&self.components.fleet.planner),
+                std::time::Duration::from_secs_f64(self.config.fleet_improve_every_s),
+                stopping.clone(),
+            ))
+        });
         let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
         let on_shutdown = stopping.clone();
         let serve = edge::serve::serve(
@@ -243,6 +250,10 @@ impl Application {
                 Ok(Err(e)) => tracing::error!(error = %e, "worker task failed"),
                 Err(_) => tracing::warn!("workers did not stop in time"),
             }
+        }
+        if let Some(improver) = improver {
+            improver.abort();
+            let _ = improver.await;
         }
         purge.abort();
         // The purge task holds the knowledge state (and so the graph store): let it go before

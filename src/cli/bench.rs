@@ -240,6 +240,11 @@ pub struct FleetArgs {
     /// 24. Each order costs about one run planned in turn.
     #[arg(long, value_name = "K", default_value_t = 4)]
     pub orders: usize,
+    /// Seconds the planner's idle-time improver works on the floor's schedule once every
+    /// robot has its plan, before the joint run (0: none); the row reports the first-come
+    /// joint run's makespan beside the revised one's.
+    #[arg(long, value_name = "S", default_value_t = 60.0)]
+    pub improve_s: f64,
     /// Writes the rows as JSON (one object per map and scenario).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -327,7 +332,12 @@ pub struct KnowledgeArgs {
 }
 
 /// Runs the benchmark `command` asks for.
+/// Logs go to standard error where `RUST_LOG` asks for them (the harnesses print their
+/// figures on standard output).
 pub(super) fn run(command: BenchCommand) -> anyhow::Result<()> {
+    if std::env::var_os("RUST_LOG").is_some() {
+        crate::telemetry::init(&crate::config::Config::default());
+    }
     match command {
         BenchCommand::Knowledge(args) => knowledge(args),
         BenchCommand::Prm(args) => prm(args),
@@ -543,6 +553,7 @@ fn fleet(args: FleetArgs) -> anyhow::Result<()> {
         order_seed,
         same_seed,
         orders,
+        improve_s,
         json,
         replay,
     } = args;
@@ -558,6 +569,7 @@ fn fleet(args: FleetArgs) -> anyhow::Result<()> {
         order_seed,
         same_seed,
         orders,
+        improve_s,
     })?;
     println!("{}", bench::fleet::markdown(&rows));
     for r in &rows {

@@ -13,7 +13,7 @@ const FIRST: &str = "https://mentalsim.dev/data/robots/differential-robot";
 const SECOND: &str = "https://mentalsim.dev/data/robots/second-robot";
 const ENGINEER: &str = "fleet-engineer-token-0001";
 pub(crate) const FIRST_ROBOT: &str = "fleet-first-robot-token-01";
-const SECOND_ROBOT: &str = "fleet-second-robot-token-1";
+pub(crate) const SECOND_ROBOT: &str = "fleet-second-robot-token-1";
 
 /// An app whose tokens name the two robots, on `database_url` when given.
 pub(crate) async fn fleet_app(database_url: Option<String>) -> TestApp {

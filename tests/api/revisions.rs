@@ -1,14 +1,15 @@
 //! Plan revisions through the real service: `GET /v1/plans/{id}` tags a plan with its
 //! revision (`ETag`, `If-None-Match`, 304, a long poll with `wait_s`), a revision made by
 //! another process sharing the job database reaches a robot waiting on its plan, and progress
-//! reports acknowledge the revisions they were sent and no others.
+//! reports acknowledge the revisions they were sent and no others; and the service's own
+//! idle-time improver revises a plan that waits for one cancelled meanwhile.
 
 use std::time::{Duration, Instant};
 
 use reqwest::Method;
 use serde_json::{Value, json};
 
-use crate::fleet::{FIRST_ROBOT, fleet_app, now_ms, route, traffic};
+use crate::fleet::{FIRST_ROBOT, SECOND_ROBOT, fleet_app, now_ms, route, traffic};
 use crate::helpers::TestApp;
 use crate::plan::{centroid, free_near, plan};
 
@@ -20,10 +21,21 @@ async fn get_plan(
     if_none_match: Option<&str>,
     query: &str,
 ) -> (u16, String, Value) {
+    get_plan_as(app, FIRST_ROBOT, id, if_none_match, query).await
+}
+
+/// [`get_plan`] as the robot of `token`.
+async fn get_plan_as(
+    app: &TestApp,
+    token: &str,
+    id: &str,
+    if_none_match: Option<&str>,
+    query: &str,
+) -> (u16, String, Value) {
     let mut request = app
         .client
         .get(format!("{}/v1/plans/{id}{query}", app.address))
-        .bearer_auth(FIRST_ROBOT);
+        .bearer_auth(token);
     if let Some(tag) = if_none_match {
         request = request.header("if-none-match", tag);
     }
@@ -228,5 +240,98 @@ async fn a_revision_reaches_the_robot_waiting_on_its_plan_and_is_acknowledged() 
     let passes = released["passes_after"].as_array().unwrap();
     assert!(passes.iter().all(|p| p["passed"] == true), "{released}");
     assert!(released["may_go_until_t_s"].is_null(), "{released}");
+    app.stop().await;
+}
+
+/// The service's idle-time improver (`fleet_improve_every_s`, 1 s by default): the second
+/// robot's plan waits at its start for the first one, held at the goal they share; once the
+/// first plan is cancelled, the improver fits the second again, drives it, and revises it
+/// without the wait; the robot long-polling its plan sees revision 2 and acknowledges it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_improver_revises_a_plan_that_waits_for_one_cancelled() {
+    let app = fleet_app(None).await;
+    let from = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let to = free_near(&app, centroid(&app, "F0-hall").await).await;
+    // The first robot sets off at once: it is never revised.
+    let (status, first) = plan(&app, &route("R-001", from, to, now_ms() + 2_000, json!({}))).await;
+    assert_eq!(status, 200, "{first}");
+    let first_id = first["schedule"]["plan_id"].as_str().unwrap().to_owned();
+    let start = now_ms() + 30_000;
+    let (status, second) = plan(&app, &route("R-002", from, to, start, json!({}))).await;
+    assert_eq!(status, 200, "{second}");
+    let waits = second["schedule"]["waits"].as_array().unwrap();
+    assert!(
+        !waits.is_empty(),
+        "the second robot waits for the first at the goal: {second}"
+    );
+    let id = second["schedule"]["plan_id"].as_str().unwrap().to_owned();
+    let (status, tag, before) = get_plan_as(&app, SECOND_ROBOT, &id, None, "").await;
+    assert_eq!(status, 200, "{before}");
+    // Nothing to gain while the first plan stands: still revision 1 a round later.
+    tokio::time::sleep(Duration::from_millis(1_500)).await;
+    let (status, _, body) = get_plan_as(&app, SECOND_ROBOT, &id, Some(&tag), "").await;
+    assert_eq!(status, 304, "revised with nothing to gain: {body}");
+
+    let watching = {
+        let (address, client, id, tag) = (
+            app.address.clone(),
+            app.client.clone(),
+            id.clone(),
+            tag.clone(),
+        );
+        tokio::spawn(async move {
+            let r = client
+                .get(format!("{address}/v1/plans/{id}?wait_s=20"))
+                .bearer_auth(SECOND_ROBOT)
+                .header("if-none-match", tag)
+                .send()
+                .await
+                .unwrap();
+            (
+                r.status().as_u16(),
+                Instant::now(),
+                r.json::<Value>().await.ok(),
+            )
+        })
+    };
+    let r = app
+        .client
+        .delete(format!("{}/v1/plans/{first_id}", app.address))
+        .bearer_auth(FIRST_ROBOT)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    let cancelled_at = Instant::now();
+    let (status, answered_at, after) = watching.await.unwrap();
+    let after = after.unwrap();
+    assert_eq!(status, 200, "{after}");
+    assert_eq!(after["plan"]["revision"], 2, "{after}");
+    eprintln!(
+        "revised {:.0} ms after the first plan was cancelled",
+        answered_at.duration_since(cancelled_at).as_secs_f64() * 1000.0
+    );
+    // The same start, no longer waiting: it leaves no later and arrives earlier.
+    assert_eq!(after["plan"]["start_unix_ms"], start, "{after}");
+    let (b, a) = (&before["departs_unix_ms"], &after["departs_unix_ms"]);
+    assert!(a.as_i64() <= b.as_i64(), "departs {a} after {b}");
+    let end = |s: &Value| {
+        s["plan"]["trajectory"].as_array().unwrap().last().unwrap()["t_s"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(end(&after) + 0.5 < end(&before), "{after}");
+    assert_eq!(after["set_off"], false, "{after}");
+    // The robot acknowledges the revision with its next progress report.
+    let r = app
+        .request(Method::POST, &format!("/v1/plans/{id}/progress"))
+        .bearer_auth(SECOND_ROBOT)
+        .json(&json!({"x": from.0, "y": from.1, "revision": 2}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200, "{}", r.text().await.unwrap());
+    let (_, _, acknowledged) = get_plan_as(&app, SECOND_ROBOT, &id, None, "").await;
+    assert_eq!(acknowledged["acknowledged_revision"], 2, "{acknowledged}");
     app.stop().await;
 }

@@ -51,6 +51,9 @@ pub enum BenchError {
     /// An option is out of range.
     #[error("bad option: {0}")]
     BadOption(String),
+    /// The planner's idle-time improver failed (the schedule, a simulation).
+    #[error("improving the fleet's schedule: {0}")]
+    Improve(#[source] planner::PlanFailure),
     /// The rehearsal (roadmap, rollouts) failed on a map.
     #[error("{map}: {source}")]
     Rehearsal {

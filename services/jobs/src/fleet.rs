@@ -91,6 +91,27 @@ impl FleetSchedule for QueueFleet {
         })
     }
 
+    fn revise(&self, plans: Vec<Itinerary>, expected_version: i64) -> FleetFuture<'_, Committed> {
+        Box::pin(async move {
+            let schedule = self.schedule().await?.clone();
+            const DOING: &str = "revising plans in the floor's traffic schedule";
+            let revised = on_own_thread(DOING, move || {
+                futures_block_on(schedule.revise(plans, expected_version))
+            })
+            .await?;
+            match revised {
+                Ok((v, _)) => Ok(Committed::Yes(v)),
+                Err(TrafficError::VersionChanged { .. }) => Ok(Committed::VersionChanged),
+                Err(
+                    e @ (TrafficError::Invalid(_)
+                    | TrafficError::SetOff { .. }
+                    | TrafficError::NotFound { .. }),
+                ) => Ok(Committed::Refused(format!("the traffic schedule: {e}"))),
+                Err(e) => Err(PortError::new(DOING, e)),
+            }
+        })
+    }
+
     fn now_ms(&self) -> i64 {
         self.schedule
             .get()

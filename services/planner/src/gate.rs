@@ -145,6 +145,12 @@ impl CpuGate {
         }
     }
 
+    /// Whether a plan waits for a core, or none is free: work done in idle time gives way.
+    pub(crate) fn busy(&self) -> bool {
+        let s = self.lock();
+        s.free == 0 || !s.waiting.is_empty()
+    }
+
     fn release(&self) {
         let mut s = self.lock();
         hand_on(&mut s);

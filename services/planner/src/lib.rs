@@ -50,6 +50,7 @@ pub use error::PlanFailure;
 pub use error::{
     BoxError, InvalidField, Missing, PortError, RoadmapPending, Unavailable, Unusable,
 };
+pub use fleet::improve::{Improvement, Totals};
 pub use fleet::{FleetOptions, FleetOutcome, FleetSchedule, NoFit};
 pub use floor::{FloorDatabase, KnowledgeSource, SourceError, SourceFuture, WorldError};
 pub use policies::{HeldOutEval, PolicyEntry, PolicyStore, PolicySummary};
@@ -84,6 +85,9 @@ pub struct Planner {
     cpu: Arc<gate::CpuGate>,
     /// The plans waiting for robots standing in their way ([`fleet::yielding`]).
     waits: Arc<fleet::yielding::Waits>,
+    /// The committed plans this process planned, which the improver may revise
+    /// ([`fleet::improve`]).
+    revisables: fleet::improve::Revisables,
 }
 
 impl std::fmt::Debug for Planner {
@@ -116,6 +120,7 @@ impl Planner {
             applied: Arc::default(),
             fleet_locks: Mutex::new(HashMap::new()),
             waits: Arc::default(),
+            revisables: fleet::improve::Revisables::default(),
             cpu: gate::CpuGate::of_this_machine(),
         }
     }

@@ -135,6 +135,7 @@ impl Planner {
             fleet,
         } = query;
         request.stop = stop;
+        let fleet_options = fleet;
         let db = self.knowledge.floor_database(&place, &robot).await?;
         // Each robot plans on its own sampled roadmap: robots of a fleet asking with the same
         // options (the default seed) would otherwise all take the same lanes and queue in them.
@@ -174,7 +175,7 @@ impl Planner {
             }
         };
         let note = note::note(policy_id.is_some(), &rehearsed.pick, &rehearsed.report);
-        Ok(PlanOutcome {
+        let outcome = PlanOutcome {
             fleet,
             robot: db.robot.clone(),
             floor: db.floor.clone(),
@@ -185,7 +186,9 @@ impl Planner {
             people: rehearsed.people,
             world: rehearsed.world,
             replay: rehearsed.replay,
-        })
+        };
+        self.revisables.register(&outcome, fleet_options);
+        Ok(outcome)
     }
 
     /// The key of the policy-aware roadmap of this floor state and `policy` when it is stored

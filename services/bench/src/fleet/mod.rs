@@ -115,6 +115,10 @@ pub struct FleetBenchOptions {
     /// another, in this many orders (0: none), each on a fresh schedule and driven jointly as
     /// the run is. At most [`MAX_ORDERS`].
     pub orders: usize,
+    /// Seconds the planner's idle-time improver ([`Planner::improve`]) works on the floor's
+    /// schedule after every robot has asked, before the joint run (0: none): the joint run
+    /// then drives the plans as revised, and the row reports the first-come joint run beside.
+    pub improve_s: f64,
 }
 
 pub use reference::MAX_ORDERS;
@@ -177,6 +181,15 @@ pub struct FleetRow {
     pub best_first_come_makespan_s: Option<f64>,
     /// `makespan_s / best_first_come_makespan_s`, where there is a best.
     pub makespan_vs_best_first_come: Option<f64>,
+    /// Seconds the idle-time improver worked on the schedule before the joint run.
+    pub improve_s: f64,
+    /// Revisions it made (each a neighbourhood of plans revised at once).
+    pub revisions: u32,
+    /// Neighbourhood orders it re-planned.
+    pub neighbourhoods_tried: u32,
+    /// The joint run's makespan as first-come commits left the plans, before any revision,
+    /// seconds (`None`: the improver did not run).
+    pub makespan_first_come_s: Option<f64>,
     /// Drives among the fleet the plans took, refused ones included (each plan at least one
     /// unless alone on the floor): what a plan costs beyond its validating rehearsal.
     pub drives_among_fleet: u32,
@@ -294,6 +307,28 @@ impl FleetSchedule for MemorySchedule {
         Box::pin(async move { Ok(answer) })
     }
 
+    fn revise(&self, plans: Vec<Itinerary>, expected_version: i64) -> FleetFuture<'_, Committed> {
+        let mut g = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let known = plans
+            .iter()
+            .all(|p| g.1.iter().any(|i| i.plan_id == p.plan_id));
+        let answer = if g.0 != expected_version {
+            Committed::VersionChanged
+        } else if !known {
+            Committed::Refused("a revised plan is not in the schedule".to_owned())
+        } else {
+            for p in plans {
+                if let Some(i) = g.1.iter_mut().find(|i| i.plan_id == p.plan_id) {
+                    let revision = i.revision + 1;
+                    *i = Itinerary { revision, ..p };
+                }
+            }
+            g.0 += 1;
+            Committed::Yes(g.0)
+        };
+        Box::pin(async move { Ok(answer) })
+    }
+
     fn now_ms(&self) -> i64 {
         now_ms()
     }
@@ -312,6 +347,12 @@ pub fn run_fleet_bench(opts: &FleetBenchOptions) -> Result<Vec<FleetRow>, BenchE
             "--robots must lie in [1, {}], got {}",
             planner::fleet::MAX_ROBOTS_PER_FLOOR,
             opts.robots
+        )));
+    }
+    if !(opts.improve_s.is_finite() && (0.0..=3600.0).contains(&opts.improve_s)) {
+        return Err(BenchError::BadOption(format!(
+            "--improve-s must lie in [0, 3600] seconds, got {}",
+            opts.improve_s
         )));
     }
     if !(opts.max_wait_s.is_finite()
@@ -573,7 +614,9 @@ fn run_floor(
     let floor = prepare(opts, name, yaml, grid, layout)?;
     let schedule = Arc::new(MemorySchedule::default());
     let planner = floor.planner(Some(&schedule));
-    let t0 = now_ms() + 60_000;
+    // The robots set off a minute from now, after the improver's time: until then every plan
+    // may still be revised.
+    let t0 = now_ms() + 60_000 + (opts.improve_s * 1000.0).round() as i64;
     let queries = floor.queries(opts, t0, opts.order_seed.is_some());
     floor.stand_all(opts, &planner, &queries, t0, yaml)?;
     let asked = queries.clone();
@@ -624,11 +667,39 @@ fn run_floor(
             Err(e) => refusals.push(e),
         }
     }
+    let (improvement, makespan_first_come_s) = if opts.improve_s > 0.0 {
+        let first_come = arrival_times(&joint_run(&planned, &schedule.all(), None));
+        let improvement = floor
+            .runtime
+            .block_on(planner.improve(
+                &floor.floor_iri,
+                std::time::Duration::from_secs_f64(opts.improve_s),
+            ))
+            .map_err(BenchError::Improve)?;
+        // The plans as the improver left them.
+        for o in &mut planned {
+            if let Some(now) = o
+                .fleet
+                .as_ref()
+                .and_then(|f| planner.committed_outcome(&f.itinerary.plan_id))
+            {
+                *o = now;
+            }
+        }
+        let makespan = first_come.iter().copied().fold(0.0f64, f64::max);
+        (improvement, Some(makespan))
+    } else {
+        (planner::Improvement::default(), None)
+    };
     let committed = schedule.all();
     let joint = joint_run(&planned, &committed, None);
     let arrived_with_starts_held = arrival_times(&joint_run(&planned, &committed, Some(t0))).len();
     let mut row = joint_row(opts, &floor, name, &planned, &joint, &alone_plans);
     row.refusals = refusals;
+    row.improve_s = opts.improve_s;
+    row.revisions = improvement.kept;
+    row.neighbourhoods_tried = improvement.tried;
+    row.makespan_first_come_s = makespan_first_come_s;
     row.joint_success_starts_held_rate =
         arrived_with_starts_held as f64 / floor.missions.len() as f64;
     for r in &mut row.per_robot {
@@ -753,6 +824,10 @@ fn joint_row(
         first_come_arrived: Vec::new(),
         best_first_come_makespan_s: None,
         makespan_vs_best_first_come: None,
+        improve_s: 0.0,
+        revisions: 0,
+        neighbourhoods_tried: 0,
+        makespan_first_come_s: None,
         drives_among_fleet: planned
             .iter()
             .filter_map(|o| o.fleet.as_ref())
@@ -794,6 +869,20 @@ pub fn markdown(rows: &[FleetRow]) -> String {
             r.latency_p50_ms,
             r.latency_p95_ms
         ));
+    }
+    for r in rows {
+        if let Some(first_come) = r.makespan_first_come_s {
+            md.push_str(&format!(
+                "\n{} ({}): the improver, {:.0} s: {} revisions ({} neighbourhood orders re-planned); joint makespan {:.1} s, first-come before it {:.1} s\n",
+                r.map,
+                r.scenario,
+                r.improve_s,
+                r.revisions,
+                r.neighbourhoods_tried,
+                r.makespan_s,
+                first_come
+            ));
+        }
     }
     md.push_str(&reference::markdown_lines(rows));
     md

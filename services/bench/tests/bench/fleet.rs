@@ -28,6 +28,7 @@ fn scenario(scenario: Scenario, robots: usize) -> FleetBenchOptions {
         order_seed: None,
         same_seed: false,
         orders: 0,
+        improve_s: 0.0,
     }
 }
 
@@ -107,6 +108,10 @@ fn bad_options_are_refused_naming_them() {
     o.orders = bench::fleet::MAX_ORDERS + 1;
     let err = run_fleet_bench(&o).unwrap_err().to_string();
     assert!(err.contains("--orders must lie in [0, 24]"), "{err}");
+    let mut o = options(2);
+    o.improve_s = -1.0;
+    let err = run_fleet_bench(&o).unwrap_err().to_string();
+    assert!(err.contains("--improve-s"), "{err}");
 }
 
 /// The reference beside a run (`--orders`): four robots through the corridor, planned at
@@ -160,6 +165,35 @@ fn the_first_come_reference_is_read_beside_the_run() {
     assert_eq!(rows[0].first_come_orders, 0);
     assert!(rows[0].best_first_come_makespan_s.is_none());
     assert!(rows[0].makespan_vs_best_first_come.is_none());
+}
+
+/// The idle-time improver on the corridor, six robots planned at once: first-come commits
+/// leave them crossing the lane in an order that costs the floor, and the improver revises
+/// neighbourhoods of plans before anyone sets off. Every revision was driven among the others,
+/// so the joint run of the revised plans brings every robot through, none touching another,
+/// and no later than the first-come plans' joint run.
+#[test]
+fn the_improver_revises_the_corridor_and_the_fleet_still_comes_through() {
+    let mut o = options(6);
+    o.improve_s = 60.0;
+    let rows = run_fleet_bench(&o).expect("runs");
+    let r = &rows[0];
+    assert_eq!(r.planned, 6, "{r:?}");
+    assert!(r.revisions >= 1, "nothing revised: {r:?}");
+    assert!(r.neighbourhoods_tried >= r.revisions, "{r:?}");
+    assert_eq!(
+        (r.joint_success_rate, r.robot_collisions, r.stalls),
+        (1.0, 0, 0),
+        "{r:?}"
+    );
+    let first_come = r.makespan_first_come_s.expect("the first-come joint run");
+    assert!(r.makespan_s <= first_come + 1e-9, "{r:?}");
+    assert!(markdown(&rows).contains("the improver, 60 s"));
+    // Without the improver there is nothing before it to report.
+    assert_eq!(
+        run_fleet_bench(&options(2)).expect("runs")[0].makespan_first_come_s,
+        None
+    );
 }
 
 /// The outcome for a generated floor: every robot planned and arrived in the joint

@@ -42,6 +42,7 @@
 //! schedule), and the robot, holding at its waypoints and setting off again under noise among
 //! the others and the people, arrived in that drive.
 
+pub(crate) mod improve;
 pub(crate) mod joining;
 pub(crate) mod yielding;
 
@@ -78,6 +79,11 @@ pub trait FleetSchedule: Send + Sync {
     /// Commits `itinerary` (replacing its robot's previous one) if the floor is still at
     /// `expected_version`.
     fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed>;
+    /// Revises committed plans of one floor at once (each `plans[k]` replacing the plan of its
+    /// `plan_id`, whose revision the schedule raises by one) if the floor is still at
+    /// `expected_version`: all of them or none. Refused where one of their robots has set off
+    /// or a plan is gone.
+    fn revise(&self, plans: Vec<Itinerary>, expected_version: i64) -> FleetFuture<'_, Committed>;
     /// Now, milliseconds since the Unix epoch (the schedule's clock).
     fn now_ms(&self) -> i64;
 }
@@ -843,6 +849,35 @@ pub fn fit(
         draft.add_wait(at, WAIT_STEP_S);
         blockers.push((at, vec![c.b_robot.clone()]));
     }
+}
+
+/// A fit's waits on the clock of its plan starting at `start_unix_ms` (steps `dt` seconds
+/// apart), and when the robot reaches each waypoint, ms since the Unix epoch.
+pub(crate) fn on_the_clock(fitted: &Fitted, start_unix_ms: i64, dt: f64) -> (Vec<Wait>, Vec<i64>) {
+    let time_at = |k: usize| {
+        let waited: f64 = fitted
+            .waits
+            .iter()
+            .filter(|w| w.step < k)
+            .map(|w| w.wait_s)
+            .sum();
+        start_unix_ms + ((k as f64 * dt + waited) * 1000.0).round() as i64
+    };
+    let at_steps = &fitted.waypoint_steps;
+    let waits = fitted
+        .waits
+        .iter()
+        .map(|w| Wait {
+            waypoint: at_steps
+                .iter()
+                .position(|a| *a == w.step)
+                .filter(|_| w.step > 0),
+            wait_s: w.wait_s,
+            not_before_unix_ms: time_at(w.step) + (w.wait_s * 1000.0).round() as i64,
+            for_robots: w.for_robots.clone(),
+        })
+        .collect();
+    (waits, at_steps.iter().map(|&k| time_at(k)).collect())
 }
 
 /// The fit of `itinerary`, with `waits` (step, seconds) letting pass the robots `blockers`

@@ -246,47 +246,31 @@ impl Joining<'_> {
     /// The fit's waits on the clock (merged into the drive's where it was fitted on one), and
     /// when it reaches each waypoint.
     fn timed(&self, fitted: &fleet::Fitted) -> Timed {
-        let (start, dt) = (self.start_ms(), self.report.control_period_s);
-        let time_at = |k: usize| {
-            let waited: f64 = fitted
-                .waits
-                .iter()
-                .filter(|w| w.step < k)
-                .map(|w| w.wait_s)
-                .sum();
-            start + ((k as f64 * dt + waited) * 1000.0).round() as i64
-        };
-        let at_steps = &fitted.waypoint_steps;
-        let waits: Vec<fleet::Wait> = fitted
-            .waits
-            .iter()
-            .map(|w| fleet::Wait {
-                waypoint: at_steps
-                    .iter()
-                    .position(|a| *a == w.step)
-                    .filter(|_| w.step > 0),
-                wait_s: w.wait_s,
-                not_before_unix_ms: time_at(w.step) + (w.wait_s * 1000.0).round() as i64,
-                for_robots: if w.step == 0 && self.later_s > 0.0 {
-                    fleet::dedup(
-                        self.in_the_way
-                            .iter()
-                            .chain(&w.for_robots)
-                            .cloned()
-                            .collect(),
-                    )
-                } else {
-                    w.for_robots.clone()
-                },
-            })
-            .collect();
+        let (mut waits, waypoint_times_unix_ms) =
+            fleet::on_the_clock(fitted, self.start_ms(), self.report.control_period_s);
+        // A later start lets pass the robots the drives were refused for as well.
+        if self.later_s > 0.0 {
+            let at_start = waits
+                .iter_mut()
+                .zip(&fitted.waits)
+                .filter(|(_, f)| f.step == 0);
+            for (w, _) in at_start {
+                w.for_robots = fleet::dedup(
+                    self.in_the_way
+                        .iter()
+                        .chain(&w.for_robots)
+                        .cloned()
+                        .collect(),
+                );
+            }
+        }
         let waits = match &self.basis {
-            Some(b) => fleet::merge_waits(&b.waits, waits, at_steps),
+            Some(b) => fleet::merge_waits(&b.waits, waits, &fitted.waypoint_steps),
             None => waits,
         };
         Timed {
             waits,
-            waypoint_times_unix_ms: at_steps.iter().map(|&k| time_at(k)).collect(),
+            waypoint_times_unix_ms,
         }
     }
 
