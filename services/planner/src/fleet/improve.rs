@@ -117,13 +117,13 @@ impl Revisable {
     }
 }
 
-/// The plans of one floor this process may revise, and the orders already tried at the
-/// floor's version (drives are deterministic: the same order among the same plans is not
-/// driven twice).
+/// The plans of one floor this process may revise, and the orders already tried among the
+/// floor's plans as they are ([`Read::state`]; drives are deterministic: the same order among
+/// the same plans is not driven twice).
 #[derive(Debug, Default)]
 struct FloorPlans {
     plans: Vec<Revisable>,
-    tried_at: i64,
+    tried_at: u64,
     tried: Vec<Vec<String>>,
 }
 
@@ -169,11 +169,11 @@ impl Revisables {
     }
 
     /// Whether `order` was tried at `version` already; marks it tried.
-    fn tried(&self, floor: &str, version: i64, order: &[String]) -> bool {
+    fn tried(&self, floor: &str, state: u64, order: &[String]) -> bool {
         let mut floors = self.lock();
         let f = floors.entry(floor.to_owned()).or_default();
-        if f.tried_at != version {
-            f.tried_at = version;
+        if f.tried_at != state {
+            f.tried_at = state;
             f.tried.clear();
         }
         if f.tried.iter().any(|o| o == order) {
@@ -226,6 +226,27 @@ struct Read {
 }
 
 impl Read {
+    /// The floor's plans as far as a neighbourhood's fit depends on them: each plan, its
+    /// revision, start and delay (to a tenth of a second). The floor's version alone changes
+    /// with every progress report, which moves a plan only where its robot is late.
+    fn state(&self) -> u64 {
+        let mut ids: Vec<String> = self
+            .plans
+            .iter()
+            .map(|i| {
+                format!(
+                    "{} {} {} {}",
+                    i.plan_id,
+                    i.revision,
+                    i.start_unix_ms,
+                    (i.delay_s * 10.0).round()
+                )
+            })
+            .collect();
+        ids.sort();
+        grid::hash::fnv1a(ids.join("\n").as_bytes())
+    }
+
     fn current(&self, plan_id: &str) -> Option<&Itinerary> {
         self.plans.iter().find(|i| i.plan_id == plan_id)
     }
@@ -317,7 +338,7 @@ impl Planner {
                     return Ok(Round::Done);
                 }
                 let ids: Vec<String> = order.iter().map(|r| r.plan_id().to_owned()).collect();
-                if self.revisables.tried(floor, read.version, &ids) {
+                if self.revisables.tried(floor, read.state(), &ids) {
                     continue;
                 }
                 out.tried += 1;
@@ -652,6 +673,25 @@ mod tests {
         assert!((t.makespan_s - 22.0).abs() < 1e-9, "{t:?}");
         assert!((t.sum_s - 30.0).abs() < 1e-9, "{t:?}");
         assert_eq!(Totals::of(&plans[2..]), None);
+    }
+
+    #[test]
+    fn orders_tried_stay_tried_until_a_plan_changes() {
+        let read = |plans: Vec<Itinerary>, version| Read {
+            version,
+            now_ms: 0,
+            plans,
+        };
+        let (a, b) = (moving("a", 0, 10.0), moving("b", 0, 20.0));
+        let state = read(vec![a.clone(), b.clone()], 3).state();
+        assert_eq!(read(vec![b.clone(), a.clone()], 9).state(), state);
+        let late = Itinerary {
+            delay_s: 1.5,
+            ..b.clone()
+        };
+        assert_ne!(read(vec![a.clone(), late], 9).state(), state);
+        let revised = Itinerary { revision: 2, ..b };
+        assert_ne!(read(vec![a, revised], 9).state(), state);
     }
 
     #[test]
