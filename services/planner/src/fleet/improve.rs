@@ -11,8 +11,9 @@
 //! neighbourhood still to be fitted, which stand at their starts meanwhile; and each is driven
 //! again with its waits among them and the people ([`crate::replay`]), as a plan joining the
 //! floor is. The neighbourhood is revised ([`FleetSchedule::revise`], all of it or none, against
-//! the floor's version) where neither the floor's makespan nor its sum of times rises and one of
-//! them drops by [`MIN_GAIN_S`] or more.
+//! the floor's version) where the floor's plans are better for it ([`Totals::improves_on`]:
+//! neither the makespan nor the sum of times rises and one drops, or the makespan drops by
+//! more than the mean time rises).
 //!
 //! Invariants: nothing is revised that was not driven among the plans it was fitted against
 //! (the same rule as a commit's); a plan is revised only while its robot has not set off (it
@@ -53,6 +54,8 @@ pub struct Totals {
     pub makespan_s: f64,
     /// Each moving plan's arrival less its start, summed, seconds.
     pub sum_s: f64,
+    /// The plans that move.
+    pub plans: usize,
 }
 
 impl Totals {
@@ -70,16 +73,24 @@ impl Totals {
                 .iter()
                 .map(|i| (i.end_unix_ms() - i.start_unix_ms) as f64 / 1000.0)
                 .sum(),
+            plans: moving.len(),
         })
     }
 
-    /// Whether `self` is better than `before` by the rule the improver keeps revisions by.
+    /// Whether `self` is better than `before` by the rule the improver keeps revisions by:
+    /// neither the makespan nor the sum of times rises and one drops by [`MIN_GAIN_S`]; or the
+    /// makespan drops by that much and more than the mean time rises (makespan plus mean time,
+    /// both seconds, drops). The second admits a robot that waited longest going first at a
+    /// small cost to the others: on the plant with 10 robots among people, a neighbourhood
+    /// that cut the makespan from 168.0 to 152.5 s raised the sum of times by 17.6 s of 924.
     pub fn improves_on(&self, before: &Totals) -> bool {
         let (dm, ds) = (
             before.makespan_s - self.makespan_s,
             before.sum_s - self.sum_s,
         );
-        dm >= -1e-9 && ds >= -1e-9 && (dm >= MIN_GAIN_S || ds >= MIN_GAIN_S)
+        let pareto = dm >= -1e-9 && ds >= -1e-9 && (dm >= MIN_GAIN_S || ds >= MIN_GAIN_S);
+        let n = self.plans.max(before.plans).max(1) as f64;
+        pareto || (dm >= MIN_GAIN_S && dm + ds / n > 1e-9)
     }
 }
 
@@ -593,7 +604,7 @@ fn standing_until_departure(it: &Itinerary) -> Itinerary {
 
 /// The orders a neighbourhood of `last` (the robot ending last) is re-planned in: it and the
 /// robots it waits for that may be revised, as they depart now; `last` first, the others as
-/// they depart; `last` first, the others reversed.
+/// they depart; `last` first, the others reversed; `last` before each of them alone.
 fn orders<'a>(
     last: &'a Revisable,
     revisable: &[&'a Revisable],
@@ -627,8 +638,13 @@ fn orders<'a>(
     let last_first_reversed: Vec<&'a Revisable> = std::iter::once(last)
         .chain(blockers.iter().rev().copied())
         .collect();
+    // Then `last` before each one of them alone: a smaller neighbourhood fits more often.
+    let pairs = blockers.iter().map(|&b| vec![last, b]);
     let mut out: Vec<Vec<&'a Revisable>> = Vec::new();
-    for o in [as_they_depart, last_first, last_first_reversed] {
+    for o in [as_they_depart, last_first, last_first_reversed]
+        .into_iter()
+        .chain(pairs)
+    {
         let ids = |o: &[&Revisable]| o.iter().map(|r| r.plan_id().to_owned()).collect::<Vec<_>>();
         if !out.iter().any(|p| ids(p) == ids(&o)) {
             out.push(o);
@@ -695,19 +711,27 @@ mod tests {
     }
 
     #[test]
-    fn a_revision_is_kept_only_where_nothing_gets_worse_and_something_gains() {
-        let before = Totals {
-            makespan_s: 100.0,
-            sum_s: 300.0,
+    fn a_revision_is_kept_only_where_the_floor_gains() {
+        let t = |makespan_s, sum_s| Totals {
+            makespan_s,
+            sum_s,
+            plans: 3,
         };
-        let t = |makespan_s, sum_s| Totals { makespan_s, sum_s };
+        let before = t(100.0, 300.0);
         assert!(t(90.0, 300.0).improves_on(&before));
         assert!(t(100.0, 299.0).improves_on(&before));
         assert!(
             !t(99.8, 299.8).improves_on(&before),
             "gains below the least"
         );
-        assert!(!t(90.0, 301.0).improves_on(&before), "the sum rose");
+        assert!(
+            t(90.0, 320.0).improves_on(&before),
+            "the mean time rose by less than the makespan dropped"
+        );
+        assert!(
+            !t(90.0, 331.0).improves_on(&before),
+            "the mean time rose by more than the makespan dropped"
+        );
         assert!(!t(101.0, 200.0).improves_on(&before), "the makespan rose");
     }
 
