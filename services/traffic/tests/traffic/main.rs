@@ -5,4 +5,5 @@
 
 mod common;
 mod geometry;
+mod killed;
 mod schedule;
