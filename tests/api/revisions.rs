@@ -55,6 +55,29 @@ async fn get_plan_as(
     (status, etag, body)
 }
 
+/// The robot of `token` long-polling plan `id` past revision `tag` (up to 20 s), in a task of
+/// its own: the status, when the answer came, and its body.
+fn watch(
+    app: &TestApp,
+    token: &str,
+    id: &str,
+    tag: &str,
+) -> tokio::task::JoinHandle<(u16, Instant, Option<Value>)> {
+    let request = app
+        .client
+        .get(format!("{}/v1/plans/{id}?wait_s=20", app.address))
+        .bearer_auth(token)
+        .header("if-none-match", tag);
+    tokio::spawn(async move {
+        let r = request.send().await.unwrap();
+        (
+            r.status().as_u16(),
+            Instant::now(),
+            r.json::<Value>().await.ok(),
+        )
+    })
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_revision_reaches_the_robot_waiting_on_its_plan_and_is_acknowledged() {
     let shared = tempfile::tempdir().unwrap();
@@ -112,28 +135,7 @@ async fn a_revision_reaches_the_robot_waiting_on_its_plan_and_is_acknowledged() 
     assert_eq!(got, 404);
 
     // The robot waits on its plan; another process revises it (the same route 5 s later).
-    let waiting = {
-        let (address, client, id, tag) = (
-            app.address.clone(),
-            app.client.clone(),
-            id.clone(),
-            tag.clone(),
-        );
-        tokio::spawn(async move {
-            let r = client
-                .get(format!("{address}/v1/plans/{id}?wait_s=20"))
-                .bearer_auth(FIRST_ROBOT)
-                .header("if-none-match", tag)
-                .send()
-                .await
-                .unwrap();
-            (
-                r.status().as_u16(),
-                Instant::now(),
-                r.json::<Value>().await.ok(),
-            )
-        })
-    };
+    let waiting = watch(&app, FIRST_ROBOT, &id, &tag);
     tokio::time::sleep(Duration::from_millis(300)).await;
     let db = queue::JobDatabase::connect(&url).await.unwrap();
     let elsewhere = traffic::Schedule::open(&db).await.unwrap();
@@ -272,28 +274,7 @@ async fn the_improver_revises_a_plan_that_waits_for_one_cancelled() {
     let (status, _, body) = get_plan_as(&app, SECOND_ROBOT, &id, Some(&tag), "").await;
     assert_eq!(status, 304, "revised with nothing to gain: {body}");
 
-    let watching = {
-        let (address, client, id, tag) = (
-            app.address.clone(),
-            app.client.clone(),
-            id.clone(),
-            tag.clone(),
-        );
-        tokio::spawn(async move {
-            let r = client
-                .get(format!("{address}/v1/plans/{id}?wait_s=20"))
-                .bearer_auth(SECOND_ROBOT)
-                .header("if-none-match", tag)
-                .send()
-                .await
-                .unwrap();
-            (
-                r.status().as_u16(),
-                Instant::now(),
-                r.json::<Value>().await.ok(),
-            )
-        })
-    };
+    let watching = watch(&app, SECOND_ROBOT, &id, &tag);
     let r = app
         .client
         .delete(format!("{}/v1/plans/{first_id}", app.address))
