@@ -189,6 +189,15 @@ async fn a_revision_reaches_the_robot_waiting_on_its_plan_and_is_acknowledged() 
     );
     let r = progress(2).await.unwrap();
     assert_eq!(r.status(), 200);
+    // The answer: the plan as now scheduled, and how far the robot may go (all the way alone).
+    let answer: Value = r.json().await.unwrap();
+    assert_eq!(
+        (&answer["plan_id"], &answer["revision"]),
+        (&json!(id), &json!(2)),
+        "{answer}"
+    );
+    assert_eq!(answer["passes_after"], json!([]), "{answer}");
+    assert!(answer["may_go_until_t_s"].is_null(), "{answer}");
     let (_, tag2, status) = get_plan(&app, &id, None, "").await;
     assert_eq!(status["acknowledged_revision"], 2, "{status}");
     assert!(tag2.starts_with("W/\"2-"), "{tag2}");

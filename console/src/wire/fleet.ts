@@ -1315,6 +1315,20 @@ export interface components {
             y: number;
         };
         /**
+         * @description What a progress report answers: the plan as now scheduled, and how far its robot may go
+         *     now (as `GET /v1/plans/{id}` says).
+         */
+        ProgressAnswer: components["schemas"]["Itinerary"] & {
+            /**
+             * Format: double
+             * @description How far the robot may go now, seconds of its trajectory's time (before its delay): up
+             *     to the first meeting whose other robot has not reported passing it; absent: to its goal.
+             */
+            may_go_until_t_s?: number | null;
+            /** @description Where the plan meets another plan that passes there first, along the plan. */
+            passes_after: components["schemas"]["PassingView"][];
+        };
+        /**
          * @description Which roadmap the policy plans on.
          * @enum {string}
          */
@@ -2544,13 +2558,13 @@ export interface operations {
             };
         };
         responses: {
-            /** @description The plan as now scheduled (`delay_s`: how late the robot is; `revision`: the one to drive, newer than the report's where the plan was revised) */
+            /** @description The plan as now scheduled (`delay_s`: how late the robot is; `revision`: the one to drive, newer than the report's where the plan was revised), and how far the robot may go now (`may_go_until_t_s`, the plans it passes after) */
             200: {
                 headers: {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": components["schemas"]["Itinerary"];
+                    "application/json": components["schemas"]["ProgressAnswer"];
                 };
             };
             /** @description Malformed body */

@@ -461,7 +461,7 @@ async fn cancel_plan(
     params(("id" = String, Path, description = "The plan's id")),
     request_body = Progress,
     responses(
-        (status = 200, description = "The plan as now scheduled (`delay_s`: how late the robot is; `revision`: the one to drive, newer than the report's where the plan was revised)", body = wire::itinerary::Itinerary),
+        (status = 200, description = "The plan as now scheduled (`delay_s`: how late the robot is; `revision`: the one to drive, newer than the report's where the plan was revised), and how far the robot may go now (`may_go_until_t_s`, the plans it passes after)", body = plans::ProgressAnswer),
         (status = 400, description = "Malformed body", body = edge::ErrorBody),
         (status = 401, response = edge::error::responses::Unauthorized),
         (status = 403, description = "Another robot's plan", body = edge::ErrorBody),
@@ -479,7 +479,7 @@ async fn report_progress(
     RobotCaller(caller): RobotCaller,
     Path(id): Path<String>,
     Json(progress): Json<Progress>,
-) -> Result<Json<wire::itinerary::Itinerary>, ApiError> {
+) -> Result<Json<plans::ProgressAnswer>, ApiError> {
     if !(progress.x.is_finite() && progress.y.is_finite()) {
         return Err(ApiError::new(
             ErrorCode::Unprocessable,
@@ -499,5 +499,13 @@ async fn report_progress(
         )
         .await
         .map_err(traffic_error)?;
-    Ok(Json(updated.itinerary.into()))
+    let on_floor = schedule
+        .plans_on(&updated.itinerary.floor)
+        .await
+        .map_err(traffic_error)?;
+    Ok(Json(plans::ProgressAnswer::of(
+        updated,
+        schedule.now_ms(),
+        &on_floor,
+    )))
 }

@@ -61,6 +61,33 @@ pub struct PlanStatus {
     pub may_go_until_t_s: Option<f64>,
 }
 
+/// What a progress report answers: the plan as now scheduled, and how far its robot may go
+/// now (as `GET /v1/plans/{id}` says).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ProgressAnswer {
+    /// The plan as now scheduled (`delay_s`: how late the robot is; `revision`: the one to
+    /// drive, newer than the report's where the plan was revised).
+    #[serde(flatten)]
+    pub plan: wire::itinerary::Itinerary,
+    /// Where the plan meets another plan that passes there first, along the plan.
+    pub passes_after: Vec<PassingView>,
+    /// How far the robot may go now, seconds of its trajectory's time (before its delay): up
+    /// to the first meeting whose other robot has not reported passing it; absent: to its goal.
+    pub may_go_until_t_s: Option<f64>,
+}
+
+impl ProgressAnswer {
+    /// The answer for plan `p` after its progress report, among the plans on its floor.
+    pub(crate) fn of(p: Planned, now_unix_ms: i64, on_floor: &[Planned]) -> Self {
+        let status = PlanStatus::of(p, now_unix_ms, on_floor);
+        Self {
+            plan: status.plan,
+            passes_after: status.passes_after,
+            may_go_until_t_s: status.may_go_until_t_s,
+        }
+    }
+}
+
 /// A place where a plan passes after another.
 #[derive(Debug, Serialize, Deserialize, ToSchema)]
 pub struct PassingView {
