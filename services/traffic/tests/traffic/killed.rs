@@ -25,16 +25,6 @@ fixtures::on_both_backends!(
     [a_revision_killed_midway_leaves_the_old_plans_or_the_new]
 );
 
-fn now_ms() -> i64 {
-    i64::try_from(
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_millis(),
-    )
-    .unwrap()
-}
-
 /// Plan `k` of the floor, an hour from now (its robot far from setting off), moved `shift_ms`.
 fn plan(k: usize, base_ms: i64, shift_ms: i64) -> Itinerary {
     #[allow(clippy::cast_precision_loss)] // reason: a dozen plans
@@ -61,7 +51,7 @@ async fn schedule(url: &str) -> Schedule {
 
 async fn a_revision_killed_midway_leaves_the_old_plans_or_the_new(f: Fixture) {
     let s = schedule(&f.url).await;
-    let base = now_ms() + 3_600_000;
+    let base = s.now_ms() + 3_600_000;
     for k in 0..PLANS {
         let version = s.version("killed").await.unwrap();
         s.commit(plan(k, base, 0), version).await.unwrap();
