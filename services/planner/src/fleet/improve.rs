@@ -194,6 +194,14 @@ impl Revisables {
         false
     }
 
+    /// Forgets that `order` was tried: its revision was found but lost to the floor changing,
+    /// or came too late, and the next round tries it again.
+    fn untried(&self, floor: &str, order: &[String]) {
+        if let Some(f) = self.lock().get_mut(floor) {
+            f.tried.retain(|o| o != order);
+        }
+    }
+
     fn revised(&self, floor: &str, revised: Vec<FleetOutcome>) {
         let mut floors = self.lock();
         let Some(f) = floors.get_mut(floor) else {
@@ -367,6 +375,7 @@ impl Planner {
                     continue;
                 }
                 if schedule.now_ms() > read.now_ms + LEAD_MS {
+                    self.revisables.untried(floor, &ids);
                     return Ok(Round::Lost);
                 }
                 let itineraries = placed.iter().map(|f| f.itinerary.clone()).collect();
@@ -394,7 +403,10 @@ impl Planner {
                         self.revisables.revised(floor, placed);
                         return Ok(Round::Kept);
                     }
-                    Committed::VersionChanged => return Ok(Round::Lost),
+                    Committed::VersionChanged => {
+                        self.revisables.untried(floor, &ids);
+                        return Ok(Round::Lost);
+                    }
                     Committed::Refused(why) => {
                         tracing::debug!(floor, %why, "a revision was refused");
                     }
@@ -689,6 +701,17 @@ mod tests {
         assert!((t.makespan_s - 22.0).abs() < 1e-9, "{t:?}");
         assert!((t.sum_s - 30.0).abs() < 1e-9, "{t:?}");
         assert_eq!(Totals::of(&plans[2..]), None);
+    }
+
+    #[test]
+    fn an_order_whose_revision_was_lost_is_tried_again() {
+        let r = Revisables::default();
+        let order = vec!["plan-a".to_owned(), "plan-b".to_owned()];
+        assert!(!r.tried("f", 7, &order));
+        assert!(r.tried("f", 7, &order), "tried already at this state");
+        assert!(!r.tried("f", 8, &order), "the floor's plans changed");
+        r.untried("f", &order);
+        assert!(!r.tried("f", 8, &order), "lost: tried again");
     }
 
     #[test]
