@@ -172,6 +172,20 @@ async fn a_second_robot_waits_for_the_first_and_the_schedule_keeps_them_apart() 
         "{second}"
     );
     assert!(s2["start_time_ms"].as_i64().unwrap() >= later, "{second}");
+    // Execution by precedence, in the answer itself: the first robot passes after no one and
+    // may go to its goal; the second passes after the first on their shared route and may go
+    // no further than the first meeting until the first robot reports it has passed.
+    assert_eq!(s1["passes_after"], json!([]), "{first}");
+    assert!(s1["may_go_until_t_s"].is_null(), "{first}");
+    let passes = s2["passes_after"].as_array().unwrap();
+    assert!(!passes.is_empty(), "{second}");
+    assert!(
+        passes
+            .iter()
+            .all(|p| p["plan_id"] == s1["plan_id"] && p["passed"] == false),
+        "{second}"
+    );
+    assert_eq!(s2["may_go_until_t_s"], passes[0]["t_s"], "{second}");
     let committed = traffic(&app, SECOND_ROBOT).await;
     let plans = committed["plans"].as_array().unwrap();
     assert_eq!(plans.len(), 2, "{committed}");

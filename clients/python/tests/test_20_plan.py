@@ -215,6 +215,10 @@ def test_a_plan_takes_its_place_in_the_floors_traffic(robot: Client, engineer: C
     # Still at its start 5 s after setting off: the rest of its schedule shifts.
     late = engineer.report_progress(s.plan_id, start.x, start.y, time_ms=s.start_time_ms + 5000, revision=1)
     assert late.plan_id == s.plan_id and late.delay_s > 0 and late.revision == 1
+    # Alone on the floor: it passes after no one and may go to its goal.
+    assert s.passes_after == [] and s.may_go_until_t_s is None
+    assert late.passes_after == [] and late.may_go_until_t_s is None
+    assert status.passes_after == [] and status.may_go_until_t_s is None
     assert engineer.cancel_plan(s.plan_id).plan_id == s.plan_id
     # The watch ends with the plan.
     assert list(watch) == []

@@ -1160,8 +1160,20 @@ export interface components {
              *     the Unix epoch.
              */
             expires_ms: number;
+            /**
+             * Format: double
+             * @description How far the robot may go now, seconds of its trajectory's time (before any delay): up
+             *     to the first meeting whose other robot has not passed it yet; absent: to its goal.
+             */
+            may_go_until_t_s?: number | null;
             /** @description Other robots' committed plans on the floor it was checked against. */
             others_checked: number;
+            /**
+             * @description Where the plan meets another plan that passes there first (the schedule's order, which
+             *     delays do not change), along the plan. Progress answers and `GET /v1/plans/{id}` say
+             *     when each has passed.
+             */
+            passes_after: components["schemas"]["PassingView"][];
             /**
              * @description The plan's id: `DELETE /v1/plans/{id}` cancels it, `POST /v1/plans/{id}/progress`
              *     reports the robot's progress on it.

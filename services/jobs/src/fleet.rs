@@ -112,6 +112,17 @@ impl FleetSchedule for QueueFleet {
         })
     }
 
+    fn planned<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, Vec<traffic::Planned>> {
+        Box::pin(async move {
+            let schedule = self.schedule().await?.clone();
+            let floor = floor.to_owned();
+            const DOING: &str = "reading the floor's plans";
+            on_own_thread(DOING, move || futures_block_on(schedule.plans_on(&floor)))
+                .await?
+                .map_err(|e| PortError::new(DOING, e))
+        })
+    }
+
     fn now_ms(&self) -> i64 {
         self.schedule
             .get()

@@ -29,6 +29,13 @@ pub struct PlanSchedule {
     /// When the schedule lets the robot's place go (its last goal held until then), ms since
     /// the Unix epoch.
     pub expires_ms: i64,
+    /// Where the plan meets another plan that passes there first (the schedule's order, which
+    /// delays do not change), along the plan. Progress answers and `GET /v1/plans/{id}` say
+    /// when each has passed.
+    pub passes_after: Vec<PassingView>,
+    /// How far the robot may go now, seconds of its trajectory's time (before any delay): up
+    /// to the first meeting whose other robot has not passed it yet; absent: to its goal.
+    pub may_go_until_t_s: Option<f64>,
 }
 
 /// A plan driven again with its waits among the other robots' committed plans (their
@@ -95,6 +102,8 @@ impl From<planner::FleetOutcome> for PlanSchedule {
             }),
             tolerance_s: f.itinerary.tolerance_s,
             expires_ms: f.itinerary.expires_unix_ms,
+            may_go_until_t_s: traffic::may_go_until_s(&f.passes_after),
+            passes_after: f.passes_after.into_iter().map(Into::into).collect(),
         }
     }
 }
@@ -111,5 +120,35 @@ impl PlanSchedule {
                     .map_or(t, |w| w.not_before_ms)
             }))
             .collect()
+    }
+}
+
+/// A place where a plan passes after another.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PassingView {
+    /// The plan passing first.
+    pub plan_id: String,
+    /// Its robot.
+    pub robot: String,
+    /// Where the paths first overlap, metres.
+    pub x: f64,
+    /// Where the paths first overlap, metres.
+    pub y: f64,
+    /// This plan's trajectory time there, seconds.
+    pub t_s: f64,
+    /// Whether the other robot has passed (its progress reports matched it beyond the place).
+    pub passed: bool,
+}
+
+impl From<traffic::Passing> for PassingView {
+    fn from(p: traffic::Passing) -> Self {
+        Self {
+            plan_id: p.plan_id,
+            robot: p.robot,
+            x: p.x,
+            y: p.y,
+            t_s: p.t_s,
+            passed: p.passed,
+        }
     }
 }

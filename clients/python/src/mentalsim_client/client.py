@@ -26,7 +26,9 @@ from .models import (
     FloorTraffic,
     TrafficEvent,
     Itinerary,
+    Passing,
     PlanStatus,
+    ProgressAnswer,
     ImportedMap,
     Job,
     JobEvent,
@@ -642,17 +644,19 @@ class Client:
         *,
         time_ms: int | None = None,
         revision: int | None = None,
-    ) -> Itinerary:
+    ) -> ProgressAnswer:
         """Reports where the plan's robot is (at ``time_ms``, default now): the rest of its
         schedule shifts by its observed delay (``Itinerary.delay_s``). ``revision``: the revision
         the robot drives, which acknowledges it (409 for one the plan never had). The answer's
-        ``revision`` is the plan's: newer than the robot's where it was revised meanwhile."""
+        ``revision`` is the plan's: newer than the robot's where it was revised meanwhile; its
+        ``may_go_until_t_s`` says how far the robot may go now (``None``: to its goal), up to
+        the first place it passes after a robot that has not passed yet."""
         body: JsonObject = {"x": x, "y": y}
         if time_ms is not None:
             body["time_ms"] = time_ms
         if revision is not None:
             body["revision"] = revision
-        return Itinerary.from_json(self._object("report_progress", path={"id": plan_id}, json_body=body))
+        return ProgressAnswer.from_json(self._object("report_progress", path={"id": plan_id}, json_body=body))
 
     def plan_status(self, plan_id: str, *, etag: str | None = None, wait_s: float | None = None) -> PlanStatus | None:
         """A committed plan as its robot follows it: its revision, what the robot acknowledged,

@@ -531,6 +531,30 @@ class PlanAmongFleet:
 
 
 @dataclass(frozen=True, slots=True)
+class Passing:
+    """A place where a plan passes after another plan (schema ``PassingView``): the robot goes
+    no further than ``t_s`` of its trajectory until the other one has ``passed``."""
+
+    #: The plan passing first, and its robot.
+    plan_id: str
+    robot: str
+    #: Where the paths first overlap, metres.
+    x: float
+    y: float
+    #: This plan's trajectory time there, seconds.
+    t_s: float
+    passed: bool
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> Passing:
+        return cls(_str(d, "plan_id"), _str(d, "robot"), _float(d, "x"), _float(d, "y"), _float(d, "t_s"), _bool(d, "passed"))
+
+
+def _passings(d: Mapping[str, Any]) -> list[Passing]:
+    return [Passing.from_json(_obj(p, "passes_after[]")) for p in _list(d.get("passes_after"), "passes_after")]
+
+
+@dataclass(frozen=True, slots=True)
 class PlanSchedule:
     """A plan in the floor's traffic schedule (schema ``PlanSchedule``)."""
 
@@ -548,6 +572,10 @@ class PlanSchedule:
     expires_ms: int
     #: ``None`` when no other robot's plan was committed on the floor.
     among_fleet: PlanAmongFleet | None = None
+    #: Where the plan passes after other plans (the schedule's order), along the plan.
+    passes_after: list[Passing] = field(default_factory=list)
+    #: How far the robot may go now, seconds of its trajectory; ``None``: to its goal.
+    may_go_until_t_s: float | None = None
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> PlanSchedule:
@@ -564,6 +592,8 @@ class PlanSchedule:
             _float(d, "tolerance_s"),
             _int(d, "expires_ms"),
             None if among is None else PlanAmongFleet.from_json(_obj(among, "among_fleet")),
+            _passings(d),
+            _opt_float(d, "may_go_until_t_s"),
         )
 
 
@@ -615,6 +645,10 @@ class PlanStatus:
     departs_unix_ms: int
     #: Until when the service may still revise the plan, Unix ms.
     revisable_until_unix_ms: int
+    #: Where the plan passes after other plans, along the plan, and whether each has passed.
+    passes_after: list[Passing] = field(default_factory=list)
+    #: How far the robot may go now, seconds of its trajectory; ``None``: to its goal.
+    may_go_until_t_s: float | None = None
     etag: str | None = None
 
     @classmethod
@@ -628,7 +662,38 @@ class PlanStatus:
             set_off,
             _int(d, "departs_unix_ms"),
             _int(d, "revisable_until_unix_ms"),
+            _passings(d),
+            _opt_float(d, "may_go_until_t_s"),
             etag,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class ProgressAnswer(Itinerary):
+    """What a progress report answers (schema ``ProgressAnswer``): the plan as now scheduled
+    (an ``Itinerary``), and how far its robot may go now."""
+
+    #: Where the plan passes after other plans, along the plan, and whether each has passed.
+    passes_after: list[Passing]
+    #: How far the robot may go now, seconds of its trajectory; ``None``: to its goal.
+    may_go_until_t_s: float | None
+
+    @classmethod
+    def from_json(cls, d: Mapping[str, Any]) -> ProgressAnswer:
+        p = Itinerary.from_json(d)
+        return cls(
+            p.plan_id,
+            p.robot,
+            p.floor,
+            p.start_unix_ms,
+            p.trajectory,
+            p.radius_m,
+            p.tolerance_s,
+            p.expires_unix_ms,
+            p.delay_s,
+            p.revision,
+            _passings(d),
+            _opt_float(d, "may_go_until_t_s"),
         )
 
 

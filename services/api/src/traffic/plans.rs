@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use tokio::sync::broadcast;
 use traffic::{Change, Planned};
 use utoipa::{IntoParams, ToSchema};
+use wire::schedule::PassingView;
 
 use super::{TrafficRoutes, schedule, traffic_error};
 
@@ -84,36 +85,6 @@ impl ProgressAnswer {
             plan: status.plan,
             passes_after: status.passes_after,
             may_go_until_t_s: status.may_go_until_t_s,
-        }
-    }
-}
-
-/// A place where a plan passes after another.
-#[derive(Debug, Serialize, Deserialize, ToSchema)]
-pub struct PassingView {
-    /// The plan passing first.
-    pub plan_id: String,
-    /// Its robot.
-    pub robot: String,
-    /// Where the paths first overlap, metres.
-    pub x: f64,
-    /// Where the paths first overlap, metres.
-    pub y: f64,
-    /// This plan's trajectory time there, seconds.
-    pub t_s: f64,
-    /// Whether the other robot has passed (its progress reports matched it beyond the place).
-    pub passed: bool,
-}
-
-impl From<traffic::Passing> for PassingView {
-    fn from(p: traffic::Passing) -> Self {
-        Self {
-            plan_id: p.plan_id,
-            robot: p.robot,
-            x: p.x,
-            y: p.y,
-            t_s: p.t_s,
-            passed: p.passed,
         }
     }
 }

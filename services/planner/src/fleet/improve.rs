@@ -575,6 +575,8 @@ impl Planner {
             others: others.len(),
             drives: previous.drives + drives,
             version: None,
+            // A revision's passings are read from the schedule (`GET /v1/plans/{id}`).
+            passes_after: Vec::new(),
         }))
     }
 }

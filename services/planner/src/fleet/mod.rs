@@ -86,6 +86,22 @@ pub trait FleetSchedule: Send + Sync {
     fn revise(&self, plans: Vec<Itinerary>, expected_version: i64) -> FleetFuture<'_, Committed>;
     /// Now, milliseconds since the Unix epoch (the schedule's clock).
     fn now_ms(&self) -> i64;
+    /// Every unexpired plan on the floor with what its robot reported (the passing order at
+    /// the places plans meet needs who has passed). By default the snapshot's itineraries, as
+    /// if no robot had reported yet.
+    fn planned<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, Vec<traffic::Planned>> {
+        Box::pin(async move {
+            let (_, itineraries) = self.snapshot(floor).await?;
+            Ok(itineraries
+                .into_iter()
+                .map(|itinerary| traffic::Planned {
+                    itinerary,
+                    acknowledged: 1,
+                    progress_t_s: None,
+                })
+                .collect())
+        })
+    }
 }
 
 /// How a plan takes part in the fleet's schedule.
@@ -231,6 +247,9 @@ pub struct FleetOutcome {
     pub drives: u32,
     /// The floor's version after the commit; `None` when not committed.
     pub version: Option<i64>,
+    /// Where the plan meets another plan that passes there first (in the schedule's order),
+    /// along the plan: the robot goes no further than the first one not yet passed.
+    pub passes_after: Vec<traffic::Passing>,
 }
 
 /// The other robots' itineraries as robots of a simulation whose clock starts at

@@ -172,7 +172,11 @@ impl Joining<'_> {
         } else {
             None
         };
+        // The order at the places it meets others, with who has passed them by now.
+        let on_floor = self.schedule.planned(&self.db.floor).await?;
+        let passes_after = traffic::passings(&itinerary, &on_floor, fleet::ROBOT_MARGIN_M);
         Ok(Next::Answer(Among::Fitted(Box::new(FleetOutcome {
+            passes_after,
             itinerary,
             waypoint_times_unix_ms: timed.waypoint_times_unix_ms,
             among: (!others.is_empty()).then_some(among),
