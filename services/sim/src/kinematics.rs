@@ -92,9 +92,20 @@ impl DiffDrive {
             Some(m) => v.clamp(-m, m),
             None => v,
         };
-        let limit = |prev: f64, want: f64, max: Option<f64>| match max {
-            Some(a) => want.clamp(prev - a * dt, prev + a * dt),
-            None => want,
+        // Speeding up (away from zero) is bounded by the acceleration, slowing down (towards
+        // zero, or through it) by the deceleration, as a velocity smoother bounds them.
+        let limit = |prev: f64, want: f64, accel: Option<f64>, decel: Option<f64>| {
+            let decel = decel.or(accel);
+            let (up, down) = if prev > 0.0 {
+                (accel, decel)
+            } else if prev < 0.0 {
+                (decel, accel)
+            } else {
+                (accel, accel)
+            };
+            let hi = up.map_or(f64::INFINITY, |a| prev + a * dt);
+            let lo = down.map_or(f64::NEG_INFINITY, |a| prev - a * dt);
+            want.clamp(lo, hi)
         };
         let wanted = Action {
             linear: top(wanted.linear, self.spec.max_linear_speed),
@@ -105,11 +116,13 @@ impl DiffDrive {
                 previous.linear,
                 wanted.linear,
                 self.spec.max_linear_acceleration,
+                self.spec.max_linear_deceleration,
             ),
             angular: limit(
                 previous.angular,
                 wanted.angular,
                 self.spec.max_angular_acceleration,
+                self.spec.max_angular_deceleration,
             ),
         };
         if let Some(max) = self.spec.max_wheel_speed {
@@ -173,6 +186,8 @@ mod tests {
             max_angular_speed: None,
             max_linear_acceleration: None,
             max_angular_acceleration: None,
+            max_linear_deceleration: None,
+            max_angular_deceleration: None,
         })
     }
 
@@ -239,6 +254,8 @@ mod tests {
         let d = DiffDrive::new(DiffDriveSpec {
             max_linear_acceleration: Some(1.0),
             max_angular_acceleration: Some(2.0),
+            max_linear_deceleration: None,
+            max_angular_deceleration: None,
             max_wheel_speed: Some(5.0),
             ..drive().spec
         });

@@ -25,7 +25,7 @@ pub mod vocab;
 pub mod write;
 
 pub use model::{
-    Attractor, Camera, CameraKind, Colour, DEFAULT_MAP_FRAME, ESTIMATE_MIN_WEIGHT, Joint,
+    Attractor, Camera, CameraKind, Colour, DEFAULT_MAP_FRAME, Dynamics, ESTIMATE_MIN_WEIGHT, Joint,
     JointKind, Laser, MetricMap, Object, ObjectClass, Part, People, PeopleEstimate, Physical,
     Place, PlaceKind, PlacePeople, Pose3, Relation, RelationKind, Robot, Shape, StructuralPart,
     Symbol, WalkingRoute, Wheel, is_ros_frame_name,

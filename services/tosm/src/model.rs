@@ -440,6 +440,20 @@ pub struct Camera {
     pub baseline: Option<f64>,
 }
 
+/// A robot's acceleration limits (`None`: not in its model). A deceleration absent where the
+/// acceleration is given brakes as fast as it accelerates.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Dynamics {
+    /// Largest linear acceleration, m/s².
+    pub max_linear_acceleration: Option<f64>,
+    /// Largest linear deceleration (braking), m/s².
+    pub max_linear_deceleration: Option<f64>,
+    /// Largest angular acceleration, rad/s².
+    pub max_angular_acceleration: Option<f64>,
+    /// Largest angular deceleration, rad/s².
+    pub max_angular_deceleration: Option<f64>,
+}
+
 /// A robot: its parts, joints, wheels and sensors.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Robot {
@@ -453,6 +467,8 @@ pub struct Robot {
     pub max_linear_speed: Option<f64>,
     /// Top angular speed, rad/s.
     pub max_angular_speed: Option<f64>,
+    /// How fast it gains and loses linear and angular speed.
+    pub dynamics: Dynamics,
     /// IRI of the base part (root of the kinematic tree), one of `structure`.
     pub base: String,
     /// Structural parts other than wheels, sorted by IRI.

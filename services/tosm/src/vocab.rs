@@ -302,6 +302,14 @@ terms! {
     MAX_LINEAR_SPEED_M_PER_S = "maxLinearSpeedMPerS",
     /// `tosm:maxAngularSpeedRadPerS` (datatype property).
     MAX_ANGULAR_SPEED_RAD_PER_S = "maxAngularSpeedRadPerS",
+    /// `tosm:maxLinearAccelerationMPerS2` (datatype property).
+    MAX_LINEAR_ACCELERATION_M_PER_S2 = "maxLinearAccelerationMPerS2",
+    /// `tosm:maxLinearDecelerationMPerS2` (datatype property).
+    MAX_LINEAR_DECELERATION_M_PER_S2 = "maxLinearDecelerationMPerS2",
+    /// `tosm:maxAngularAccelerationRadPerS2` (datatype property).
+    MAX_ANGULAR_ACCELERATION_RAD_PER_S2 = "maxAngularAccelerationRadPerS2",
+    /// `tosm:maxAngularDecelerationRadPerS2` (datatype property).
+    MAX_ANGULAR_DECELERATION_RAD_PER_S2 = "maxAngularDecelerationRadPerS2",
     /// `tosm:name` (datatype property).
     NAME = "name",
     /// `tosm:identifier` (datatype property).

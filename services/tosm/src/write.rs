@@ -708,6 +708,29 @@ impl Writer {
         if let Some(x) = r.max_angular_speed {
             self.positive(&s, v::MAX_ANGULAR_SPEED_RAD_PER_S, x);
         }
+        let d = r.dynamics;
+        for (property, x) in [
+            (
+                v::MAX_LINEAR_ACCELERATION_M_PER_S2,
+                d.max_linear_acceleration,
+            ),
+            (
+                v::MAX_LINEAR_DECELERATION_M_PER_S2,
+                d.max_linear_deceleration,
+            ),
+            (
+                v::MAX_ANGULAR_ACCELERATION_RAD_PER_S2,
+                d.max_angular_acceleration,
+            ),
+            (
+                v::MAX_ANGULAR_DECELERATION_RAD_PER_S2,
+                d.max_angular_deceleration,
+            ),
+        ] {
+            if let Some(x) = x {
+                self.positive(&s, property, x);
+            }
+        }
         let base_known = r.structure.iter().any(|p| p.part.iri == r.base)
             || r.wheels.iter().any(|w| w.part.iri == r.base);
         if !base_known {

@@ -274,6 +274,10 @@ pub struct DiffDriveSpec {
     pub max_linear_acceleration: Option<f64>,
     /// Largest angular acceleration, rad/s², when the model gives one.
     pub max_angular_acceleration: Option<f64>,
+    /// Largest linear deceleration (braking), m/s²; absent: the linear acceleration.
+    pub max_linear_deceleration: Option<f64>,
+    /// Largest angular deceleration, rad/s²; absent: the angular acceleration.
+    pub max_angular_deceleration: Option<f64>,
 }
 
 /// A planar laser range finder.
@@ -447,6 +451,8 @@ impl RobotSpec {
                 max_angular_speed: None,
                 max_linear_acceleration: None,
                 max_angular_acceleration: None,
+                max_linear_deceleration: None,
+                max_angular_deceleration: None,
             },
             laser: LaserSpec {
                 id: "laser".into(),

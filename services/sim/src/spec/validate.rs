@@ -380,6 +380,16 @@ fn validate_robot(robot: &RobotSpec, out: &mut SpecProblems) {
         d.max_angular_acceleration,
         "the angular acceleration limit",
     );
+    c.optional_positive(
+        "drive.max_linear_deceleration",
+        d.max_linear_deceleration,
+        "the linear deceleration limit",
+    );
+    c.optional_positive(
+        "drive.max_angular_deceleration",
+        d.max_angular_deceleration,
+        "the angular deceleration limit",
+    );
     let l = &robot.laser;
     let mut c = Checker { out, item: &l.id };
     if !(l.range_min.is_finite() && l.range_min >= 0.0) {

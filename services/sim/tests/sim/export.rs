@@ -689,6 +689,8 @@ fn a_robot_with_speed_limits_and_a_camera_exports_them_for_gz_sim() {
     robot.drive.max_linear_speed = Some(0.8);
     robot.drive.max_angular_speed = Some(0.5);
     robot.drive.max_linear_acceleration = Some(1.5);
+    // Braking faster than it speeds up: gz-sim takes it as the most negative acceleration.
+    robot.drive.max_linear_deceleration = Some(2.5);
     robot.cameras.push(sim::CameraSpec {
         id: "http://ex.org/robot#front-camera".into(),
         width: 640,
@@ -719,7 +721,7 @@ fn a_robot_with_speed_limits_and_a_camera_exports_them_for_gz_sim() {
         assert_gz_robot(model, &robot, "laser");
         let drive = model.plugin("gz::sim::systems::DiffDrive");
         assert_eq!(drive.param("max_linear_acceleration"), Some("1.5"));
-        assert_eq!(drive.param("min_linear_acceleration"), Some("-1.5"));
+        assert_eq!(drive.param("min_linear_acceleration"), Some("-2.5"));
         assert_eq!(
             drive.param("max_angular_acceleration"),
             None,

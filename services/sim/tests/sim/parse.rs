@@ -182,6 +182,53 @@ fn a_drive_with_three_active_wheels_is_refused() {
     assert!(err.has_errors(), "{err}");
 }
 
+#[test]
+fn the_robots_acceleration_limits_reach_its_drive_and_bound_it() {
+    let mut g = building_and_robot();
+    let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(spec.robot.drive.max_linear_acceleration, None);
+    add_turtle(
+        &mut g,
+        &format!(
+            "<{ROBOT}> tosm:maxLinearAccelerationMPerS2 0.5 ; tosm:maxLinearDecelerationMPerS2 1.0 ; \
+             tosm:maxAngularAccelerationRadPerS2 1.5 ."
+        ),
+    );
+    let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    let d = &spec.robot.drive;
+    assert_eq!(
+        (
+            d.max_linear_acceleration,
+            d.max_linear_deceleration,
+            d.max_angular_acceleration,
+            d.max_angular_deceleration
+        ),
+        (Some(0.5), Some(1.0), Some(1.5), None)
+    );
+    // The drive the simulation builds from it reaches 0.8 m/s in 1.6 s, and brakes twice as
+    // fast as it speeds up.
+    let drive = sim::kinematics::DiffDrive::new(d.clone());
+    let mut a = sim::Action::default();
+    let mut steps = 0;
+    while a.linear < 0.8 - 1e-9 {
+        a = drive.execute(a, sim::Action::new(0.8, 0.0), 0.1);
+        steps += 1;
+    }
+    assert_eq!(steps, 16);
+    let braking = drive.execute(a, sim::Action::new(0.0, 0.0), 0.1);
+    assert!((braking.linear - 0.7).abs() < 1e-12, "{braking:?}");
+    // A non-positive limit in the knowledge is a problem named with its property.
+    add_turtle(
+        &mut g,
+        &format!("<{ROBOT}> tosm:maxAngularDecelerationRadPerS2 -1.0 ."),
+    );
+    let err = parse_floor(&g, ROBOT, FLOOR0).expect_err("negative deceleration");
+    assert!(
+        err.to_string().contains("maxAngularDecelerationRadPerS2"),
+        "{err}"
+    );
+}
+
 /// Turtle triples added to a graph (prefixes `tosm:` and `xsd:` declared).
 fn add_turtle(graph: &mut Graph, turtle: &str) {
     let text = format!(

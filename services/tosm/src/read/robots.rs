@@ -27,6 +27,20 @@ impl<'g> Reader<'g> {
         let differential_drive = self.has_type(iri, v::DIFFERENTIAL_DRIVE_ROBOT);
         let max_linear_speed = self.positive(iri, v::MAX_LINEAR_SPEED_M_PER_S, false);
         let max_angular_speed = self.positive(iri, v::MAX_ANGULAR_SPEED_RAD_PER_S, false);
+        let dynamics = crate::model::Dynamics {
+            max_linear_acceleration: self.positive(iri, v::MAX_LINEAR_ACCELERATION_M_PER_S2, false),
+            max_linear_deceleration: self.positive(iri, v::MAX_LINEAR_DECELERATION_M_PER_S2, false),
+            max_angular_acceleration: self.positive(
+                iri,
+                v::MAX_ANGULAR_ACCELERATION_RAD_PER_S2,
+                false,
+            ),
+            max_angular_deceleration: self.positive(
+                iri,
+                v::MAX_ANGULAR_DECELERATION_RAD_PER_S2,
+                false,
+            ),
+        };
         let base = self.iri(iri, v::HAS_BASE_PART, true);
         let mut part_iris: BTreeSet<String> = BTreeSet::new();
         for p in [v::HAS_PART, v::HAS_SENSOR, v::HAS_BASE_PART] {
@@ -38,6 +52,7 @@ impl<'g> Reader<'g> {
             differential_drive,
             max_linear_speed,
             max_angular_speed,
+            dynamics,
             base: base.clone().unwrap_or_default(),
             structure: Vec::new(),
             wheels: Vec::new(),

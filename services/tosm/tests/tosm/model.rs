@@ -166,6 +166,21 @@ fn robot_round_trips_through_triples() {
     assert_eq!(tosm::robot_to_triples(&again).expect("valid"), triples);
 }
 
+#[test]
+fn a_robots_acceleration_limits_round_trip() {
+    let graph = load("robots/differential-robot.ttl");
+    let mut robot = tosm::read_robot(&graph, ROBOT).expect("robot");
+    robot.dynamics = tosm::Dynamics {
+        max_linear_acceleration: Some(0.5),
+        max_linear_deceleration: Some(0.8),
+        max_angular_acceleration: Some(1.2),
+        max_angular_deceleration: None,
+    };
+    let triples = tosm::robot_to_triples(&robot).expect("valid robot");
+    let again = tosm::read_robot(&graph_of(triples), ROBOT).expect("reads back");
+    assert_eq!(again.dynamics, robot.dynamics);
+}
+
 fn sample_object() -> Object {
     Object {
         iri: t("box-1"),
