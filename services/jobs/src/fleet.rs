@@ -27,6 +27,20 @@ impl QueueFleet {
         }
     }
 
+    /// `read` of the schedule, run to its end on a blocking thread (the store's calls block);
+    /// `doing` names it in an error.
+    async fn read<T, F, Fut>(&self, doing: &'static str, read: F) -> Result<T, PortError>
+    where
+        T: Send + 'static,
+        F: FnOnce(Schedule) -> Fut + Send + 'static,
+        Fut: Future<Output = Result<T, TrafficError>>,
+    {
+        let schedule = self.schedule().await?.clone();
+        on_own_thread(doing, move || futures_block_on(read(schedule)))
+            .await?
+            .map_err(|e| PortError::new(doing, e))
+    }
+
     /// The schedule, opening (and migrating) its tables on first use.
     pub async fn schedule(&self) -> Result<&Schedule, PortError> {
         const DOING: &str = "opening the traffic schedule";
@@ -48,28 +62,22 @@ impl QueueFleet {
 
 impl FleetSchedule for QueueFleet {
     fn snapshot<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, (i64, Vec<Itinerary>)> {
-        Box::pin(async move {
-            let schedule = self.schedule().await?.clone();
-            let floor = floor.to_owned();
-            const DOING: &str = "reading the floor's traffic schedule";
-            on_own_thread(DOING, move || {
-                let now = schedule.now_ms();
-                futures_block_on(schedule.snapshot(&floor, now))
-            })
-            .await?
-            .map_err(|e| PortError::new(DOING, e))
-        })
+        let floor = floor.to_owned();
+        Box::pin(
+            self.read("reading the floor's traffic schedule", |s| async move {
+                let now = s.now_ms();
+                s.snapshot(&floor, now).await
+            }),
+        )
     }
 
     fn version<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, i64> {
-        Box::pin(async move {
-            let schedule = self.schedule().await?.clone();
-            let floor = floor.to_owned();
-            const DOING: &str = "reading the floor's schedule version";
-            on_own_thread(DOING, move || futures_block_on(schedule.version(&floor)))
-                .await?
-                .map_err(|e| PortError::new(DOING, e))
-        })
+        let floor = floor.to_owned();
+        Box::pin(
+            self.read("reading the floor's schedule version", |s| async move {
+                s.version(&floor).await
+            }),
+        )
     }
 
     fn commit(&self, itinerary: Itinerary, expected_version: i64) -> FleetFuture<'_, Committed> {
@@ -113,14 +121,10 @@ impl FleetSchedule for QueueFleet {
     }
 
     fn planned<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, Vec<traffic::Planned>> {
-        Box::pin(async move {
-            let schedule = self.schedule().await?.clone();
-            let floor = floor.to_owned();
-            const DOING: &str = "reading the floor's plans";
-            on_own_thread(DOING, move || futures_block_on(schedule.plans_on(&floor)))
-                .await?
-                .map_err(|e| PortError::new(DOING, e))
-        })
+        let floor = floor.to_owned();
+        Box::pin(self.read("reading the floor's plans", |s| async move {
+            s.plans_on(&floor).await
+        }))
     }
 
     fn now_ms(&self) -> i64 {

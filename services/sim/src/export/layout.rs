@@ -338,22 +338,21 @@ pub(super) fn gz_model_plugins(
             d.wheel_separation, d.wheel_radius, topics.cmd_vel, topics.odometry, topics.tf
         );
         // gz-sim's DiffDrive takes the braking limit as the most negative acceleration.
-        let or = |a: Option<f64>, b: Option<f64>| a.or(b);
+        let usable = |v: Option<f64>| v.filter(|v| v.is_finite() && *v > 0.0);
         for (kind, max, min) in [
             ("linear_velocity", d.max_linear_speed, d.max_linear_speed),
             ("angular_velocity", d.max_angular_speed, d.max_angular_speed),
             (
                 "linear_acceleration",
                 d.max_linear_acceleration,
-                or(d.max_linear_deceleration, d.max_linear_acceleration),
+                d.max_linear_deceleration.or(d.max_linear_acceleration),
             ),
             (
                 "angular_acceleration",
                 d.max_angular_acceleration,
-                or(d.max_angular_deceleration, d.max_angular_acceleration),
+                d.max_angular_deceleration.or(d.max_angular_acceleration),
             ),
         ] {
-            let usable = |v: Option<f64>| v.filter(|v| v.is_finite() && *v > 0.0);
             if let Some(v) = usable(max) {
                 let _ = writeln!(s, "  <max_{kind}>{v}</max_{kind}>");
             }
