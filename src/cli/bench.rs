@@ -245,6 +245,11 @@ pub struct FleetArgs {
     /// joint run's makespan beside the revised one's.
     #[arg(long, value_name = "S", default_value_t = 60.0)]
     pub improve_s: f64,
+    /// Planners the robots ask (robot k asks planner k mod N), each with its own locks, waits
+    /// and improver over the one schedule, as API processes sharing a job database are; at
+    /// most 8.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub processes: usize,
     /// Writes the rows as JSON (one object per map and scenario).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -554,6 +559,7 @@ fn fleet(args: FleetArgs) -> anyhow::Result<()> {
         same_seed,
         orders,
         improve_s,
+        processes,
         json,
         replay,
     } = args;
@@ -570,6 +576,7 @@ fn fleet(args: FleetArgs) -> anyhow::Result<()> {
         same_seed,
         orders,
         improve_s,
+        processes,
     })?;
     println!("{}", bench::fleet::markdown(&rows));
     for r in &rows {

@@ -127,6 +127,30 @@ impl FleetSchedule for QueueFleet {
         }))
     }
 
+    fn post_wait(&self, wait: traffic::Wait) -> FleetFuture<'_, ()> {
+        Box::pin(self.read("saying that a plan waits", |s| async move {
+            s.post_wait(&wait).await
+        }))
+    }
+
+    fn clear_wait<'a>(&'a self, robot: &'a str) -> FleetFuture<'a, ()> {
+        let robot = robot.to_owned();
+        Box::pin(
+            self.read("saying that a plan no longer waits", |s| async move {
+                s.clear_wait(&robot).await
+            }),
+        )
+    }
+
+    fn waits<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, Vec<traffic::Wait>> {
+        let floor = floor.to_owned();
+        Box::pin(
+            self.read("reading the plans waiting on the floor", |s| async move {
+                s.waits_on(&floor).await
+            }),
+        )
+    }
+
     fn now_ms(&self) -> i64 {
         self.schedule
             .get()

@@ -8,7 +8,8 @@
 //!   a robot's schedule by its observed delay, snapshots, and this process's [`Change`]s;
 //!   revisions of plans whose robots have not set off ([`Schedule::revise`], [`Planned`]),
 //!   acknowledged with the robot's progress; [`passings`]: the order plans pass where they
-//!   meet, so a robot waits for the robots before it, not for the clock.
+//!   meet, so a robot waits for the robots before it, not for the clock; [`Wait`]s: plans
+//!   waiting for robots standing with no plan, seen by every process sharing the database.
 //! - [`first_conflict`] and [`conflicts`]: the earliest time two robots may come too close,
 //!   each anywhere within its tolerance of its schedule ([`Conflict`]).
 //!
@@ -33,6 +34,7 @@ mod progress;
 mod revision;
 #[cfg(feature = "store")]
 mod schedule;
+mod wait;
 
 #[cfg(feature = "store")]
 pub use change::{Change, Removal};
@@ -43,3 +45,4 @@ pub use precedence::{Passing, may_go_until_s, passings};
 pub use revision::{Planned, REVISION_NOTICE_S};
 #[cfg(feature = "store")]
 pub use schedule::Schedule;
+pub use wait::Wait;

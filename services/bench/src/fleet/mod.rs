@@ -119,7 +119,14 @@ pub struct FleetBenchOptions {
     /// schedule after every robot has asked, before the joint run (0: none): the joint run
     /// then drives the plans as revised, and the row reports the first-come joint run beside.
     pub improve_s: f64,
+    /// Planners the robots ask, robot `k` the planner `k % processes`: each with its own
+    /// locks, waits and improver over the one schedule, as API processes sharing a job
+    /// database are (1: one process). At most [`MAX_PROCESSES`].
+    pub processes: usize,
 }
+
+/// Most planners (`--processes`) a run spreads its robots over.
+pub const MAX_PROCESSES: usize = 8;
 
 pub use reference::MAX_ORDERS;
 
@@ -262,9 +269,14 @@ impl planner::RoadmapBuilds for NoBuilds {
     }
 }
 
-/// The floor's traffic schedule in memory: a version and the committed itineraries.
+/// The floor's traffic schedule in memory: a version and the committed itineraries, and the
+/// plans waiting for standing robots ([`FleetSchedule::post_wait`]), shared by every planner of
+/// the run as the job database is by API processes.
 #[derive(Default)]
-struct MemorySchedule(Mutex<(i64, Vec<Itinerary>)>);
+struct MemorySchedule(
+    Mutex<(i64, Vec<Itinerary>)>,
+    Mutex<HashMap<String, traffic::Wait>>,
+);
 
 impl MemorySchedule {
     fn all(&self) -> Vec<Itinerary> {
@@ -329,6 +341,33 @@ impl FleetSchedule for MemorySchedule {
         Box::pin(async move { Ok(answer) })
     }
 
+    fn post_wait(&self, wait: traffic::Wait) -> FleetFuture<'_, ()> {
+        let mut g = self.1.lock().unwrap_or_else(PoisonError::into_inner);
+        g.insert(wait.robot.clone(), wait);
+        Box::pin(async { Ok(()) })
+    }
+
+    fn clear_wait<'a>(&'a self, robot: &'a str) -> FleetFuture<'a, ()> {
+        self.1
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(robot);
+        Box::pin(async { Ok(()) })
+    }
+
+    fn waits<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, Vec<traffic::Wait>> {
+        let now = self.now_ms();
+        let found = self
+            .1
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .values()
+            .filter(|w| w.floor == floor && w.until_unix_ms >= now)
+            .cloned()
+            .collect();
+        Box::pin(async move { Ok(found) })
+    }
+
     fn now_ms(&self) -> i64 {
         now_ms()
     }
@@ -368,6 +407,12 @@ pub fn run_fleet_bench(opts: &FleetBenchOptions) -> Result<Vec<FleetRow>, BenchE
         return Err(BenchError::BadOption(format!(
             "--people must lie in [0, 50] people per 100 m², got {}",
             opts.people
+        )));
+    }
+    if !(1..=MAX_PROCESSES).contains(&opts.processes) {
+        return Err(BenchError::BadOption(format!(
+            "--processes must lie in [1, {MAX_PROCESSES}], got {}",
+            opts.processes
         )));
     }
     reference::check(opts)?;
@@ -440,15 +485,27 @@ fn missions(
     Ok(out)
 }
 
+/// `more` (an improver's work after `into`'s) added to `into`.
+fn absorb(into: &mut planner::Improvement, more: planner::Improvement) {
+    into.tried += more.tried;
+    into.kept += more.kept;
+    into.revised.extend(more.revised);
+    into.drives += more.drives;
+    into.before = into.before.take().or(more.before);
+    into.after = more.after.or(into.after.take());
+}
+
 /// A plan's latency (ms) and outcome.
 type Answer = (f64, Result<PlanOutcome, String>);
 
-/// Every query asked at once, as robots of a fleet do; answers in the queries' order.
-async fn plan_at_once(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> Vec<Answer> {
+/// Every query asked at once, as robots of a fleet do, query `k` of planner `k % len`;
+/// answers in the queries' order.
+async fn plan_at_once(planners: &[Arc<Planner>], queries: Vec<PlanQuery>) -> Vec<Answer> {
     let tasks: Vec<_> = queries
         .into_iter()
-        .map(|q| {
-            let planner = Arc::clone(planner);
+        .enumerate()
+        .map(|(k, q)| {
+            let planner = Arc::clone(&planners[k % planners.len()]);
             tokio::spawn(async move { timed_plan(&planner, q).await })
         })
         .collect();
@@ -465,17 +522,27 @@ async fn plan_at_once(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> Vec<An
 /// [`plan_at_once`], then the robots refused asked again, all at once (as robots told that
 /// others stand in their way ask again once those have their plans); a robot's latency the
 /// time of both its requests.
-async fn plan_at_once_again(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> Vec<Answer> {
-    let mut answers = plan_at_once(planner, queries.clone()).await;
+async fn plan_at_once_again(planners: &[Arc<Planner>], queries: Vec<PlanQuery>) -> Vec<Answer> {
+    let mut answers = plan_at_once(planners, queries.clone()).await;
     let refused: Vec<usize> = (0..answers.len())
         .filter(|&k| answers[k].1.is_err())
         .collect();
-    let again = plan_at_once(
-        planner,
-        refused.iter().map(|&k| queries[k].clone()).collect(),
-    )
-    .await;
-    for (k, (ms, r)) in refused.into_iter().zip(again) {
+    // Each robot asks its own planner again.
+    let tasks: Vec<_> = refused
+        .iter()
+        .map(|&k| {
+            let planner = Arc::clone(&planners[k % planners.len()]);
+            let q = queries[k].clone();
+            tokio::spawn(async move { timed_plan(&planner, q).await })
+        })
+        .collect();
+    let mut again = Vec::new();
+    for t in tasks {
+        again.push(t.await);
+    }
+    for (k, joined) in refused.into_iter().zip(again) {
+        let (ms, r) =
+            joined.unwrap_or_else(|e| (f64::NAN, Err(format!("the plan task failed: {e}"))));
         answers[k] = (answers[k].0 + ms, r);
     }
     answers
@@ -485,9 +552,13 @@ async fn plan_at_once_again(planner: &Arc<Planner>, queries: Vec<PlanQuery>) -> 
 /// one refused asked again once after all the others (as a robot told that another stands in
 /// its way asks again later); answers in the queries' order, a robot's latency the time of
 /// both its requests.
-async fn plan_in_turn(planner: &Arc<Planner>, queries: Vec<PlanQuery>, seed: u64) -> Vec<Answer> {
+async fn plan_in_turn(
+    planners: &[Arc<Planner>],
+    queries: Vec<PlanQuery>,
+    seed: u64,
+) -> Vec<Answer> {
     let order = shuffled(queries.len(), seed);
-    plan_in_order(planner, queries, order).await
+    plan_in_order(planners, queries, order).await
 }
 
 /// `0..n` shuffled by `seed` (Fisher–Yates).
@@ -503,16 +574,17 @@ fn shuffled(n: usize, seed: u64) -> Vec<usize> {
 /// The queries asked one after another in `order` (indices into `queries`), each one refused
 /// asked again once after all the others; answers in the queries' order.
 async fn plan_in_order(
-    planner: &Arc<Planner>,
+    planners: &[Arc<Planner>],
     queries: Vec<PlanQuery>,
     order: Vec<usize>,
 ) -> Vec<Answer> {
+    let planner = |k: usize| &planners[k % planners.len()];
     let mut queries: Vec<Option<PlanQuery>> = queries.into_iter().map(Some).collect();
     let mut answers: Vec<Option<Answer>> = (0..queries.len()).map(|_| None).collect();
     let mut again = Vec::new();
     for k in order {
         if let Some(q) = queries[k].take() {
-            let answer = timed_plan(planner, q.clone()).await;
+            let answer = timed_plan(planner(k), q.clone()).await;
             if answer.1.is_err() {
                 again.push((k, q, answer.0));
             }
@@ -520,7 +592,7 @@ async fn plan_in_order(
         }
     }
     for (k, q, first_ms) in again {
-        let (ms, r) = timed_plan(planner, q).await;
+        let (ms, r) = timed_plan(planner(k), q).await;
         answers[k] = Some((first_ms + ms, r));
     }
     answers.into_iter().flatten().collect()
@@ -613,20 +685,23 @@ fn run_floor(
 ) -> Result<FleetRow, BenchError> {
     let floor = prepare(opts, name, yaml, grid, layout)?;
     let schedule = Arc::new(MemorySchedule::default());
-    let planner = floor.planner(Some(&schedule));
+    // One planner per process, sharing the schedule.
+    let planners: Vec<Arc<Planner>> = (0..opts.processes)
+        .map(|_| floor.planner(Some(&schedule)))
+        .collect();
     // The robots set off a minute from now, after the improver's time: until then every plan
     // may still be revised.
     let t0 = now_ms() + 60_000 + (opts.improve_s * 1000.0).round() as i64;
     let queries = floor.queries(opts, t0, opts.order_seed.is_some());
-    floor.stand_all(opts, &planner, &queries, t0, yaml)?;
+    floor.stand_all(opts, &planners[0], &queries, t0, yaml)?;
     let asked = queries.clone();
     let answers = match opts.order_seed {
         None => floor
             .runtime
-            .block_on(plan_at_once_again(&planner, queries)),
+            .block_on(plan_at_once_again(&planners, queries)),
         Some(seed) => floor
             .runtime
-            .block_on(plan_in_turn(&planner, queries, seed)),
+            .block_on(plan_in_turn(&planners, queries, seed)),
     };
     // The same missions planned alone (no schedule: nobody else on the floor), after the
     // clock: the baseline of the makespan and the sum of times. A plan among the fleet may
@@ -641,7 +716,7 @@ fn run_floor(
         .collect();
     let alone_plans: HashMap<String, (f64, f64)> = floor
         .runtime
-        .block_on(plan_at_once(&floor.planner(None), asked))
+        .block_on(plan_at_once(&[floor.planner(None)], asked))
         .into_iter()
         .filter_map(|(_, a)| a.ok())
         .map(|o| {
@@ -669,20 +744,25 @@ fn run_floor(
     }
     let (improvement, makespan_first_come_s) = if opts.improve_s > 0.0 {
         let first_come = arrival_times(&joint_run(&planned, &schedule.all(), None));
-        let improvement = floor
-            .runtime
-            .block_on(planner.improve(
-                &floor.floor_iri,
-                std::time::Duration::from_secs_f64(opts.improve_s),
-            ))
-            .map_err(BenchError::Improve)?;
-        // The plans as the improver left them.
+        // Each process improves the plans it answered, in turn, sharing the time.
+        let mut improvement = planner::Improvement::default();
+        for planner in &planners {
+            let by_this = floor
+                .runtime
+                .block_on(planner.improve(
+                    &floor.floor_iri,
+                    std::time::Duration::from_secs_f64(opts.improve_s / planners.len() as f64),
+                ))
+                .map_err(BenchError::Improve)?;
+            absorb(&mut improvement, by_this);
+        }
+        // The plans as the improvers left them.
         for o in &mut planned {
-            if let Some(now) = o
-                .fleet
-                .as_ref()
-                .and_then(|f| planner.committed_outcome(&f.itinerary.plan_id))
-            {
+            if let Some(now) = o.fleet.as_ref().and_then(|f| {
+                planners
+                    .iter()
+                    .find_map(|p| p.committed_outcome(&f.itinerary.plan_id))
+            }) {
                 *o = now;
             }
         }

@@ -102,7 +102,7 @@ pub(super) fn first_come(
         let planned: Vec<_> = floor
             .runtime
             .block_on(plan_in_order(
-                &planner,
+                std::slice::from_ref(&planner),
                 queries,
                 order(k, robots, opts.seed),
             ))

@@ -29,6 +29,7 @@ fn scenario(scenario: Scenario, robots: usize) -> FleetBenchOptions {
         same_seed: false,
         orders: 0,
         improve_s: 0.0,
+        processes: 1,
     }
 }
 
@@ -323,6 +324,20 @@ const MAKE_WAY_THROUGH_AT_LEAST: usize = 4;
 /// may bring two robots into contact.
 #[test]
 fn robots_standing_in_each_others_way_make_way() {
+    make_way_runs(1);
+}
+
+/// [`robots_standing_in_each_others_way_make_way`] with the robots asking two planners, as
+/// two API processes sharing a job database: the plans of one see the waits of the other's
+/// through the schedule ([`planner::FleetSchedule::waits`]), so the cycles across them are
+/// found and made way in as often as within one.
+#[test]
+fn robots_of_two_processes_standing_in_each_others_way_make_way() {
+    make_way_runs(2);
+}
+
+/// [`MAKE_WAY_RUNS`] runs of ten robots on the shared bookstore asking `processes` planners.
+fn make_way_runs(processes: usize) {
     let Some(yaml) = fixtures::shared_fixture(
         "maps/ros/aws_bookstore/map.yaml",
         "the shared bookstore map",
@@ -333,6 +348,7 @@ fn robots_standing_in_each_others_way_make_way() {
     o.maps = yaml.parent().expect("the map's directory").to_path_buf();
     o.people = 2.0;
     o.seed = 2;
+    o.processes = processes;
     let runs: Vec<_> = (0..MAKE_WAY_RUNS)
         .map(|_| {
             let r = run_fleet_bench(&o).expect("runs").remove(0);
@@ -346,7 +362,7 @@ fn robots_standing_in_each_others_way_make_way() {
         .filter(|(planned, arrived, _)| *planned == 10 && *arrived >= 0.9)
         .count();
     eprintln!(
-        "{through} of {MAKE_WAY_RUNS} runs planned every robot: {:?}",
+        "{processes} process(es): {through} of {MAKE_WAY_RUNS} runs planned every robot: {:?}",
         runs.iter().map(|r| (r.0, r.1)).collect::<Vec<_>>()
     );
     assert!(

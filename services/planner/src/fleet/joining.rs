@@ -39,6 +39,17 @@ const REFITS_ON_DRIVE: u32 = 3;
 
 /// How often the floor's schedule is read while waiting for it to change, milliseconds.
 const POLL_MS: u64 = 25;
+/// How long a plan's wait outlasts its deadline in the schedule, ms: a poll's worth and more,
+/// so that a plan still waiting is never taken for gone by another process.
+const WAIT_SLACK_MS: i64 = 2_000;
+
+/// Logs a failure to tell the schedule `what` of `robot`'s plan: the plan goes on (waits of
+/// other processes are a help in finding cycles, and a wait ends by itself).
+fn tell(told: Result<(), crate::PortError>, robot: &str, what: &str) {
+    if let Err(e) = told {
+        tracing::warn!(%robot, error = %e, "the schedule could not be told {what}");
+    }
+}
 
 /// A plan's place in its floor's schedule before it is rehearsed: its id and the start asked
 /// for, the robot standing there in the schedule meanwhile ([`Planner::enter_the_fleet`]).
@@ -389,9 +400,16 @@ impl Planner {
     /// Where `view`'s robot is the one of a cycle of plans waiting for each other's robots to
     /// make way ([`yielding::Waits::turn_to_make_way`]): where, and for whom; a robot
     /// that finds no place says so, and another of the cycle takes its turn.
-    fn make_way(&self, view: &View<'_>) -> Option<Standing> {
+    async fn make_way(&self, view: &View<'_>) -> Option<Standing> {
         let margin = view.make_way?;
-        let (mut routes, for_robots) = self.waits.turn_to_make_way(view.me)?;
+        let shared = match view.schedule.waits(view.floor).await {
+            Ok(shared) => shared,
+            Err(e) => {
+                tracing::warn!(robot = %view.me, error = %e, "the floor's waits could not be read: only this process's are seen");
+                Vec::new()
+            }
+        };
+        let (mut routes, for_robots) = self.waits.turn_to_make_way(view.me, &shared)?;
         routes.extend(
             view.others
                 .iter()
@@ -421,7 +439,10 @@ impl Planner {
         match at {
             Some(at) => Some(Standing::MakeWay(at, for_robots)),
             None => {
-                self.waits.cannot_make_way(view.me);
+                if let Some(wait) = self.waits.cannot_make_way(view.me) {
+                    let told = view.schedule.post_wait(wait).await;
+                    tell(told, view.me, "that it cannot make way");
+                }
                 None
             }
         }
@@ -455,27 +476,49 @@ impl Planner {
             view.standing_wait_s
         };
         let deadline = view.since + std::time::Duration::from_secs_f64(limit);
-        let _waiting = self.waits.enter(
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        let wait = traffic::Wait {
+            robot: view.me.to_owned(),
+            floor: view.floor.to_owned(),
+            by: standing.iter().map(|o| o.robot.clone()).collect(),
+            route: view.route.to_vec(),
+            radius_m: view.radius_m,
+            cannot_make_way: view.make_way.is_none() || reroute,
+            // Past its deadline and a poll's worth of slack, the wait is over even if its
+            // process died without saying so.
+            until_unix_ms: view.schedule.now_ms()
+                + i64::try_from(left.as_millis()).unwrap_or(i64::MAX / 2)
+                + WAIT_SLACK_MS,
+        };
+        let _waiting = self.waits.enter(wait.clone());
+        tell(
+            view.schedule.post_wait(wait).await,
             view.me,
-            yielding::Waiting {
-                floor: view.floor.to_owned(),
-                by: standing.iter().map(|o| o.robot.clone()).collect(),
-                route: view.route.to_vec(),
-                radius_m: view.radius_m,
-                cannot_make_way: view.make_way.is_none() || reroute,
-            },
+            "that it waits",
         );
-        while std::time::Instant::now() < deadline {
-            // Only where no route keeps clear of the robots standing: a route around them
-            // is tried first.
-            if !reroute && let Some(at) = self.make_way(view) {
-                return Ok(at);
+        let waited = async {
+            while std::time::Instant::now() < deadline {
+                // Only where no route keeps clear of the robots standing: a route around them
+                // is tried first.
+                if !reroute && let Some(at) = self.make_way(view).await {
+                    return Ok(Some(at));
+                }
+                let now = view.schedule.version(view.floor).await?;
+                if now != view.version {
+                    return Ok(Some(Standing::Changed));
+                }
+                tokio::time::sleep(std::time::Duration::from_millis(POLL_MS)).await;
             }
-            let now = view.schedule.version(view.floor).await?;
-            if now != view.version {
-                return Ok(Standing::Changed);
-            }
-            tokio::time::sleep(std::time::Duration::from_millis(POLL_MS)).await;
+            Ok::<_, PlanFailure>(None)
+        }
+        .await;
+        tell(
+            view.schedule.clear_wait(view.me).await,
+            view.me,
+            "that it no longer waits",
+        );
+        if let Some(standing) = waited? {
+            return Ok(standing);
         }
         if reroute {
             return Ok(Standing::Reroute);

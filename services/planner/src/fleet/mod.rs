@@ -102,6 +102,24 @@ pub trait FleetSchedule: Send + Sync {
                 .collect())
         })
     }
+    /// Says where every process sharing the schedule sees it that a plan waits for robots
+    /// standing in its way ([`traffic::Wait`], replacing what its robot's plan said before). By
+    /// default nowhere: a schedule of one process's own, whose waits the planner holds itself.
+    fn post_wait(&self, wait: traffic::Wait) -> FleetFuture<'_, ()> {
+        drop(wait);
+        Box::pin(async { Ok(()) })
+    }
+    /// `robot`'s plan no longer waits (see [`FleetSchedule::post_wait`]).
+    fn clear_wait<'a>(&'a self, robot: &'a str) -> FleetFuture<'a, ()> {
+        let _ = robot;
+        Box::pin(async { Ok(()) })
+    }
+    /// The waits on `floor` every process sharing the schedule posted, not yet ended (by
+    /// default none: see [`FleetSchedule::post_wait`]).
+    fn waits<'a>(&'a self, floor: &'a str) -> FleetFuture<'a, Vec<traffic::Wait>> {
+        let _ = floor;
+        Box::pin(async { Ok(Vec::new()) })
+    }
 }
 
 /// How a plan takes part in the fleet's schedule.

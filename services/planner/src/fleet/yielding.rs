@@ -1,12 +1,12 @@
 //! Making way. Robots standing with no plan, each in the only way of another's plan (a
 //! cycle: A's plan waits for B's, B's for A's), would wait for each other until both are
 //! refused, and every robot whose way either of them stands in after them. The plans of this
-//! process that wait for standing robots say so here ([`Waits`]); where the waits close a
+//! process that wait for standing robots say so here ([`Waits`]) and in the schedule, where
+//! the plans of other processes sharing it are seen; where the waits close a
 //! cycle, one robot of it (the first by IRI that has not already failed to) makes way: its
 //! plan goes first to a place near its start off the routes of the plans waiting for it
 //! ([`spot_off_routes`]), and that first leg is committed ([`prefix`]) so the others' plans can
-//! be fitted; its whole plan then waits there for them, as any plan waits. Plans of other
-//! processes are not seen here: their waits run out as before.
+//! be fitted; its whole plan then waits there for them, as any plan waits.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -20,24 +20,10 @@ pub(crate) const MAKE_WAY_WITHIN_M: f64 = 6.0;
 /// Spacing of the places tried, metres.
 const SPOT_STEP_M: f64 = 0.2;
 
-/// A plan waiting for robots standing in its way with no plan yet.
-#[derive(Debug, Clone)]
-pub(crate) struct Waiting {
-    /// The floor's IRI.
-    pub floor: String,
-    /// The standing robots it waits for.
-    pub by: Vec<String>,
-    /// Points along its route.
-    pub route: Vec<(f64, f64)>,
-    /// Its robot's footprint radius, metres.
-    pub radius_m: f64,
-    /// It looked for a place to make way at and found none.
-    pub cannot_make_way: bool,
-}
-
-/// The plans of this process waiting for standing robots, by robot.
+/// The plans of this process waiting for standing robots, by robot. The schedule holds them
+/// too ([`crate::FleetSchedule::post_wait`]), so those of other processes sharing it are seen.
 #[derive(Debug, Default)]
-pub(crate) struct Waits(Mutex<HashMap<String, Waiting>>);
+pub(crate) struct Waits(Mutex<HashMap<String, traffic::Wait>>);
 
 /// Removes its robot's entry from [`Waits`] when dropped.
 pub(crate) struct Entered {
@@ -55,31 +41,44 @@ impl Drop for Entered {
 pub(crate) type Route = (Vec<(f64, f64)>, f64);
 
 impl Waits {
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, Waiting>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, traffic::Wait>> {
         self.0.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
-    /// `robot`'s plan waits as `waiting` until the returned guard is dropped.
-    pub(crate) fn enter(self: &Arc<Self>, robot: &str, waiting: Waiting) -> Entered {
-        self.lock().insert(robot.to_owned(), waiting);
+    /// `wait.robot`'s plan waits as `wait` until the returned guard is dropped.
+    pub(crate) fn enter(self: &Arc<Self>, wait: traffic::Wait) -> Entered {
+        let robot = wait.robot.clone();
+        self.lock().insert(robot.clone(), wait);
         Entered {
             waits: Arc::clone(self),
-            robot: robot.to_owned(),
+            robot,
         }
     }
 
-    /// `robot` found no place to make way at: another robot of its cycle takes its turn.
-    pub(crate) fn cannot_make_way(&self, robot: &str) {
-        if let Some(w) = self.lock().get_mut(robot) {
-            w.cannot_make_way = true;
-        }
+    /// `robot` found no place to make way at: another robot of its cycle takes its turn. Its
+    /// wait as it is now, to be said to the schedule.
+    pub(crate) fn cannot_make_way(&self, robot: &str) -> Option<traffic::Wait> {
+        let mut waits = self.lock();
+        let w = waits.get_mut(robot)?;
+        w.cannot_make_way = true;
+        Some(w.clone())
     }
 
-    /// Where `robot`'s wait closes a cycle of waits and it is the robot of the cycle to make
-    /// way: the routes of the plans waiting for it (with the waiting robots' names), which
-    /// the place it makes way at keeps clear of. `None` otherwise.
-    pub(crate) fn turn_to_make_way(&self, robot: &str) -> Option<(Vec<Route>, Vec<String>)> {
-        let waits = self.lock();
+    /// Where `robot`'s wait closes a cycle of waits (this process's, and `shared`: those the
+    /// schedule holds, of every process) and it is the robot of the cycle to make way: the
+    /// routes of the plans waiting for it (with the waiting robots' names), which the place it
+    /// makes way at keeps clear of. `None` otherwise.
+    pub(crate) fn turn_to_make_way(
+        &self,
+        robot: &str,
+        shared: &[traffic::Wait],
+    ) -> Option<(Vec<Route>, Vec<String>)> {
+        let mut waits: HashMap<String, traffic::Wait> = shared
+            .iter()
+            .map(|w| (w.robot.clone(), w.clone()))
+            .collect();
+        // This process's own are the newest word on its plans.
+        waits.extend(self.lock().iter().map(|(k, w)| (k.clone(), w.clone())));
         let me = waits.get(robot)?;
         let floor = &me.floor;
         let edges = |r: &str| -> Vec<String> {
@@ -123,10 +122,11 @@ impl Waits {
         if first != robot {
             return None;
         }
-        let waiting_for_me: Vec<(&String, &Waiting)> = waits
+        let mut waiting_for_me: Vec<(&String, &traffic::Wait)> = waits
             .iter()
             .filter(|(k, w)| *k != robot && &w.floor == floor && w.by.iter().any(|b| b == robot))
             .collect();
+        waiting_for_me.sort_by(|a, b| a.0.cmp(b.0));
         Some((
             waiting_for_me
                 .iter()
@@ -263,13 +263,15 @@ pub(crate) const SET_OFF_DELAYS_S: [f64; 7] = [0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32
 mod tests {
     use super::*;
 
-    fn waiting(by: &[&str], route: Vec<(f64, f64)>) -> Waiting {
-        Waiting {
+    fn waiting(robot: &str, by: &[&str], route: Vec<(f64, f64)>) -> traffic::Wait {
+        traffic::Wait {
+            robot: robot.to_owned(),
             floor: "F".to_owned(),
             by: by.iter().map(|s| (*s).to_owned()).collect(),
             route,
             radius_m: 0.3,
             cannot_make_way: false,
+            until_unix_ms: i64::MAX,
         }
     }
 
@@ -278,26 +280,47 @@ mod tests {
     #[test]
     fn one_robot_of_a_cycle_of_waits_makes_way() {
         let waits = Arc::new(Waits::default());
-        let _a = waits.enter("a", waiting(&["b"], vec![(1.0, 0.0)]));
-        assert!(waits.turn_to_make_way("a").is_none(), "no cycle yet");
-        let _b = waits.enter("b", waiting(&["a"], vec![(2.0, 0.0)]));
-        let _c = waits.enter("c", waiting(&["a"], vec![(3.0, 0.0)]));
-        let (routes, names) = waits.turn_to_make_way("a").expect("a makes way");
-        let mut names = names;
-        names.sort();
+        let _a = waits.enter(waiting("a", &["b"], vec![(1.0, 0.0)]));
+        assert!(waits.turn_to_make_way("a", &[]).is_none(), "no cycle yet");
+        let _b = waits.enter(waiting("b", &["a"], vec![(2.0, 0.0)]));
+        let _c = waits.enter(waiting("c", &["a"], vec![(3.0, 0.0)]));
+        let (routes, names) = waits.turn_to_make_way("a", &[]).expect("a makes way");
         assert_eq!(names, vec!["b".to_owned(), "c".to_owned()]);
         assert_eq!(routes.len(), 2);
-        assert!(waits.turn_to_make_way("b").is_none(), "b waits for a");
+        assert!(waits.turn_to_make_way("b", &[]).is_none(), "b waits for a");
         assert!(
-            waits.turn_to_make_way("c").is_none(),
+            waits.turn_to_make_way("c", &[]).is_none(),
             "c is behind the cycle"
         );
         waits.cannot_make_way("a");
-        assert!(waits.turn_to_make_way("a").is_none());
-        let (_, names) = waits.turn_to_make_way("b").expect("now b makes way");
+        assert!(waits.turn_to_make_way("a", &[]).is_none());
+        let (_, names) = waits.turn_to_make_way("b", &[]).expect("now b makes way");
         assert_eq!(names, vec!["a".to_owned()]);
         drop(_b);
-        assert!(waits.turn_to_make_way("a").is_none(), "b left: no cycle");
+        assert!(
+            waits.turn_to_make_way("a", &[]).is_none(),
+            "b left: no cycle"
+        );
+    }
+
+    /// Waits of another process, read from the schedule, close a cycle as this process's own
+    /// do; this process's word on its own plan wins over what the schedule still says.
+    #[test]
+    fn waits_of_other_processes_close_cycles_too() {
+        let here = Arc::new(Waits::default());
+        let _a = here.enter(waiting("a", &["b"], vec![(1.0, 0.0)]));
+        let elsewhere = [waiting("b", &["a"], vec![(2.0, 0.0)])];
+        let (routes, names) = here.turn_to_make_way("a", &elsewhere).expect("a makes way");
+        assert_eq!((names, routes.len()), (vec!["b".to_owned()], 1));
+        // The schedule still holds a's wait as it was posted; here it found no place.
+        let posted = [elsewhere[0].clone(), waiting("a", &["b"], vec![(1.0, 0.0)])];
+        let told = here.cannot_make_way("a").expect("a waits");
+        assert!(told.cannot_make_way);
+        assert!(here.turn_to_make_way("a", &posted).is_none());
+        // b's process finds it is b's turn, from the schedule alone.
+        let there = Waits::default();
+        let shared = [told, elsewhere[0].clone()];
+        assert!(there.turn_to_make_way("b", &shared).is_some());
     }
 
     /// The place made way at is the nearest one off the route the robot reaches through places

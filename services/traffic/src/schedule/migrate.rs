@@ -29,6 +29,11 @@ const SQLITE: &[Migration] = &[
         description: "revisions",
         sql: include_str!("../../migrations/sqlite/0002_revisions.sql"),
     },
+    Migration {
+        version: 3,
+        description: "waits",
+        sql: include_str!("../../migrations/sqlite/0003_waits.sql"),
+    },
 ];
 
 const POSTGRES: &[Migration] = &[
@@ -41,6 +46,11 @@ const POSTGRES: &[Migration] = &[
         version: 2,
         description: "revisions",
         sql: include_str!("../../migrations/postgres/0002_revisions.sql"),
+    },
+    Migration {
+        version: 3,
+        description: "waits",
+        sql: include_str!("../../migrations/postgres/0003_waits.sql"),
     },
 ];
 

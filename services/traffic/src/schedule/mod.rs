@@ -17,6 +17,7 @@
 
 mod migrate;
 mod rows;
+mod waits;
 mod write;
 
 use std::sync::Arc;

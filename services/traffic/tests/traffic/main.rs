@@ -7,3 +7,4 @@ mod common;
 mod geometry;
 mod killed;
 mod schedule;
+mod waits;
