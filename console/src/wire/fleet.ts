@@ -443,6 +443,7 @@ export interface components {
         };
         /** @description The controller that validated a plan, and why it was the one. */
         ControllerChoiceReport: {
+            compared_with?: null | components["schemas"]["ControllerOption"];
             /** @description The controller (never `auto`; legs its fallback validated say so in `legs`). */
             controller: components["schemas"]["ControllerOption"];
             /** @description Why: asked for, or `auto`'s figures and verdict on this floor state. */

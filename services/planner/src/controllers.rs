@@ -8,11 +8,12 @@
 //! floor's knowledge expects all day. It is stored with the policy-aware roadmap, so it is
 //! measured once per floor state and policy, and every plan after it reads the pick.
 //!
-//! The pick ([`ControllerTrial::pick`]): candidates are compared in pairs, mission by mission
-//! (a candidate wins a mission when it reached the goal and the other did not, or both did and
-//! it was more than 1% faster), and one replaces the current pick only when its wins outweigh
-//! its losses and a one-sided Wilcoxon signed-rank test over the decisive missions gives
-//! p < 0.05: the missions are ranked by how much the two differed (the ratio of their times; a
+//! The pick ([`ControllerTrial::pick`]): every challenger is compared with Regulated Pure
+//! Pursuit (never only with another challenger), mission by mission (a candidate wins a mission
+//! when it reached the goal and the other did not, or both did and it was more than 1% faster),
+//! and replaces RPP (or an earlier challenger that beat RPP, which it must also beat) only when
+//! its wins outweigh its losses and a one-sided Wilcoxon signed-rank test over the decisive
+//! missions gives p < 0.05: the missions are ranked by how much the two differed (the ratio of their times; a
 //! mission only one of them reached ranks above all), so a consistent gain of a few percent
 //! counts, where a count of wins (a sign test) needs three in four missions won. The classical
 //! controllers come first, so where the policy does not do measurably better, a classical
@@ -112,6 +113,9 @@ pub struct ControllerTrial {
 pub struct ControllerPick {
     /// The controller.
     pub choice: ControllerChoice,
+    /// What `auto` measured it against (Regulated Pure Pursuit unless that was not
+    /// available); `None` when the controller was asked for.
+    pub compared_with: Option<ControllerChoice>,
     /// Why it was picked, in a sentence the answer carries.
     pub why: String,
 }
@@ -220,24 +224,28 @@ impl ControllerTrial {
     /// The controller `auto` validates with on this floor state, among those `available`
     /// (the policy-driven ones only with a policy), as the module docs say; `None` when no
     /// available candidate was driven.
+    ///
+    /// The baseline is the first available candidate of [`AUTO_ORDER`] (Regulated Pure
+    /// Pursuit): every challenger is compared with it, never only with another challenger, so
+    /// the pick is never one the trial did not find measurably better than the baseline. Of the
+    /// challengers that are, a later one replaces an earlier one only when it is also
+    /// measurably better than that one.
     pub fn pick(&self, available: impl Fn(ControllerChoice) -> bool) -> Option<ControllerPick> {
         let mut order = AUTO_ORDER
             .into_iter()
             .filter(|c| available(*c))
             .filter_map(|c| self.figures(c));
-        let mut best = order.next()?;
-        let mut decided = None;
+        let baseline = order.next()?;
+        let mut best = baseline;
+        // The pick's wins, losses and p against the baseline.
+        let mut decided: Option<(usize, usize, f64)> = None;
         for challenger in order {
-            let (w, l) = wins(challenger, best);
-            let (better, p) = measurably_better(&differences(challenger, best, 0));
-            if better {
-                decided = Some((
-                    challenger.controller.clone(),
-                    best.controller.clone(),
-                    w,
-                    l,
-                    p,
-                ));
+            let (w, l) = wins(challenger, baseline);
+            let (beats_baseline, p) = measurably_better(&differences(challenger, baseline, 0));
+            let beats_best = std::ptr::eq(best, baseline)
+                || measurably_better(&differences(challenger, best, 0)).0;
+            if beats_baseline && beats_best {
+                decided = Some((w, l, p));
                 best = challenger;
             }
         }
@@ -262,17 +270,20 @@ impl ControllerTrial {
             .collect::<Vec<_>>()
             .join(", ");
         let verdict = match decided {
-            Some((winner, loser, w, l, p)) if winner == best.controller => format!(
-                "{winner} beat {loser} on {w} of {} decisive missions (Wilcoxon signed-rank p = {p:.3})",
+            Some((w, l, p)) => format!(
+                "{} beat {} on {w} of {} decisive missions (Wilcoxon signed-rank p = {p:.3})",
+                best.controller,
+                baseline.controller,
                 w + l
             ),
-            _ => format!(
+            None => format!(
                 "no controller did measurably better than {} (Wilcoxon signed-rank test on the missions' times, p < {SIGNIFICANCE})",
-                best.controller
+                baseline.controller
             ),
         };
         Some(ControllerPick {
             choice,
+            compared_with: baseline.choice(),
             why: format!(
                 "auto: measured on this floor state over {} missions among {} people ({figures}); {verdict}",
                 self.missions, self.people
@@ -286,6 +297,7 @@ impl ControllerTrial {
 pub fn unmeasured(why: &str) -> ControllerPick {
     ControllerPick {
         choice: ControllerChoice::Rpp,
+        compared_with: None,
         why: format!(
             "auto: {why}; validated with Regulated Pure Pursuit, the classical controller a Nav2 robot would otherwise run"
         ),
@@ -466,9 +478,13 @@ pub fn run_trial(
                 .map(|i| drive(choice, i))
                 .collect();
             figures.runs.extend(runs?);
+            // Hopeless against the pick so far or against the baseline (the pick must beat
+            // both): the rest are not driven.
+            let baseline = trial.candidates.first();
             if best
-                .as_ref()
-                .is_some_and(|b| futile(&figures, b, missions.len()))
+                .iter()
+                .chain(baseline)
+                .any(|b| futile(&figures, b, missions.len()))
             {
                 break;
             }
@@ -584,6 +600,38 @@ mod tests {
             .pick(|c| !c.needs_policy())
             .unwrap();
         assert_eq!(pick.choice, ControllerChoice::Rpp);
+    }
+
+    #[test]
+    fn a_challenger_that_beats_another_challenger_but_not_rpp_is_not_picked() {
+        // The hybrid is slow; hybrid_rpp beats it clearly but is 5% slower than RPP: RPP stays,
+        // and the answer says what it compared with.
+        let rpp = figures("rpp", &[Some(10.0); 12]);
+        let hybrid = figures("hybrid", &[Some(14.0); 12]);
+        let hybrid_rpp = figures("hybrid_rpp", &[Some(10.5); 12]);
+        let pick = trial(vec![rpp.clone(), hybrid, hybrid_rpp])
+            .pick(|_| true)
+            .unwrap();
+        assert_eq!(pick.choice, ControllerChoice::Rpp, "{}", pick.why);
+        assert_eq!(pick.compared_with, Some(ControllerChoice::Rpp));
+        // Two challengers better than RPP: the later one only when it also beats the earlier.
+        let hybrid = figures("hybrid", &[Some(8.0); 12]);
+        let hybrid_rpp = figures("hybrid_rpp", &[Some(9.0); 12]);
+        let pick = trial(vec![rpp.clone(), hybrid.clone(), hybrid_rpp])
+            .pick(|_| true)
+            .unwrap();
+        assert_eq!(pick.choice, ControllerChoice::Hybrid, "{}", pick.why);
+        assert!(
+            pick.why.contains("hybrid beat rpp on 12 of 12"),
+            "{}",
+            pick.why
+        );
+        let hybrid_path = figures("hybrid_path", &[Some(7.0); 12]);
+        let pick = trial(vec![rpp, hybrid, hybrid_path])
+            .pick(|_| true)
+            .unwrap();
+        assert_eq!(pick.choice, ControllerChoice::HybridPath, "{}", pick.why);
+        assert!(pick.why.contains("hybrid_path beat rpp"), "{}", pick.why);
     }
 
     #[test]

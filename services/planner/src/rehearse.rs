@@ -139,6 +139,7 @@ impl Rehearsal {
             }
             return Ok(ControllerPick {
                 choice,
+                compared_with: None,
                 why: "asked for in `options.controller`".to_owned(),
             });
         }

@@ -397,6 +397,10 @@ async fn auto_validates_with_the_controller_the_floors_trial_measured_best() {
         .await
         .unwrap();
     assert_eq!(outcome.controller, expected);
+    assert_eq!(
+        outcome.controller.compared_with,
+        Some(ControllerChoice::Rpp)
+    );
     assert!(
         outcome
             .controller

@@ -223,6 +223,11 @@ impl From<rehearsal::ControllerChoice> for ControllerOption {
 pub struct ControllerChoiceReport {
     /// The controller (never `auto`; legs its fallback validated say so in `legs`).
     pub controller: ControllerOption,
+    /// What `auto` measured the controller against on this floor state (Regulated Pure
+    /// Pursuit, unless the robot cannot run it); absent when the controller was asked for or
+    /// nothing was measured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compared_with: Option<ControllerOption>,
     /// Why: asked for, or `auto`'s figures and verdict on this floor state.
     pub why: String,
 }
@@ -231,6 +236,7 @@ impl From<planner::ControllerPick> for ControllerChoiceReport {
     fn from(p: planner::ControllerPick) -> Self {
         Self {
             controller: p.choice.into(),
+            compared_with: p.compared_with.map(Into::into),
             why: p.why,
         }
     }

@@ -477,10 +477,13 @@ class ControllerChoice:
     controller: str
     #: Asked for, or ``auto``'s figures and verdict on the floor state.
     why: str
+    #: What ``auto`` measured it against (``"rpp"`` unless the robot cannot run it);
+    #: ``None`` when the controller was asked for or nothing was measured.
+    compared_with: str | None = None
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any]) -> ControllerChoice:
-        return cls(_str(d, "controller"), _str(d, "why"))
+        return cls(_str(d, "controller"), _str(d, "why"), _opt_str(d, "compared_with"))
 
 
 @dataclass(frozen=True, slots=True)
