@@ -70,14 +70,19 @@ async fn first_start_serves_the_bundled_building_and_robot() {
         .json()
         .await
         .unwrap();
-    assert_eq!(robots.len(), 1);
-    assert_eq!(robots[0]["id"], "R-001");
-    let robot = app
-        .request(Method::GET, "/v1/robots/R-001")
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(robot.status(), 200);
+    // The paper's robot and the TIAGo-like base.
+    assert_eq!(robots.len(), 2);
+    let mut ids: Vec<&str> = robots.iter().filter_map(|r| r["id"].as_str()).collect();
+    ids.sort_unstable();
+    assert_eq!(ids, ["R-001", "TB-001"]);
+    for id in ids {
+        let robot = app
+            .request(Method::GET, &format!("/v1/robots/{id}"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(robot.status(), 200, "{id}");
+    }
 
     let floor = places.iter().find(|p| p["kind"] == "floor").unwrap();
     let id = floor["id"].as_str().unwrap();

@@ -281,7 +281,8 @@ async fn every_feature_works_with_the_graph_in_an_oxigraph_server() {
         .json()
         .await
         .unwrap();
-    assert_eq!(robots.len(), 1);
+    // The paper's robot and the TIAGo-like base.
+    assert_eq!(robots.len(), 2);
 
     // An object report lands in the remote with its entailments, and in the next on-demand
     // database.

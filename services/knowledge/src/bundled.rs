@@ -1,10 +1,10 @@
 //! The bundled knowledge loaded on first start: the TOSM ontology, the paper's differential
-//! robot and a sample building made from real maps, each in its own named graph so an engineer
+//! robot, a TIAGo-like base and a sample building made from real maps, each in its own named graph so an engineer
 //! can replace one with a Graph Store PUT.
 
 use oxigraph::model::NamedNodeRef;
 
-use crate::graphs::{ONTOLOGY_GRAPH, ROBOT_GRAPH, SAMPLE_BUILDING_GRAPH};
+use crate::graphs::{ONTOLOGY_GRAPH, ROBOT_GRAPH, SAMPLE_BUILDING_GRAPH, TIAGO_ROBOT_GRAPH};
 use crate::store::{KnowledgeStore, StoreError};
 
 /// One bundled file and the named graph it is loaded into.
@@ -29,6 +29,11 @@ pub const BUNDLED: &[BundledGraph] = &[
         graph: ROBOT_GRAPH,
         file: "robots/differential-robot.ttl",
         turtle: include_str!("../../../ontologies/robots/differential-robot.ttl"),
+    },
+    BundledGraph {
+        graph: TIAGO_ROBOT_GRAPH,
+        file: "robots/tiago-base.ttl",
+        turtle: include_str!("../../../ontologies/robots/tiago-base.ttl"),
     },
     BundledGraph {
         graph: SAMPLE_BUILDING_GRAPH,

@@ -23,5 +23,8 @@ pub const ONTOLOGY_GRAPH: &str = "https://mentalsim.dev/graph/ontology/tosm";
 /// The bundled robot: the paper's differential robot.
 pub const ROBOT_GRAPH: &str = "https://mentalsim.dev/graph/robots/differential-robot";
 
+/// The second bundled robot: a TIAGo-like base, so everything kept per robot model has two.
+pub const TIAGO_ROBOT_GRAPH: &str = "https://mentalsim.dev/graph/robots/tiago-base";
+
 /// The bundled sample building made from real maps.
 pub const SAMPLE_BUILDING_GRAPH: &str = "https://mentalsim.dev/graph/environments/sample-building";

@@ -338,6 +338,9 @@ pub struct NavEnv {
     /// Where the robot stood when it got the current goal (the demonstrator's segment start).
     goal_from: (f64, f64),
     executed: Action,
+    /// The last commands sent, newest last, while the robot model has a control latency: the
+    /// wheels execute the one sent that long ago ([`NavEnv::delayed`]).
+    pending: std::collections::VecDeque<Action>,
     steps: u32,
     distance: f64,
     outcome: Outcome,
@@ -402,6 +405,7 @@ impl NavEnv {
             goal: (0.0, 0.0),
             goal_from: (0.0, 0.0),
             executed: Action::default(),
+            pending: std::collections::VecDeque::new(),
             steps: 0,
             distance: 0.0,
             outcome: Outcome::Running,
@@ -573,7 +577,7 @@ impl NavEnv {
     /// Sets the robot's velocity (clamped to the command limits) as if it were already moving,
     /// as a previous drive would leave it; returns the observation with that odometry.
     pub fn set_velocity(&mut self, velocity: Action) -> Observation {
-        self.executed = self.config.limits.clamp(velocity);
+        self.hold(self.config.limits.clamp(velocity));
         let obs = self.observe();
         self.remember(&obs);
         obs
@@ -648,7 +652,7 @@ impl NavEnv {
         };
         let velocity = self.executed;
         let obs = self.begin(self.pose, goal);
-        self.executed = velocity;
+        self.hold(velocity);
         #[allow(
             clippy::cast_possible_truncation,
             reason = "speeds are bounded by the drive limits; observations are f32"
@@ -661,6 +665,56 @@ impl NavEnv {
         Ok(obs)
     }
 
+    /// The robot moving at `velocity`, and every command still on its way to the wheels the
+    /// same (as a robot that has been sending it for a while).
+    fn hold(&mut self, velocity: Action) {
+        self.executed = velocity;
+        self.pending.clear();
+        if let Some(steps) = self.latency_steps() {
+            #[allow(
+                clippy::cast_possible_truncation,
+                clippy::cast_sign_loss,
+                reason = "the latency is at most a second, a handful of control periods"
+            )]
+            let k = steps.floor() as usize;
+            self.pending.extend(std::iter::repeat_n(velocity, k + 1));
+        }
+    }
+
+    /// The robot model's control latency in control periods, when it has one.
+    fn latency_steps(&self) -> Option<f64> {
+        let latency = self.world.spec().robot.drive.control_latency?;
+        (latency > 0.0).then(|| latency / self.config.control_period)
+    }
+
+    /// What reaches the wheels this period when `command` is sent now: the command sent the
+    /// control latency ago. A latency of `k + f` periods executes, over this period, the one
+    /// sent `k + 1` periods ago for the first `f` of it and the one sent `k` ago for the rest
+    /// (their mean, weighted by those shares). Without a latency, `command` itself.
+    pub(crate) fn delayed(&mut self, command: Action) -> Action {
+        let Some(steps) = self.latency_steps() else {
+            return command;
+        };
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "the latency is at most a second, a handful of control periods"
+        )]
+        let k = steps.floor() as usize;
+        let f = steps - k as f64;
+        self.pending.push_back(command);
+        while self.pending.len() > k + 2 {
+            self.pending.pop_front();
+        }
+        let n = self.pending.len();
+        let newer = self.pending[n - 1 - k];
+        let older = self.pending[n.saturating_sub(2 + k)];
+        Action {
+            linear: f * older.linear + (1.0 - f) * newer.linear,
+            angular: f * older.angular + (1.0 - f) * newer.angular,
+        }
+    }
+
     fn region_point(&mut self, world: &World, n: usize) -> Option<(f64, f64)> {
         let pick = self.rng.random_range(0..n);
         let (u, v): (f64, f64) = (self.rng.random(), self.rng.random());
@@ -671,7 +725,7 @@ impl NavEnv {
         self.pose = start;
         self.goal = goal;
         self.goal_from = (start.x, start.y);
-        self.executed = Action::default();
+        self.hold(Action::default());
         self.steps = 0;
         self.others_late.clear();
         self.distance = (goal.0 - start.x).hypot(goal.1 - start.y);

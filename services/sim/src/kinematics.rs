@@ -188,6 +188,7 @@ mod tests {
             max_angular_acceleration: None,
             max_linear_deceleration: None,
             max_angular_deceleration: None,
+            control_latency: None,
         })
     }
 
@@ -256,6 +257,7 @@ mod tests {
             max_angular_acceleration: Some(2.0),
             max_linear_deceleration: None,
             max_angular_deceleration: None,
+            control_latency: None,
             max_wheel_speed: Some(5.0),
             ..drive().spec
         });

@@ -519,6 +519,7 @@ fn robot_spec(r: &tosm::Robot, out: &mut SpecProblems) -> Option<RobotSpec> {
             max_angular_acceleration: r.dynamics.max_angular_acceleration,
             max_linear_deceleration: r.dynamics.max_linear_deceleration,
             max_angular_deceleration: r.dynamics.max_angular_deceleration,
+            control_latency: r.dynamics.control_latency,
         },
         laser: laser?,
         cameras,

@@ -452,6 +452,8 @@ pub struct Dynamics {
     pub max_angular_acceleration: Option<f64>,
     /// Largest angular deceleration, rad/s².
     pub max_angular_deceleration: Option<f64>,
+    /// Seconds a velocity command takes to reach the wheels.
+    pub control_latency: Option<f64>,
 }
 
 /// A robot: its parts, joints, wheels and sensors.

@@ -310,6 +310,8 @@ terms! {
     MAX_ANGULAR_ACCELERATION_RAD_PER_S2 = "maxAngularAccelerationRadPerS2",
     /// `tosm:maxAngularDecelerationRadPerS2` (datatype property).
     MAX_ANGULAR_DECELERATION_RAD_PER_S2 = "maxAngularDecelerationRadPerS2",
+    /// `tosm:controlLatencyS` (datatype property).
+    CONTROL_LATENCY_S = "controlLatencyS",
     /// `tosm:name` (datatype property).
     NAME = "name",
     /// `tosm:identifier` (datatype property).

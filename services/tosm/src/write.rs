@@ -726,6 +726,7 @@ impl Writer {
                 v::MAX_ANGULAR_DECELERATION_RAD_PER_S2,
                 d.max_angular_deceleration,
             ),
+            (v::CONTROL_LATENCY_S, d.control_latency),
         ] {
             if let Some(x) = x {
                 self.positive(&s, property, x);

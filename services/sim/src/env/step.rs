@@ -109,7 +109,8 @@ impl NavEnv {
                 wanted.angular + dw
             },
         };
-        let exec = self.drive.execute(self.executed, noisy, dt);
+        let arriving = self.delayed(noisy);
+        let exec = self.drive.execute(self.executed, arriving, dt);
         let radius = self.world.spec().robot.footprint_radius;
         if let Some(crowd) = &mut self.crowd {
             // People move first, seeing the robot as it was moving.

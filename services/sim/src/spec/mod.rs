@@ -278,7 +278,13 @@ pub struct DiffDriveSpec {
     pub max_linear_deceleration: Option<f64>,
     /// Largest angular deceleration, rad/s²; absent: the angular acceleration.
     pub max_angular_deceleration: Option<f64>,
+    /// Seconds a velocity command takes to reach the wheels (at most
+    /// [`MAX_CONTROL_LATENCY_S`]); absent: none.
+    pub control_latency: Option<f64>,
 }
+
+/// Longest control latency a robot model may give, seconds (the ontology's bound too).
+pub const MAX_CONTROL_LATENCY_S: f64 = 1.0;
 
 /// A planar laser range finder.
 #[derive(Clone, Debug, PartialEq)]
@@ -453,6 +459,7 @@ impl RobotSpec {
                 max_angular_acceleration: None,
                 max_linear_deceleration: None,
                 max_angular_deceleration: None,
+                control_latency: None,
             },
             laser: LaserSpec {
                 id: "laser".into(),
@@ -482,8 +489,19 @@ impl RobotSpec {
     /// bounding boxes seen from above; `None` with no parts or wheels.
     pub fn footprint_from_parts(parts: &[RobotPartSpec], wheels: &[WheelSpec]) -> Option<f64> {
         let mut radius: Option<f64> = None;
+        // Round parts (cylinders standing up, spheres) reach out by their circle, not by the
+        // corners of its square: a round base's footprint is its radius.
+        for p in parts
+            .iter()
+            .filter(|p| matches!(p.shape, Shape::Cylinder | Shape::Sphere))
+        {
+            let (r, _) = half_extents_xy(p.shape, p.size);
+            let reach = p.pose.x.hypot(p.pose.y) + r;
+            radius = Some(radius.map_or(reach, |best| best.max(reach)));
+        }
         let boxes = parts
             .iter()
+            .filter(|p| p.shape == Shape::Box)
             .map(|p| (p.pose, half_extents_xy(p.shape, p.size)))
             .chain(wheels.iter().map(|w| (w.pose, (w.radius, w.width / 2.0))));
         for (pose, (hx, hy)) in boxes {

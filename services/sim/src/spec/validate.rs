@@ -1,8 +1,8 @@
 //! Checks of a world description: every problem named by item and field, never a panic.
 
 use super::{
-    FloorMap, MAX_GRID_CELLS, ObjectSpec, Occupancy, PeopleSpec, Pose3, RobotSpec, Shape, Size3,
-    SpecProblem, SpecProblems, WorldSpec,
+    FloorMap, MAX_CONTROL_LATENCY_S, MAX_GRID_CELLS, ObjectSpec, Occupancy, PeopleSpec, Pose3,
+    RobotSpec, Shape, Size3, SpecProblem, SpecProblems, WorldSpec,
 };
 
 /// Collects problems for one item, so each check is one line.
@@ -390,6 +390,14 @@ fn validate_robot(robot: &RobotSpec, out: &mut SpecProblems) {
         d.max_angular_deceleration,
         "the angular deceleration limit",
     );
+    if let Some(l) = d.control_latency
+        && !(l.is_finite() && (0.0..=MAX_CONTROL_LATENCY_S).contains(&l))
+    {
+        c.error(
+            "drive.control_latency",
+            format!("the control latency must be between 0 and {MAX_CONTROL_LATENCY_S} s, got {l}"),
+        );
+    }
     let l = &robot.laser;
     let mut c = Checker { out, item: &l.id };
     if !(l.range_min.is_finite() && l.range_min >= 0.0) {

@@ -182,9 +182,43 @@ fn a_drive_with_three_active_wheels_is_refused() {
     assert!(err.has_errors(), "{err}");
 }
 
+/// The sample building and the paper's robot with its acceleration limits left out, for tests
+/// that give the robot limits of their own.
+fn building_and_robot_without_dynamics() -> Graph {
+    let mut g = Graph::new();
+    load(&mut g, "environments/sample-building.ttl");
+    let text = std::fs::read_to_string(ontology("robots/differential-robot.ttl")).unwrap();
+    let kept: String = text
+        .lines()
+        .filter(|l| {
+            !l.contains("AccelerationRadPerS2")
+                && !l.contains("MPerS2")
+                && !l.contains("DecelerationRadPerS2")
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    for t in oxttl::TurtleParser::new().for_slice(kept.as_bytes()) {
+        g.insert(&t.expect("valid Turtle"));
+    }
+    g
+}
+
 #[test]
 fn the_robots_acceleration_limits_reach_its_drive_and_bound_it() {
-    let mut g = building_and_robot();
+    // The bundled robot carries the Pioneer 3-DX controller's defaults.
+    let spec = parse_floor(&building_and_robot(), ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    let d = &spec.robot.drive;
+    assert_eq!(
+        (
+            d.max_linear_acceleration,
+            d.max_linear_deceleration,
+            d.max_angular_acceleration,
+            d.max_angular_deceleration,
+            d.control_latency
+        ),
+        (Some(0.3), Some(0.3), Some(1.745), Some(1.745), None)
+    );
+    let mut g = building_and_robot_without_dynamics();
     let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
     assert_eq!(spec.robot.drive.max_linear_acceleration, None);
     add_turtle(
@@ -227,6 +261,62 @@ fn the_robots_acceleration_limits_reach_its_drive_and_bound_it() {
         err.to_string().contains("maxAngularDecelerationRadPerS2"),
         "{err}"
     );
+}
+
+#[test]
+fn a_control_latency_delays_what_reaches_the_wheels() {
+    // No acceleration limits, a latency of 2.5 control periods: a command sent from standing
+    // still reaches the wheels half-way through the third period.
+    let mut g = building_and_robot_without_dynamics();
+    add_turtle(&mut g, &format!("<{ROBOT}> tosm:controlLatencyS 0.25 ."));
+    let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(spec.robot.drive.control_latency, Some(0.25));
+    let world = World::build(spec).unwrap_or_else(|p| panic!("{p}"));
+    let mut env = NavEnv::new(world, EnvConfig::default(), 3).expect("env");
+    env.reset_random().expect("a start and goal");
+    let speeds: Vec<f64> = (0..4)
+        .map(|_| env.step(sim::Action::new(0.4, 0.0)).info.executed.linear)
+        .collect();
+    for (got, want) in speeds.iter().zip([0.0, 0.0, 0.2, 0.4]) {
+        assert!((got - want).abs() < 0.05, "{speeds:?}");
+    }
+    // A latency beyond a second is refused, naming it.
+    let mut g = building_and_robot_without_dynamics();
+    add_turtle(&mut g, &format!("<{ROBOT}> tosm:controlLatencyS 1.5 ."));
+    let err = parse_floor(&g, ROBOT, FLOOR0).expect_err("a latency of 1.5 s");
+    assert!(err.to_string().contains("latency"), "{err}");
+}
+
+#[test]
+fn the_tiago_like_base_is_another_robot_model() {
+    const TIAGO: &str = "https://mentalsim.dev/data/robots/tiago-base";
+    let mut g = Graph::new();
+    load(&mut g, "environments/sample-building.ttl");
+    load(&mut g, "robots/tiago-base.ttl");
+    let spec = parse_floor(&g, TIAGO, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
+    let r = &spec.robot;
+    let d = &r.drive;
+    assert_eq!(
+        (
+            d.max_linear_speed,
+            d.max_angular_speed,
+            d.max_linear_acceleration,
+            d.control_latency
+        ),
+        (Some(1.0), Some(1.05), Some(0.5), Some(0.05))
+    );
+    // Round, 0.54 m across: its footprint is the cylinder's radius (and a little for the
+    // casters' boxes inside it).
+    assert!(
+        (0.27..0.30).contains(&r.footprint_radius),
+        "{}",
+        r.footprint_radius
+    );
+    assert!((r.laser.fov - 4.712389).abs() < 1e-6);
+    let world = World::build(spec).unwrap_or_else(|p| panic!("{p}"));
+    let mut env = NavEnv::new(world, EnvConfig::default(), 1).expect("env");
+    env.reset_random()
+        .expect("a start and goal for the TIAGo-like base");
 }
 
 /// Turtle triples added to a graph (prefixes `tosm:` and `xsd:` declared).

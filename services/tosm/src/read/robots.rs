@@ -40,6 +40,7 @@ impl<'g> Reader<'g> {
                 v::MAX_ANGULAR_DECELERATION_RAD_PER_S2,
                 false,
             ),
+            control_latency: self.positive(iri, v::CONTROL_LATENCY_S, false),
         };
         let base = self.iri(iri, v::HAS_BASE_PART, true);
         let mut part_iris: BTreeSet<String> = BTreeSet::new();

@@ -175,6 +175,7 @@ fn a_robots_acceleration_limits_round_trip() {
         max_linear_deceleration: Some(0.8),
         max_angular_acceleration: Some(1.2),
         max_angular_deceleration: None,
+        control_latency: Some(0.05),
     };
     let triples = tosm::robot_to_triples(&robot).expect("valid robot");
     let again = tosm::read_robot(&graph_of(triples), ROBOT).expect("reads back");
