@@ -263,8 +263,14 @@ async fn the_improver_revises_a_plan_that_waits_for_one_cancelled() {
     let app = fleet_app(None).await;
     let from = free_near(&app, centroid(&app, "F0-living-room").await).await;
     let to = free_near(&app, centroid(&app, "F0-hall").await).await;
-    // The first robot sets off at once: it is never revised.
-    let (status, first) = plan(&app, &route("R-001", from, to, now_ms() + 2_000, json!({}))).await;
+    // The first robot sets off at once: it is never revised. It is held at the goal for 90 s
+    // (the default is 30), so that the second, setting off 28 s later, waits for it there
+    // however long the drives take (within the second's 120 s of waiting).
+    let (status, first) = plan(
+        &app,
+        &route("R-001", from, to, now_ms() + 2_000, json!({"hold_s": 90})),
+    )
+    .await;
     assert_eq!(status, 200, "{first}");
     let first_id = first["schedule"]["plan_id"].as_str().unwrap().to_owned();
     let start = now_ms() + 30_000;

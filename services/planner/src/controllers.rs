@@ -1,5 +1,5 @@
-//! Which controller validates a plan: the one asked for, or, for `auto`, the one that measured
-//! best on this floor state — never one measurably worse than another one available.
+//! Which controller validates a plan: the one asked for, or, for `auto`, Regulated Pure Pursuit
+//! unless another measured measurably better than RPP on this floor state.
 //!
 //! The measurement is a [`ControllerTrial`]: the `roadmap` job, once it has driven every edge
 //! with the policy, drives the same missions on the floor with every candidate (the hybrid

@@ -12,8 +12,8 @@
 //! - [`query`]: what a plan is asked and answers; [`error`]: why none was answered;
 //! - `plan`: [`Planner::plan`], a search over passes (rehearse, fit among the fleet);
 //! - `rehearse`: the blocking part (world, people, roadmap, controller, executor);
-//! - [`controllers`]: which controller validates a plan (`auto`: the one measured best on the
-//!   floor state, never one measurably worse than another available);
+//! - [`controllers`]: which controller validates a plan (`auto`: RPP unless the floor state's
+//!   trial measured another doing measurably better than RPP);
 //! - [`fleet`]: fleet coordination, the plan among the other robots' committed plans (fit,
 //!   waits, commits, robots standing until planned, making way) and its port
 //!   [`FleetSchedule`];

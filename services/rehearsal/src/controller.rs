@@ -61,6 +61,13 @@ pub trait Controller {
     fn passed(&self, _pose: Pose2, _waypoint: Point2) -> bool {
         false
     }
+
+    /// How many times the controller's collision shield, since it was attached, was blocked
+    /// while the robot moved too fast to stop short of its margins ([`Shield::could_not_stop`]);
+    /// 0 for a controller without one.
+    fn short_stops(&self) -> u32 {
+        0
+    }
 }
 
 impl<C: Controller + ?Sized> Controller for Box<C> {
@@ -93,6 +100,9 @@ impl<C: Controller + ?Sized> Controller for Box<C> {
     }
     fn passed(&self, pose: Pose2, waypoint: Point2) -> bool {
         (**self).passed(pose, waypoint)
+    }
+    fn short_stops(&self) -> u32 {
+        (**self).short_stops()
     }
 }
 
@@ -493,6 +503,16 @@ impl Controller for PolicyController {
         ControllerKind::Policy
     }
 
+    fn short_stops(&self) -> u32 {
+        let own = self.shield.as_ref().map_or(0, Shield::could_not_stop);
+        let rpp = self
+            .handover
+            .as_ref()
+            .and_then(|h| h.rpp.as_ref())
+            .map_or(0, |r| r.short_stops());
+        own + rpp
+    }
+
     fn beams(&self) -> Option<usize> {
         Some(self.policy.scaling().beams)
     }
@@ -655,6 +675,10 @@ impl Controller for ShieldedFollower {
     fn attach(&mut self, world: &Arc<World>, beams: usize) {
         self.shield = Shield::new(world, beams);
         self.world = Some(Arc::clone(world));
+    }
+
+    fn short_stops(&self) -> u32 {
+        self.shield.as_ref().map_or(0, Shield::could_not_stop)
     }
 
     fn description(&self) -> String {

@@ -397,6 +397,8 @@ struct Drive<'d, 'r> {
     reached: Vec<Point2>,
     goal_indices: Vec<usize>,
     measured: Measured,
+    /// The controller's [`Controller::short_stops`] when the drive began.
+    short_stops_before: u32,
 }
 
 impl<'d, 'r> Drive<'d, 'r> {
@@ -414,6 +416,7 @@ impl<'d, 'r> Drive<'d, 'r> {
         let Some(route) = Route::new(legs) else {
             return Err(invalid("goals", "must hold at least one goal"));
         };
+        let controller_short_stops = controller.short_stops();
         let mut env = NavEnv::new(Arc::clone(world), env_config.clone(), limits.sim_seed)
             .map_err(|e| invalid("policy", e.to_string()))?;
         env.set_other_robots(limits.others.clone());
@@ -437,7 +440,7 @@ impl<'d, 'r> Drive<'d, 'r> {
             } else {
                 Vec::new()
             },
-            social: SocialTracker::default(),
+            social: SocialTracker::starting_at(limits.initial_velocity.linear),
         };
         Ok(Self {
             world,
@@ -461,6 +464,7 @@ impl<'d, 'r> Drive<'d, 'r> {
             reached: Vec::new(),
             goal_indices: Vec::new(),
             measured,
+            short_stops_before: controller_short_stops,
         })
     }
 
@@ -577,7 +581,11 @@ impl<'d, 'r> Drive<'d, 'r> {
         m.social.moved(
             (step.info.pose.x - from.x).hypot(step.info.pose.y - from.y),
             sim::kinematics::wrap_angle(step.info.pose.yaw - from.yaw),
-            (limits.linear_max, limits.angular_max),
+            crate::LineLimits::of(
+                &self.world.spec().robot.drive,
+                limits.linear_max,
+                limits.angular_max,
+            ),
         );
         m.social.step(
             (step.info.pose.x, step.info.pose.y),
@@ -635,6 +643,15 @@ impl<'d, 'r> Drive<'d, 'r> {
             }
         } else if self.controller.handed_over() {
             contact.push_str(", the fallback driving");
+        }
+        let short = self
+            .controller
+            .short_stops()
+            .saturating_sub(self.short_stops_before);
+        if short > 0 {
+            contact.push_str(&format!(
+                "; the shield found the robot too fast to stop short of what it saw {short} time(s) in this drive (it brakes no harder than the robot's deceleration)"
+            ));
         }
         let w = self.route.current.at;
         Ended {

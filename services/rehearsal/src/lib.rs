@@ -43,6 +43,7 @@ pub mod drive;
 pub mod edges;
 pub mod error;
 pub mod executor;
+pub mod limit_time;
 pub mod nav2;
 mod paths;
 pub mod planning_grid;
@@ -70,6 +71,7 @@ pub use executor::{
     follower_for, hit_person, recoveries_for, validate, validate_detailed, validate_with,
     validate_with_fallback,
 };
+pub use limit_time::LineLimits;
 pub use nav2::{ControllerChoice, MppiController, MppiCycles, RppController};
 pub use planning_grid::planning_grid;
 pub use recovery::{RecoveryEvent, RecoveryKind, RecoveryParams};

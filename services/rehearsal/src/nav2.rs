@@ -31,34 +31,81 @@ use crate::types::ControllerKind;
 pub const NAV2_GOAL_TOLERANCE_M: f64 = 0.25;
 
 /// Nav2's velocity smoother between a controller and the collision monitor
-/// (`nav2_velocity_smoother`, open loop, defaults `max_accel: [2.5, 0.0, 3.2]`,
-/// `max_decel: [-2.5, 0.0, -3.2]`): each command moves at most that far from the last one sent.
-/// The simulated drive has no acceleration limits of its own, so without it a controller whose
+/// (`nav2_velocity_smoother`, open loop): each command moves at most `max_accel` (speeding up)
+/// or `max_decel` (slowing down) times the period from the last one sent. As a Nav2 robot is
+/// configured, those are the robot's own limits ([`VelocitySmoother::for_drive`]: its model's
+/// acceleration and deceleration), and Nav2's defaults (`max_accel: [2.5, 0.0, 3.2]`,
+/// `max_decel: [-2.5, 0.0, -3.2]`) where the model gives none. Without it a controller whose
 /// look-ahead follows the measured speed (RPP) flips between short and long look-aheads from
 /// one cycle to the next.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct VelocitySmoother {
     last: Action,
+    /// `max_accel` (linear, angular), m/s² and rad/s².
+    max_accel: (f64, f64),
+    /// `max_decel` (linear, angular), as magnitudes.
+    max_decel: (f64, f64),
 }
 
-/// Nav2 velocity smoother: linear acceleration limit, m/s².
+/// Nav2 velocity smoother default: linear acceleration limit, m/s².
 const MAX_ACCEL_LINEAR: f64 = 2.5;
-/// Nav2 velocity smoother: angular acceleration limit, rad/s².
+/// Nav2 velocity smoother default: angular acceleration limit, rad/s².
 const MAX_ACCEL_ANGULAR: f64 = 3.2;
 /// The rehearsal's control period, seconds.
 const DT: f64 = 0.1;
 
+impl Default for VelocitySmoother {
+    fn default() -> Self {
+        Self {
+            last: Action::default(),
+            max_accel: (MAX_ACCEL_LINEAR, MAX_ACCEL_ANGULAR),
+            max_decel: (MAX_ACCEL_LINEAR, MAX_ACCEL_ANGULAR),
+        }
+    }
+}
+
 impl VelocitySmoother {
+    /// The smoother configured with the robot model's limits (Nav2's defaults where it has
+    /// none).
+    fn for_drive(drive: &sim::spec::DiffDriveSpec) -> Self {
+        let linear = drive.max_linear_acceleration.unwrap_or(MAX_ACCEL_LINEAR);
+        let angular = drive.max_angular_acceleration.unwrap_or(MAX_ACCEL_ANGULAR);
+        Self {
+            last: Action::default(),
+            max_accel: (linear, angular),
+            max_decel: (
+                drive.max_linear_deceleration.unwrap_or(linear),
+                drive.max_angular_deceleration.unwrap_or(angular),
+            ),
+        }
+    }
+
     fn smooth(&self, wanted: Action) -> Action {
-        let (dv, dw) = (MAX_ACCEL_LINEAR * DT, MAX_ACCEL_ANGULAR * DT);
+        let limit = |last: f64, want: f64, accel: f64, decel: f64| {
+            let speeding_up =
+                want.abs() > last.abs() && (last == 0.0 || want.signum() == last.signum());
+            let step = if speeding_up { accel } else { decel } * DT;
+            want.clamp(last - step, last + step)
+        };
         Action::new(
-            wanted
-                .linear
-                .clamp(self.last.linear - dv, self.last.linear + dv),
-            wanted
-                .angular
-                .clamp(self.last.angular - dw, self.last.angular + dw),
+            limit(
+                self.last.linear,
+                wanted.linear,
+                self.max_accel.0,
+                self.max_decel.0,
+            ),
+            limit(
+                self.last.angular,
+                wanted.angular,
+                self.max_accel.1,
+                self.max_decel.1,
+            ),
         )
+    }
+
+    /// Forgets the last command (a new drive), keeping the limits.
+    fn reset(&mut self) {
+        self.last = Action::default();
     }
 }
 
@@ -196,6 +243,7 @@ impl Tracker {
             None
         };
         self.laser = Laser::new(world, beams);
+        self.smoother_out = VelocitySmoother::for_drive(&world.spec().robot.drive);
         self.world = Some(Arc::clone(world));
     }
 
@@ -240,7 +288,7 @@ impl Tracker {
 
     fn reset(&mut self) {
         self.path = None;
-        self.smoother_out = VelocitySmoother::default();
+        self.smoother_out.reset();
         if let Some(s) = &mut self.shield {
             s.reset_motion();
         }
@@ -370,6 +418,13 @@ impl Controller for RppController {
 
     fn passed(&self, _pose: Pose2, waypoint: Point2) -> bool {
         self.tracker.passed(waypoint)
+    }
+
+    fn short_stops(&self) -> u32 {
+        self.tracker
+            .shield
+            .as_ref()
+            .map_or(0, Shield::could_not_stop)
     }
 }
 
@@ -543,6 +598,13 @@ impl Controller for MppiController {
 
     fn passed(&self, _pose: Pose2, waypoint: Point2) -> bool {
         self.tracker.passed(waypoint)
+    }
+
+    fn short_stops(&self) -> u32 {
+        self.tracker
+            .shield
+            .as_ref()
+            .map_or(0, Shield::could_not_stop)
     }
 }
 

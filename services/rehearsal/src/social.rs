@@ -12,6 +12,8 @@ pub const PERSONAL_M: f64 = 1.2;
 /// An approach ends when the robot is this much farther than the threshold again, metres (so
 /// the laser's and the walkers' jitter at the boundary is not counted as many approaches).
 pub const HYSTERESIS_M: f64 = 0.05;
+use crate::limit_time::{LineLimits, limit_time_between};
+
 /// The robot does not move below this linear speed, m/s.
 pub const NOT_MOVING_M_S: f64 = 0.01;
 
@@ -24,10 +26,9 @@ pub struct SocialMetrics {
     pub personal_intrusions: u32,
     /// Simulated time the robot's linear speed was below [`NOT_MOVING_M_S`], s.
     pub time_not_moving_s: f64,
-    /// The time the same driven path takes at the robot's limits, s: each control step's
-    /// arc at the top linear speed or the top angular speed, whichever binds (the simulation
-    /// has no acceleration limit). What any controller would need to drive the same line; the
-    /// rest of the drive's time is how it drove, not where.
+    /// The time the same driven line takes at the robot's limits, s: its top speeds and its
+    /// acceleration limits, from the speed the drive began at ([`crate::limit_time`]). What any controller would
+    /// need to drive the same line; the rest of the drive's time is how it drove, not where.
     pub limit_time_s: f64,
 }
 
@@ -47,11 +48,25 @@ impl SocialMetrics {
 #[derive(Clone, Debug, Default)]
 pub struct SocialTracker {
     metrics: SocialMetrics,
+    /// Each step's distance and turn, for [`SocialMetrics::limit_time_s`].
+    line: Vec<(f64, f64)>,
+    /// The limits the line is timed at (the last step's).
+    limits: Option<LineLimits>,
+    /// The robot's speed when the drive began, m/s.
+    start_speed: f64,
     /// Per person (by index): inside intimate space, inside personal space.
     inside: Vec<(bool, bool)>,
 }
 
 impl SocialTracker {
+    /// A tracker for a drive that begins at `speed` m/s (a later leg of a plan starts moving).
+    pub fn starting_at(speed: f64) -> Self {
+        Self {
+            start_speed: speed,
+            ..Self::default()
+        }
+    }
+
     /// After a step of `dt` seconds: the robot at `(x, y)` with footprint `radius`, driving at
     /// `linear` m/s, among `people` (each position and radius, in the same order every step).
     pub fn step(
@@ -92,18 +107,25 @@ impl SocialTracker {
     }
 
     /// After a step that moved the robot `distance_m` and turned it `turn_rad` (either way),
-    /// with the robot's top speeds: adds the step's share of [`SocialMetrics::limit_time_s`].
-    pub fn moved(&mut self, distance_m: f64, turn_rad: f64, (linear_max, angular_max): (f64, f64)) {
-        let at_top_speed = distance_m.abs() / linear_max;
-        let at_top_turn = turn_rad.abs() / angular_max;
-        if at_top_speed.is_finite() && at_top_turn.is_finite() {
-            self.metrics.limit_time_s += at_top_speed.max(at_top_turn);
+    /// under the robot's `limits`: the line [`SocialMetrics::limit_time_s`] times.
+    pub fn moved(&mut self, distance_m: f64, turn_rad: f64, limits: LineLimits) {
+        if distance_m.is_finite() && turn_rad.is_finite() {
+            self.line.push((distance_m, turn_rad));
+            self.limits = Some(limits);
         }
     }
 
     /// The metrics so far.
     pub fn metrics(&self) -> SocialMetrics {
-        self.metrics
+        let limit_time_s = self
+            .limits
+            .map(|l| limit_time_between(&self.line, &l, self.start_speed, None))
+            .filter(|t| t.is_finite())
+            .unwrap_or(0.0);
+        SocialMetrics {
+            limit_time_s,
+            ..self.metrics
+        }
     }
 }
 
@@ -130,21 +152,5 @@ mod tests {
         assert!(m.time_not_moving_s.abs() < 1e-12);
         t.step((0.0, 0.0), 0.3, 0.0, 0.1, &[person(3.0)]);
         assert!((t.metrics().time_not_moving_s - 0.1).abs() < 1e-12);
-    }
-
-    #[test]
-    fn limit_time_takes_whichever_top_speed_binds() {
-        let mut t = SocialTracker::default();
-        let limits = (0.8, 0.5);
-        // Straight: 0.8 m at 0.8 m/s. Arc of radius 0.4 m turning 0.5 rad (0.2 m): the turn
-        // binds, 1 s. Turning on the spot by 0.25 rad: 0.5 s.
-        t.moved(0.8, 0.0, limits);
-        t.moved(0.2, -0.5, limits);
-        t.moved(0.0, 0.25, limits);
-        assert!(
-            (t.metrics().limit_time_s - 2.5).abs() < 1e-12,
-            "{:?}",
-            t.metrics()
-        );
     }
 }

@@ -69,6 +69,12 @@ pub struct Shield {
     motion: Motion,
     /// Buffers [`Shield::observe`] reuses from scan to scan (it runs every control step).
     scratch: Scratch,
+    /// The drive's linear acceleration and deceleration, m/s², when its model has them: the
+    /// look-ahead then speeds up and brakes as the drive can, and always ends at rest.
+    braking: Option<(f64, f64)>,
+    /// How often the shield found it could no longer stop short of its margins (blocked while
+    /// moving too fast to stop in the room left): [`Shield::could_not_stop`].
+    short_stops: std::cell::Cell<u32>,
 }
 
 /// Working buffers of one [`Shield::observe`]: kept between scans, so a scan allocates nothing.
@@ -223,7 +229,22 @@ impl Shield {
             radius: robot.footprint_radius,
             motion: Motion::default(),
             scratch: Scratch::default(),
+            braking: braking_of(&robot.drive),
+            short_stops: std::cell::Cell::new(0),
         })
+    }
+
+    /// How many times, since it was made, the shield was blocked while the robot was moving
+    /// too fast to stop short of its margins with the drive's deceleration: each a moment the
+    /// stop it commanded could not be kept (the drive brakes no harder than it can).
+    pub fn could_not_stop(&self) -> u32 {
+        self.short_stops.get()
+    }
+
+    /// Distance the robot covers braking from `speed` to rest with the drive's deceleration,
+    /// metres (0 without one).
+    pub fn braking_distance(&self, speed: f64) -> f64 {
+        self.braking.map_or(0.0, |(_, b)| speed * speed / (2.0 * b))
     }
 
     /// Takes in a new scan `dt` seconds after the last one, so the shield knows what moves:
@@ -430,7 +451,7 @@ impl Shield {
     /// [`PERSON_MARGIN_M`]), as the shield checks its own margin.
     pub fn keeps_margin(&self, command: Action, obs: &Observation, margin: f64) -> bool {
         let points = self.returns(obs);
-        points.is_empty() || self.keeps(command, &points, margin)
+        points.is_empty() || self.keeps(command, &points, margin, current_speed(obs))
     }
 
     /// Whether driving `command` for [`SHIELD_HORIZON_S`] keeps the footprint clear of
@@ -438,12 +459,23 @@ impl Shield {
     /// unless it is not getting any closer to them than it is now (driving along a wall). A
     /// moving return is rolled forward with its velocity, and since a walker may stop at any
     /// moment, the whole stretch it would walk counts, not only where it would be.
-    fn keeps(&self, command: Action, points: &[Return], margin: f64) -> bool {
-        self.keeps_for(command, points, margin, SHIELD_HORIZON_S)
+    /// With the drive's acceleration limits (`braking`), the look-ahead starts at the robot's
+    /// speed now (`v0`), reaches the command's as fast as the drive can, and ends braking to
+    /// rest: the command is held for the horizon less the time braking from it takes (one
+    /// control step at least), so whatever the shield allows it can still stop short of.
+    fn keeps(&self, command: Action, points: &[Return], margin: f64, v0: f64) -> bool {
+        self.keeps_for(command, points, margin, SHIELD_HORIZON_S, v0)
     }
 
     /// [`Shield::keeps`] over `horizon_s` seconds.
-    fn keeps_for(&self, command: Action, points: &[Return], margin: f64, horizon_s: f64) -> bool {
+    fn keeps_for(
+        &self,
+        command: Action,
+        points: &[Return],
+        margin: f64,
+        horizon_s: f64,
+        v0: f64,
+    ) -> bool {
         let person_margin = margin.max(PERSON_MARGIN_M);
         let keep = |p: &Return| if p.unknown { person_margin } else { margin };
         // Over the horizon the footprint moves at most |linear| t and a return's stretch grows
@@ -451,11 +483,13 @@ impl Shield {
         // `FAR_SLACK_M` never comes within a margin: it cannot decide below (it only ever adds
         // a positive room, and the test is for a negative one smaller than the room now).
         // Leaving such returns out is exact and spares most of them the look-ahead.
-        let travel = command.linear.abs() * horizon_s;
+        let profile = self.speed_profile(command.linear, v0, horizon_s);
+        let total_s = SHIELD_STEP_S * profile.len() as f64;
+        let travel: f64 = profile.iter().map(|v| v.abs() * SHIELD_STEP_S).sum();
         let near: Vec<&Return> = points
             .iter()
             .filter(|p| {
-                let reach = travel + crate::norm(p.velocity.0, p.velocity.1) * horizon_s;
+                let reach = travel + crate::norm(p.velocity.0, p.velocity.1) * total_s;
                 crate::norm(p.at.0, p.at.1) - keep(p) - self.radius - reach <= FAR_SLACK_M
             })
             .collect();
@@ -474,9 +508,9 @@ impl Shield {
         let now = excess_at(0.0, 0.0, 0.0);
         let (mut x, mut y, mut yaw) = (0.0_f64, 0.0_f64, 0.0_f64);
         let mut t = 0.0;
-        while t < horizon_s - 1e-9 {
-            x += command.linear * yaw.cos() * SHIELD_STEP_S;
-            y += command.linear * yaw.sin() * SHIELD_STEP_S;
+        for v in profile {
+            x += v * yaw.cos() * SHIELD_STEP_S;
+            y += v * yaw.sin() * SHIELD_STEP_S;
             yaw += command.angular * SHIELD_STEP_S;
             t += SHIELD_STEP_S;
             let e = excess_at(x, y, t);
@@ -487,9 +521,38 @@ impl Shield {
         true
     }
 
+    /// The forward speed of each look-ahead step for `command` from speed `v0`: the command's
+    /// for the horizon without acceleration limits; with them, towards it as fast as the drive
+    /// can for the horizon less the braking time from it (one step at least), then braking to
+    /// rest.
+    fn speed_profile(&self, command: f64, v0: f64, horizon_s: f64) -> Vec<f64> {
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "the horizon is a few seconds, the braking time bounded by speed / decel"
+        )]
+        let steps = |s: f64| (s / SHIELD_STEP_S - 1e-9).ceil().max(1.0) as usize;
+        let Some((a, b)) = self.braking else {
+            return vec![command; steps(horizon_s)];
+        };
+        let hold = steps((horizon_s - command.abs() / b).max(SHIELD_STEP_S));
+        let mut out = Vec::with_capacity(hold + 32);
+        let mut v = v0;
+        for _ in 0..hold {
+            v = approach(v, command, a * SHIELD_STEP_S, b * SHIELD_STEP_S);
+            out.push(v);
+        }
+        // Brake to rest (bounded: at most speed / decel of them).
+        while v.abs() > 1e-9 && out.len() < 1000 {
+            v = approach(v, 0.0, a * SHIELD_STEP_S, b * SHIELD_STEP_S);
+            out.push(v);
+        }
+        out
+    }
+
     /// The fastest share of `wanted`'s forward speed that keeps the shield's margins from
     /// `points`, `None` when not even a crawl does.
-    fn fastest_safe(&self, wanted: Action, points: &[Return]) -> Option<Action> {
+    fn fastest_safe(&self, wanted: Action, points: &[Return], v0: f64) -> Option<Action> {
         SHIELD_SCALES
             .into_iter()
             .filter(|scale| *scale > 0.0)
@@ -497,7 +560,19 @@ impl Shield {
                 linear: wanted.linear * scale,
                 angular: wanted.angular,
             })
-            .find(|command| self.keeps(*command, points, SHIELD_MARGIN_M))
+            .find(|command| self.keeps(*command, points, SHIELD_MARGIN_M, v0))
+    }
+
+    /// Blocked (not even a crawl keeps the margins): counts it when braking from `v0` does not
+    /// keep them either, the robot too fast to stop in the room it has.
+    fn note_blocked(&self, points: &[Return], v0: f64) {
+        if self.braking.is_some()
+            && v0 > 0.0
+            && !self.keeps(Action::new(0.0, 0.0), points, SHIELD_MARGIN_M, v0)
+        {
+            self.short_stops
+                .set(self.short_stops.get().saturating_add(1));
+        }
     }
 
     /// `wanted` for a controller that keeps to the map's free space on its own, as a path
@@ -529,9 +604,12 @@ impl Shield {
         let held = if people.is_empty() {
             wanted
         } else {
-            match self.fastest_safe(wanted, &people) {
+            match self.fastest_safe(wanted, &people, current_speed(obs)) {
                 Some(command) => command,
-                None => return stop,
+                None => {
+                    self.note_blocked(&people, current_speed(obs));
+                    return stop;
+                }
             }
         };
         // The last moment, on the map: the arc of the command, every control step.
@@ -558,9 +636,10 @@ impl Shield {
         if points.is_empty() {
             return wanted;
         }
-        if let Some(command) = self.fastest_safe(wanted, &points) {
+        if let Some(command) = self.fastest_safe(wanted, &points, current_speed(obs)) {
             return command;
         }
+        self.note_blocked(&points, current_speed(obs));
         // Blocked: turn in place, towards the waypoint when it is to one side, else towards
         // the side with more room.
         let bearing = f64::from(obs.goal_angle);
@@ -581,6 +660,36 @@ impl Shield {
             linear: 0.0,
             angular: side * angular_max,
         }
+    }
+}
+
+/// The robot's forward speed now, from the odometry in `obs`.
+fn current_speed(obs: &Observation) -> f64 {
+    f64::from(obs.velocity[0])
+}
+
+/// The linear acceleration and deceleration of `drive`, when its model gives either.
+fn braking_of(drive: &crate::spec::DiffDriveSpec) -> Option<(f64, f64)> {
+    let a = drive.max_linear_acceleration.filter(|a| *a > 0.0);
+    let b = drive.max_linear_deceleration.filter(|b| *b > 0.0).or(a);
+    match (a, b) {
+        (None, None) => None,
+        (a, b) => Some((a.unwrap_or(f64::INFINITY), b.unwrap_or(f64::INFINITY))),
+    }
+}
+
+/// `v` moved towards `target` by at most `up` when speeding up (away from zero) and `down`
+/// when slowing down, as the drive does.
+fn approach(v: f64, target: f64, up: f64, down: f64) -> f64 {
+    if target == v {
+        return v;
+    }
+    let slowing = target.abs() < v.abs() || target.signum() != v.signum() && v != 0.0;
+    let step = if slowing { down } else { up };
+    if target > v {
+        (v + step).min(target)
+    } else {
+        (v - step).max(target)
     }
 }
 
@@ -634,6 +743,8 @@ mod tests {
             radius: 0.2,
             motion: Motion::default(),
             scratch: Scratch::default(),
+            braking: None,
+            short_stops: std::cell::Cell::new(0),
         }
     }
 
@@ -736,5 +847,51 @@ mod tests {
             w.observe(&wall, 0.1);
         }
         assert!(!w.sees_motion());
+    }
+
+    #[test]
+    fn with_a_deceleration_limit_the_shield_slows_down_in_time_and_says_when_it_cannot_stop() {
+        // A wall 2.5 m ahead, the robot at 0.8 m/s. Without limits the full speed keeps the
+        // margin for the horizon (1.2 m) and stopping is instant.
+        let free = shield();
+        let obs = |s: &Shield, v: f32| Observation {
+            velocity: [v, 0.0],
+            ..scan(s, Some(2.5), None)
+        };
+        let go = Action::new(0.8, 0.0);
+        assert_eq!(free.filter(go, &obs(&free, 0.8), 0.5), go);
+        // Braking at 0.3 m/s² takes 1.07 m from 0.8 m/s: the shield must keep that room too.
+        let braking = Shield {
+            braking: Some((0.3, 0.3)),
+            ..shield()
+        };
+        assert!((braking.braking_distance(0.8) - 0.8 * 0.8 / 0.6).abs() < 1e-12);
+        assert_eq!(braking.filter(go, &obs(&braking, 0.8), 0.5), go);
+        // 1.0 m ahead at 0.8 m/s. The look-ahead at a constant speed finds a slower command
+        // safe (0.36 m/s for 1.5 s is 0.54 m), but the robot cannot be at 0.36 m/s in time: it
+        // brakes from 0.8 m/s and needs 1.07 m. The shield with the limit knows that nothing
+        // keeps the margin any more, stops as hard as it can, and counts it.
+        let late = Observation {
+            velocity: [0.8, 0.0],
+            ..scan(&braking, Some(1.0), None)
+        };
+        let naive = free.filter(go, &late, 0.5);
+        assert!(naive.linear > 0.0 && naive.linear < go.linear, "{naive:?}");
+        assert_eq!(braking.could_not_stop(), 0);
+        assert_eq!(braking.filter(go, &late, 0.5).linear, 0.0);
+        assert_eq!(braking.could_not_stop(), 1);
+        // Coming at the same wall slowly (0.3 m/s), it may speed up: it can still stop short.
+        let slow = Observation {
+            velocity: [0.3, 0.0],
+            ..scan(&braking, Some(1.0), None)
+        };
+        assert_eq!(braking.filter(go, &slow, 0.5), go);
+        // Standing still inside its margin, it is blocked but not short of a stop.
+        let standing = Observation {
+            velocity: [0.0, 0.0],
+            ..scan(&braking, Some(0.25), None)
+        };
+        assert_eq!(braking.filter(go, &standing, 0.5).linear, 0.0);
+        assert_eq!(braking.could_not_stop(), 1);
     }
 }

@@ -133,9 +133,9 @@ pub struct PlanOptions {
     /// robust it is across crowds (`people.draws`); 0-20, default 0. Ignored without people.
     #[schema(minimum = 0, maximum = 20)]
     pub people_draws: u32,
-    /// The controller that drives the rehearsal: `auto` (default: the one measured best on
-    /// this floor state, never one measurably worse than another available; Regulated Pure
-    /// Pursuit until the robot's policy has been measured there), `hybrid` (the policy, the
+    /// The controller that drives the rehearsal: `auto` (default: Regulated Pure Pursuit,
+    /// unless the floor state's trial measured another doing measurably better than it there;
+    /// RPP until the robot's policy has been measured there), `hybrid` (the policy, the
     /// classical follower taking over near obstacles), `hybrid_rpp` (the policy, Regulated
     /// Pure Pursuit taking over), `hybrid_path` (the same, the policy steering to a carrot on
     /// the smoothed path instead of to each waypoint), `rpp` (Nav2's Regulated Pure Pursuit), `mppi` (Nav2's MPPI),
