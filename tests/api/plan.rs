@@ -902,3 +902,48 @@ async fn a_validate_job_answers_what_the_plan_endpoint_answers() {
     }
     assert_eq!(validated, answered);
 }
+
+/// Both bundled robot models plan the same route over HTTP, each in its own mental simulation:
+/// the TIAGo-like base (1.0 m/s, 0.5 m/s², round) drives it with its own limits, so its
+/// rehearsal is not the paper's robot's.
+#[tokio::test]
+async fn each_bundled_robot_model_plans_with_its_own_limits() {
+    let app = spawn_app().await;
+    let start = free_near(&app, centroid(&app, "F0-living-room").await).await;
+    let goal = free_near(&app, centroid(&app, "F0-hall").await).await;
+    let ask = |robot: &str| {
+        json!({
+            "robot": robot,
+            "place": "F0",
+            "start": {"x": start.0, "y": start.1, "yaw": 0.0},
+            "goal": {"x": goal.0, "y": goal.1},
+            "options": {"seed": 4, "people": "none", "controller": "rpp", "commit": false}
+        })
+    };
+    let (status, paper) = plan(&app, &ask("R-001")).await;
+    assert_eq!(status, 200, "{paper}");
+    let (status, tiago) = plan(&app, &ask("TB-001")).await;
+    assert_eq!(status, 200, "{tiago}");
+    assert!(
+        tiago["robot"].as_str().unwrap().ends_with("/tiago-base"),
+        "{tiago}"
+    );
+    // RPP is scaled to each robot's top speed.
+    let described = |b: &Value| b["controller_description"].as_str().unwrap().to_owned();
+    assert!(
+        described(&paper).contains("up to 0.8 m/s"),
+        "{}",
+        described(&paper)
+    );
+    assert!(
+        described(&tiago).contains("up to 1 m/s"),
+        "{}",
+        described(&tiago)
+    );
+    let (a, b) = (
+        paper["simulated_time_s"].as_f64().unwrap(),
+        tiago["simulated_time_s"].as_f64().unwrap(),
+    );
+    assert!(a > 0.0 && b > 0.0 && (a - b).abs() > 1e-6, "{a} {b}");
+    app.stop().await;
+}

@@ -24,7 +24,7 @@ use sim::{Action, Pose2, World};
 
 use crate::controller::{Controller, PolicyController};
 use crate::error::{PlanError, invalid};
-use crate::executor::{DriveLimits, drive, env_config};
+use crate::executor::{DriveLimits, drive, env_config_for};
 use crate::types::AttemptOutcome;
 
 /// Most rollouts per edge and direction one request may ask for.
@@ -372,7 +372,7 @@ where
             ),
         ));
     }
-    let mut env = env_config(beams, params.noise);
+    let mut env = env_config_for(world, beams, params.noise);
     env.record_trajectory = false;
     env.people = sim::PeopleConfig {
         density: params.people_density,

@@ -125,7 +125,7 @@ impl<'c> Driver<'c> {
     ) -> Result<Self, PlanError> {
         let beams = controller_beams(world, controller)?;
         controller.attach(world, beams);
-        let mut env = env_config(beams, opts.noise);
+        let mut env = env_config_for(world, beams, opts.noise);
         env.people = opts.people.clone();
         if let Some(t) = controller.goal_tolerance() {
             env.goal_tolerance = t;
@@ -292,8 +292,9 @@ impl<'v, 'c> Validation<'v, 'c> {
         check_request(request)?;
         let policy_roadmap = policy_roadmap.filter(|_| opts.roadmap != RoadmapChoice::Geometric);
         let primary = controller.kind();
-        let description = controller.description();
         let mut drivers = vec![Driver::new(world, opts, controller)?];
+        // Described once attached: a controller scales itself to the robot it drives.
+        let description = drivers[0].controller.description();
         if let Some(f) = fallback {
             drivers.push(Driver::new(world, opts, f)?);
         }
@@ -861,7 +862,27 @@ fn controller_beams(world: &World, controller: &dyn Controller) -> Result<usize,
 /// policy and the follower never command it), the trajectory recorded, no step limit (the
 /// executor's timers bound the run).
 pub fn env_config(beams: usize, noise: bool) -> EnvConfig {
-    let limits = sim::CommandLimits::default();
+    env_config_with(sim::CommandLimits::default(), beams, noise)
+}
+
+/// The command limits of the robot of `world`: its model's top speeds, the simulation's
+/// defaults (the paper's robot's 0.8 m/s and 0.5 rad/s) where its model gives none.
+pub fn command_limits(world: &World) -> sim::CommandLimits {
+    let d = &world.spec().robot.drive;
+    let defaults = sim::CommandLimits::default();
+    sim::CommandLimits {
+        linear_max: d.max_linear_speed.unwrap_or(defaults.linear_max),
+        angular_max: d.max_angular_speed.unwrap_or(defaults.angular_max),
+        ..defaults
+    }
+}
+
+/// [`env_config`] for the robot of `world`, at its own top speeds ([`command_limits`]).
+pub fn env_config_for(world: &World, beams: usize, noise: bool) -> EnvConfig {
+    env_config_with(command_limits(world), beams, noise)
+}
+
+fn env_config_with(limits: sim::CommandLimits, beams: usize, noise: bool) -> EnvConfig {
     EnvConfig {
         limits: sim::CommandLimits {
             linear_min: sim::MppiParams::default().vx_min,

@@ -67,9 +67,9 @@ pub use edges::{
 pub use error::{BlockedReason, Endpoint, PlanError};
 pub use executor::{
     AttemptDetails, Detailed, DriveLimits, DriveRun, MAX_PEOPLE_DRAWS, PERSON_COLLISION,
-    ROBOT_COLLISION, Replanner, check_endpoints, check_request, config_space, drive, env_config,
-    follower_for, hit_person, recoveries_for, validate, validate_detailed, validate_with,
-    validate_with_fallback,
+    ROBOT_COLLISION, Replanner, check_endpoints, check_request, command_limits, config_space,
+    drive, env_config, env_config_for, follower_for, hit_person, recoveries_for, validate,
+    validate_detailed, validate_with, validate_with_fallback,
 };
 pub use limit_time::LineLimits;
 pub use nav2::{ControllerChoice, MppiController, MppiCycles, RppController};

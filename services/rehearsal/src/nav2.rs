@@ -407,7 +407,7 @@ impl Controller for RppController {
 
     fn attach(&mut self, world: &Arc<World>, beams: usize) {
         let r = world.spec().robot.footprint_radius;
-        let lim = sim::CommandLimits::default();
+        let lim = crate::executor::command_limits(world);
         self.params = RppParams::for_robot(r, lim.linear_max, lim.angular_max);
         self.tracker.attach(world, beams);
     }
@@ -486,6 +486,9 @@ pub struct MppiController {
     tracker: Tracker,
     seed: u64,
     cycles: MppiCycles,
+    /// Whether its parameters are Nav2's defaults scaled to the robot it is attached to
+    /// ([`MppiController::new`]) rather than given ([`MppiController::with_params`]).
+    scaled: bool,
 }
 
 impl Default for MppiController {
@@ -498,7 +501,10 @@ impl MppiController {
     /// MPPI with Nav2's defaults for the paper's robot at the simulator's control period, its
     /// sampling seeded with `seed` (and the attempt), behind the shield.
     pub fn new(seed: u64) -> Self {
-        Self::with_params(MppiParams::default(), seed)
+        Self {
+            scaled: true,
+            ..Self::with_params(MppiParams::default(), seed)
+        }
     }
 
     /// MPPI with `params`.
@@ -512,6 +518,7 @@ impl MppiController {
                 time_steps: params.time_steps,
                 ..MppiCycles::default()
             },
+            scaled: false,
         }
     }
 
@@ -589,6 +596,13 @@ impl Controller for MppiController {
     }
 
     fn attach(&mut self, world: &Arc<World>, beams: usize) {
+        if self.scaled {
+            let lim = crate::executor::command_limits(world);
+            let params = MppiParams::for_robot(lim.linear_max, lim.angular_max, DT);
+            if params != MppiParams::default() {
+                self.mppi = Mppi::new(params, self.seed);
+            }
+        }
         self.tracker.attach(world, beams);
     }
 

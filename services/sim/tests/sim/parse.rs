@@ -187,7 +187,8 @@ fn a_drive_with_three_active_wheels_is_refused() {
 fn building_and_robot_without_dynamics() -> Graph {
     let mut g = Graph::new();
     load(&mut g, "environments/sample-building.ttl");
-    let text = std::fs::read_to_string(ontology("robots/differential-robot.ttl")).unwrap();
+    let text = std::fs::read_to_string(ontology("robots/differential-robot.ttl"))
+        .expect("the bundled robot");
     let kept: String = text
         .lines()
         .filter(|l| {
