@@ -881,7 +881,16 @@ impl<'d, 'r> Drive<'d, 'r> {
             handover_steps: m.handover_steps,
             min_robot_clearance_m: m.min_robot,
             min_person_clearance_m: m.min_person,
-            social: m.social.metrics(),
+            social: {
+                // The drive itself drove the line within the limits, so the line's limit time
+                // is never more than its time: the simulated drive changes speed at step
+                // boundaries, up to half a step ahead of the continuous profile per change.
+                let social = m.social.metrics();
+                SocialMetrics {
+                    limit_time_s: social.limit_time_s.min(m.time_s),
+                    ..social
+                }
+            },
             recoveries: self.recoveries,
         }
     }

@@ -164,22 +164,29 @@ pub fn limit_time_between(
         let d = steps[i].0.abs();
         v[i] = v[i].min((v[i + 1] * v[i + 1] + 2.0 * b * d).sqrt());
     }
-    steps
-        .iter()
-        .enumerate()
-        .map(|(i, &(d, theta))| {
-            let d = d.abs();
-            if d < ON_THE_SPOT_M {
-                if theta.abs() > 0.0 {
-                    spot_turn_time(theta, wmax, aa, ab)
-                } else {
-                    0.0
-                }
-            } else {
-                segment_time(d, v[i], v[i + 1], caps[i], a, b)
+    // Consecutive steps on the spot turning the same way are one turn, from rest to rest.
+    let mut total = 0.0;
+    let mut turn = 0.0f64;
+    for (i, &(d, theta)) in steps.iter().enumerate() {
+        let d = d.abs();
+        if d < ON_THE_SPOT_M {
+            if turn != 0.0 && theta != 0.0 && theta.signum() != turn.signum() {
+                total += spot_turn_time(turn, wmax, aa, ab);
+                turn = 0.0;
             }
-        })
-        .sum()
+            turn += theta;
+            continue;
+        }
+        if turn != 0.0 {
+            total += spot_turn_time(turn, wmax, aa, ab);
+            turn = 0.0;
+        }
+        total += segment_time(d, v[i], v[i + 1], caps[i], a, b);
+    }
+    if turn != 0.0 {
+        total += spot_turn_time(turn, wmax, aa, ab);
+    }
+    total
 }
 
 #[cfg(test)]
@@ -245,6 +252,12 @@ mod tests {
         );
         let leg = 4.0;
         let turn = 2.0 + std::f64::consts::FRAC_PI_2 - 1.0;
+        assert!(close(t, 2.0 * leg + turn), "{t}");
+        // The same quarter turn in ten control steps is one turn, not ten.
+        let mut split = vec![(1.0, 0.0), (1.0, 0.0)];
+        split.extend(vec![(0.0, std::f64::consts::FRAC_PI_2 / 10.0); 10]);
+        split.extend([(1.0, 0.0), (1.0, 0.0)]);
+        let t = limit_time(&split, &limits);
         assert!(close(t, 2.0 * leg + turn), "{t}");
         // The same line without limits: 4 s and π/2 s.
         let t = limit_time(

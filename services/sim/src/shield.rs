@@ -70,7 +70,7 @@ pub struct Shield {
     /// Buffers [`Shield::observe`] reuses from scan to scan (it runs every control step).
     scratch: Scratch,
     /// The drive's linear acceleration and deceleration, m/s², when its model has them: the
-    /// look-ahead then speeds up and brakes as the drive can, and always ends at rest.
+    /// look-ahead then brakes as the drive can, and always ends at rest.
     braking: Option<(f64, f64)>,
     /// How often the shield found it could no longer stop short of its margins (blocked while
     /// moving too fast to stop in the room left): [`Shield::could_not_stop`].
@@ -459,10 +459,9 @@ impl Shield {
     /// unless it is not getting any closer to them than it is now (driving along a wall). A
     /// moving return is rolled forward with its velocity, and since a walker may stop at any
     /// moment, the whole stretch it would walk counts, not only where it would be.
-    /// With the drive's acceleration limits (`braking`), the look-ahead starts at the robot's
-    /// speed now (`v0`), reaches the command's as fast as the drive can, and ends braking to
-    /// rest: the command is held for the horizon less the time braking from it takes (one
-    /// control step at least), so whatever the shield allows it can still stop short of.
+    /// With the drive's deceleration (`braking`), the look-ahead holds the command for the
+    /// horizon (slowing to it from the speed now, `v0`, no faster than the drive brakes) and
+    /// then brakes to rest: whatever the shield allows it can still stop short of.
     fn keeps(&self, command: Action, points: &[Return], margin: f64, v0: f64) -> bool {
         self.keeps_for(command, points, margin, SHIELD_HORIZON_S, v0)
     }
@@ -489,15 +488,18 @@ impl Shield {
         let near: Vec<&Return> = points
             .iter()
             .filter(|p| {
-                let reach = travel + crate::norm(p.velocity.0, p.velocity.1) * total_s;
+                let reach =
+                    travel + crate::norm(p.velocity.0, p.velocity.1) * total_s.min(horizon_s);
                 crate::norm(p.at.0, p.at.1) - keep(p) - self.radius - reach <= FAR_SLACK_M
             })
             .collect();
         if near.is_empty() {
             return true;
         }
-        // Room beyond the margins at (x, y) after t seconds: negative inside one.
+        // Room beyond the margins at (x, y) after t seconds: negative inside one. What moves is
+        // predicted over the horizon only (the braking past it is the robot's own motion).
         let excess_at = |x: f64, y: f64, t: f64| {
+            let t = t.min(horizon_s);
             near.iter()
                 .map(|p| {
                     let ahead = (p.at.0 + p.velocity.0 * t, p.at.1 + p.velocity.1 * t);
@@ -522,9 +524,8 @@ impl Shield {
     }
 
     /// The forward speed of each look-ahead step for `command` from speed `v0`: the command's
-    /// for the horizon without acceleration limits; with them, towards it as fast as the drive
-    /// can for the horizon less the braking time from it (one step at least), then braking to
-    /// rest.
+    /// for the horizon without a deceleration limit; with one, the command's (or slowing down
+    /// to it from a faster `v0`) for the horizon, then braking to rest.
     fn speed_profile(&self, command: f64, v0: f64, horizon_s: f64) -> Vec<f64> {
         #[allow(
             clippy::cast_possible_truncation,
@@ -532,19 +533,24 @@ impl Shield {
             reason = "the horizon is a few seconds, the braking time bounded by speed / decel"
         )]
         let steps = |s: f64| (s / SHIELD_STEP_S - 1e-9).ceil().max(1.0) as usize;
-        let Some((a, b)) = self.braking else {
+        let Some((_, b)) = self.braking else {
             return vec![command; steps(horizon_s)];
         };
-        let hold = steps((horizon_s - command.abs() / b).max(SHIELD_STEP_S));
-        let mut out = Vec::with_capacity(hold + 32);
-        let mut v = v0;
-        for _ in 0..hold {
-            v = approach(v, command, a * SHIELD_STEP_S, b * SHIELD_STEP_S);
+        // Held for the whole horizon at the command's speed, or slowing down to it no faster
+        // than the drive brakes when faster now; then braking to rest.
+        let mut out = Vec::with_capacity(steps(horizon_s) + 32);
+        let mut v = v0.max(0.0);
+        for _ in 0..steps(horizon_s) {
+            v = if v > command {
+                (v - b * SHIELD_STEP_S).max(command)
+            } else {
+                command
+            };
             out.push(v);
         }
         // Brake to rest (bounded: at most speed / decel of them).
         while v.abs() > 1e-9 && out.len() < 1000 {
-            v = approach(v, 0.0, a * SHIELD_STEP_S, b * SHIELD_STEP_S);
+            v = (v.abs() - b * SHIELD_STEP_S).max(0.0).copysign(v);
             out.push(v);
         }
         out
@@ -675,21 +681,6 @@ fn braking_of(drive: &crate::spec::DiffDriveSpec) -> Option<(f64, f64)> {
     match (a, b) {
         (None, None) => None,
         (a, b) => Some((a.unwrap_or(f64::INFINITY), b.unwrap_or(f64::INFINITY))),
-    }
-}
-
-/// `v` moved towards `target` by at most `up` when speeding up (away from zero) and `down`
-/// when slowing down, as the drive does.
-fn approach(v: f64, target: f64, up: f64, down: f64) -> f64 {
-    if target == v {
-        return v;
-    }
-    let slowing = target.abs() < v.abs() || target.signum() != v.signum() && v != 0.0;
-    let step = if slowing { down } else { up };
-    if target > v {
-        (v + step).min(target)
-    } else {
-        (v - step).max(target)
     }
 }
 
@@ -880,12 +871,15 @@ mod tests {
         assert_eq!(braking.could_not_stop(), 0);
         assert_eq!(braking.filter(go, &late, 0.5).linear, 0.0);
         assert_eq!(braking.could_not_stop(), 1);
-        // Coming at the same wall slowly (0.3 m/s), it may speed up: it can still stop short.
+        // Coming at the same wall slowly (0.3 m/s), it is not blocked: it goes on at a speed
+        // it can still stop from, and nothing is counted.
         let slow = Observation {
             velocity: [0.3, 0.0],
             ..scan(&braking, Some(1.0), None)
         };
-        assert_eq!(braking.filter(go, &slow, 0.5), go);
+        let on = braking.filter(go, &slow, 0.5);
+        assert!(on.linear > 0.0 && on.linear < go.linear, "{on:?}");
+        assert_eq!(braking.could_not_stop(), 1);
         // Standing still inside its margin, it is blocked but not short of a stop.
         let standing = Observation {
             velocity: [0.0, 0.0],
