@@ -206,7 +206,7 @@ fn building_and_robot_without_dynamics() -> Graph {
 
 #[test]
 fn the_robots_acceleration_limits_reach_its_drive_and_bound_it() {
-    // The bundled robot carries the Pioneer 3-DX controller's defaults.
+    // The bundled robot carries no acceleration limits yet (see its file).
     let spec = parse_floor(&building_and_robot(), ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
     let d = &spec.robot.drive;
     assert_eq!(
@@ -217,7 +217,7 @@ fn the_robots_acceleration_limits_reach_its_drive_and_bound_it() {
             d.max_angular_deceleration,
             d.control_latency
         ),
-        (Some(0.3), Some(0.3), Some(1.745), Some(1.745), None)
+        (None, None, None, None, None)
     );
     let mut g = building_and_robot_without_dynamics();
     let spec = parse_floor(&g, ROBOT, FLOOR0).unwrap_or_else(|p| panic!("{p}"));
