@@ -451,7 +451,7 @@ impl Shield {
     /// [`PERSON_MARGIN_M`]), as the shield checks its own margin.
     pub fn keeps_margin(&self, command: Action, obs: &Observation, margin: f64) -> bool {
         let points = self.returns(obs);
-        points.is_empty() || self.keeps(command, &points, margin, current_speed(obs))
+        points.is_empty() || self.keeps(command, &points, margin)
     }
 
     /// Whether driving `command` for [`SHIELD_HORIZON_S`] keeps the footprint clear of
@@ -459,15 +459,10 @@ impl Shield {
     /// unless it is not getting any closer to them than it is now (driving along a wall). A
     /// moving return is rolled forward with its velocity, and since a walker may stop at any
     /// moment, the whole stretch it would walk counts, not only where it would be.
-    /// With the drive's deceleration (`braking`), the look-ahead holds the command for the
-    /// horizon (slowing to it from the speed now, `v0`, no faster than the drive brakes) and
-    /// then brakes to rest: whatever the shield allows it can still stop short of.
-    fn keeps(&self, command: Action, points: &[Return], margin: f64, v0: f64) -> bool {
-        // The shield's decisions keep the constant-speed look-ahead: with the braking tail the
-        // fleet benches' crossing and doorway deadlocked (robots held each other for good).
-        // The braking look-ahead only says when the robot could no longer stop
-        // ([`Shield::could_not_stop`]).
-        let _ = v0;
+    /// The command is held at a constant speed: with a braking tail the fleet benches' crossing
+    /// and doorway deadlocked, so the braking look-ahead only says when the robot could no
+    /// longer stop ([`Shield::could_not_stop`]).
+    fn keeps(&self, command: Action, points: &[Return], margin: f64) -> bool {
         self.keeps_for(command, points, margin, SHIELD_HORIZON_S, None)
     }
 
@@ -487,10 +482,7 @@ impl Shield {
         // `FAR_SLACK_M` never comes within a margin: it cannot decide below (it only ever adds
         // a positive room, and the test is for a negative one smaller than the room now).
         // Leaving such returns out is exact and spares most of them the look-ahead.
-        let profile = match braking_from {
-            Some(v0) => self.speed_profile(command.linear, v0, horizon_s),
-            None => self.speed_profile_constant(command.linear, horizon_s),
-        };
+        let profile = self.speed_profile(command.linear, braking_from, horizon_s);
         let total_s = SHIELD_STEP_S * profile.len() as f64;
         let travel: f64 = profile.iter().map(|v| v.abs() * SHIELD_STEP_S).sum();
         let near: Vec<&Return> = points
@@ -534,24 +526,14 @@ impl Shield {
     /// The forward speed of each look-ahead step for `command` from speed `v0`: the command's
     /// for the horizon without a deceleration limit; with one, the command's (or slowing down
     /// to it from a faster `v0`) for the horizon, then braking to rest.
-    fn speed_profile_constant(&self, command: f64, horizon_s: f64) -> Vec<f64> {
-        #[allow(
-            clippy::cast_possible_truncation,
-            clippy::cast_sign_loss,
-            reason = "the horizon is a few seconds"
-        )]
-        let steps = (horizon_s / SHIELD_STEP_S - 1e-9).ceil().max(1.0) as usize;
-        vec![command; steps]
-    }
-
-    fn speed_profile(&self, command: f64, v0: f64, horizon_s: f64) -> Vec<f64> {
+    fn speed_profile(&self, command: f64, braking_from: Option<f64>, horizon_s: f64) -> Vec<f64> {
         #[allow(
             clippy::cast_possible_truncation,
             clippy::cast_sign_loss,
             reason = "the horizon is a few seconds, the braking time bounded by speed / decel"
         )]
         let steps = |s: f64| (s / SHIELD_STEP_S - 1e-9).ceil().max(1.0) as usize;
-        let Some((_, b)) = self.braking else {
+        let (Some((_, b)), Some(v0)) = (self.braking, braking_from) else {
             return vec![command; steps(horizon_s)];
         };
         // Held for the whole horizon at the command's speed, or slowing down to it no faster
@@ -576,7 +558,7 @@ impl Shield {
 
     /// The fastest share of `wanted`'s forward speed that keeps the shield's margins from
     /// `points`, `None` when not even a crawl does.
-    fn fastest_safe(&self, wanted: Action, points: &[Return], v0: f64) -> Option<Action> {
+    fn fastest_safe(&self, wanted: Action, points: &[Return]) -> Option<Action> {
         SHIELD_SCALES
             .into_iter()
             .filter(|scale| *scale > 0.0)
@@ -584,7 +566,7 @@ impl Shield {
                 linear: wanted.linear * scale,
                 angular: wanted.angular,
             })
-            .find(|command| self.keeps(*command, points, SHIELD_MARGIN_M, v0))
+            .find(|command| self.keeps(*command, points, SHIELD_MARGIN_M))
     }
 
     /// Blocked (not even a crawl keeps the margins): counts it when braking from `v0` does not
@@ -634,7 +616,7 @@ impl Shield {
         let held = if people.is_empty() {
             wanted
         } else {
-            match self.fastest_safe(wanted, &people, current_speed(obs)) {
+            match self.fastest_safe(wanted, &people) {
                 Some(command) => command,
                 None => {
                     self.note_blocked(&people, current_speed(obs));
@@ -666,7 +648,7 @@ impl Shield {
         if points.is_empty() {
             return wanted;
         }
-        if let Some(command) = self.fastest_safe(wanted, &points, current_speed(obs)) {
+        if let Some(command) = self.fastest_safe(wanted, &points) {
             return command;
         }
         self.note_blocked(&points, current_speed(obs));
