@@ -30,7 +30,10 @@ def test_places_and_robots(robot: Client) -> None:
     assert f0.id == "F0" and f0.map is not None and f0.map.resolution > 0
     assert len(f0.boundary) >= 3
     robots = robot.robots()
-    assert [r.iri for r in robots] == [ROBOT_IRI]
+    # The thesis's robot and the TIAGo-like base are bundled.
+    assert sorted(r.iri for r in robots) == sorted([ROBOT_IRI, "https://mentalsim.dev/data/robots/tiago-base"])
+    tiago = next(r for r in robots if r.id == "TB-001")
+    assert tiago.footprint is not None and tiago.lasers >= 1
     r = robot.robot("R-001")
     assert r.iri == ROBOT_IRI and r.lasers >= 1 and r.footprint is not None and r.wheel_separation
     urdf = robot.robot_urdf("R-001")
